@@ -1,0 +1,202 @@
+//! The `Field` trait: what every polygonizer evaluates.
+
+use glam::DVec3;
+
+use crate::Aabb;
+
+/// A scalar field `f: R³ → R` whose zero set is the surface.
+///
+/// Convention (DESIGN.md): **inside is `f < 0`**, outside `f > 0`, and the outward normal is
+/// `∇f / |∇f|`. A field may return NaN or ±∞ at some points; polygonizers report that rather
+/// than panic.
+///
+/// Only [`Field::eval`] is required. Polygonizers call the batch methods, so a field that can
+/// evaluate many points faster than one at a time (the compiled formulas do) should override
+/// them. Implementations must be deterministic: the same point gives the same value on every
+/// thread and every call, which is what makes meshes independent of the thread count.
+pub trait Field: Send + Sync {
+    /// The value at one point.
+    fn eval(&self, p: DVec3) -> f64;
+
+    /// Values at many points: `out[i] = f(points[i])`. `out.len()` must equal `points.len()`.
+    fn eval_many(&self, points: &[DVec3], out: &mut [f64]) {
+        debug_assert_eq!(points.len(), out.len());
+        for (p, o) in points.iter().zip(out.iter_mut()) {
+            *o = self.eval(*p);
+        }
+    }
+
+    /// The gradient at one point. The default takes central differences with step
+    /// [`Field::gradient_step`]; fields with a closed form should override it.
+    fn gradient(&self, p: DVec3) -> DVec3 {
+        let h = self.gradient_step();
+        let d = |e: DVec3| (self.eval(p + e * h) - self.eval(p - e * h)) / (2.0 * h);
+        DVec3::new(d(DVec3::X), d(DVec3::Y), d(DVec3::Z))
+    }
+
+    /// Values and gradients at many points.
+    fn eval_grad_many(&self, points: &[DVec3], values: &mut [f64], grads: &mut [DVec3]) {
+        debug_assert_eq!(points.len(), values.len());
+        debug_assert_eq!(points.len(), grads.len());
+        self.eval_many(points, values);
+        for (p, g) in points.iter().zip(grads.iter_mut()) {
+            *g = self.gradient(*p);
+        }
+    }
+
+    /// Step for finite-difference gradients. Polygonizers do not change it; fields that
+    /// know their own scale may.
+    fn gradient_step(&self) -> f64 {
+        1e-5
+    }
+
+    /// Whether [`Field::gradient`] is exact (analytic or automatic differentiation) rather
+    /// than a finite difference. Reported in statistics; never changes results.
+    fn has_exact_gradient(&self) -> bool {
+        false
+    }
+
+    /// A box known to hold the whole surface, when the field knows one.
+    fn bounds(&self) -> Option<Aabb> {
+        None
+    }
+}
+
+/// Smart pointers and references to fields are fields.
+macro_rules! forward_field {
+    ($($ty:ty),*) => {$(
+        impl<F: Field + ?Sized> Field for $ty {
+            fn eval(&self, p: DVec3) -> f64 {
+                (**self).eval(p)
+            }
+            fn eval_many(&self, points: &[DVec3], out: &mut [f64]) {
+                (**self).eval_many(points, out)
+            }
+            fn gradient(&self, p: DVec3) -> DVec3 {
+                (**self).gradient(p)
+            }
+            fn eval_grad_many(&self, points: &[DVec3], values: &mut [f64], grads: &mut [DVec3]) {
+                (**self).eval_grad_many(points, values, grads)
+            }
+            fn gradient_step(&self) -> f64 {
+                (**self).gradient_step()
+            }
+            fn has_exact_gradient(&self) -> bool {
+                (**self).has_exact_gradient()
+            }
+            fn bounds(&self) -> Option<Aabb> {
+                (**self).bounds()
+            }
+        }
+    )*};
+}
+
+forward_field!(&F, Box<F>, std::sync::Arc<F>);
+
+/// A field from a closure, for tests and quick experiments.
+///
+/// ```
+/// use skelform_field::{Field, FnField};
+/// use glam::DVec3;
+/// let sphere = FnField(|p: DVec3| p.length() - 1.0);
+/// assert!(sphere.eval(DVec3::ZERO) < 0.0);
+/// ```
+#[derive(Clone, Copy)]
+pub struct FnField<F>(pub F);
+
+impl<F: Fn(DVec3) -> f64 + Send + Sync> Field for FnField<F> {
+    fn eval(&self, p: DVec3) -> f64 {
+        (self.0)(p)
+    }
+}
+
+/// `f − c`: the level set `f = c` as the zero set.
+#[derive(Clone, Copy, Debug)]
+pub struct Iso<F> {
+    pub field: F,
+    pub iso: f64,
+}
+
+impl<F: Field> Field for Iso<F> {
+    fn eval(&self, p: DVec3) -> f64 {
+        self.field.eval(p) - self.iso
+    }
+    fn eval_many(&self, points: &[DVec3], out: &mut [f64]) {
+        self.field.eval_many(points, out);
+        out.iter_mut().for_each(|v| *v -= self.iso);
+    }
+    fn gradient(&self, p: DVec3) -> DVec3 {
+        self.field.gradient(p)
+    }
+    fn eval_grad_many(&self, points: &[DVec3], values: &mut [f64], grads: &mut [DVec3]) {
+        self.field.eval_grad_many(points, values, grads);
+        values.iter_mut().for_each(|v| *v -= self.iso);
+    }
+    fn gradient_step(&self) -> f64 {
+        self.field.gradient_step()
+    }
+    fn has_exact_gradient(&self) -> bool {
+        self.field.has_exact_gradient()
+    }
+    fn bounds(&self) -> Option<Aabb> {
+        None
+    }
+}
+
+/// `−f`: turns a density that is larger inside into the inside-negative convention.
+#[derive(Clone, Copy, Debug)]
+pub struct Negate<F>(pub F);
+
+impl<F: Field> Field for Negate<F> {
+    fn eval(&self, p: DVec3) -> f64 {
+        -self.0.eval(p)
+    }
+    fn eval_many(&self, points: &[DVec3], out: &mut [f64]) {
+        self.0.eval_many(points, out);
+        out.iter_mut().for_each(|v| *v = -*v);
+    }
+    fn gradient(&self, p: DVec3) -> DVec3 {
+        -self.0.gradient(p)
+    }
+    fn eval_grad_many(&self, points: &[DVec3], values: &mut [f64], grads: &mut [DVec3]) {
+        self.0.eval_grad_many(points, values, grads);
+        values.iter_mut().for_each(|v| *v = -*v);
+        grads.iter_mut().for_each(|g| *g = -*g);
+    }
+    fn gradient_step(&self) -> f64 {
+        self.0.gradient_step()
+    }
+    fn has_exact_gradient(&self) -> bool {
+        self.0.has_exact_gradient()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_gradient_is_close_to_analytic() {
+        let f = FnField(|p: DVec3| p.length_squared() - 1.0);
+        let p = DVec3::new(0.3, -0.4, 0.5);
+        let g = f.gradient(p);
+        assert!((g - 2.0 * p).length() < 1e-6, "{g}");
+    }
+
+    #[test]
+    fn iso_and_negate_adapters() {
+        let density = FnField(|p: DVec3| 1.0 - p.length_squared());
+        let f = Negate(Iso { field: density, iso: 0.75 });
+        // density 0.75 at r = 0.5: surface there, inside negative.
+        assert!(f.eval(DVec3::ZERO) < 0.0);
+        assert!(f.eval(DVec3::new(0.5, 0.0, 0.0)).abs() < 1e-12);
+        assert!(f.eval(DVec3::new(0.9, 0.0, 0.0)) > 0.0);
+        let g = f.gradient(DVec3::new(0.5, 0.0, 0.0));
+        assert!(g.x > 0.0, "outward normal points away from the centre");
+        let mut v = [0.0; 2];
+        let mut gs = [DVec3::ZERO; 2];
+        f.eval_grad_many(&[DVec3::ZERO, DVec3::X], &mut v, &mut gs);
+        assert_eq!(v[0], f.eval(DVec3::ZERO));
+        assert!(gs[1].x > 0.0);
+    }
+}

@@ -1,0 +1,243 @@
+//! Regular lattices over a box, and sampling a field on them.
+
+use std::ops::ControlFlow;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use glam::DVec3;
+use rayon::prelude::*;
+use thiserror::Error;
+
+use crate::control::{Control, Progress};
+use crate::{Aabb, Field};
+
+/// The most samples along one axis (indices must fit `u32` edge numbering downstream).
+pub const MAX_SAMPLES_PER_AXIS: usize = 1 << 15;
+
+/// Why a grid could not be made or sampled.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum GridError {
+    #[error(
+        "the domain box must have positive, finite size on every axis (got min {min:?}, max {max:?})"
+    )]
+    BadDomain { min: [f64; 3], max: [f64; 3] },
+    #[error("the resolution must be at least 2 samples along the longest side (got {0})")]
+    BadResolution(usize),
+    #[error("the cell size must be positive and finite (got {0})")]
+    BadCell(f64),
+    #[error("the grid would have {dims:?} samples; at most {max} are allowed along one axis")]
+    TooLarge { dims: [u64; 3], max: usize },
+    #[error("cancelled")]
+    Cancelled,
+}
+
+/// A lattice of `dims[0] × dims[1] × dims[2]` samples spaced `cell` apart, from `origin`.
+///
+/// Cells are cubes. When a domain's sides are not whole multiples of the cell, the lattice is
+/// grown to the next whole cell and centred on the domain, so it always covers the domain.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Grid {
+    pub origin: DVec3,
+    pub cell: f64,
+    /// Samples (not cells) along x, y, z; each at least 2.
+    pub dims: [usize; 3],
+}
+
+impl Grid {
+    /// `samples` samples along the domain's longest side (so `samples − 1` cells).
+    pub fn with_resolution(domain: &Aabb, samples: usize) -> Result<Grid, GridError> {
+        check_domain(domain)?;
+        if samples < 2 {
+            return Err(GridError::BadResolution(samples));
+        }
+        let longest = domain.size().max_element();
+        Grid::with_cell(domain, longest / (samples - 1) as f64)
+    }
+
+    /// Cells of side `cell` covering the domain.
+    pub fn with_cell(domain: &Aabb, cell: f64) -> Result<Grid, GridError> {
+        check_domain(domain)?;
+        if !(cell.is_finite() && cell > 0.0) {
+            return Err(GridError::BadCell(cell));
+        }
+        let size = domain.size();
+        // A relative slack keeps 2.0 / (2.0 / 100) from becoming 101 cells.
+        let cells = |len: f64| ((len / cell) * (1.0 - 1e-12)).ceil().max(1.0);
+        let n = [cells(size.x), cells(size.y), cells(size.z)];
+        let dims64 = n.map(|c| c as u64 + 1);
+        if dims64.iter().any(|&d| d > MAX_SAMPLES_PER_AXIS as u64) {
+            return Err(GridError::TooLarge { dims: dims64, max: MAX_SAMPLES_PER_AXIS });
+        }
+        let extent = DVec3::new(n[0], n[1], n[2]) * cell;
+        let origin = domain.center() - extent * 0.5;
+        Ok(Grid { origin, cell, dims: dims64.map(|d| d as usize) })
+    }
+
+    /// The position of sample `(i, j, k)`.
+    #[inline]
+    pub fn point(&self, i: usize, j: usize, k: usize) -> DVec3 {
+        self.origin + DVec3::new(i as f64, j as f64, k as f64) * self.cell
+    }
+
+    /// Total number of samples.
+    pub fn sample_count(&self) -> u64 {
+        self.dims.iter().map(|&d| d as u64).product()
+    }
+
+    /// Number of cells (cubes between samples).
+    pub fn cell_count(&self) -> u64 {
+        self.dims.iter().map(|&d| d as u64 - 1).product()
+    }
+
+    /// The box the lattice spans.
+    pub fn bounds(&self) -> Aabb {
+        let n = DVec3::new(
+            (self.dims[0] - 1) as f64,
+            (self.dims[1] - 1) as f64,
+            (self.dims[2] - 1) as f64,
+        );
+        Aabb { min: self.origin, max: self.origin + n * self.cell }
+    }
+
+    /// Linear index of sample `(i, j, k)`: x varies fastest, then y, then z.
+    #[inline]
+    pub fn index(&self, i: usize, j: usize, k: usize) -> usize {
+        i + self.dims[0] * (j + self.dims[1] * k)
+    }
+}
+
+fn check_domain(domain: &Aabb) -> Result<(), GridError> {
+    if domain.is_valid() {
+        Ok(())
+    } else {
+        Err(GridError::BadDomain { min: domain.min.to_array(), max: domain.max.to_array() })
+    }
+}
+
+/// Field values on a [`Grid`], stored as `f32` after subtracting nothing: the field itself is
+/// expected to be zero on the surface (wrap it in [`crate::Iso`] for another level).
+///
+/// Non-finite values are replaced when sampling (NaN and +∞ by `f32::MAX`, −∞ by `-f32::MAX`)
+/// so that extraction never interpolates towards NaN; [`Volume::non_finite`] says how many.
+#[derive(Clone, Debug)]
+pub struct Volume {
+    pub grid: Grid,
+    /// `values[grid.index(i, j, k)]`.
+    pub values: Vec<f32>,
+    /// How many samples were NaN or infinite (and replaced).
+    pub non_finite: u64,
+}
+
+impl Volume {
+    /// A volume from values already computed elsewhere (e.g. read from a raw file).
+    ///
+    /// # Panics
+    /// If `values.len()` is not `grid.sample_count()`.
+    pub fn from_values(grid: Grid, mut values: Vec<f32>) -> Volume {
+        assert_eq!(values.len() as u64, grid.sample_count(), "values do not fill the grid");
+        let non_finite = sanitize(&mut values);
+        Volume { grid, values, non_finite }
+    }
+
+    #[inline]
+    pub fn get(&self, i: usize, j: usize, k: usize) -> f32 {
+        self.values[self.grid.index(i, j, k)]
+    }
+
+    /// Bytes a volume of this grid takes.
+    pub fn bytes_for(grid: &Grid) -> u64 {
+        grid.sample_count() * std::mem::size_of::<f32>() as u64
+    }
+}
+
+fn sanitize(values: &mut [f32]) -> u64 {
+    let mut bad = 0;
+    for v in values {
+        if !v.is_finite() {
+            bad += 1;
+            *v = if *v == f32::NEG_INFINITY { -f32::MAX } else { f32::MAX };
+        }
+    }
+    bad
+}
+
+fn to_f32(v: f64) -> f32 {
+    // Clamp before the cast so huge finite values stay finite in f32.
+    if v.is_nan() { f32::NAN } else { v.clamp(-f32::MAX as f64, f32::MAX as f64) as f32 }
+}
+
+/// Samples `field` at every lattice point, in parallel over z-layers.
+///
+/// The result does not depend on the number of threads: each sample is computed on its own.
+pub fn sample(field: &dyn Field, grid: &Grid, control: &Control) -> Result<Volume, GridError> {
+    let [nx, ny, nz] = grid.dims;
+    let layer = nx * ny;
+    let mut values = vec![0f32; layer * nz];
+    let done = AtomicU64::new(0);
+    values.par_chunks_mut(layer).enumerate().try_for_each(|(k, out)| {
+        let mut points = Vec::with_capacity(nx);
+        let mut row = vec![0f64; nx];
+        for j in 0..ny {
+            points.clear();
+            points.extend((0..nx).map(|i| grid.point(i, j, k)));
+            field.eval_many(&points, &mut row);
+            for (o, &v) in out[j * nx..(j + 1) * nx].iter_mut().zip(&row) {
+                *o = to_f32(v);
+            }
+        }
+        let d = done.fetch_add(1, Ordering::Relaxed) + 1;
+        match control.report(Progress { phase: "sampling", done: d, total: Some(nz as u64) }) {
+            ControlFlow::Continue(()) => Ok(()),
+            ControlFlow::Break(()) => Err(GridError::Cancelled),
+        }
+    })?;
+    let non_finite = sanitize(&mut values);
+    Ok(Volume { grid: *grid, values, non_finite })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::FnField;
+
+    #[test]
+    fn resolution_fits_longest_side_exactly() {
+        let d = Aabb::new(DVec3::splat(-1.0), DVec3::new(1.0, 1.0, 0.5));
+        let g = Grid::with_resolution(&d, 101).unwrap();
+        assert_eq!(g.dims, [101, 101, 76]);
+        assert!((g.cell - 0.02).abs() < 1e-15);
+        let b = g.bounds();
+        assert!((b.min.x + 1.0).abs() < 1e-12 && (b.max.x - 1.0).abs() < 1e-12);
+        // z is grown to whole cells and centred: 75 cells = 1.5.
+        assert!((b.min.z + 1.0).abs() < 1e-12 && (b.max.z - 0.5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn bad_grids_are_refused() {
+        let d = Aabb::cube(1.0);
+        assert_eq!(Grid::with_resolution(&d, 1), Err(GridError::BadResolution(1)));
+        assert!(matches!(Grid::with_cell(&d, 0.0), Err(GridError::BadCell(_))));
+        assert!(matches!(Grid::with_cell(&d, 1e-9), Err(GridError::TooLarge { .. })));
+        let flat = Aabb::new(DVec3::ZERO, DVec3::new(1.0, 1.0, 0.0));
+        assert!(matches!(Grid::with_cell(&flat, 0.1), Err(GridError::BadDomain { .. })));
+    }
+
+    #[test]
+    fn sampling_matches_pointwise_and_counts_non_finite() {
+        let f = FnField(|p: DVec3| if p.x > 0.9 { f64::NAN } else { p.length() - 0.5 });
+        let g = Grid::with_resolution(&Aabb::cube(1.0), 11).unwrap();
+        let v = sample(&f, &g, &Control::default()).unwrap();
+        assert_eq!(v.values.len(), 11 * 11 * 11);
+        assert_eq!(v.get(5, 5, 5), -0.5);
+        assert_eq!(v.get(2, 3, 4), (g.point(2, 3, 4).length() - 0.5) as f32);
+        assert_eq!(v.non_finite, 11 * 11);
+        assert_eq!(v.get(10, 0, 0), f32::MAX);
+    }
+
+    #[test]
+    fn sampling_can_be_cancelled() {
+        let f = FnField(|p: DVec3| p.x);
+        let g = Grid::with_resolution(&Aabb::cube(1.0), 64).unwrap();
+        let c = Control::with_callback(|_| ControlFlow::Break(()));
+        assert_eq!(sample(&f, &g, &c).unwrap_err(), GridError::Cancelled);
+    }
+}

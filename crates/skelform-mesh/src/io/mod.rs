@@ -1,0 +1,357 @@
+//! Mesh readers and writers: PLY, OBJ and STL.
+//!
+//! Writers to a path are atomic: the mesh is written into a temporary file in the target
+//! directory (`.NAME.tmp-PID-N`), flushed and synced, then renamed over the target. On any
+//! error the temporary file is removed and the target is left as it was.
+//!
+//! Readers take whole files written by other programs (see each module for what is
+//! accepted) and never panic on malformed input: every error says where (the line for text,
+//! the byte offset for binary data) and what was expected.
+
+use std::fmt;
+use std::fs;
+use std::io::{self, BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use crate::mesh::{Mesh, MeshError};
+
+pub mod obj;
+pub mod ply;
+pub mod stl;
+
+pub use obj::{read_obj, write_obj};
+pub use ply::{read_ply, write_ply};
+pub use stl::{read_stl, write_stl};
+
+/// A mesh file format, chosen by file extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Format {
+    /// Stanford PLY: binary little-endian (default) or ASCII; keeps normals, labels, curves.
+    Ply,
+    /// Wavefront OBJ: text; keeps normals, labels (as groups) and curves (as `l` lines).
+    Obj,
+    /// Binary STL: unlabelled triangle soup, welded on reading.
+    Stl,
+}
+
+impl Format {
+    /// Every supported format.
+    pub const ALL: [Format; 3] = [Format::Ply, Format::Obj, Format::Stl];
+
+    /// The format named by the extension of `path` (case-insensitive), if any.
+    pub fn from_path(path: &Path) -> Option<Format> {
+        Format::from_extension(path.extension()?.to_str()?)
+    }
+
+    /// The format of an extension without its dot (`"ply"`, `"OBJ"`...), if any.
+    pub fn from_extension(ext: &str) -> Option<Format> {
+        Format::ALL.into_iter().find(|f| f.extension().eq_ignore_ascii_case(ext))
+    }
+
+    /// The usual extension, lower case, without the dot.
+    pub fn extension(self) -> &'static str {
+        match self {
+            Format::Ply => "ply",
+            Format::Obj => "obj",
+            Format::Stl => "stl",
+        }
+    }
+}
+
+impl fmt::Display for Format {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Format::Ply => "PLY",
+            Format::Obj => "OBJ",
+            Format::Stl => "STL",
+        })
+    }
+}
+
+/// How to write a mesh.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct WriteOptions {
+    /// PLY only: write `format ascii 1.0` instead of binary little-endian.
+    pub ascii: bool,
+    /// Write per-vertex normals when the mesh has them (PLY and OBJ).
+    pub normals: bool,
+}
+
+impl Default for WriteOptions {
+    fn default() -> Self {
+        WriteOptions { ascii: false, normals: true }
+    }
+}
+
+/// Why a mesh could not be read or written. The `Display` text is one line meant for users;
+/// it already includes the cause, so print it with `{}` rather than walking `source()`.
+///
+/// `path` is `None` for the in-memory readers and writers (`read_ply` on a slice...); the
+/// path-taking functions fill it in.
+#[derive(Debug, thiserror::Error)]
+pub enum IoError {
+    /// The file could not be opened or read.
+    #[error("cannot read{}: {source}", name(.path))]
+    Read { path: Option<PathBuf>, source: io::Error },
+    /// The file (or its temporary file) could not be created, written, synced or renamed.
+    #[error("cannot write{}: {source}", name(.path))]
+    Write { path: Option<PathBuf>, source: io::Error },
+    /// Malformed text (OBJ, ASCII PLY or STL, and every PLY header), with its 1-based line.
+    #[error("{}line {line}: {msg}", prefix(.path))]
+    Parse { path: Option<PathBuf>, line: usize, msg: String },
+    /// Malformed binary data (binary PLY body, binary STL), with the byte offset in the file.
+    #[error("{}byte {offset}: {msg}", prefix(.path))]
+    Binary { path: Option<PathBuf>, offset: u64, msg: String },
+    /// The mesh handed to a writer breaks the [`Mesh`] invariants.
+    #[error("cannot write{}: invalid mesh: {source}", name(.path))]
+    InvalidMesh { path: Option<PathBuf>, source: MeshError },
+    /// The mesh cannot be expressed in the format (too many triangles, too large an id...).
+    #[error("cannot write{}: {msg}", name(.path))]
+    Unsupported { path: Option<PathBuf>, msg: String },
+    /// The extension names no supported format.
+    #[error("{}: unknown mesh format: expected the extension .ply, .obj or .stl", .path.display())]
+    UnknownFormat { path: PathBuf },
+}
+
+fn name(path: &Option<PathBuf>) -> String {
+    path.as_ref().map_or_else(String::new, |p| format!(" {}", p.display()))
+}
+
+fn prefix(path: &Option<PathBuf>) -> String {
+    path.as_ref().map_or_else(String::new, |p| format!("{}: ", p.display()))
+}
+
+impl IoError {
+    /// The file the error is about, where known.
+    pub fn path(&self) -> Option<&Path> {
+        match self {
+            IoError::Read { path, .. }
+            | IoError::Write { path, .. }
+            | IoError::Parse { path, .. }
+            | IoError::Binary { path, .. }
+            | IoError::InvalidMesh { path, .. }
+            | IoError::Unsupported { path, .. } => path.as_deref(),
+            IoError::UnknownFormat { path } => Some(path),
+        }
+    }
+
+    /// The same error naming `file`, unless it already names a file.
+    pub fn with_path(mut self, file: &Path) -> Self {
+        match &mut self {
+            IoError::Read { path, .. }
+            | IoError::Write { path, .. }
+            | IoError::Parse { path, .. }
+            | IoError::Binary { path, .. }
+            | IoError::InvalidMesh { path, .. }
+            | IoError::Unsupported { path, .. } => {
+                if path.is_none() {
+                    *path = Some(file.to_path_buf());
+                }
+            }
+            IoError::UnknownFormat { .. } => {}
+        }
+        self
+    }
+
+    /// Whether the error is about the input's contents or name (malformed file, unknown
+    /// extension) rather than a failure of the system (exit code 2 rather than 1).
+    pub fn is_bad_input(&self) -> bool {
+        matches!(
+            self,
+            IoError::Parse { .. } | IoError::Binary { .. } | IoError::UnknownFormat { .. }
+        )
+    }
+
+    pub(crate) fn write(source: io::Error) -> Self {
+        IoError::Write { path: None, source }
+    }
+
+    pub(crate) fn parse(line: usize, msg: impl Into<String>) -> Self {
+        IoError::Parse { path: None, line, msg: msg.into() }
+    }
+
+    pub(crate) fn binary(offset: u64, msg: impl Into<String>) -> Self {
+        IoError::Binary { path: None, offset, msg: msg.into() }
+    }
+
+    pub(crate) fn invalid(source: MeshError) -> Self {
+        IoError::InvalidMesh { path: None, source }
+    }
+
+    pub(crate) fn unsupported(msg: impl Into<String>) -> Self {
+        IoError::Unsupported { path: None, msg: msg.into() }
+    }
+}
+
+/// Reads a mesh, choosing the reader by the extension of `path`.
+pub fn read_mesh(path: &Path) -> Result<Mesh, IoError> {
+    let format =
+        Format::from_path(path).ok_or_else(|| IoError::UnknownFormat { path: path.into() })?;
+    read_mesh_as(path, format)
+}
+
+/// Reads a mesh in the given format, whatever the extension of `path`.
+pub fn read_mesh_as(path: &Path, format: Format) -> Result<Mesh, IoError> {
+    let bytes =
+        fs::read(path).map_err(|source| IoError::Read { path: Some(path.into()), source })?;
+    read_mesh_from(&bytes, format).map_err(|e| e.with_path(path))
+}
+
+/// Reads a mesh in the given format from the whole contents of a file.
+pub fn read_mesh_from(bytes: &[u8], format: Format) -> Result<Mesh, IoError> {
+    match format {
+        Format::Ply => read_ply(bytes),
+        Format::Obj => read_obj(bytes),
+        Format::Stl => read_stl(bytes),
+    }
+}
+
+/// Writes `mesh` to `w` in `format`. `w` need not be buffered. Nothing is written for an
+/// invalid mesh.
+pub fn write_mesh_to(
+    w: &mut impl Write,
+    mesh: &Mesh,
+    format: Format,
+    opts: &WriteOptions,
+) -> Result<(), IoError> {
+    match format {
+        Format::Ply => write_ply(w, mesh, opts),
+        Format::Obj => write_obj(w, mesh, opts),
+        Format::Stl => write_stl(w, mesh),
+    }
+}
+
+/// Writes `mesh` to `path` atomically: into a temporary file in the same directory, flushed
+/// and synced, then renamed over `path`. On error the temporary file is removed and `path`
+/// is untouched.
+pub fn write_mesh(
+    path: &Path,
+    mesh: &Mesh,
+    format: Format,
+    opts: &WriteOptions,
+) -> Result<(), IoError> {
+    mesh.validate().map_err(|e| IoError::invalid(e).with_path(path))?;
+    let file_name = path.file_name().ok_or_else(|| {
+        IoError::write(io::Error::new(io::ErrorKind::InvalidInput, "the path names no file"))
+            .with_path(path)
+    })?;
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let (tmp, file) = create_temp(dir, file_name).map_err(|e| IoError::write(e).with_path(path))?;
+    let result = (|| {
+        let mut file = file;
+        write_mesh_to(&mut file, mesh, format, opts)?;
+        file.sync_all().map_err(IoError::write)?;
+        drop(file);
+        fs::rename(&tmp, path).map_err(IoError::write)
+    })();
+    match result {
+        Ok(()) => {
+            sync_dir(dir);
+            Ok(())
+        }
+        Err(e) => {
+            let _ = fs::remove_file(&tmp);
+            Err(e.with_path(path))
+        }
+    }
+}
+
+/// Creates a new temporary file `DIR/.NAME.tmp-PID-N` that did not exist before.
+fn create_temp(dir: &Path, file_name: &std::ffi::OsStr) -> io::Result<(PathBuf, fs::File)> {
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let pid = std::process::id();
+    let mut attempts = 0;
+    loop {
+        attempts += 1;
+        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+        let mut name = std::ffi::OsString::from(".");
+        name.push(file_name);
+        name.push(format!(".tmp-{pid}-{n}"));
+        let tmp = dir.join(name);
+        match fs::OpenOptions::new().write(true).create_new(true).open(&tmp) {
+            Ok(f) => return Ok((tmp, f)),
+            Err(e) if e.kind() == io::ErrorKind::AlreadyExists && attempts < 100 => continue,
+            Err(e) => return Err(e),
+        }
+    }
+}
+
+/// Makes the rename durable where the platform allows it; failures are not errors (the file
+/// itself is complete and synced).
+fn sync_dir(dir: &Path) {
+    #[cfg(unix)]
+    if let Ok(d) = fs::File::open(dir) {
+        let _ = d.sync_all();
+    }
+    #[cfg(not(unix))]
+    let _ = dir;
+}
+
+/// A buffered writer over `w` for the format writers.
+pub(crate) fn buffered<W: Write>(w: W) -> BufWriter<W> {
+    BufWriter::with_capacity(1 << 16, w)
+}
+
+/// Flushes a buffered writer, turning the error into an [`IoError`].
+pub(crate) fn finish<W: Write>(w: BufWriter<W>) -> Result<(), IoError> {
+    let mut inner = w.into_inner().map_err(|e| IoError::write(e.into_error()))?;
+    inner.flush().map_err(IoError::write)
+}
+
+/// Welds positions with identical coordinates (bit for bit, with `-0.0` taken as `0.0`)
+/// into an indexed mesh. Shared by the STL reader and useful after reading triangle soups.
+pub(crate) struct Welder {
+    map: std::collections::HashMap<[u32; 3], u32>,
+    pub(crate) positions: Vec<[f32; 3]>,
+}
+
+impl Welder {
+    pub(crate) fn new() -> Self {
+        Welder { map: std::collections::HashMap::new(), positions: Vec::new() }
+    }
+
+    pub(crate) fn index(&mut self, p: [f32; 3]) -> u32 {
+        // Adding 0.0 turns -0.0 into 0.0 and leaves every other value alone.
+        let p = p.map(|c| c + 0.0);
+        let key = p.map(f32::to_bits);
+        let next = self.positions.len() as u32;
+        let positions = &mut self.positions;
+        *self.map.entry(key).or_insert_with(|| {
+            positions.push(p);
+            next
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn format_from_path_is_case_insensitive() {
+        assert_eq!(Format::from_path(Path::new("a/b.PLY")), Some(Format::Ply));
+        assert_eq!(Format::from_path(Path::new("x.Obj")), Some(Format::Obj));
+        assert_eq!(Format::from_path(Path::new("x.stl")), Some(Format::Stl));
+        assert_eq!(Format::from_path(Path::new("x.glb")), None);
+        assert_eq!(Format::from_path(Path::new("ply")), None);
+    }
+
+    #[test]
+    fn error_messages_name_the_file() {
+        let e = IoError::parse(3, "expected a number").with_path(Path::new("m.obj"));
+        assert_eq!(e.to_string(), "m.obj: line 3: expected a number");
+        let e = IoError::parse(3, "expected a number");
+        assert_eq!(e.to_string(), "line 3: expected a number");
+        let e = IoError::binary(84, "truncated").with_path(Path::new("m.stl"));
+        assert_eq!(e.to_string(), "m.stl: byte 84: truncated");
+        assert!(e.is_bad_input());
+        let e = IoError::write(io::Error::other("disk full")).with_path(Path::new("o.ply"));
+        assert_eq!(e.to_string(), "cannot write o.ply: disk full");
+        assert!(!e.is_bad_input());
+        assert_eq!(e.path(), Some(Path::new("o.ply")));
+    }
+}

@@ -1,0 +1,780 @@
+//! Stanford PLY.
+//!
+//! Written: `format binary_little_endian 1.0` (or `ascii 1.0`); vertex `float x, y, z` and,
+//! when normals are written, `float nx, ny, nz`; face `list uchar int vertex_indices` and,
+//! for labelled meshes, `int region_a, int region_b`; when the mesh has curves, an `edge`
+//! element `int vertex1, vertex2, region_a, region_b, region_c`.
+//!
+//! Read: `ascii`, `binary_little_endian` and `binary_big_endian`; every scalar type and its
+//! sized alias (`char`/`int8` ... `double`/`float64`); extra properties and extra elements
+//! (list properties included) are skipped; faces take their corners from a list named
+//! `vertex_indices` or `vertex_index` (any count and index type) and polygons are
+//! fan-triangulated (a polygon of fewer than 3 corners gives no triangle); normals are read
+//! when `nx, ny, nz` are all present, labels when faces have `region_a` and `region_b`
+//! (stored as `RegionPair::new(a, b)`), curves from an `edge` element with `vertex1` and
+//! `vertex2` (labelled when `region_a, region_b, region_c` are all present, otherwise
+//! `RegionTriple([0, 0, 0])`). Header lines may end in CRLF. Truncated data, malformed
+//! numbers and out-of-range indices are errors naming the line (ASCII) or byte (binary).
+
+use std::io::{BufRead, Write};
+
+use super::{IoError, WriteOptions, buffered, finish};
+use crate::mesh::{CurveEdge, Mesh, RegionPair, RegionTriple};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Scalar {
+    I8,
+    U8,
+    I16,
+    U16,
+    I32,
+    U32,
+    F32,
+    F64,
+}
+
+impl Scalar {
+    fn parse(s: &str) -> Option<Scalar> {
+        Some(match s {
+            "char" | "int8" => Scalar::I8,
+            "uchar" | "uint8" => Scalar::U8,
+            "short" | "int16" => Scalar::I16,
+            "ushort" | "uint16" => Scalar::U16,
+            "int" | "int32" => Scalar::I32,
+            "uint" | "uint32" => Scalar::U32,
+            "float" | "float32" => Scalar::F32,
+            "double" | "float64" => Scalar::F64,
+            _ => return None,
+        })
+    }
+
+    fn size(self) -> usize {
+        match self {
+            Scalar::I8 | Scalar::U8 => 1,
+            Scalar::I16 | Scalar::U16 => 2,
+            Scalar::I32 | Scalar::U32 | Scalar::F32 => 4,
+            Scalar::F64 => 8,
+        }
+    }
+
+    fn name(self) -> &'static str {
+        match self {
+            Scalar::I8 => "char",
+            Scalar::U8 => "uchar",
+            Scalar::I16 => "short",
+            Scalar::U16 => "ushort",
+            Scalar::I32 => "int",
+            Scalar::U32 => "uint",
+            Scalar::F32 => "float",
+            Scalar::F64 => "double",
+        }
+    }
+
+    /// The range of an integer type, `None` for floating point.
+    fn int_range(self) -> Option<(i64, i64)> {
+        Some(match self {
+            Scalar::I8 => (i8::MIN.into(), i8::MAX.into()),
+            Scalar::U8 => (0, u8::MAX.into()),
+            Scalar::I16 => (i16::MIN.into(), i16::MAX.into()),
+            Scalar::U16 => (0, u16::MAX.into()),
+            Scalar::I32 => (i32::MIN.into(), i32::MAX.into()),
+            Scalar::U32 => (0, u32::MAX.into()),
+            Scalar::F32 | Scalar::F64 => return None,
+        })
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Encoding {
+    Ascii,
+    LittleEndian,
+    BigEndian,
+}
+
+#[derive(Clone, Copy, Debug)]
+enum Kind {
+    Scalar(Scalar),
+    List { count: Scalar, item: Scalar },
+}
+
+#[derive(Debug)]
+struct Property {
+    name: String,
+    kind: Kind,
+    line: usize,
+}
+
+#[derive(Debug)]
+struct Element {
+    name: String,
+    count: usize,
+    props: Vec<Property>,
+    line: usize,
+}
+
+impl Element {
+    fn find(&self, name: &str) -> Option<&Property> {
+        self.props.iter().find(|p| p.name == name)
+    }
+
+    /// The fewest bytes one instance takes in binary, to bound allocations.
+    fn min_binary_size(&self) -> usize {
+        self.props
+            .iter()
+            .map(|p| match p.kind {
+                Kind::Scalar(s) => s.size(),
+                Kind::List { count, .. } => count.size(),
+            })
+            .sum()
+    }
+}
+
+struct Header {
+    encoding: Encoding,
+    elements: Vec<Element>,
+    /// Lines in the header, `end_header` included.
+    lines: usize,
+    /// Bytes in the header, up to and including the newline after `end_header`.
+    bytes: usize,
+}
+
+fn show(word: Option<&str>) -> String {
+    word.map_or_else(|| "nothing".to_string(), |w| format!("'{w}'"))
+}
+
+fn read_header(r: &mut impl BufRead) -> Result<Header, IoError> {
+    let mut buf = Vec::new();
+    let mut line = 0;
+    let mut bytes = 0;
+    let mut encoding = None;
+    let mut elements: Vec<Element> = Vec::new();
+    loop {
+        buf.clear();
+        let n =
+            r.read_until(b'\n', &mut buf).map_err(|source| IoError::Read { path: None, source })?;
+        if n == 0 {
+            return Err(if line == 0 {
+                IoError::parse(1, "empty file: expected a PLY header starting with 'ply'")
+            } else {
+                IoError::parse(line, "unexpected end of file in the header: expected end_header")
+            });
+        }
+        line += 1;
+        bytes += n;
+        let Ok(text) = std::str::from_utf8(&buf) else {
+            return Err(IoError::parse(
+                line,
+                if line == 1 {
+                    "not a PLY file: expected 'ply' on the first line"
+                } else {
+                    "the header is not text: expected a header line or end_header"
+                },
+            ));
+        };
+        if line == 1 {
+            if text.trim() != "ply" {
+                return Err(IoError::parse(1, "not a PLY file: expected 'ply' on the first line"));
+            }
+            continue;
+        }
+        let mut words = text.split_whitespace();
+        let Some(keyword) = words.next() else { continue };
+        match keyword {
+            "comment" | "obj_info" => {}
+            "format" => {
+                if encoding.is_some() {
+                    return Err(IoError::parse(line, "a second format line"));
+                }
+                let e = match words.next() {
+                    Some("ascii") => Encoding::Ascii,
+                    Some("binary_little_endian") => Encoding::LittleEndian,
+                    Some("binary_big_endian") => Encoding::BigEndian,
+                    other => {
+                        return Err(IoError::parse(
+                            line,
+                            format!(
+                                "expected ascii, binary_little_endian or binary_big_endian \
+                                 after format, found {}",
+                                show(other)
+                            ),
+                        ));
+                    }
+                };
+                match words.next() {
+                    Some(v) if v.starts_with('1') => {}
+                    other => {
+                        return Err(IoError::parse(
+                            line,
+                            format!("expected the format version 1.0, found {}", show(other)),
+                        ));
+                    }
+                }
+                encoding = Some(e);
+            }
+            "element" => {
+                let Some(name) = words.next() else {
+                    return Err(IoError::parse(line, "expected an element name after element"));
+                };
+                let word = words.next();
+                let Some(count) = word.and_then(|w| w.parse::<usize>().ok()) else {
+                    return Err(IoError::parse(
+                        line,
+                        format!("expected the number of '{name}' elements, found {}", show(word)),
+                    ));
+                };
+                elements.push(Element { name: name.to_string(), count, props: Vec::new(), line });
+            }
+            "property" => {
+                let Some(element) = elements.last_mut() else {
+                    return Err(IoError::parse(line, "a property before any element"));
+                };
+                let scalar = |word: Option<&str>| {
+                    word.and_then(Scalar::parse).ok_or_else(|| {
+                        IoError::parse(
+                            line,
+                            format!(
+                                "expected a property type (char, uchar, short, ushort, int, \
+                                 uint, float, double or a sized alias), found {}",
+                                show(word)
+                            ),
+                        )
+                    })
+                };
+                let first = words.next();
+                let kind = if first == Some("list") {
+                    let count = scalar(words.next())?;
+                    if count.int_range().is_none() {
+                        return Err(IoError::parse(
+                            line,
+                            format!("a list length must be an integer type, not {}", count.name()),
+                        ));
+                    }
+                    Kind::List { count, item: scalar(words.next())? }
+                } else {
+                    Kind::Scalar(scalar(first)?)
+                };
+                let Some(name) = words.next() else {
+                    return Err(IoError::parse(line, "expected a property name"));
+                };
+                element.props.push(Property { name: name.to_string(), kind, line });
+            }
+            "end_header" => break,
+            other => {
+                return Err(IoError::parse(
+                    line,
+                    format!(
+                        "unknown header line '{other}': expected format, element, property, \
+                         comment, obj_info or end_header"
+                    ),
+                ));
+            }
+        }
+    }
+    let encoding = encoding.ok_or_else(|| IoError::parse(line, "the header has no format line"))?;
+    Ok(Header { encoding, elements, lines: line, bytes })
+}
+
+/// Why one value could not be read.
+enum Fail {
+    Eof,
+    Syntax(String),
+    Range(String),
+}
+
+struct AsciiBody<'a> {
+    data: &'a [u8],
+    pos: usize,
+    /// The 1-based line (in the whole file) of the current position.
+    line: usize,
+}
+
+impl<'a> AsciiBody<'a> {
+    fn token(&mut self) -> Option<&'a [u8]> {
+        while let Some(&b) = self.data.get(self.pos) {
+            if !b.is_ascii_whitespace() {
+                break;
+            }
+            if b == b'\n' {
+                self.line += 1;
+            }
+            self.pos += 1;
+        }
+        let start = self.pos;
+        while self.data.get(self.pos).is_some_and(|b| !b.is_ascii_whitespace()) {
+            self.pos += 1;
+        }
+        (self.pos > start).then(|| &self.data[start..self.pos])
+    }
+
+    fn value(&mut self, ty: Scalar) -> Result<f64, Fail> {
+        let token = self.token().ok_or(Fail::Eof)?;
+        let text = || String::from_utf8_lossy(token).into_owned();
+        let s = std::str::from_utf8(token).map_err(|_| Fail::Syntax(text()))?;
+        match ty.int_range() {
+            Some((lo, hi)) => {
+                let v: i64 = s.parse().map_err(|_| Fail::Syntax(text()))?;
+                if v < lo || v > hi {
+                    return Err(Fail::Range(text()));
+                }
+                Ok(v as f64)
+            }
+            None if ty == Scalar::F32 => {
+                s.parse::<f32>().map(f64::from).map_err(|_| Fail::Syntax(text()))
+            }
+            None => s.parse::<f64>().map_err(|_| Fail::Syntax(text())),
+        }
+    }
+}
+
+struct BinaryBody<'a> {
+    data: &'a [u8],
+    pos: usize,
+    big: bool,
+}
+
+macro_rules! decode {
+    ($self:ident, $t:ty) => {{
+        let b = $self.take::<{ std::mem::size_of::<$t>() }>()?;
+        (if $self.big { <$t>::from_be_bytes(b) } else { <$t>::from_le_bytes(b) }) as f64
+    }};
+}
+
+impl BinaryBody<'_> {
+    fn take<const N: usize>(&mut self) -> Option<[u8; N]> {
+        let chunk = self.data.get(self.pos..)?.first_chunk::<N>()?;
+        self.pos += N;
+        Some(*chunk)
+    }
+
+    fn value(&mut self, ty: Scalar) -> Option<f64> {
+        Some(match ty {
+            Scalar::I8 => decode!(self, i8),
+            Scalar::U8 => decode!(self, u8),
+            Scalar::I16 => decode!(self, i16),
+            Scalar::U16 => decode!(self, u16),
+            Scalar::I32 => decode!(self, i32),
+            Scalar::U32 => decode!(self, u32),
+            Scalar::F32 => decode!(self, f32),
+            Scalar::F64 => decode!(self, f64),
+        })
+    }
+
+    fn remaining(&self) -> usize {
+        self.data.len().saturating_sub(self.pos)
+    }
+}
+
+enum Body<'a> {
+    Ascii(AsciiBody<'a>),
+    Binary { body: BinaryBody<'a>, base: usize },
+}
+
+impl Body<'_> {
+    fn value(&mut self, ty: Scalar) -> Result<f64, Fail> {
+        match self {
+            Body::Ascii(a) => a.value(ty),
+            Body::Binary { body, .. } => body.value(ty).ok_or(Fail::Eof),
+        }
+    }
+
+    /// An error at the current position.
+    fn error(&self, msg: String) -> IoError {
+        match self {
+            Body::Ascii(a) => IoError::parse(a.line, msg),
+            Body::Binary { body, base } => IoError::binary((base + body.pos) as u64, msg),
+        }
+    }
+
+    fn fail(&self, fail: Fail, ty: Scalar, el: &Element, index: usize, prop: &str) -> IoError {
+        let ty = ty.name();
+        let a = if ty.starts_with('i') { "an" } else { "a" };
+        let what = match fail {
+            Fail::Eof => {
+                format!("unexpected end of file, expected {a} {ty}: the file is truncated")
+            }
+            Fail::Syntax(t) => format!("expected {a} {ty}, found '{t}'"),
+            Fail::Range(t) => format!("{t} is out of range for {a} {ty}"),
+        };
+        self.error(format!("{} {index} ({prop}): {what}", el.name))
+    }
+
+    /// Reads a list length and, for binary data, checks the list fits in what is left.
+    fn list_len(
+        &mut self,
+        count: Scalar,
+        item: Scalar,
+        el: &Element,
+        index: usize,
+        prop: &str,
+    ) -> Result<usize, IoError> {
+        let n = self.value(count).map_err(|f| self.fail(f, count, el, index, prop))?;
+        if n < 0.0 {
+            return Err(self.error(format!(
+                "{} {index} ({prop}): a list length cannot be negative ({n})",
+                el.name
+            )));
+        }
+        let n = n as usize;
+        if let Body::Binary { body, .. } = self
+            && n.saturating_mul(item.size()) > body.remaining()
+        {
+            return Err(self.error(format!(
+                "{} {index} ({prop}): a list of {n} {}s runs past the end of the file: the \
+                 file is truncated",
+                el.name,
+                item.name()
+            )));
+        }
+        Ok(n)
+    }
+
+    fn skip_list(&mut self, n: usize, item: Scalar) -> Result<(), Fail> {
+        match self {
+            Body::Binary { body, .. } => {
+                // `list_len` checked that the items fit.
+                body.pos += n * item.size();
+                Ok(())
+            }
+            Body::Ascii(_) => {
+                for _ in 0..n {
+                    self.value(item)?;
+                }
+                Ok(())
+            }
+        }
+    }
+
+    /// The bytes left, to bound allocations by what the file can hold.
+    fn remaining(&self) -> usize {
+        match self {
+            Body::Ascii(a) => a.data.len().saturating_sub(a.pos),
+            Body::Binary { body, .. } => body.remaining(),
+        }
+    }
+}
+
+/// Where a property's value goes.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Role {
+    Skip,
+    Slot(usize),
+    Indices,
+}
+
+const SLOTS: usize = 6;
+
+/// The roles of `el`'s properties for the given slot names (and the index list for faces).
+/// Returns the roles and which slots are present.
+fn roles(
+    el: &Element,
+    slots: &[&str],
+    want_indices: bool,
+) -> Result<(Vec<Role>, [bool; SLOTS]), IoError> {
+    let mut present = [false; SLOTS];
+    let mut have_indices = false;
+    let mut roles = Vec::with_capacity(el.props.len());
+    for p in &el.props {
+        let role = if let Some(slot) = slots.iter().position(|s| *s == p.name) {
+            let Kind::Scalar(_) = p.kind else {
+                return Err(IoError::parse(
+                    p.line,
+                    format!(
+                        "property {} of element {} must be a scalar, not a list",
+                        p.name, el.name
+                    ),
+                ));
+            };
+            if present[slot] {
+                Role::Skip
+            } else {
+                present[slot] = true;
+                Role::Slot(slot)
+            }
+        } else if want_indices
+            && !have_indices
+            && (p.name == "vertex_indices" || p.name == "vertex_index")
+        {
+            let Kind::List { .. } = p.kind else {
+                return Err(IoError::parse(
+                    p.line,
+                    format!("property {} of element {} must be a list", p.name, el.name),
+                ));
+            };
+            have_indices = true;
+            Role::Indices
+        } else {
+            Role::Skip
+        };
+        roles.push(role);
+    }
+    if want_indices && !have_indices && el.count > 0 {
+        return Err(IoError::parse(
+            el.line,
+            format!("element {} has no vertex_indices list", el.name),
+        ));
+    }
+    Ok((roles, present))
+}
+
+/// Reads one instance of `el` into `vals` (by slot) and `poly` (the checked index list).
+fn read_instance(
+    body: &mut Body,
+    el: &Element,
+    roles: &[Role],
+    index: usize,
+    vertices: usize,
+    vals: &mut [f64; SLOTS],
+    poly: &mut Vec<u32>,
+) -> Result<(), IoError> {
+    poly.clear();
+    for (p, role) in el.props.iter().zip(roles) {
+        match p.kind {
+            Kind::Scalar(ty) => {
+                let v = body.value(ty).map_err(|f| body.fail(f, ty, el, index, &p.name))?;
+                if let Role::Slot(s) = *role {
+                    vals[s] = v;
+                }
+            }
+            Kind::List { count, item } => {
+                let n = body.list_len(count, item, el, index, &p.name)?;
+                if *role == Role::Indices {
+                    for _ in 0..n {
+                        let v =
+                            body.value(item).map_err(|f| body.fail(f, item, el, index, &p.name))?;
+                        let i = vertex_index(v, vertices).map_err(|msg| {
+                            body.error(format!("{} {index} ({}): {msg}", el.name, p.name))
+                        })?;
+                        poly.push(i);
+                    }
+                } else {
+                    body.skip_list(n, item).map_err(|f| body.fail(f, item, el, index, &p.name))?;
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+fn vertex_index(v: f64, vertices: usize) -> Result<u32, String> {
+    if v.fract() != 0.0 || v < 0.0 {
+        return Err(format!("expected a vertex index, found {v}"));
+    }
+    if v >= vertices as f64 {
+        return Err(format!("vertex index {v} is out of range: the file has {vertices} vertices"));
+    }
+    Ok(v as u32)
+}
+
+fn region(v: f64) -> Result<u32, String> {
+    if v.fract() != 0.0 || v < 0.0 || v > f64::from(u32::MAX) {
+        return Err(format!("expected a region id (a non-negative integer), found {v}"));
+    }
+    Ok(v as u32)
+}
+
+fn read_body(header: &Header, body: &mut Body) -> Result<Mesh, IoError> {
+    let vertices = header.elements.iter().find(|e| e.name == "vertex").map_or(0, |e| e.count);
+    let mut mesh = Mesh::default();
+    let (mut seen_vertex, mut seen_face, mut seen_edge) = (false, false, false);
+    let mut vals = [0.0; SLOTS];
+    let mut poly = Vec::new();
+    for el in &header.elements {
+        // An upper bound on the instances the rest of the file can hold.
+        let min_size = match body {
+            Body::Ascii(_) => 2 * el.props.len(),
+            Body::Binary { .. } => el.min_binary_size(),
+        };
+        let capacity = el.count.min(body.remaining() / min_size.max(1));
+        let fail =
+            |body: &Body, i: usize, msg: String| body.error(format!("{} {i}: {msg}", el.name));
+        if el.name == "vertex" && !seen_vertex {
+            seen_vertex = true;
+            let (roles, has) = roles(el, &["x", "y", "z", "nx", "ny", "nz"], false)?;
+            if let Some(missing) = ["x", "y", "z"].iter().zip(has).find(|(_, h)| !h) {
+                return Err(IoError::parse(
+                    el.line,
+                    format!("element vertex has no property {}", missing.0),
+                ));
+            }
+            let normals = has[3] && has[4] && has[5];
+            mesh.positions.reserve(capacity);
+            if normals {
+                mesh.normals.reserve(capacity);
+            }
+            for i in 0..el.count {
+                read_instance(body, el, &roles, i, vertices, &mut vals, &mut poly)?;
+                mesh.positions.push([vals[0] as f32, vals[1] as f32, vals[2] as f32]);
+                if normals {
+                    mesh.normals.push([vals[3] as f32, vals[4] as f32, vals[5] as f32]);
+                }
+            }
+        } else if el.name == "face" && !seen_face {
+            seen_face = true;
+            let (roles, has) = roles(el, &["region_a", "region_b"], true)?;
+            let labelled = has[0] && has[1];
+            mesh.triangles.reserve(capacity);
+            for i in 0..el.count {
+                read_instance(body, el, &roles, i, vertices, &mut vals, &mut poly)?;
+                let label = if labelled {
+                    let a = region(vals[0]).map_err(|m| fail(body, i, m))?;
+                    let b = region(vals[1]).map_err(|m| fail(body, i, m))?;
+                    Some(RegionPair::new(a, b))
+                } else {
+                    None
+                };
+                for k in 2..poly.len() {
+                    mesh.triangles.push([poly[0], poly[k - 1], poly[k]]);
+                    mesh.labels.extend(label);
+                }
+            }
+        } else if el.name == "edge"
+            && !seen_edge
+            && el.find("vertex1").is_some()
+            && el.find("vertex2").is_some()
+        {
+            seen_edge = true;
+            let slots = ["vertex1", "vertex2", "region_a", "region_b", "region_c"];
+            let (roles, has) = roles(el, &slots, false)?;
+            let labelled = has[2] && has[3] && has[4];
+            mesh.curves.reserve(capacity);
+            for i in 0..el.count {
+                read_instance(body, el, &roles, i, vertices, &mut vals, &mut poly)?;
+                let a = vertex_index(vals[0], vertices).map_err(|m| fail(body, i, m))?;
+                let b = vertex_index(vals[1], vertices).map_err(|m| fail(body, i, m))?;
+                let mut label = [0; 3];
+                if labelled {
+                    for (l, v) in label.iter_mut().zip(&vals[2..5]) {
+                        *l = region(*v).map_err(|m| fail(body, i, m))?;
+                    }
+                }
+                mesh.curves.push(CurveEdge { v: [a, b], label: RegionTriple::new(label) });
+            }
+        } else if !el.props.is_empty() {
+            // (An element without properties holds no data, whatever its count.)
+            let roles = vec![Role::Skip; el.props.len()];
+            for i in 0..el.count {
+                read_instance(body, el, &roles, i, vertices, &mut vals, &mut poly)?;
+            }
+        }
+    }
+    if let Body::Ascii(a) = body
+        && a.token().is_some()
+    {
+        return Err(body.error("unexpected data after the last element".to_string()));
+    }
+    Ok(mesh)
+}
+
+/// Reads a PLY file (ASCII or binary of either byte order) from `r`.
+pub fn read_ply(mut r: impl BufRead) -> Result<Mesh, IoError> {
+    let header = read_header(&mut r)?;
+    let mut data = Vec::new();
+    r.read_to_end(&mut data).map_err(|source| IoError::Read { path: None, source })?;
+    let mut body = match header.encoding {
+        Encoding::Ascii => Body::Ascii(AsciiBody { data: &data, pos: 0, line: header.lines + 1 }),
+        e => Body::Binary {
+            body: BinaryBody { data: &data, pos: 0, big: e == Encoding::BigEndian },
+            base: header.bytes,
+        },
+    };
+    read_body(&header, &mut body)
+}
+
+/// Writes `mesh` as PLY: binary little-endian, or ASCII when `opts.ascii`; normals when the
+/// mesh has them and `opts.normals`.
+pub fn write_ply(w: &mut impl Write, mesh: &Mesh, opts: &WriteOptions) -> Result<(), IoError> {
+    mesh.validate().map_err(IoError::invalid)?;
+    let int_max = i32::MAX as usize;
+    if mesh.positions.len() > int_max {
+        return Err(IoError::unsupported(format!(
+            "{} vertices do not fit PLY int indices",
+            mesh.positions.len()
+        )));
+    }
+    let regions = mesh
+        .labels
+        .iter()
+        .flat_map(|l| [l.0, l.1])
+        .chain(mesh.curves.iter().flat_map(|c| c.label.0));
+    if let Some(r) = regions.into_iter().find(|&r| r as usize > int_max) {
+        return Err(IoError::unsupported(format!("region id {r} does not fit a PLY int")));
+    }
+    let mut w = buffered(w);
+    write_body(&mut w, mesh, opts).map_err(IoError::write)?;
+    finish(w)
+}
+
+fn write_body(w: &mut impl Write, mesh: &Mesh, opts: &WriteOptions) -> std::io::Result<()> {
+    let normals = opts.normals && !mesh.normals.is_empty();
+    let labelled = !mesh.labels.is_empty();
+    let format = if opts.ascii { "ascii" } else { "binary_little_endian" };
+    writeln!(w, "ply\nformat {format} 1.0\ncomment generated by skelform")?;
+    writeln!(w, "element vertex {}", mesh.positions.len())?;
+    writeln!(w, "property float x\nproperty float y\nproperty float z")?;
+    if normals {
+        writeln!(w, "property float nx\nproperty float ny\nproperty float nz")?;
+    }
+    writeln!(w, "element face {}", mesh.triangles.len())?;
+    writeln!(w, "property list uchar int vertex_indices")?;
+    if labelled {
+        writeln!(w, "property int region_a\nproperty int region_b")?;
+    }
+    if !mesh.curves.is_empty() {
+        writeln!(w, "element edge {}", mesh.curves.len())?;
+        writeln!(w, "property int vertex1\nproperty int vertex2")?;
+        writeln!(w, "property int region_a\nproperty int region_b\nproperty int region_c")?;
+    }
+    writeln!(w, "end_header")?;
+
+    if opts.ascii {
+        for (i, p) in mesh.positions.iter().enumerate() {
+            write!(w, "{} {} {}", p[0], p[1], p[2])?;
+            if normals {
+                let n = mesh.normals[i];
+                write!(w, " {} {} {}", n[0], n[1], n[2])?;
+            }
+            writeln!(w)?;
+        }
+        for (i, t) in mesh.triangles.iter().enumerate() {
+            write!(w, "3 {} {} {}", t[0], t[1], t[2])?;
+            if labelled {
+                let l = mesh.labels[i];
+                write!(w, " {} {}", l.0, l.1)?;
+            }
+            writeln!(w)?;
+        }
+        for c in &mesh.curves {
+            let [a, b, r] = c.label.0;
+            writeln!(w, "{} {} {a} {b} {r}", c.v[0], c.v[1])?;
+        }
+    } else {
+        let mut buf = Vec::with_capacity(32);
+        for (i, p) in mesh.positions.iter().enumerate() {
+            buf.clear();
+            p.iter().for_each(|c| buf.extend_from_slice(&c.to_le_bytes()));
+            if normals {
+                mesh.normals[i].iter().for_each(|c| buf.extend_from_slice(&c.to_le_bytes()));
+            }
+            w.write_all(&buf)?;
+        }
+        for (i, t) in mesh.triangles.iter().enumerate() {
+            buf.clear();
+            buf.push(3);
+            t.iter().for_each(|&v| buf.extend_from_slice(&(v as i32).to_le_bytes()));
+            if labelled {
+                let l = mesh.labels[i];
+                buf.extend_from_slice(&(l.0 as i32).to_le_bytes());
+                buf.extend_from_slice(&(l.1 as i32).to_le_bytes());
+            }
+            w.write_all(&buf)?;
+        }
+        for c in &mesh.curves {
+            buf.clear();
+            c.v.iter()
+                .chain(&c.label.0)
+                .for_each(|&v| buf.extend_from_slice(&(v as i32).to_le_bytes()));
+            w.write_all(&buf)?;
+        }
+    }
+    Ok(())
+}

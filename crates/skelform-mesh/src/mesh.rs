@@ -1,0 +1,162 @@
+//! The indexed triangle mesh that every polygonizer produces and every writer consumes.
+
+use serde::{Deserialize, Serialize};
+
+/// The unordered pair of regions a surface separates, stored with `0 < 1`.
+///
+/// A manifold surface (one region inside, one outside) is `RegionPair(0, 1)` by convention:
+/// region 0 is inside (`f < 0`), region 1 outside. A triangle labelled `(a, b)` is wound
+/// counter-clockwise seen from region `a`, so its right-hand normal points into `a`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+pub struct RegionPair(pub u32, pub u32);
+
+impl RegionPair {
+    /// The pair of `a` and `b` in either order. `a == b` is not a surface; callers check.
+    pub fn new(a: u32, b: u32) -> Self {
+        if a <= b { RegionPair(a, b) } else { RegionPair(b, a) }
+    }
+}
+
+impl std::fmt::Display for RegionPair {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}_{}", self.0, self.1)
+    }
+}
+
+/// Three regions meeting along a curve, stored sorted.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+pub struct RegionTriple(pub [u32; 3]);
+
+impl RegionTriple {
+    pub fn new(mut r: [u32; 3]) -> Self {
+        r.sort_unstable();
+        RegionTriple(r)
+    }
+}
+
+impl std::fmt::Display for RegionTriple {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}_{}_{}", self.0[0], self.0[1], self.0[2])
+    }
+}
+
+/// One segment of a labelled curve (an intersection or self-intersection curve).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub struct CurveEdge {
+    pub v: [u32; 2],
+    pub label: RegionTriple,
+}
+
+/// Indexed triangles with optional per-vertex normals, per-face labels and curves.
+///
+/// Invariants (checked by [`Mesh::validate`]): every index is in range; `normals` is empty or
+/// as long as `positions`; `labels` is empty or as long as `triangles`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Mesh {
+    pub positions: Vec<[f32; 3]>,
+    /// Unit outward normals, one per vertex, or empty.
+    pub normals: Vec<[f32; 3]>,
+    /// Counter-clockwise seen from outside (from the lesser region for labelled meshes).
+    pub triangles: Vec<[u32; 3]>,
+    /// One label per triangle, or empty for an unlabelled mesh.
+    pub labels: Vec<RegionPair>,
+    /// Curve segments (polylines as edges), or empty.
+    pub curves: Vec<CurveEdge>,
+}
+
+/// What is wrong with a mesh that breaks the [`Mesh`] invariants.
+#[derive(Debug, thiserror::Error, Clone, PartialEq, Eq)]
+pub enum MeshError {
+    #[error("triangle {face} uses vertex {index}, but there are only {vertices} vertices")]
+    IndexOutOfRange { face: usize, index: u32, vertices: usize },
+    #[error("curve edge {edge} uses vertex {index}, but there are only {vertices} vertices")]
+    CurveIndexOutOfRange { edge: usize, index: u32, vertices: usize },
+    #[error("{normals} normals for {vertices} vertices")]
+    NormalCount { normals: usize, vertices: usize },
+    #[error("{labels} labels for {triangles} triangles")]
+    LabelCount { labels: usize, triangles: usize },
+}
+
+impl Mesh {
+    pub fn vertex_count(&self) -> usize {
+        self.positions.len()
+    }
+
+    pub fn triangle_count(&self) -> usize {
+        self.triangles.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.triangles.is_empty()
+    }
+
+    /// Checks the invariants listed on [`Mesh`].
+    pub fn validate(&self) -> Result<(), MeshError> {
+        let n = self.positions.len();
+        if !self.normals.is_empty() && self.normals.len() != n {
+            return Err(MeshError::NormalCount { normals: self.normals.len(), vertices: n });
+        }
+        if !self.labels.is_empty() && self.labels.len() != self.triangles.len() {
+            return Err(MeshError::LabelCount {
+                labels: self.labels.len(),
+                triangles: self.triangles.len(),
+            });
+        }
+        for (face, t) in self.triangles.iter().enumerate() {
+            if let Some(&index) = t.iter().find(|&&i| i as usize >= n) {
+                return Err(MeshError::IndexOutOfRange { face, index, vertices: n });
+            }
+        }
+        for (edge, c) in self.curves.iter().enumerate() {
+            if let Some(&index) = c.v.iter().find(|&&i| i as usize >= n) {
+                return Err(MeshError::CurveIndexOutOfRange { edge, index, vertices: n });
+            }
+        }
+        Ok(())
+    }
+
+    /// The smallest box holding every vertex, or `None` for a mesh without vertices.
+    pub fn bounds(&self) -> Option<([f32; 3], [f32; 3])> {
+        let first = *self.positions.first()?;
+        Some(self.positions.iter().fold((first, first), |(lo, hi), p| {
+            (
+                [lo[0].min(p[0]), lo[1].min(p[1]), lo[2].min(p[2])],
+                [hi[0].max(p[0]), hi[1].max(p[1]), hi[2].max(p[2])],
+            )
+        }))
+    }
+
+    /// The distinct labels, sorted, with their triangle counts.
+    pub fn label_counts(&self) -> Vec<(RegionPair, usize)> {
+        let mut counts = std::collections::BTreeMap::new();
+        for l in &self.labels {
+            *counts.entry(*l).or_insert(0) += 1;
+        }
+        counts.into_iter().collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn validate_catches_bad_indices_and_counts() {
+        let mut m = Mesh {
+            positions: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+            triangles: vec![[0, 1, 2]],
+            ..Mesh::default()
+        };
+        assert_eq!(m.validate(), Ok(()));
+        m.triangles.push([0, 1, 3]);
+        assert_eq!(
+            m.validate(),
+            Err(MeshError::IndexOutOfRange { face: 1, index: 3, vertices: 3 })
+        );
+        m.triangles.pop();
+        m.labels = vec![RegionPair::new(2, 1), RegionPair(0, 1)];
+        assert!(matches!(m.validate(), Err(MeshError::LabelCount { .. })));
+        assert_eq!(RegionPair::new(2, 1), RegionPair(1, 2));
+        assert_eq!(RegionTriple::new([3, 1, 2]).to_string(), "1_2_3");
+    }
+}

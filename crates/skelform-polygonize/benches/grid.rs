@@ -1,0 +1,48 @@
+//! Sampling and extraction of the gyroid and the torus at 128³ and 256³ samples.
+//!
+//! Run with `cargo bench -p skelform-polygonize --bench grid`. Each phase is measured on its
+//! own: `sample` evaluates the compiled formula on the lattice; `extract` runs marching cubes
+//! on a volume sampled once beforehand; `polygonize` is the whole pipeline with refinement
+//! and normals.
+
+use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
+use skelform_field::control::Control;
+use skelform_field::formula::Formula;
+use skelform_field::grid::{Grid, sample};
+use skelform_field::{Aabb, DVec3};
+use skelform_polygonize::grid::{Options, Resolution, extract, polygonize};
+
+fn shapes() -> Vec<(&'static str, Formula, Aabb)> {
+    let torus = Formula::parse("q = sqrt(x^2 + y^2) - 0.6\nq^2 + z^2 - 0.25^2").expect("torus");
+    let gyroid = Formula::parse("sin(x)*cos(y) + sin(y)*cos(z) + sin(z)*cos(x)").expect("gyroid");
+    let tau = 2.0 * std::f64::consts::PI;
+    vec![
+        ("torus", torus, Aabb::cube(1.0)),
+        ("gyroid", gyroid, Aabb::new(DVec3::splat(-tau), DVec3::splat(tau))),
+    ]
+}
+
+fn bench(c: &mut Criterion) {
+    for (name, f, domain) in shapes() {
+        let mut group = c.benchmark_group(name);
+        group.sample_size(10);
+        for n in [128usize, 256] {
+            let grid = Grid::with_resolution(&domain, n).expect("grid");
+            group.bench_with_input(BenchmarkId::new("sample", n), &grid, |b, g| {
+                b.iter(|| sample(&f, g, &Control::default()).expect("sample"))
+            });
+            let volume = sample(&f, &grid, &Control::default()).expect("sample");
+            group.bench_with_input(BenchmarkId::new("extract", n), &volume, |b, v| {
+                b.iter(|| extract(v, &Control::default()).expect("extract"))
+            });
+            let opts = Options { domain, resolution: Resolution::Samples(n), ..Options::default() };
+            group.bench_with_input(BenchmarkId::new("polygonize", n), &opts, |b, o| {
+                b.iter(|| polygonize(&f, o).expect("polygonize"))
+            });
+        }
+        group.finish();
+    }
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

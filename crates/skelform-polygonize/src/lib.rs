@@ -1,0 +1,53 @@
+//! Polygonizers: from a [`Field`](skelform_field::Field) to a [`Mesh`](skelform_mesh::Mesh).
+//!
+//! - [`grid`]: sample on a lattice, then marching cubes with a consistent treatment of the
+//!   ambiguous faces (asymptotic decider) and interiors (trilinear saddles). Closed surfaces
+//!   inside the domain come out closed, manifold and consistently oriented at any
+//!   resolution; output is identical on any thread count.
+//! - [`refine`]: root finding along edges and gradient normals, shared by all polygonizers.
+//!
+//! A polygonizer knows nothing of files: it takes a field and options and returns a mesh and
+//! statistics. Each takes a [`Control`](skelform_field::control::Control) to report progress
+//! and to cancel.
+//!
+//! ```
+//! use skelform_field::{Aabb, formula::Formula};
+//! use skelform_polygonize::grid::{polygonize, Options, Resolution};
+//! use skelform_mesh::check::check;
+//!
+//! let torus = Formula::parse("q = sqrt(x^2 + y^2) - 0.6\nq^2 + z^2 - 0.25^2").unwrap();
+//! let opts = Options { domain: Aabb::cube(1.0), resolution: Resolution::Samples(48), ..Default::default() };
+//! let (mesh, _stats) = polygonize(&torus, &opts).unwrap();
+//! let report = check(&mesh);
+//! assert!(report.is_closed_manifold());
+//! assert_eq!(report.components[0].genus, Some(1));
+//! ```
+
+pub mod grid;
+pub mod refine;
+
+use skelform_field::grid::GridError;
+
+/// Why a polygonizer could not run.
+#[derive(Debug, thiserror::Error, Clone, PartialEq)]
+pub enum Error {
+    #[error(transparent)]
+    Grid(GridError),
+    #[error(
+        "the grid of {} × {} × {} samples would need {:.2} GiB, over the limit of {:.2} GiB; \
+         use a coarser resolution or raise the limit",
+        dims[0], dims[1], dims[2], *needed as f64 / (1u64 << 30) as f64, *limit as f64 / (1u64 << 30) as f64
+    )]
+    TooMuchMemory { needed: u64, limit: u64, dims: [usize; 3] },
+    #[error("cancelled")]
+    Cancelled,
+}
+
+impl From<GridError> for Error {
+    fn from(e: GridError) -> Self {
+        match e {
+            GridError::Cancelled => Error::Cancelled,
+            e => Error::Grid(e),
+        }
+    }
+}

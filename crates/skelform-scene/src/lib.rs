@@ -1,0 +1,129 @@
+//! Scene files: what to polygonize, where, how finely, and how to write it.
+//!
+//! A scene is TOML. Every key is checked: an unknown key, a value of the wrong type, a
+//! formula that does not parse, each is an error that names the file, line and column, and
+//! says what was expected. Nothing is silently ignored.
+//!
+//! ```
+//! let text = r#"
+//! [domain]
+//! min = [-1, -1, -1]
+//! max = [1, 1, 1]
+//! [mesh]
+//! resolution = 32
+//! [field]
+//! parameters = { R = 0.5 }
+//! formula = """
+//! r = sqrt(x^2 + y^2 + z^2)
+//! r - R
+//! """
+//! "#;
+//! let scene = skelform_scene::Scene::parse(text, "sphere.toml").unwrap();
+//! assert_eq!(scene.domain.max.x, 1.0);
+//! ```
+//!
+//! The format is documented with examples in `docs/SCENES.md`.
+
+mod schema;
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use skelform_field::formula::Formula;
+use skelform_field::{Aabb, Field, Iso};
+use skelform_mesh::io::Format;
+use skelform_polygonize::grid::Resolution;
+
+pub use schema::{Method, ParseMethodError};
+
+/// A loaded, validated scene.
+#[derive(Clone)]
+pub struct Scene {
+    /// Where it came from (for messages); `"<string>"` when parsed from text.
+    pub origin: String,
+    pub name: Option<String>,
+    pub description: Option<String>,
+    pub domain: Aabb,
+    pub resolution: Resolution,
+    pub method: Method,
+    pub refine: bool,
+    /// Root-finding tolerance as a fraction of the cell.
+    pub tolerance: f64,
+    /// The field with the iso value already subtracted: its zero set is the surface.
+    pub field: Arc<dyn Field>,
+    /// The compiled formula (before the iso value), for `skelform info`.
+    pub formula: Arc<Formula>,
+    pub iso: f64,
+    pub output: Output,
+}
+
+impl std::fmt::Debug for Scene {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Scene")
+            .field("origin", &self.origin)
+            .field("name", &self.name)
+            .field("domain", &self.domain)
+            .field("resolution", &self.resolution)
+            .field("method", &self.method)
+            .field("iso", &self.iso)
+            .finish_non_exhaustive()
+    }
+}
+
+/// Output settings a scene may state; the command line overrides them.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Output {
+    /// Default output file, relative to the scene file's folder.
+    pub file: Option<PathBuf>,
+    pub format: Option<Format>,
+    pub ascii: bool,
+    pub normals: bool,
+}
+
+/// A scene that cannot be used, with where and why.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    #[error("{path}: {source}")]
+    Io {
+        path: String,
+        #[source]
+        source: std::io::Error,
+    },
+    /// Anything wrong inside the file: syntax, unknown key, bad value, bad formula.
+    #[error("{path}:{line}:{column}: {message}")]
+    At { path: String, line: usize, column: usize, message: String },
+    #[error("{path}: {message}")]
+    Invalid { path: String, message: String },
+}
+
+impl Scene {
+    /// Reads and validates a scene file.
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        let shown = path.display().to_string();
+        let text = std::fs::read_to_string(path)
+            .map_err(|source| SceneError::Io { path: shown.clone(), source })?;
+        let mut scene = Scene::parse(&text, &shown)?;
+        if let (Some(file), Some(dir)) = (&scene.output.file, path.parent()) {
+            scene.output.file = Some(dir.join(file));
+        }
+        Ok(scene)
+    }
+
+    /// Validates scene text; `origin` names it in messages.
+    pub fn parse(text: &str, origin: &str) -> Result<Scene, SceneError> {
+        schema::build(text, origin)
+    }
+}
+
+/// 1-based line and column (in characters) of a byte offset.
+pub(crate) fn line_col(text: &str, offset: usize) -> (usize, usize) {
+    let offset = offset.min(text.len());
+    let before = &text[..text.floor_char_boundary(offset)];
+    let line = before.matches('\n').count() + 1;
+    let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, col)
+}
+
+pub(crate) fn iso_field(formula: Arc<Formula>, iso: f64) -> Arc<dyn Field> {
+    if iso == 0.0 { formula } else { Arc::new(Iso { field: formula, iso }) }
+}

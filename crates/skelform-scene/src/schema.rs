@@ -1,0 +1,293 @@
+//! The TOML schema and its translation into a [`Scene`].
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::str::FromStr;
+use std::sync::Arc;
+
+use serde::Deserialize;
+use skelform_field::formula::Formula;
+use skelform_field::{Aabb, DVec3};
+use skelform_mesh::io::Format;
+use skelform_polygonize::grid::Resolution;
+use toml::Spanned;
+
+use crate::{Output, Scene, SceneError, iso_field, line_col};
+
+/// Which polygonizer a scene asks for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Method {
+    /// Sample a lattice, then marching cubes.
+    #[default]
+    Grid,
+}
+
+impl Method {
+    pub const ALL: &'static [(&'static str, Method)] = &[("grid", Method::Grid)];
+
+    pub fn name(self) -> &'static str {
+        Method::ALL.iter().find(|(_, m)| *m == self).map_or("?", |(n, _)| n)
+    }
+}
+
+/// A method name that is not one of [`Method::ALL`].
+#[derive(Debug, thiserror::Error)]
+#[error("unknown method '{0}'; expected one of: {}", Method::ALL.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", "))]
+pub struct ParseMethodError(pub String);
+
+impl FromStr for Method {
+    type Err = ParseMethodError;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Method::ALL
+            .iter()
+            .find(|(n, _)| *n == s)
+            .map(|(_, m)| *m)
+            .ok_or_else(|| ParseMethodError(s.to_string()))
+    }
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct File {
+    scene: Option<SceneInfo>,
+    domain: Spanned<Domain>,
+    mesh: Option<MeshSection>,
+    field: Spanned<FieldSection>,
+    output: Option<OutputSection>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneInfo {
+    name: Option<String>,
+    description: Option<String>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Domain {
+    min: Spanned<[f64; 3]>,
+    max: Spanned<[f64; 3]>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MeshSection {
+    resolution: Option<Spanned<i64>>,
+    cell: Option<Spanned<f64>>,
+    method: Option<Spanned<String>>,
+    refine: Option<bool>,
+    tolerance: Option<Spanned<f64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FieldSection {
+    formula: Spanned<String>,
+    iso: Option<Spanned<f64>>,
+    parameters: Option<Spanned<BTreeMap<String, f64>>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct OutputSection {
+    file: Option<String>,
+    format: Option<Spanned<String>>,
+    ascii: Option<bool>,
+    normals: Option<bool>,
+}
+
+/// Default samples along the longest side when a scene states neither resolution nor cell.
+pub const DEFAULT_RESOLUTION: usize = 128;
+
+struct Ctx<'a> {
+    text: &'a str,
+    origin: &'a str,
+}
+
+impl Ctx<'_> {
+    fn at(&self, offset: usize, message: impl Into<String>) -> SceneError {
+        let (line, column) = line_col(self.text, offset);
+        SceneError::At { path: self.origin.to_string(), line, column, message: message.into() }
+    }
+}
+
+pub(crate) fn build(text: &str, origin: &str) -> Result<Scene, SceneError> {
+    let cx = Ctx { text, origin };
+    let file: File = toml::from_str(text).map_err(|e| {
+        let offset = e.span().map_or(0, |s| s.start);
+        cx.at(offset, e.message().trim_end().replace('\n', "; "))
+    })?;
+
+    let d = file.domain.get_ref();
+    let (min, max) = (DVec3::from_array(*d.min.get_ref()), DVec3::from_array(*d.max.get_ref()));
+    if !(min.is_finite() && max.is_finite()) {
+        return Err(cx.at(d.min.span().start, "domain corners must be finite numbers"));
+    }
+    if !max.cmpgt(min).all() {
+        return Err(cx.at(
+            d.max.span().start,
+            format!(
+                "domain max {:?} must exceed min {:?} on every axis",
+                max.to_array(),
+                min.to_array()
+            ),
+        ));
+    }
+    let domain = Aabb::new(min, max);
+
+    let mesh = file.mesh.unwrap_or(MeshSection {
+        resolution: None,
+        cell: None,
+        method: None,
+        refine: None,
+        tolerance: None,
+    });
+    let resolution = match (&mesh.resolution, &mesh.cell) {
+        (Some(_), Some(c)) => {
+            return Err(cx.at(c.span().start, "give either 'resolution' or 'cell', not both"));
+        }
+        (Some(r), None) => {
+            let n = *r.get_ref();
+            if !(2..=1 << 15).contains(&n) {
+                return Err(cx.at(
+                    r.span().start,
+                    format!(
+                        "resolution must be a whole number of samples from 2 to 32768 (got {n})"
+                    ),
+                ));
+            }
+            Resolution::Samples(n as usize)
+        }
+        (None, Some(c)) => {
+            let v = *c.get_ref();
+            if !(v.is_finite() && v > 0.0) {
+                return Err(
+                    cx.at(c.span().start, format!("cell must be a positive length (got {v})"))
+                );
+            }
+            Resolution::Cell(v)
+        }
+        (None, None) => Resolution::Samples(DEFAULT_RESOLUTION),
+    };
+    let method = match &mesh.method {
+        Some(m) => m
+            .get_ref()
+            .parse()
+            .map_err(|e: ParseMethodError| cx.at(m.span().start, e.to_string()))?,
+        None => Method::default(),
+    };
+    let tolerance = match &mesh.tolerance {
+        Some(t) if !(t.get_ref().is_finite() && *t.get_ref() > 0.0 && *t.get_ref() < 1.0) => {
+            return Err(
+                cx.at(t.span().start, "tolerance is a fraction of the cell, between 0 and 1")
+            );
+        }
+        Some(t) => *t.get_ref(),
+        None => 1e-4,
+    };
+
+    let f = file.field.get_ref();
+    let iso = f.iso.as_ref().map_or(0.0, |s| *s.get_ref());
+    if !iso.is_finite() {
+        return Err(
+            cx.at(f.iso.as_ref().map_or(0, |s| s.span().start), "iso must be a finite number")
+        );
+    }
+    let params: Vec<(String, f64)> = match &f.parameters {
+        Some(p) => p.get_ref().iter().map(|(k, v)| (k.clone(), *v)).collect(),
+        None => Vec::new(),
+    };
+    let formula =
+        compile_formula(&cx, &f.formula, &params, f.parameters.as_ref().map(|p| p.span().start))?;
+    let formula = Arc::new(formula);
+
+    let out = file.output.unwrap_or(OutputSection {
+        file: None,
+        format: None,
+        ascii: None,
+        normals: None,
+    });
+    let format = match &out.format {
+        Some(s) => Some(parse_format(s.get_ref()).ok_or_else(|| {
+            cx.at(
+                s.span().start,
+                format!("unknown output format '{}'; expected ply, obj or stl", s.get_ref()),
+            )
+        })?),
+        None => None,
+    };
+
+    Ok(Scene {
+        origin: origin.to_string(),
+        name: file.scene.as_ref().and_then(|s| s.name.clone()),
+        description: file.scene.as_ref().and_then(|s| s.description.clone()),
+        domain,
+        resolution,
+        method,
+        refine: mesh.refine.unwrap_or(true),
+        tolerance,
+        field: iso_field(formula.clone(), iso),
+        formula,
+        iso,
+        output: Output {
+            file: out.file.map(PathBuf::from),
+            format,
+            ascii: out.ascii.unwrap_or(false),
+            normals: out.normals.unwrap_or(true),
+        },
+    })
+}
+
+fn parse_format(s: &str) -> Option<Format> {
+    Format::from_path(std::path::Path::new(&format!("x.{s}")))
+}
+
+/// Compiles the formula and maps its error position into the scene file.
+fn compile_formula(
+    cx: &Ctx,
+    src: &Spanned<String>,
+    params: &[(String, f64)],
+    params_at: Option<usize>,
+) -> Result<Formula, SceneError> {
+    let constants: Vec<(&str, f64)> = params.iter().map(|(k, v)| (k.as_str(), *v)).collect();
+    Formula::parse_with_constants(src.get_ref(), &constants).map_err(|e| {
+        // A bad parameter name is reported at the parameters table.
+        if e.line() == 0 {
+            return cx.at(params_at.unwrap_or(src.span().start), e.message().to_string());
+        }
+        let content = content_start(cx.text, src.span().start);
+        let (line0, col0) = line_col(cx.text, content);
+        let (line, column) = if e.line() == 1 {
+            (line0, col0 + e.column() - 1)
+        } else {
+            (line0 + e.line() - 1, e.column())
+        };
+        SceneError::At {
+            path: cx.origin.to_string(),
+            line,
+            column,
+            message: e.message().to_string(),
+        }
+    })
+}
+
+/// Byte offset where a TOML string's content starts, given where its literal starts.
+fn content_start(text: &str, literal: usize) -> usize {
+    let rest = &text[literal.min(text.len())..];
+    let skip = if rest.starts_with("\"\"\"") || rest.starts_with("'''") {
+        let after = &rest[3..];
+        3 + if after.starts_with("\r\n") {
+            2
+        } else if after.starts_with('\n') {
+            1
+        } else {
+            0
+        }
+    } else if rest.starts_with('"') || rest.starts_with('\'') {
+        1
+    } else {
+        0
+    };
+    literal + skip
+}
