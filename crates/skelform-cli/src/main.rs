@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
-use anyhow::{Context, anyhow};
+use anyhow::anyhow;
 use clap::{Args, Parser, Subcommand};
 use skelform_mesh::io::{Format, WriteOptions, read_mesh, write_mesh};
 use skelform_polygonize::grid::{self, Resolution, Stats};
@@ -119,7 +119,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(f) => {
-            eprintln!("error: {:#}", f.error);
+            eprintln!("error: {}", f.error);
             ExitCode::from(f.code)
         }
     }
@@ -330,8 +330,7 @@ fn check(a: CheckArgs) -> Result<(), Failure> {
     let report = skelform_mesh::check::check(&mesh);
     if a.json {
         let json = serde_json::to_string_pretty(&report)
-            .context("serialising the report")
-            .map_err(runtime)?;
+            .map_err(|e| runtime(anyhow!("cannot serialise the report: {e}")))?;
         println!("{json}");
     } else {
         println!("{}", a.mesh.display());

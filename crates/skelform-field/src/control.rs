@@ -60,11 +60,9 @@ impl Control {
         if self.is_cancelled() {
             return ControlFlow::Break(());
         }
-        if let Some(cb) = &self.callback {
-            if cb(&progress).is_break() {
-                self.cancel();
-                return ControlFlow::Break(());
-            }
+        if self.callback.as_ref().is_some_and(|cb| cb(&progress).is_break()) {
+            self.cancel();
+            return ControlFlow::Break(());
         }
         ControlFlow::Continue(())
     }

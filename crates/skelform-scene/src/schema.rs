@@ -32,8 +32,12 @@ impl Method {
 
 /// A method name that is not one of [`Method::ALL`].
 #[derive(Debug, thiserror::Error)]
-#[error("unknown method '{0}'; expected one of: {}", Method::ALL.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", "))]
+#[error("unknown method '{0}'; expected one of: {names}", names = method_names())]
 pub struct ParseMethodError(pub String);
+
+fn method_names() -> String {
+    Method::ALL.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", ")
+}
 
 impl FromStr for Method {
     type Err = ParseMethodError;
@@ -251,11 +255,11 @@ fn compile_formula(
     params_at: Option<usize>,
 ) -> Result<Formula, SceneError> {
     let constants: Vec<(&str, f64)> = params.iter().map(|(k, v)| (k.as_str(), *v)).collect();
+    // Parameters alone first, so that a bad parameter is reported at the parameters table.
+    if let Err(e) = Formula::parse_with_constants("0", &constants) {
+        return Err(cx.at(params_at.unwrap_or(src.span().start), format!("parameters: {}", e.message())));
+    }
     Formula::parse_with_constants(src.get_ref(), &constants).map_err(|e| {
-        // A bad parameter name is reported at the parameters table.
-        if e.line() == 0 {
-            return cx.at(params_at.unwrap_or(src.span().start), e.message().to_string());
-        }
         let content = content_start(cx.text, src.span().start);
         let (line0, col0) = line_col(cx.text, content);
         let (line, column) = if e.line() == 1 {

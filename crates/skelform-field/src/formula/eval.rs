@@ -102,7 +102,7 @@ pub(crate) mod lane {
 /// split into three parts whose products with `k` are exact for `|k| < 2^19` (Cody–Waite),
 /// then Taylor polynomials through degree 17 (sine) and 18 (cosine), whose truncation error
 /// is far below an ulp there. Results are within about one ulp of the correctly rounded
-/// value. Beyond [`trig::FAST_MAX`] (and for non-finite arguments) callers use `f64::sin` /
+/// value (at most two ulps in the tests). Beyond [`FAST_MAX`] (and for non-finite arguments) callers use `f64::sin` /
 /// `f64::cos` instead.
 pub(crate) mod trig {
     /// Largest `|a|` handled here: about `2^19 · π/2`.
@@ -154,7 +154,8 @@ pub(crate) mod trig {
     fn sin_kernel(x: f64) -> f64 {
         let z = x * x;
         let p = S3 + z * (S5 + z * (S7 + z * (S9 + z * (S11 + z * (S13 + z * (S15 + z * S17))))));
-        x + x * z * p
+        // Keeps the sign of zero (−0 + (+0) would be +0).
+        if x == 0.0 { x } else { x + x * z * p }
     }
 
     #[inline(always)]
@@ -487,6 +488,7 @@ fn split<T, const N: usize>(regs: &mut [T], out: u32, ins: [u32; N]) -> (&mut T,
 
 /// Runs the tape's instructions over the first `n` lanes of every register. Inputs and
 /// constants must already be loaded.
+#[inline(always)]
 fn run_values<const L: usize>(tape: &Tape, regs: &mut [[f64; L]], n: usize) {
     let n = n.min(L);
     for ins in &tape.instrs {
@@ -521,6 +523,54 @@ fn run_values<const L: usize>(tape: &Tape, regs: &mut [[f64; L]], n: usize) {
     }
 }
 
+/// Wider vectors where the CPU has them. The instructions are the same IEEE operations
+/// (no fused multiply-add: Rust never contracts `a * b + c`), so the results are
+/// bit-identical to the baseline build and to the single-point path.
+#[cfg(target_arch = "x86_64")]
+mod wide {
+    use super::{Dual, Tape};
+
+    pub(super) fn available() -> bool {
+        std::arch::is_x86_feature_detected!("avx2")
+    }
+
+    /// # Safety
+    /// The CPU must support AVX2 ([`available`]).
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn run_values<const L: usize>(tape: &Tape, regs: &mut [[f64; L]], n: usize) {
+        super::run_values(tape, regs, n)
+    }
+
+    /// # Safety
+    /// The CPU must support AVX2 ([`available`]).
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn run_duals<const L: usize>(tape: &Tape, regs: &mut [Dual<L>], n: usize) {
+        super::run_duals(tape, regs, n)
+    }
+}
+
+/// [`run_values`] for batches, with the widest vectors available.
+fn run_values_batch<const L: usize>(tape: &Tape, regs: &mut [[f64; L]], n: usize) {
+    #[cfg(target_arch = "x86_64")]
+    if wide::available() {
+        // SAFETY: AVX2 was detected at run time.
+        unsafe { wide::run_values(tape, regs, n) };
+        return;
+    }
+    run_values(tape, regs, n)
+}
+
+/// [`run_duals`] for batches, with the widest vectors available.
+fn run_duals_batch<const L: usize>(tape: &Tape, regs: &mut [Dual<L>], n: usize) {
+    #[cfg(target_arch = "x86_64")]
+    if wide::available() {
+        // SAFETY: AVX2 was detected at run time.
+        unsafe { wide::run_duals(tape, regs, n) };
+        return;
+    }
+    run_duals(tape, regs, n)
+}
+
 /// `lane::sin`/`lane::cos` over a batch: the branch-free kernel on every lane (vectorised),
 /// then the libm function on the rare lanes out of its range.
 #[inline(always)]
@@ -546,10 +596,29 @@ impl<const L: usize> Dual<L> {
     const ZERO: Self = Self { v: [0.0; L], d: [[0.0; L]; 3] };
 }
 
+#[inline(always)]
 fn run_duals<const L: usize>(tape: &Tape, regs: &mut [Dual<L>], n: usize) {
     let n = n.min(L);
     for ins in &tape.instrs {
         match *ins {
+            Instr::Unary { op: op @ (UnOp::Sin | UnOp::Cos), out, a } => {
+                // Value and derivative from the vectorised kernels (same values as `lane`).
+                let (o, [a]) = split(regs, out, [a]);
+                let mut deriv = [0.0; L];
+                if op == UnOp::Sin {
+                    trig_batch(&mut o.v[..n], &a.v[..n], trig::sin, f64::sin);
+                    trig_batch(&mut deriv[..n], &a.v[..n], trig::cos, f64::cos);
+                } else {
+                    trig_batch(&mut o.v[..n], &a.v[..n], trig::cos, f64::cos);
+                    trig_batch(&mut deriv[..n], &a.v[..n], trig::sin, f64::sin);
+                    deriv[..n].iter_mut().for_each(|d| *d = -*d);
+                }
+                for (od, ad) in o.d.iter_mut().zip(&a.d) {
+                    for ((o, &d), &t) in od[..n].iter_mut().zip(&deriv[..n]).zip(&ad[..n]) {
+                        *o = tm(d, t);
+                    }
+                }
+            }
             Instr::Unary { op, out, a } => {
                 let (o, [a]) = split(regs, out, [a]);
                 with_unary_ad!(op, g => {
@@ -627,8 +696,24 @@ fn point_values(tape: &Tape, p: DVec3, regs: &mut [[f64; 1]]) -> f64 {
     for (r, &c) in regs[FIRST_CONST_REG..].iter_mut().zip(&tape.consts) {
         *r = [c];
     }
-    run_values(tape, regs, 1);
+    run_scalar(tape, regs.as_flattened_mut());
     regs[tape.result as usize][0]
+}
+
+/// The single-point interpreter: the same lane functions as [`run_values`] (so the same
+/// bits), without the batch machinery.
+fn run_scalar(tape: &Tape, r: &mut [f64]) {
+    for ins in &tape.instrs {
+        match *ins {
+            Instr::Unary { op, out, a } => r[out as usize] = eval_un(op, r[a as usize]),
+            Instr::Binary { op, out, a, b } => {
+                r[out as usize] = eval_bin(op, r[a as usize], r[b as usize])
+            }
+            Instr::SMin { out, a, b, k } => {
+                r[out as usize] = lane::smin(r[a as usize], r[b as usize], r[k as usize]);
+            }
+        }
+    }
 }
 
 pub(crate) fn eval_point(tape: &Tape, p: DVec3) -> f64 {
@@ -663,7 +748,7 @@ pub(crate) fn eval_batch(tape: &Tape, points: &[DVec3], out: &mut [f64]) {
                     zs[i] = p.z;
                 }
             }
-            run_values(tape, regs, n);
+            run_values_batch(tape, regs, n);
             outs.copy_from_slice(&regs[result][..n]);
         }
     })
@@ -721,7 +806,7 @@ pub(crate) fn grad_batch(tape: &Tape, points: &[DVec3], values: &mut [f64], grad
                 regs[1].v[i] = p.y;
                 regs[2].v[i] = p.z;
             }
-            run_duals(tape, regs, n);
+            run_duals_batch(tape, regs, n);
             let r = &regs[result];
             vals.copy_from_slice(&r.v[..n]);
             for (i, g) in gs.iter_mut().enumerate() {

@@ -1,0 +1,181 @@
+//! The `skelform` command as a user runs it: meshes from the example scenes, the checker's
+//! report, and one clear error with the right exit code for every kind of bad input.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn skelform(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_skelform")).args(args).output().expect("run skelform")
+}
+
+fn example(name: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples").join(name).display().to_string()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn check_json(mesh: &Path) -> serde_json::Value {
+    let o = skelform(&["check", mesh.to_str().unwrap(), "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    serde_json::from_slice(&o.stdout).expect("check --json prints JSON")
+}
+
+/// Writes a scene into a temporary folder.
+fn scene(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+#[test]
+fn torus_in_every_format_is_a_closed_genus_one_surface() {
+    let dir = tempfile::tempdir().unwrap();
+    for ext in ["ply", "obj", "stl"] {
+        let out = dir.path().join(format!("torus.{ext}"));
+        let o = skelform(&["mesh", &example("torus.toml"), "-o", out.to_str().unwrap(), "--resolution", "64"]);
+        assert!(o.status.success(), "{ext}: {}", stderr(&o));
+        let r = check_json(&out);
+        assert_eq!(r["boundary_edges"], 0, "{ext}");
+        assert_eq!(r["non_manifold_edges"], 0, "{ext}");
+        assert_eq!(r["consistently_oriented"], true, "{ext}");
+        assert_eq!(r["outward"], true, "{ext}");
+        assert_eq!(r["components"].as_array().unwrap().len(), 1, "{ext}");
+        assert_eq!(r["components"][0]["genus"], 1, "{ext}");
+    }
+}
+
+#[test]
+fn every_example_scene_meshes_closed() {
+    let dir = tempfile::tempdir().unwrap();
+    let examples = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples");
+    let mut count = 0;
+    for entry in std::fs::read_dir(examples).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_none_or(|e| e != "toml") {
+            continue;
+        }
+        let out = dir.path().join("out.ply");
+        let o = skelform(&["mesh", path.to_str().unwrap(), "-o", out.to_str().unwrap(), "--resolution", "48"]);
+        assert!(o.status.success(), "{}: {}", path.display(), stderr(&o));
+        let r = check_json(&out);
+        assert_eq!(r["boundary_edges"], 0, "{}", path.display());
+        assert_eq!(r["non_manifold_edges"], 0, "{}", path.display());
+        assert_eq!(r["outward"], true, "{}", path.display());
+        count += 1;
+    }
+    assert!(count >= 5);
+}
+
+#[test]
+fn stats_and_json_report_the_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("s.ply");
+    let o = skelform(&["mesh", &example("sphere.toml"), "-o", out.to_str().unwrap(), "--stats", "--resolution", "33"]);
+    assert!(o.status.success());
+    let text = stdout(&o);
+    for key in ["samples       35937", "vertices", "triangles", "sampling", "extraction", "refinement"] {
+        assert!(text.contains(key), "--stats lacks {key}:\n{text}");
+    }
+    let o = skelform(&["mesh", &example("sphere.toml"), "-o", out.to_str().unwrap(), "--json", "--cell", "0.0625"]);
+    assert!(o.status.success());
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["samples"], 33 * 33 * 33);
+    assert!(j["triangles"].as_u64().unwrap() > 1000);
+    assert!(j["seconds"]["total"].as_f64().unwrap() >= 0.0);
+}
+
+#[test]
+fn output_is_the_same_for_any_thread_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut files = Vec::new();
+    for t in ["1", "2", "4"] {
+        let out = dir.path().join(format!("g{t}.ply"));
+        let o = skelform(&["mesh", &example("gyroid.toml"), "-o", out.to_str().unwrap(), "--threads", t, "--resolution", "64"]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        files.push(std::fs::read(out).unwrap());
+    }
+    assert!(files.windows(2).all(|w| w[0] == w[1]), "meshes differ between thread counts");
+}
+
+#[test]
+fn check_reads_ascii_ply_and_reports_text() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("t.ply");
+    let o = skelform(&["mesh", &example("sphere.toml"), "-o", out.to_str().unwrap(), "--ascii", "--resolution", "20"]);
+    assert!(o.status.success());
+    assert!(std::fs::read_to_string(&out).unwrap().starts_with("ply\nformat ascii 1.0"));
+    let o = skelform(&["check", out.to_str().unwrap()]);
+    assert!(o.status.success());
+    let text = stdout(&o);
+    assert!(text.contains("genus 0"), "{text}");
+    assert!(text.contains("closed manifold"), "{text}");
+}
+
+/// Runs a failing command; checks the exit code, that stderr is one line naming `needle`,
+/// and that no output file was left.
+fn fails(args: &[&str], code: i32, needle: &str, out: Option<&Path>) {
+    let o = skelform(args);
+    assert_eq!(o.status.code(), Some(code), "{args:?}: {}", stderr(&o));
+    let err = stderr(&o);
+    assert!(err.contains(needle), "{args:?}: expected '{needle}' in: {err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+    if let Some(out) = out {
+        assert!(!out.exists(), "{args:?} left {}", out.display());
+    }
+}
+
+#[test]
+fn bad_input_gets_one_clear_line_and_exit_code() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = d.join("out.ply");
+    let o = out.to_str().unwrap();
+    let head = "[domain]\nmin = [-1, -1, -1]\nmax = [1, 1, 1]\n";
+
+    let missing = d.join("missing.toml");
+    fails(&["mesh", missing.to_str().unwrap(), "-o", o], 2, "missing.toml", Some(&out));
+
+    let p = scene(d, "badtoml.toml", "[domain]\nmin = [-1, -1, -1]\nmax = [1, 1, 1\n[field]\nformula = \"x\"\n");
+    fails(&["mesh", p.to_str().unwrap(), "-o", o], 2, "badtoml.toml:4:1", Some(&out));
+
+    let p = scene(d, "unknown.toml", &format!("{head}[mesh]\nresolutoin = 5\n[field]\nformula = \"x\"\n"));
+    fails(&["mesh", p.to_str().unwrap(), "-o", o], 2, "unknown.toml:5:1: unknown field `resolutoin`", Some(&out));
+
+    let p = scene(d, "syntax.toml", &format!("{head}[field]\nformula = \"\"\"\nr = sqrt(x^2 + y^2)\nr - * z\n\"\"\"\n"));
+    fails(&["mesh", p.to_str().unwrap(), "-o", o], 2, "syntax.toml:7:5", Some(&out));
+
+    let p = scene(d, "name.toml", &format!("{head}[field]\nformula = \"sqrt(x^2 + y^2 + z^2) - radius\"\n"));
+    fails(&["mesh", p.to_str().unwrap(), "-o", o], 2, "name.toml:5:36: unknown name 'radius'", Some(&out));
+
+    let p = scene(d, "huge.toml", &format!("{head}[mesh]\nresolution = 5000\n[field]\nformula = \"x\"\n"));
+    fails(&["mesh", p.to_str().unwrap(), "-o", o], 2, "GiB", Some(&out));
+    fails(&["mesh", &example("sphere.toml"), "-o", o, "--resolution", "400", "--max-memory", "64M"], 2, "limit", Some(&out));
+
+    let p = scene(d, "empty.toml", &format!("{head}[field]\nformula = \"x^2 + y^2 + z^2 + 1\"\n"));
+    fails(&["mesh", p.to_str().unwrap(), "-o", o], 1, "no surface in the domain", Some(&out));
+
+    let unwritable = d.join("no/such/dir/out.ply");
+    fails(&["mesh", &example("sphere.toml"), "-o", unwritable.to_str().unwrap()], 1, "cannot write", None);
+    fails(&["mesh", &example("sphere.toml"), "-o", d.join("out.xyz").to_str().unwrap()], 2, "unknown output format", None);
+    fails(&["mesh", &example("sphere.toml"), "-o", o, "--method", "magic"], 2, "unknown method 'magic'", Some(&out));
+
+    let garbage = scene(d, "garbage.ply", "this is not a mesh\n");
+    fails(&["check", garbage.to_str().unwrap()], 2, "garbage.ply", None);
+    fails(&["check", d.join("nothing.ply").to_str().unwrap()], 2, "nothing.ply", None);
+}
+
+#[test]
+fn usage_errors_exit_with_two() {
+    let o = skelform(&["mesh"]);
+    assert_eq!(o.status.code(), Some(2));
+    let o = skelform(&["--help"]);
+    assert!(o.status.success());
+    assert!(stdout(&o).contains("mesh"));
+}
