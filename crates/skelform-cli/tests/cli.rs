@@ -38,7 +38,14 @@ fn torus_in_every_format_is_a_closed_genus_one_surface() {
     let dir = tempfile::tempdir().unwrap();
     for ext in ["ply", "obj", "stl"] {
         let out = dir.path().join(format!("torus.{ext}"));
-        let o = skelform(&["mesh", &example("torus.toml"), "-o", out.to_str().unwrap(), "--resolution", "64"]);
+        let o = skelform(&[
+            "mesh",
+            &example("torus.toml"),
+            "-o",
+            out.to_str().unwrap(),
+            "--resolution",
+            "64",
+        ]);
         assert!(o.status.success(), "{ext}: {}", stderr(&o));
         let r = check_json(&out);
         assert_eq!(r["boundary_edges"], 0, "{ext}");
@@ -61,7 +68,14 @@ fn every_example_scene_meshes_closed() {
             continue;
         }
         let out = dir.path().join("out.ply");
-        let o = skelform(&["mesh", path.to_str().unwrap(), "-o", out.to_str().unwrap(), "--resolution", "48"]);
+        let o = skelform(&[
+            "mesh",
+            path.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--resolution",
+            "48",
+        ]);
         assert!(o.status.success(), "{}: {}", path.display(), stderr(&o));
         let r = check_json(&out);
         assert_eq!(r["boundary_edges"], 0, "{}", path.display());
@@ -76,13 +90,31 @@ fn every_example_scene_meshes_closed() {
 fn stats_and_json_report_the_run() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("s.ply");
-    let o = skelform(&["mesh", &example("sphere.toml"), "-o", out.to_str().unwrap(), "--stats", "--resolution", "33"]);
+    let o = skelform(&[
+        "mesh",
+        &example("sphere.toml"),
+        "-o",
+        out.to_str().unwrap(),
+        "--stats",
+        "--resolution",
+        "33",
+    ]);
     assert!(o.status.success());
     let text = stdout(&o);
-    for key in ["samples       35937", "vertices", "triangles", "sampling", "extraction", "refinement"] {
+    for key in
+        ["samples       35937", "vertices", "triangles", "sampling", "extraction", "refinement"]
+    {
         assert!(text.contains(key), "--stats lacks {key}:\n{text}");
     }
-    let o = skelform(&["mesh", &example("sphere.toml"), "-o", out.to_str().unwrap(), "--json", "--cell", "0.0625"]);
+    let o = skelform(&[
+        "mesh",
+        &example("sphere.toml"),
+        "-o",
+        out.to_str().unwrap(),
+        "--json",
+        "--cell",
+        "0.0625",
+    ]);
     assert!(o.status.success());
     let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(j["samples"], 33 * 33 * 33);
@@ -96,7 +128,16 @@ fn output_is_the_same_for_any_thread_count() {
     let mut files = Vec::new();
     for t in ["1", "2", "4"] {
         let out = dir.path().join(format!("g{t}.ply"));
-        let o = skelform(&["mesh", &example("gyroid.toml"), "-o", out.to_str().unwrap(), "--threads", t, "--resolution", "64"]);
+        let o = skelform(&[
+            "mesh",
+            &example("gyroid.toml"),
+            "-o",
+            out.to_str().unwrap(),
+            "--threads",
+            t,
+            "--resolution",
+            "64",
+        ]);
         assert!(o.status.success(), "{}", stderr(&o));
         files.push(std::fs::read(out).unwrap());
     }
@@ -107,7 +148,15 @@ fn output_is_the_same_for_any_thread_count() {
 fn check_reads_ascii_ply_and_reports_text() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("t.ply");
-    let o = skelform(&["mesh", &example("sphere.toml"), "-o", out.to_str().unwrap(), "--ascii", "--resolution", "20"]);
+    let o = skelform(&[
+        "mesh",
+        &example("sphere.toml"),
+        "-o",
+        out.to_str().unwrap(),
+        "--ascii",
+        "--resolution",
+        "20",
+    ]);
     assert!(o.status.success());
     assert!(std::fs::read_to_string(&out).unwrap().starts_with("ply\nformat ascii 1.0"));
     let o = skelform(&["check", out.to_str().unwrap()]);
@@ -142,29 +191,79 @@ fn bad_input_gets_one_clear_line_and_exit_code() {
     let missing = d.join("missing.toml");
     fails(&["mesh", missing.to_str().unwrap(), "-o", o], 2, "missing.toml", Some(&out));
 
-    let p = scene(d, "badtoml.toml", "[domain]\nmin = [-1, -1, -1]\nmax = [1, 1, 1\n[field]\nformula = \"x\"\n");
+    let p = scene(
+        d,
+        "badtoml.toml",
+        "[domain]\nmin = [-1, -1, -1]\nmax = [1, 1, 1\n[field]\nformula = \"x\"\n",
+    );
     fails(&["mesh", p.to_str().unwrap(), "-o", o], 2, "badtoml.toml:4:1", Some(&out));
 
-    let p = scene(d, "unknown.toml", &format!("{head}[mesh]\nresolutoin = 5\n[field]\nformula = \"x\"\n"));
-    fails(&["mesh", p.to_str().unwrap(), "-o", o], 2, "unknown.toml:5:1: unknown field `resolutoin`", Some(&out));
+    let p = scene(
+        d,
+        "unknown.toml",
+        &format!("{head}[mesh]\nresolutoin = 5\n[field]\nformula = \"x\"\n"),
+    );
+    fails(
+        &["mesh", p.to_str().unwrap(), "-o", o],
+        2,
+        "unknown.toml:5:1: unknown field `resolutoin`",
+        Some(&out),
+    );
 
-    let p = scene(d, "syntax.toml", &format!("{head}[field]\nformula = \"\"\"\nr = sqrt(x^2 + y^2)\nr - * z\n\"\"\"\n"));
+    let p = scene(
+        d,
+        "syntax.toml",
+        &format!("{head}[field]\nformula = \"\"\"\nr = sqrt(x^2 + y^2)\nr - * z\n\"\"\"\n"),
+    );
     fails(&["mesh", p.to_str().unwrap(), "-o", o], 2, "syntax.toml:7:5", Some(&out));
 
-    let p = scene(d, "name.toml", &format!("{head}[field]\nformula = \"sqrt(x^2 + y^2 + z^2) - radius\"\n"));
-    fails(&["mesh", p.to_str().unwrap(), "-o", o], 2, "name.toml:5:36: unknown name 'radius'", Some(&out));
+    let p = scene(
+        d,
+        "name.toml",
+        &format!("{head}[field]\nformula = \"sqrt(x^2 + y^2 + z^2) - radius\"\n"),
+    );
+    fails(
+        &["mesh", p.to_str().unwrap(), "-o", o],
+        2,
+        "name.toml:5:36: unknown name 'radius'",
+        Some(&out),
+    );
 
-    let p = scene(d, "huge.toml", &format!("{head}[mesh]\nresolution = 5000\n[field]\nformula = \"x\"\n"));
+    let p = scene(
+        d,
+        "huge.toml",
+        &format!("{head}[mesh]\nresolution = 5000\n[field]\nformula = \"x\"\n"),
+    );
     fails(&["mesh", p.to_str().unwrap(), "-o", o], 2, "GiB", Some(&out));
-    fails(&["mesh", &example("sphere.toml"), "-o", o, "--resolution", "400", "--max-memory", "64M"], 2, "limit", Some(&out));
+    fails(
+        &["mesh", &example("sphere.toml"), "-o", o, "--resolution", "400", "--max-memory", "64M"],
+        2,
+        "limit",
+        Some(&out),
+    );
 
     let p = scene(d, "empty.toml", &format!("{head}[field]\nformula = \"x^2 + y^2 + z^2 + 1\"\n"));
     fails(&["mesh", p.to_str().unwrap(), "-o", o], 1, "no surface in the domain", Some(&out));
 
     let unwritable = d.join("no/such/dir/out.ply");
-    fails(&["mesh", &example("sphere.toml"), "-o", unwritable.to_str().unwrap()], 1, "cannot write", None);
-    fails(&["mesh", &example("sphere.toml"), "-o", d.join("out.xyz").to_str().unwrap()], 2, "unknown output format", None);
-    fails(&["mesh", &example("sphere.toml"), "-o", o, "--method", "magic"], 2, "unknown method 'magic'", Some(&out));
+    fails(
+        &["mesh", &example("sphere.toml"), "-o", unwritable.to_str().unwrap()],
+        1,
+        "cannot write",
+        None,
+    );
+    fails(
+        &["mesh", &example("sphere.toml"), "-o", d.join("out.xyz").to_str().unwrap()],
+        2,
+        "unknown output format",
+        None,
+    );
+    fails(
+        &["mesh", &example("sphere.toml"), "-o", o, "--method", "magic"],
+        2,
+        "unknown method 'magic'",
+        Some(&out),
+    );
 
     let garbage = scene(d, "garbage.ply", "this is not a mesh\n");
     fails(&["check", garbage.to_str().unwrap()], 2, "garbage.ply", None);

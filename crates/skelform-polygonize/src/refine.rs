@@ -99,9 +99,7 @@ fn refine_chunk(field: &dyn Field, chunk: &mut [Bracket], opts: &RootOptions) ->
         for (&n, &f) in which.iter().zip(&values) {
             let s = &mut states[n];
             let t = chunk[n].t;
-            if !f.is_finite() {
-                s.done = true;
-            } else if f == 0.0 {
+            if !f.is_finite() || f == 0.0 {
                 s.done = true;
             } else if (f < 0.0) == (s.fa < 0.0) && s.fa != 0.0 {
                 s.a = t;

@@ -257,7 +257,9 @@ fn compile_formula(
     let constants: Vec<(&str, f64)> = params.iter().map(|(k, v)| (k.as_str(), *v)).collect();
     // Parameters alone first, so that a bad parameter is reported at the parameters table.
     if let Err(e) = Formula::parse_with_constants("0", &constants) {
-        return Err(cx.at(params_at.unwrap_or(src.span().start), format!("parameters: {}", e.message())));
+        return Err(
+            cx.at(params_at.unwrap_or(src.span().start), format!("parameters: {}", e.message()))
+        );
     }
     Formula::parse_with_constants(src.get_ref(), &constants).map_err(|e| {
         let content = content_start(cx.text, src.span().start);

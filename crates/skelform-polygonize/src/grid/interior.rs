@@ -60,7 +60,7 @@ pub fn saddles(v: &[f32; 8]) -> Vec<Saddle> {
     let q = -(c - e * f / h) / h;
     let r = -(d - f * g / h) / h;
     let w2 = p * q * r;
-    if !(w2 > 0.0) || p == 0.0 || q == 0.0 || r == 0.0 {
+    if w2.is_nan() || w2 <= 0.0 || p == 0.0 || q == 0.0 || r == 0.0 {
         return Vec::new();
     }
     let w = w2.sqrt();

@@ -81,7 +81,7 @@ pub fn loops_for(inside: u8, decisions: u8) -> Vec<Vec<u8>> {
         let crossings = (0..4).filter(|&k| is_in(q[k]) != is_in(q[(k + 1) % 4])).count();
         for k in 0..4 {
             // An exit: the boundary walk leaves the inside along side k.
-            if !(is_in(q[k]) && !is_in(q[(k + 1) % 4])) {
+            if !is_in(q[k]) || is_in(q[(k + 1) % 4]) {
                 continue;
             }
             let entry = if crossings == 2 {
@@ -311,7 +311,7 @@ mod tests {
 
     #[test]
     fn single_corner_gives_one_outward_triangle() {
-        for c in 0..8 {
+        for (c, corner) in CORNERS.iter().enumerate() {
             let t = table();
             let e = t.entry(1 << c, 0);
             assert_eq!(e.loop_count, 1);
@@ -319,7 +319,7 @@ mod tests {
             assert_eq!(tris.len(), 1);
             let p = tris[0].map(|ed| edge_point(ed as usize, 0.5));
             let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
-            let away = sub(p[0], CORNERS[c].map(|v| v as f64));
+            let away = sub(p[0], corner.map(|v| v as f64));
             let dot: f64 = (0..3).map(|i| n[i] * away[i]).sum();
             assert!(dot > 0.0, "corner {c}: normal must point away from the inside corner");
         }
