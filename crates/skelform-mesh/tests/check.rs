@@ -475,25 +475,12 @@ fn many_components_are_summarised() {
 }
 
 #[test]
-fn large_mesh_checks_quickly() {
-    // 2 × 400 × 250 = 200 000 triangles; the full 2-million case is in the benchmark notes.
+fn large_mesh_is_checked_correctly() {
+    // 2 × 400 × 250 = 200 000 triangles (speed is measured in `benches/mesh.rs`).
     let m = torus(400, 250);
-    let start = std::time::Instant::now();
     let r = check(&m);
-    let elapsed = start.elapsed();
     assert_closed_genus(&r, 1);
-    assert!(elapsed.as_secs_f64() < 5.0, "{elapsed:?}");
-}
-
-#[test]
-#[ignore = "timing on two million triangles; run with --ignored --nocapture"]
-fn two_million_triangles() {
-    let m = torus(1000, 1000);
-    let start = std::time::Instant::now();
-    let r = check(&m);
-    let elapsed = start.elapsed();
-    println!("check of {} triangles: {elapsed:?}", m.triangles.len());
-    assert_closed_genus(&r, 1);
+    assert_eq!(r.faces, 200_000);
 }
 
 /// The distinct undirected edges of faces with distinct, in-range indices, by brute force.

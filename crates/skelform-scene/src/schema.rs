@@ -120,7 +120,7 @@ pub(crate) fn build(text: &str, origin: &str) -> Result<Scene, SceneError> {
     let cx = Ctx { text, origin };
     let file: File = toml::from_str(text).map_err(|e| {
         let offset = e.span().map_or(0, |s| s.start);
-        cx.at(offset, e.message().trim_end().replace('\n', "; "))
+        cx.at(offset, plain_types(e.message().trim_end()).replace('\n', "; "))
     })?;
 
     let d = file.domain.get_ref();
@@ -264,18 +264,26 @@ fn compile_formula(
     Formula::parse_with_constants(src.get_ref(), &constants).map_err(|e| {
         let content = content_start(cx.text, src.span().start);
         let (line0, col0) = line_col(cx.text, content);
-        let (line, column) = if e.line() == 1 {
-            (line0, col0 + e.column() - 1)
-        } else {
-            (line0 + e.line() - 1, e.column())
-        };
+        // Formula positions to file positions: the first line starts at the content's column.
+        let to_file =
+            |l: usize, c: usize| if l == 1 { (line0, col0 + c - 1) } else { (line0 + l - 1, c) };
+        let (line, column) = to_file(e.line(), e.column());
         SceneError::At {
             path: cx.origin.to_string(),
             line,
             column,
-            message: e.message().to_string(),
+            message: e.message_mapped(to_file),
         }
     })
+}
+
+/// serde names Rust types in its messages; say what they mean instead.
+fn plain_types(message: &str) -> String {
+    message
+        .replace("expected i64", "expected a whole number")
+        .replace("expected f64", "expected a number")
+        .replace("expected a sequence", "expected an array")
+        .replace("expected an array of length 3", "expected an array of three numbers")
 }
 
 /// Byte offset where a TOML string's content starts, given where its literal starts.

@@ -1,8 +1,11 @@
 //! Running a tape: values, and values with gradients by forward-mode differentiation.
 //!
-//! One generic interpreter serves both the batch path (`L` lanes, one tight loop per
-//! instruction over all lanes) and the single-point path (`L = 1`). Both call the same lane
-//! functions, so a point gives bit-identical results whichever way it is evaluated.
+//! The batch interpreters run one instruction at a time over `L` lanes (one tight loop per
+//! instruction, which the compiler vectorises; with AVX2 where the CPU has it). The
+//! single-point paths use the same lane functions (values through a scalar interpreter,
+//! gradients through the dual interpreter with `L = 1`), so a point gives bit-identical
+//! results whichever way it is evaluated. Nothing allocates per point: registers live on the
+//! stack (single points) or in a per-thread cache (batches).
 
 use std::cell::RefCell;
 use std::thread::LocalKey;
@@ -102,7 +105,7 @@ pub(crate) mod lane {
 /// split into three parts whose products with `k` are exact for `|k| < 2^19` (Cody–Waite),
 /// then Taylor polynomials through degree 17 (sine) and 18 (cosine), whose truncation error
 /// is far below an ulp there. Results are within about one ulp of the correctly rounded
-/// value (at most two ulps in the tests). Beyond [`FAST_MAX`] (and for non-finite arguments) callers use `f64::sin` /
+/// value (at most two ulps in the tests). Beyond [`trig::FAST_MAX`] (and for non-finite arguments) callers use `f64::sin` /
 /// `f64::cos` instead.
 pub(crate) mod trig {
     /// Largest `|a|` handled here: about `2^19 · π/2`.

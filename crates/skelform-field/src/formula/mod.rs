@@ -76,7 +76,9 @@
 //! a constant integer `n` with `|n| ≤ 64` is repeated multiplication (binary
 //! exponentiation), `u^-n` is `1/u^n`, `u^0` is `1`, `u^0.5` is `sqrt(u)`, and other powers
 //! use `powf`. `clamp`, `mix`, `difference` and the smooth operations expand to the
-//! formulas above.
+//! formulas above. `sin` and `cos` use skelform's own branch-free kernels (so batches
+//! vectorise), within two ulps of the correctly rounded value for `|u| ≤ 823549`, and the
+//! platform's `sin`/`cos` beyond; the other functions are the Rust standard library's.
 //!
 //! # Gradients
 //!
@@ -113,11 +115,42 @@ pub struct FormulaError {
     line: usize,
     column: usize,
     message: String,
+    /// A second position the message cites ("opened at line 2, column 5").
+    related: Option<(usize, usize)>,
+}
+
+fn position_text(line: usize, column: usize) -> String {
+    format!("line {line}, column {column}")
 }
 
 impl FormulaError {
     pub(crate) fn new(line: usize, column: usize, message: impl Into<String>) -> Self {
-        Self { line, column, message: message.into() }
+        Self { line, column, message: message.into(), related: None }
+    }
+
+    /// Marks the position the message cites, so that [`FormulaError::message_mapped`] can
+    /// translate it. The message must contain it as `line L, column C`.
+    pub(crate) fn with_related(mut self, line: usize, column: usize) -> Self {
+        debug_assert!(self.message.contains(&position_text(line, column)));
+        self.related = Some((line, column));
+        self
+    }
+
+    /// The second position the message cites, if any.
+    pub fn related(&self) -> Option<(usize, usize)> {
+        self.related
+    }
+
+    /// The message with the position it cites translated by `map` (from formula line and
+    /// column to, say, line and column in the scene file that holds the formula).
+    pub fn message_mapped(&self, map: impl Fn(usize, usize) -> (usize, usize)) -> String {
+        match self.related {
+            Some((l, c)) => {
+                let (ml, mc) = map(l, c);
+                self.message.replacen(&position_text(l, c), &position_text(ml, mc), 1)
+            }
+            None => self.message.clone(),
+        }
     }
 
     /// 1-based line within the formula text.

@@ -288,9 +288,12 @@ impl Parser {
             return err(format!("'{name}' is reserved and cannot be defined"));
         }
         match self.names.get(name) {
-            Some(Binding::Definition { line, column, .. }) => {
-                err(format!("'{name}' is already defined (at line {line}, column {column})"))
-            }
+            Some(Binding::Definition { line, column, .. }) => Err(FormulaError::new(
+                at.line,
+                at.column,
+                format!("'{name}' is already defined (at line {line}, column {column})"),
+            )
+            .with_related(*line, *column)),
             Some(Binding::Parameter(_)) => {
                 err(format!("'{name}' is already defined as a parameter"))
             }
@@ -372,10 +375,12 @@ impl Parser {
                 let inner = self.expr()?;
                 if *self.peek_tok() != Tok::RParen {
                     let found = self.peek_tok().describe();
-                    return Err(self.error_here(format!(
-                        "expected ')' to close '(' opened at line {}, column {}, found {found}",
-                        t.line, t.column
-                    )));
+                    return Err(self
+                        .error_here(format!(
+                            "expected ')' to close '(' opened at line {}, column {}, found {found}",
+                            t.line, t.column
+                        ))
+                        .with_related(t.line, t.column));
                 }
                 self.paren -= 1;
                 self.bump();
@@ -444,10 +449,12 @@ impl Parser {
                     }
                     other => {
                         let found = other.describe();
-                        return Err(self.error_here(format!(
-                            "expected ',' or ')' to close '(' opened at line {}, column {}, found {found}",
-                            open.line, open.column
-                        )));
+                        return Err(self
+                            .error_here(format!(
+                                "expected ',' or ')' to close '(' opened at line {}, column {}, found {found}",
+                                open.line, open.column
+                            ))
+                            .with_related(open.line, open.column));
                     }
                 }
             }
