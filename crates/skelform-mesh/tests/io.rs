@@ -608,7 +608,10 @@ fn bad_stl_files() {
     assert_eq!((line, msg.as_str()), (8, "unexpected end of file: expected facet or endsolid"));
     let text = "solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 nope 0\n";
     let (line, msg) = parse_error(read_stl(text.as_bytes()).unwrap_err());
-    assert_eq!((line, msg.as_str()), (5, "expected a number after vertex, found 'nope'"));
+    assert_eq!(
+        (line, msg.as_str()),
+        (5, "expected a number for vertex coordinate 2, found 'nope'")
+    );
     let text = "solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nendloop\n";
     let (line, msg) = parse_error(read_stl(text.as_bytes()).unwrap_err());
     assert_eq!((line, msg.as_str()), (6, "a facet needs at least 3 vertices, found 2"));

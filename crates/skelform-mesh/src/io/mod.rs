@@ -327,6 +327,29 @@ impl Welder {
     }
 }
 
+/// Three numbers from the words of a text line (OBJ `v`/`vn`, STL `vertex`/`facet normal`),
+/// with an error that says which is missing or malformed.
+pub(crate) fn three_numbers<'a>(
+    words: &mut impl Iterator<Item = &'a str>,
+    line: usize,
+    what: &str,
+) -> Result<[f32; 3], IoError> {
+    let mut out = [0.0; 3];
+    for (k, c) in out.iter_mut().enumerate() {
+        let word = words.next();
+        *c = word.and_then(|w| w.parse().ok()).ok_or_else(|| {
+            let msg = match word {
+                Some(w) => {
+                    format!("expected a number for {what} coordinate {}, found '{w}'", k + 1)
+                }
+                None => format!("expected 3 numbers after {what}, found {k}"),
+            };
+            IoError::parse(line, msg)
+        })?;
+    }
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -25,7 +25,7 @@
 
 use std::io::{BufRead, Write};
 
-use super::{IoError, WriteOptions, buffered, finish};
+use super::{IoError, WriteOptions, buffered, finish, three_numbers};
 use crate::mesh::{CurveEdge, Mesh, RegionPair, RegionTriple};
 
 /// No normal index for a corner.
@@ -47,29 +47,6 @@ struct Reader {
     max_vertex: Option<(u32, usize)>,
     max_normal: Option<(u32, usize)>,
     corners: Vec<(u32, u32)>,
-}
-
-fn parse_floats<'a>(
-    words: &mut impl Iterator<Item = &'a str>,
-    line: usize,
-    what: &str,
-) -> Result<[f32; 3], IoError> {
-    let mut out = [0.0; 3];
-    for (k, c) in out.iter_mut().enumerate() {
-        let word = words.next();
-        *c = word.and_then(|w| w.parse().ok()).ok_or_else(|| {
-            IoError::parse(
-                line,
-                match word {
-                    Some(w) => {
-                        format!("expected a number for {what} coordinate {}, found '{w}'", k + 1)
-                    }
-                    None => format!("expected 3 numbers after {what}, found {k}"),
-                },
-            )
-        })?;
-    }
-    Ok(out)
 }
 
 /// A label name `prefix` followed by `N` numbers separated by `_`.
@@ -124,11 +101,11 @@ impl Reader {
         let Some(keyword) = words.next() else { return Ok(()) };
         match keyword {
             "v" => {
-                let p = parse_floats(&mut words, line, "v")?;
+                let p = three_numbers(&mut words, line, "v")?;
                 self.positions.push(p);
             }
             "vn" => {
-                let n = parse_floats(&mut words, line, "vn")?;
+                let n = three_numbers(&mut words, line, "vn")?;
                 self.normals.push(n);
             }
             "f" | "fo" => self.face(words, line)?,

@@ -12,7 +12,7 @@
 
 use std::io::Write;
 
-use super::{IoError, Welder, buffered, finish};
+use super::{IoError, Welder, buffered, finish, three_numbers};
 use crate::mesh::Mesh;
 
 const HEADER: &[u8] = b"binary STL written by skelform";
@@ -127,7 +127,7 @@ fn read_ascii(bytes: &[u8]) -> Result<Mesh, IoError> {
                     if normal != Some("normal") {
                         return Err(IoError::parse(line, "expected 'facet normal nx ny nz'"));
                     }
-                    numbers(&mut words, line, "facet normal")?;
+                    three_numbers(&mut words, line, "facet normal")?;
                 }
                 State::InFacet
             }
@@ -142,7 +142,7 @@ fn read_ascii(bytes: &[u8]) -> Result<Mesh, IoError> {
             }
             (State::InFacet, _) => return Err(expect("outer loop")),
             (State::InLoop, "vertex") => {
-                let p = numbers(&mut words, line, "vertex")?;
+                let p = three_numbers(&mut words, line, "vertex")?;
                 polygon.push(welder.index(p));
                 State::InLoop
             }
@@ -174,27 +174,6 @@ fn read_ascii(bytes: &[u8]) -> Result<Mesh, IoError> {
         State::AfterLoop => "endfacet",
     };
     Err(IoError::parse(line.max(1), format!("unexpected end of file: expected {missing}")))
-}
-
-fn numbers<'a>(
-    words: &mut impl Iterator<Item = &'a str>,
-    line: usize,
-    what: &str,
-) -> Result<[f32; 3], IoError> {
-    let mut out = [0.0; 3];
-    for (k, c) in out.iter_mut().enumerate() {
-        let word = words.next();
-        *c = word.and_then(|w| w.parse().ok()).ok_or_else(|| {
-            IoError::parse(
-                line,
-                match word {
-                    Some(w) => format!("expected a number after {what}, found '{w}'"),
-                    None => format!("expected 3 numbers after {what}, found {k}"),
-                },
-            )
-        })?;
-    }
-    Ok(out)
 }
 
 /// The unit normal of a triangle, or zero when it is degenerate.
