@@ -367,7 +367,7 @@ fn info(a: InfoArgs) -> Result<(), Failure> {
     println!("iso         {}", scene.iso);
     println!("formula     {} instructions", scene.formula.instruction_count());
     if a.tape {
-        println!("{}", scene.formula);
+        println!("{}", scene.formula.tape());
     }
     Ok(())
 }
