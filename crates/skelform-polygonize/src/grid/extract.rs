@@ -14,16 +14,11 @@ use rayon::prelude::*;
 use skelform_field::control::{Control, Progress};
 use skelform_field::grid::{Grid, Volume};
 
-use super::cube::{CORNERS, EDGES, FACES, edge_axis, edge_point};
-use super::interior::tunnel;
-use super::table::{CENTER, table};
+use super::cell::{CubeSink, case_of, polygonize_cube};
+use super::cube::{CORNERS, EDGES, edge_axis};
 
 /// Cube layers per slab. A constant, so that results never depend on the thread count.
 const SLAB: usize = 8;
-
-/// Vertices closer than this (in cells) to a lattice point are moved to it, so that a
-/// sample that is exactly zero never makes several vertices at one position.
-pub const T_MIN: f64 = 1e-4;
 
 const BORROWED: u32 = 1 << 31;
 const NONE: u32 = u32::MAX;
@@ -88,36 +83,6 @@ pub struct Extraction {
 /// Cancellation during extraction.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Cancelled;
-
-/// For each ambiguous face, whether its inside corners are joined across it.
-///
-/// The asymptotic decider: the bilinear interpolant's saddle is inside exactly when the
-/// product of the two inside values exceeds that of the two outside values. Products of
-/// `f32` are exact in `f64`, so both cubes that share a face decide alike.
-#[inline]
-pub fn face_decisions(v: &[f32; 8], ambiguous: u8) -> u8 {
-    let mut bits = 0;
-    let mut amb = ambiguous;
-    while amb != 0 {
-        let f = amb.trailing_zeros() as usize;
-        amb &= amb - 1;
-        let q = FACES[f];
-        let d0 = v[q[0]] as f64 * v[q[2]] as f64;
-        let d1 = v[q[1]] as f64 * v[q[3]] as f64;
-        let (inside, outside) = if v[q[0]] < 0.0 { (d0, d1) } else { (d1, d0) };
-        if inside > outside {
-            bits |= 1 << f;
-        }
-    }
-    bits
-}
-
-/// Where the surface crosses an edge whose end values have opposite signs.
-#[inline]
-pub fn crossing(v0: f32, v1: f32) -> f64 {
-    let (a, b) = (v0 as f64, v1 as f64);
-    (a / (a - b)).clamp(T_MIN, 1.0 - T_MIN)
-}
 
 struct Slab {
     vertices: Vec<GridVertex>,
@@ -210,7 +175,6 @@ fn extract_slab(
         xy: vec![NONE; (z1 - z0 + 1) * 2 * layer],
         z: vec![NONE; (z1 - z0) * layer],
     };
-    let t = table();
     let mut slab = Slab {
         vertices: Vec::new(),
         triangles: Vec::new(),
@@ -221,7 +185,6 @@ fn extract_slab(
     };
     let vals = &volume.values;
     let offsets: [usize; 8] = CORNERS.map(|[x, y, z]| x + nx * y + layer * z);
-    let mut local = [0u32; 13];
     for k in z0..z1 {
         if control.is_cancelled() {
             return Err(Cancelled);
@@ -231,65 +194,15 @@ fn extract_slab(
             for i in 0..nx - 1 {
                 let base = row + i;
                 let v: [f32; 8] = offsets.map(|o| vals[base + o]);
-                let mut case = 0usize;
-                for (c, &x) in v.iter().enumerate() {
-                    case |= ((x < 0.0) as usize) << c;
-                }
+                let case = case_of(&v);
                 if case == 0 || case == 255 {
                     continue;
                 }
-                let amb = t.ambiguous[case];
-                let decisions = if amb == 0 { 0 } else { face_decisions(&v, amb) };
-                slab.ambiguous_faces += amb.count_ones() as u64;
-                let entry = t.entry(case, decisions as usize);
-                // Vertices for every crossing edge of the cube.
-                for l in 0..entry.loop_count as usize {
-                    for &e in t.loop_edges(entry, l) {
-                        local[e as usize] =
-                            slab.vertex(&mut maps, &v, [i, j, k], e as usize, z0, z1, last);
-                    }
-                }
-                let tube = if entry.loop_count == 2 { tunnel(&v, entry.caps_inside) } else { None };
-                if let Some(saddle) = tube {
-                    slab.tunnels += 1;
-                    let ring_at = |e: u8| (local[e as usize], cube_point(e, &v));
-                    let a: Vec<(u32, [f64; 3])> =
-                        t.loop_edges(entry, 0).iter().map(|&e| ring_at(e)).collect();
-                    let b: Vec<(u32, [f64; 3])> =
-                        t.loop_edges(entry, 1).iter().map(|&e| ring_at(e)).collect();
-                    // A ring shaped like loop b, half its size, around the saddle: the tube
-                    // runs a → ring → b, so every rung has one end that only this cube has.
-                    let cb = centroid(b.iter().map(|x| x.1));
-                    let ring: Vec<(u32, [f64; 3])> = b
-                        .iter()
-                        .map(|&(_, p)| {
-                            let offset: [f64; 3] = std::array::from_fn(|d| {
-                                (saddle.p[d] + 0.5 * (p[d] - cb[d])).clamp(0.0, 1.0)
-                            });
-                            slab.vertices.push(GridVertex {
-                                base: [i as u32, j as u32, k as u32],
-                                place: Place::Cell { offset },
-                            });
-                            (slab.vertices.len() as u32 - 1, offset)
-                        })
-                        .collect();
-                    let mut rev = ring.clone();
-                    rev.reverse();
-                    zip_loops(&a, &ring, |tri| slab.triangles.push(tri));
-                    zip_loops(&rev, &b, |tri| slab.triangles.push(tri));
-                } else {
-                    if let Some(l) = entry.center_loop {
-                        let edges = t.loop_edges(entry, l as usize);
-                        local[CENTER as usize] = slab.vertices.len() as u32;
-                        slab.vertices.push(GridVertex {
-                            base: [i as u32, j as u32, k as u32],
-                            place: Place::Cell { offset: loop_centroid(edges, &v) },
-                        });
-                    }
-                    for tri in t.triangles(entry) {
-                        slab.triangles.push(tri.map(|e| local[e as usize]));
-                    }
-                }
+                let mut sink =
+                    SlabSink { slab: &mut slab, maps: &mut maps, at: [i, j, k], z0, z1, last };
+                let outcome = polygonize_cube(&v, &mut sink);
+                slab.ambiguous_faces += outcome.ambiguous_faces as u64;
+                slab.tunnels += outcome.tunnel as u64;
             }
         }
     }
@@ -297,103 +210,59 @@ fn extract_slab(
     Ok(slab)
 }
 
-impl Slab {
-    /// The local index of the vertex on cube edge `e` of the cube at `(i, j, k)`.
-    #[allow(clippy::too_many_arguments)]
+/// The slab's side of [`CubeSink`]: edge vertices keyed by lattice edge in dense maps.
+struct SlabSink<'a> {
+    slab: &'a mut Slab,
+    maps: &'a mut EdgeMaps,
+    at: [usize; 3],
+    z0: usize,
+    z1: usize,
+    last: bool,
+}
+
+impl CubeSink for SlabSink<'_> {
     #[inline]
-    fn vertex(
-        &mut self,
-        maps: &mut EdgeMaps,
-        v: &[f32; 8],
-        [i, j, k]: [usize; 3],
-        e: usize,
-        z0: usize,
-        z1: usize,
-        last: bool,
-    ) -> u32 {
-        let [c0, c1] = EDGES[e];
+    fn edge_vertex(&mut self, e: usize, t: f64) -> u32 {
+        let [c0, _] = EDGES[e];
         let [dx, dy, dz] = CORNERS[c0];
+        let [i, j, k] = self.at;
         let (bi, bj, bk) = (i + dx, j + dy, k + dz);
         let axis = edge_axis(e);
+        let maps = &mut *self.maps;
         let cell = bi + maps.nx * bj;
         let slot = if axis == 2 {
-            (bk - z0) * maps.layer + cell
+            (bk - self.z0) * maps.layer + cell
         } else {
-            (bk - z0) * 2 * maps.layer + axis * maps.layer + cell
+            (bk - self.z0) * 2 * maps.layer + axis * maps.layer + cell
         };
         let map = if axis == 2 { &mut maps.z } else { &mut maps.xy };
         if map[slot] != NONE {
             return map[slot];
         }
-        let borrowed = axis != 2 && bk == z1 && !last;
-        let ev = GridVertex {
-            base: [bi as u32, bj as u32, bk as u32],
-            place: Place::Edge { axis: axis as u8, t: crossing(v[c0], v[c1]) },
-        };
-        let id = if borrowed {
-            self.borrowed.push((axis * maps.layer + cell) as u32);
-            BORROWED | (self.borrowed.len() as u32 - 1)
+        let id = if axis != 2 && bk == self.z1 && !self.last {
+            self.slab.borrowed.push((axis * maps.layer + cell) as u32);
+            BORROWED | (self.slab.borrowed.len() as u32 - 1)
         } else {
-            self.vertices.push(ev);
-            self.vertices.len() as u32 - 1
+            self.slab.vertices.push(GridVertex {
+                base: [bi as u32, bj as u32, bk as u32],
+                place: Place::Edge { axis: axis as u8, t },
+            });
+            self.slab.vertices.len() as u32 - 1
         };
         map[slot] = id;
         id
     }
-}
 
-/// Where the surface crosses cube edge `e`, in cell units.
-fn cube_point(e: u8, v: &[f32; 8]) -> [f64; 3] {
-    let [c0, c1] = EDGES[e as usize];
-    edge_point(e as usize, crossing(v[c0], v[c1]))
-}
+    fn cell_vertex(&mut self, offset: [f64; 3]) -> u32 {
+        let [i, j, k] = self.at;
+        self.slab.vertices.push(GridVertex {
+            base: [i as u32, j as u32, k as u32],
+            place: Place::Cell { offset },
+        });
+        self.slab.vertices.len() as u32 - 1
+    }
 
-fn centroid(points: impl ExactSizeIterator<Item = [f64; 3]>) -> [f64; 3] {
-    let n = points.len() as f64;
-    points.fold([0.0; 3], |c, p| std::array::from_fn(|d| c[d] + p[d] / n))
-}
-
-/// Where a loop's crossings are, on average, in cell units.
-fn loop_centroid(edges: &[u8], v: &[f32; 8]) -> [f64; 3] {
-    centroid(edges.iter().map(|&e| cube_point(e, v)))
-}
-
-/// Triangles of a band joining two loops of `(vertex, position)`, zipped from their nearest
-/// points.
-///
-/// Both loops are oriented as the boundaries of the disks the band replaces; the band joins
-/// `a` to `b` reversed, so every loop edge keeps its direction and the band is oriented like
-/// those disks.
-pub fn zip_loops(a: &[(u32, [f64; 3])], b: &[(u32, [f64; 3])], mut emit: impl FnMut([u32; 3])) {
-    let dist = |p: [f64; 3], q: [f64; 3]| (0..3).map(|i| (p[i] - q[i]).powi(2)).sum::<f64>();
-    let (na, nb) = (a.len(), b.len());
-    let rb: Vec<(u32, [f64; 3])> = b.iter().rev().copied().collect();
-    let start = (0..nb)
-        .min_by(|&x, &y| dist(a[0].1, rb[x].1).total_cmp(&dist(a[0].1, rb[y].1)))
-        .unwrap_or(0);
-    let bb = |j: usize| rb[(start + j) % nb];
-    let aa = |i: usize| a[i % na];
-    // The walk goes from rung (0, 0) to (na, nb), which is (0, 0) again. Rungs (0, j) and
-    // (na, j) are the same rung, as are (i, 0) and (i, nb); so arriving at i = na while j is
-    // still within the walk's opening run along b (or the reverse) would use a rung twice.
-    let (mut i, mut j) = (0, 0);
-    let (mut run_a, mut run_b) = (0, 0);
-    while i < na || j < nb {
-        let can_a = i < na && !(i + 1 == na && j <= run_b);
-        let can_b = j < nb && !(j + 1 == nb && i <= run_a);
-        let advance_a = match (can_a, can_b) {
-            (true, false) => true,
-            (false, true) => false,
-            _ => dist(aa(i + 1).1, bb(j).1) <= dist(aa(i).1, bb(j + 1).1),
-        };
-        if advance_a {
-            run_a += usize::from(j == 0);
-            emit([aa(i).0, aa(i + 1).0, bb(j).0]);
-            i += 1;
-        } else {
-            run_b += usize::from(i == 0);
-            emit([bb(j + 1).0, bb(j).0, aa(i).0]);
-            j += 1;
-        }
+    fn triangle(&mut self, t: [u32; 3]) {
+        self.slab.triangles.push(t);
     }
 }

@@ -84,7 +84,7 @@ pub fn tunnel(v: &[f32; 8], caps_inside: bool) -> Option<Saddle> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::extract::face_decisions;
+    use super::super::cell::face_decisions;
     use super::super::table::{corner_groups, table};
     use super::*;
     use std::collections::VecDeque;

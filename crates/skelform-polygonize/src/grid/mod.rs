@@ -10,6 +10,7 @@
 //! cell are found (sampling can miss them), and triangles never intersect (fans over strongly
 //! curved loops can fold).
 
+pub mod cell;
 pub mod cube;
 pub mod extract;
 pub mod interior;
@@ -214,11 +215,8 @@ fn vertex_positions(
             Bracket { p0: at(v.base), p1: at(tip), f0: value(v.base), f1: value(tip), t }
         })
         .collect();
-    let opts = RootOptions {
-        tolerance: options.tolerance,
-        t_min: extract::T_MIN,
-        ..RootOptions::default()
-    };
+    let opts =
+        RootOptions { tolerance: options.tolerance, t_min: cell::T_MIN, ..RootOptions::default() };
     stats.refine_evaluations = refine_roots(field, &mut brackets, &opts);
     for (&i, b) in edge.iter().zip(&brackets) {
         positions[i] = b.p0.lerp(b.p1, b.t);

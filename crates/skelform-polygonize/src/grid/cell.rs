@@ -1,0 +1,175 @@
+//! Polygonizing one lattice cube: the part that every cube-based polygonizer shares.
+//!
+//! Given the eight corner values, [`polygonize_cube`] looks up the case table, decides the
+//! ambiguous faces and the interior, and emits triangles through a [`CubeSink`], which owns
+//! the vertices: the grid extractor keys them by lattice edge in dense arrays, the
+//! continuation polygonizer in a hash map. Both therefore make exactly the same surface.
+
+use super::cube::{EDGES, FACES, edge_point};
+use super::interior::tunnel;
+use super::table::{CENTER, table};
+
+/// Where the surface crosses edges whose end values have opposite signs is never closer
+/// than this (in cells) to a lattice point, so that a sample that is exactly zero never
+/// makes several vertices at one position.
+pub const T_MIN: f64 = 1e-4;
+
+/// Receives one cube's vertices and triangles.
+pub trait CubeSink {
+    /// The vertex on cube edge `e` at fraction `t` from the edge's lower corner; the sink
+    /// returns the one it already has for that lattice edge, or makes it.
+    fn edge_vertex(&mut self, e: usize, t: f64) -> u32;
+    /// A new vertex inside the cube, at `offset` (cell units from the lowest corner).
+    fn cell_vertex(&mut self, offset: [f64; 3]) -> u32;
+    fn triangle(&mut self, t: [u32; 3]);
+}
+
+/// What one cube needed, for statistics.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CubeOutcome {
+    pub ambiguous_faces: u32,
+    pub tunnel: bool,
+}
+
+/// The sign configuration: bit `c` set when corner `c` is inside (`f < 0`).
+#[inline]
+pub fn case_of(v: &[f32; 8]) -> usize {
+    let mut case = 0usize;
+    for (c, &x) in v.iter().enumerate() {
+        case |= ((x < 0.0) as usize) << c;
+    }
+    case
+}
+
+/// For each ambiguous face, whether its inside corners are joined across it.
+///
+/// The asymptotic decider: the bilinear interpolant's saddle is inside exactly when the
+/// product of the two inside values exceeds that of the two outside values. Products of
+/// `f32` are exact in `f64`, so both cubes that share a face decide alike.
+#[inline]
+pub fn face_decisions(v: &[f32; 8], ambiguous: u8) -> u8 {
+    let mut bits = 0;
+    let mut amb = ambiguous;
+    while amb != 0 {
+        let f = amb.trailing_zeros() as usize;
+        amb &= amb - 1;
+        let q = FACES[f];
+        let d0 = v[q[0]] as f64 * v[q[2]] as f64;
+        let d1 = v[q[1]] as f64 * v[q[3]] as f64;
+        let (inside, outside) = if v[q[0]] < 0.0 { (d0, d1) } else { (d1, d0) };
+        if inside > outside {
+            bits |= 1 << f;
+        }
+    }
+    bits
+}
+
+/// Where the surface crosses an edge whose end values have opposite signs.
+#[inline]
+pub fn crossing(v0: f32, v1: f32) -> f64 {
+    let (a, b) = (v0 as f64, v1 as f64);
+    (a / (a - b)).clamp(T_MIN, 1.0 - T_MIN)
+}
+
+/// Where the surface crosses cube edge `e`, in cell units.
+pub fn cube_point(e: u8, v: &[f32; 8]) -> [f64; 3] {
+    let [c0, c1] = EDGES[e as usize];
+    edge_point(e as usize, crossing(v[c0], v[c1]))
+}
+
+fn centroid(points: impl ExactSizeIterator<Item = [f64; 3]>) -> [f64; 3] {
+    let n = points.len() as f64;
+    points.fold([0.0; 3], |c, p| std::array::from_fn(|d| c[d] + p[d] / n))
+}
+
+/// Triangulates one cube with corner values `v` (inside negative) into `sink`.
+pub fn polygonize_cube(v: &[f32; 8], sink: &mut impl CubeSink) -> CubeOutcome {
+    let case = case_of(v);
+    if case == 0 || case == 255 {
+        return CubeOutcome::default();
+    }
+    let t = table();
+    let amb = t.ambiguous[case];
+    let decisions = if amb == 0 { 0 } else { face_decisions(v, amb) };
+    let entry = t.entry(case, decisions as usize);
+    let mut outcome = CubeOutcome { ambiguous_faces: amb.count_ones(), tunnel: false };
+    // Vertices for every crossing edge of the cube, in loop order.
+    let mut local = [0u32; 13];
+    for l in 0..entry.loop_count as usize {
+        for &e in t.loop_edges(entry, l) {
+            let [c0, c1] = EDGES[e as usize];
+            local[e as usize] = sink.edge_vertex(e as usize, crossing(v[c0], v[c1]));
+        }
+    }
+    let tube = if entry.loop_count == 2 { tunnel(v, entry.caps_inside) } else { None };
+    if let Some(saddle) = tube {
+        outcome.tunnel = true;
+        let at = |e: &u8| (local[*e as usize], cube_point(*e, v));
+        let a: Vec<(u32, [f64; 3])> = t.loop_edges(entry, 0).iter().map(at).collect();
+        let b: Vec<(u32, [f64; 3])> = t.loop_edges(entry, 1).iter().map(at).collect();
+        // A ring shaped like loop b, half its size, around the saddle: the tube runs
+        // a → ring → b, so every rung has one end that only this cube has.
+        let cb = centroid(b.iter().map(|x| x.1));
+        let ring: Vec<(u32, [f64; 3])> = b
+            .iter()
+            .map(|&(_, p)| {
+                let offset: [f64; 3] =
+                    std::array::from_fn(|d| (saddle.p[d] + 0.5 * (p[d] - cb[d])).clamp(0.0, 1.0));
+                (sink.cell_vertex(offset), offset)
+            })
+            .collect();
+        let rev: Vec<(u32, [f64; 3])> = ring.iter().rev().copied().collect();
+        zip_loops(&a, &ring, |tri| sink.triangle(tri));
+        zip_loops(&rev, &b, |tri| sink.triangle(tri));
+    } else {
+        if let Some(l) = entry.center_loop {
+            let edges = t.loop_edges(entry, l as usize);
+            local[CENTER as usize] =
+                sink.cell_vertex(centroid(edges.iter().map(|e| cube_point(*e, v))));
+        }
+        for tri in t.triangles(entry) {
+            sink.triangle(tri.map(|e| local[e as usize]));
+        }
+    }
+    outcome
+}
+
+/// Triangles of a band joining two loops of `(vertex, position)`, zipped from their nearest
+/// points.
+///
+/// Both loops are oriented as the boundaries of the disks the band replaces; the band joins
+/// `a` to `b` reversed, so every loop edge keeps its direction and the band is oriented like
+/// those disks.
+pub fn zip_loops(a: &[(u32, [f64; 3])], b: &[(u32, [f64; 3])], mut emit: impl FnMut([u32; 3])) {
+    let dist = |p: [f64; 3], q: [f64; 3]| (0..3).map(|i| (p[i] - q[i]).powi(2)).sum::<f64>();
+    let (na, nb) = (a.len(), b.len());
+    let rb: Vec<(u32, [f64; 3])> = b.iter().rev().copied().collect();
+    let start = (0..nb)
+        .min_by(|&x, &y| dist(a[0].1, rb[x].1).total_cmp(&dist(a[0].1, rb[y].1)))
+        .unwrap_or(0);
+    let bb = |j: usize| rb[(start + j) % nb];
+    let aa = |i: usize| a[i % na];
+    // The walk goes from rung (0, 0) to (na, nb), which is (0, 0) again. Rungs (0, j) and
+    // (na, j) are the same rung, as are (i, 0) and (i, nb); so arriving at i = na while j is
+    // still within the walk's opening run along b (or the reverse) would use a rung twice.
+    let (mut i, mut j) = (0, 0);
+    let (mut run_a, mut run_b) = (0, 0);
+    while i < na || j < nb {
+        let can_a = i < na && !(i + 1 == na && j <= run_b);
+        let can_b = j < nb && !(j + 1 == nb && i <= run_a);
+        let advance_a = match (can_a, can_b) {
+            (true, false) => true,
+            (false, true) => false,
+            _ => dist(aa(i + 1).1, bb(j).1) <= dist(aa(i).1, bb(j + 1).1),
+        };
+        if advance_a {
+            run_a += usize::from(j == 0);
+            emit([aa(i).0, aa(i + 1).0, bb(j).0]);
+            i += 1;
+        } else {
+            run_b += usize::from(i == 0);
+            emit([bb(j + 1).0, bb(j).0, aa(i).0]);
+            j += 1;
+        }
+    }
+}
