@@ -23,6 +23,7 @@
 //! assert_eq!(report.components[0].genus, Some(1));
 //! ```
 
+pub mod continuation;
 pub mod grid;
 pub mod refine;
 
@@ -41,6 +42,14 @@ pub enum Error {
     TooMuchMemory { needed: u64, limit: u64, dims: [usize; 3] },
     #[error("cancelled")]
     Cancelled,
+    #[error("seed ({}, {}, {}): {why}", seed[0], seed[1], seed[2])]
+    BadSeed { seed: [f64; 3], why: String },
+    #[error(
+        "no surface found: a search of {samples} points (every {stride} cells) found no sign change; give a seed near the surface or a smaller search stride"
+    )]
+    NoSurfaceFound { samples: u64, stride: usize },
+    #[error("{0}")]
+    BadOption(String),
 }
 
 impl From<GridError> for Error {

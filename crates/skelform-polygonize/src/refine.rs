@@ -24,9 +24,21 @@ pub struct Bracket {
     pub t: f64,
 }
 
+/// How a root is found between the ends of a segment.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum RootMethod {
+    /// Illinois-modified regula falsi: superlinear on smooth fields, never leaves the bracket.
+    #[default]
+    RegulaFalsi,
+    /// Halve the bracket each step: one bit of position per evaluation, whatever the field.
+    /// The dissertation's choice (ten steps).
+    Bisection,
+}
+
 /// How root finding stops.
 #[derive(Clone, Copy, Debug)]
 pub struct RootOptions {
+    pub method: RootMethod,
     /// Stop when the bracket is shorter than this fraction of the segment.
     pub tolerance: f64,
     /// Never take more evaluations than this per vertex.
@@ -37,11 +49,11 @@ pub struct RootOptions {
 
 impl Default for RootOptions {
     fn default() -> Self {
-        Self { tolerance: 1e-4, max_iterations: 40, t_min: 0.0 }
+        Self { method: RootMethod::RegulaFalsi, tolerance: 1e-4, max_iterations: 40, t_min: 0.0 }
     }
 }
 
-/// Illinois-modified regula falsi on every bracket; returns the field evaluations made.
+/// Refines every bracket by `opts.method`; returns the field evaluations made.
 ///
 /// Converges superlinearly on smooth fields and never leaves the bracket. A non-finite value
 /// stops that vertex where it is (its interpolated position is kept).
@@ -82,8 +94,11 @@ fn refine_chunk(field: &dyn Field, chunk: &mut [Bracket], opts: &RootOptions) ->
                 s.done = true;
                 continue;
             }
-            let mut t = (s.a * s.fb - s.b * s.fa) / (s.fb - s.fa);
-            if !(t > s.a && t < s.b) {
+            let mut t = match opts.method {
+                RootMethod::RegulaFalsi => (s.a * s.fb - s.b * s.fa) / (s.fb - s.fa),
+                RootMethod::Bisection => 0.5 * (s.a + s.b),
+            };
+            if t.is_nan() || t <= s.a || t >= s.b {
                 t = 0.5 * (s.a + s.b);
             }
             br.t = t;
@@ -240,6 +255,19 @@ mod tests {
             assert!((p.length() - 1.0).abs() < 1e-8, "{}", p.length());
         }
         assert!(evals < 100 * 12, "Illinois converges in few steps: {evals}");
+    }
+
+    #[test]
+    fn bisection_takes_one_bit_per_step() {
+        let f = FnField(|p: DVec3| p.x - 0.3);
+        let mut b = [Bracket { p0: DVec3::ZERO, p1: DVec3::X, f0: -0.3, f1: 0.7, t: 0.3 }];
+        let opts = RootOptions {
+            method: RootMethod::Bisection,
+            tolerance: 1.0 / 1024.0,
+            ..RootOptions::default()
+        };
+        assert_eq!(refine_roots(&f, &mut b, &opts), 10);
+        assert!((b[0].t - 0.3).abs() < 1.0 / 1024.0);
     }
 
     #[test]

@@ -32,23 +32,28 @@ pub struct GridVertex {
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Place {
-    /// On the lattice edge from `base` along `axis`, at fraction `t` of the cell. Refinement
-    /// moves `t` by root finding along the edge.
-    Edge { axis: u8, t: f64 },
+    /// On the lattice segment from `base` to `base + dir` (a bit mask: 1 = x, 2 = y, 4 = z;
+    /// one bit for a cell edge, more for the face and body diagonals that tetrahedra use), at
+    /// fraction `t`. Refinement moves `t` by root finding along the segment.
+    Edge { dir: u8, t: f64 },
     /// Inside the cell whose lowest corner is `base`, at `offset` (in cells). Only the few
     /// configurations whose loop cannot be triangulated from its own crossings use one;
     /// refinement projects it onto the surface.
     Cell { offset: [f64; 3] },
 }
 
+/// The offset a direction mask stands for.
+pub fn dir_vector(dir: u8) -> [u32; 3] {
+    [(dir & 1) as u32, ((dir >> 1) & 1) as u32, ((dir >> 2) & 1) as u32]
+}
+
 impl GridVertex {
-    /// The lattice point at the other end of an edge vertex's edge.
+    /// The lattice point at the other end of an edge vertex's segment.
     pub fn tip(&self) -> Option<[u32; 3]> {
         match self.place {
-            Place::Edge { axis, .. } => {
-                let mut p = self.base;
-                p[axis as usize] += 1;
-                Some(p)
+            Place::Edge { dir, .. } => {
+                let d = dir_vector(dir);
+                Some(std::array::from_fn(|i| self.base[i] + d[i]))
             }
             Place::Cell { .. } => None,
         }
@@ -58,11 +63,7 @@ impl GridVertex {
     pub fn position(&self, grid: &Grid) -> glam::DVec3 {
         let p0 = grid.point(self.base[0] as usize, self.base[1] as usize, self.base[2] as usize);
         let d = match self.place {
-            Place::Edge { axis, t } => {
-                let mut d = [0.0; 3];
-                d[axis as usize] = t;
-                d
-            }
+            Place::Edge { dir, t } => dir_vector(dir).map(|x| x as f64 * t),
             Place::Cell { offset } => offset,
         };
         p0 + glam::DVec3::from_array(d) * grid.cell
@@ -245,7 +246,7 @@ impl CubeSink for SlabSink<'_> {
         } else {
             self.slab.vertices.push(GridVertex {
                 base: [bi as u32, bj as u32, bk as u32],
-                place: Place::Edge { axis: axis as u8, t },
+                place: Place::Edge { dir: 1 << axis, t },
             });
             self.slab.vertices.len() as u32 - 1
         };

@@ -27,7 +27,7 @@ use skelform_mesh::Mesh;
 
 use crate::Error;
 use crate::refine::{Bracket, RootOptions, gradient_normals, project_to_surface, refine_roots};
-pub use extract::{Extraction, GridVertex, Place, extract};
+pub use extract::{Extraction, GridVertex, Place, dir_vector, extract};
 
 /// How fine the lattice is.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -154,7 +154,18 @@ pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats),
     stats.tunnels = ex.tunnels;
 
     let t = Instant::now();
-    let positions = vertex_positions(field, &volume, &ex.vertices, options, &mut stats);
+    let how = Placement {
+        refine: options.refine,
+        roots: RootOptions {
+            tolerance: options.tolerance,
+            t_min: cell::T_MIN,
+            ..RootOptions::default()
+        },
+        tolerance: options.tolerance,
+    };
+    let value = |p: [u32; 3]| volume.get(p[0] as usize, p[1] as usize, p[2] as usize) as f64;
+    let (positions, evals) = place_vertices(field, &grid, &ex.vertices, value, &how);
+    stats.refine_evaluations = evals;
     stats.refinement = t.elapsed();
     if options.control.is_cancelled() {
         return Err(Error::Cancelled);
@@ -181,58 +192,66 @@ pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats),
     Ok((mesh, stats))
 }
 
-/// Vertex positions: interpolated from the samples, then refined on the field if asked.
-fn vertex_positions(
+/// How vertices are moved onto the surface.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Placement {
+    pub refine: bool,
+    pub roots: RootOptions,
+    /// Newton tolerance for interior vertices, as a fraction of the cell.
+    pub tolerance: f64,
+}
+
+/// Vertex positions: interpolated, then (if asked) refined on the field, edge vertices by
+/// root finding between their segment's ends, interior vertices by Newton projection.
+/// `value` gives the sampled value at a lattice point. Returns the positions and the field
+/// evaluations made.
+pub(crate) fn place_vertices(
     field: &dyn Field,
-    volume: &Volume,
+    grid: &Grid,
     vertices: &[GridVertex],
-    options: &Options,
-    stats: &mut Stats,
-) -> Vec<DVec3> {
-    let grid = &volume.grid;
+    value: impl Fn([u32; 3]) -> f64,
+    how: &Placement,
+) -> (Vec<DVec3>, u64) {
     let mut positions: Vec<DVec3> = vertices.iter().map(|v| v.position(grid)).collect();
-    if !options.refine {
-        return positions;
+    if !how.refine {
+        return (positions, 0);
     }
     let at = |p: [u32; 3]| grid.point(p[0] as usize, p[1] as usize, p[2] as usize);
-    let value = |p: [u32; 3]| volume.get(p[0] as usize, p[1] as usize, p[2] as usize) as f64;
-    let (mut edge, mut cell): (Vec<usize>, Vec<usize>) = (Vec::new(), Vec::new());
+    let (mut edge, mut brackets, mut cell) = (Vec::new(), Vec::new(), Vec::new());
     for (i, v) in vertices.iter().enumerate() {
-        match v.place {
-            Place::Edge { .. } => edge.push(i),
-            Place::Cell { .. } => cell.push(i),
+        match (v.place, v.tip()) {
+            (Place::Edge { t, .. }, Some(tip)) => {
+                edge.push(i);
+                brackets.push(Bracket {
+                    p0: at(v.base),
+                    p1: at(tip),
+                    f0: value(v.base),
+                    f1: value(tip),
+                    t,
+                });
+            }
+            _ => cell.push(i),
         }
     }
-    let mut brackets: Vec<Bracket> = edge
-        .iter()
-        .map(|&i| {
-            let v = &vertices[i];
-            let tip = v.tip().expect("edge vertex");
-            let t = match v.place {
-                Place::Edge { t, .. } => t,
-                Place::Cell { .. } => unreachable!("split above"),
-            };
-            Bracket { p0: at(v.base), p1: at(tip), f0: value(v.base), f1: value(tip), t }
-        })
-        .collect();
-    let opts =
-        RootOptions { tolerance: options.tolerance, t_min: cell::T_MIN, ..RootOptions::default() };
-    stats.refine_evaluations = refine_roots(field, &mut brackets, &opts);
+    let mut evals = refine_roots(field, &mut brackets, &how.roots);
     for (&i, b) in edge.iter().zip(&brackets) {
         positions[i] = b.p0.lerp(b.p1, b.t);
     }
     if !cell.is_empty() {
         let mut pts: Vec<DVec3> = cell.iter().map(|&i| positions[i]).collect();
-        let lows: Vec<DVec3> = cell.iter().map(|&i| at(vertices[i].base)).collect();
-        let boxes: Vec<(DVec3, DVec3)> =
-            lows.iter().map(|&lo| (lo, lo + DVec3::splat(grid.cell))).collect();
-        stats.refine_evaluations +=
-            project_to_surface(field, &mut pts, &boxes, options.tolerance * grid.cell);
+        let boxes: Vec<(DVec3, DVec3)> = cell
+            .iter()
+            .map(|&i| {
+                let lo = at(vertices[i].base);
+                (lo, lo + DVec3::splat(grid.cell))
+            })
+            .collect();
+        evals += project_to_surface(field, &mut pts, &boxes, how.tolerance * grid.cell);
         for (&i, p) in cell.iter().zip(pts) {
             positions[i] = p;
         }
     }
-    positions
+    (positions, evals)
 }
 
 /// Marching cubes on a volume sampled elsewhere, with vertices interpolated linearly and no

@@ -1,0 +1,684 @@
+//! The continuation polygonizer of the dissertation's chapter 3: start on the surface and
+//! propagate cubes across the faces the surface crosses, so that only cells near the surface
+//! are ever evaluated. Its cost grows with the surface's area, not the domain's volume.
+//!
+//! The lattice is the grid polygonizer's (cubes of side `cell` covering the domain), and the
+//! cube variant polygonizes each cube with the same case table, decider and interior rules,
+//! so for every component it reaches it makes the very mesh the grid polygonizer makes. The
+//! tetrahedral variant splits each cube into six tetrahedra (no ambiguity; more triangles).
+//!
+//! Guarantees: each lattice corner is evaluated once (a hash map caches values) and each
+//! edge root is found once and shared; a surface closed inside the domain comes out closed,
+//! manifold and consistently oriented; the output does not depend on the thread count
+//! (cubes are processed in waves, each in lattice order). Not guaranteed: components without
+//! a seed are found (give seeds, or let the domain search look for them; it can miss
+//! components smaller than its stride).
+
+pub mod tetra;
+
+use std::time::{Duration, Instant};
+
+use glam::DVec3;
+use rayon::prelude::*;
+use rustc_hash::FxHashMap;
+use skelform_field::control::{Control, Progress};
+use skelform_field::grid::Grid;
+use skelform_field::{Aabb, Field};
+use skelform_mesh::Mesh;
+
+use crate::Error;
+use crate::grid::cell::{CubeSink, case_of, polygonize_cube};
+use crate::grid::cube::{CORNERS, EDGES, FACES};
+use crate::grid::{GridVertex, Place, Placement, place_vertices};
+use crate::refine::{RootMethod, RootOptions, gradient_normals};
+use tetra::{TetraSink, polygonize_tetrahedra};
+
+/// How each cube is polygonized.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Cells {
+    /// The cube itself, with the grid polygonizer's table.
+    #[default]
+    Cubes,
+    /// Six tetrahedra per cube.
+    Tetrahedra,
+}
+
+/// Settings of the continuation polygonizer.
+#[derive(Clone, Debug)]
+pub struct Options {
+    /// Propagation never leaves this box.
+    pub domain: Aabb,
+    /// Cube side.
+    pub cell: f64,
+    /// Points on or near the surface to start from, one or more per component. When empty,
+    /// the domain is searched on a coarse lattice (see `search_stride`).
+    pub seeds: Vec<DVec3>,
+    /// Stride of the domain search, in cells.
+    pub search_stride: usize,
+    pub cells: Cells,
+    pub root: RootMethod,
+    /// Root-finding tolerance, as a fraction of the cell (bisection takes
+    /// `ceil(log2(1/tolerance))` steps: 2⁻¹⁰ gives the dissertation's ten).
+    pub tolerance: f64,
+    /// Refine vertices on the field (else linear interpolation).
+    pub refine: bool,
+    pub normals: bool,
+    /// Stop propagating after visiting this many cubes in all.
+    pub max_cells: u64,
+    /// Stop propagating this many cubes away from each component's starting cube, in every
+    /// direction (the chapter's propagation limit for unbounded surfaces).
+    pub limit: Option<u32>,
+    pub control: Control,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Self {
+            domain: Aabb::cube(1.0),
+            cell: 1.0 / 64.0,
+            seeds: Vec::new(),
+            search_stride: 4,
+            cells: Cells::Cubes,
+            root: RootMethod::RegulaFalsi,
+            tolerance: 1e-4,
+            refine: true,
+            normals: true,
+            max_cells: 20_000_000,
+            limit: None,
+            control: Control::default(),
+        }
+    }
+}
+
+/// Why propagation stopped short of closing a surface.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stop {
+    /// The surface reached the domain box; the mesh is open there.
+    Domain,
+    /// The cell budget (`max_cells`) ran out; the mesh is open where propagation stopped.
+    Budget,
+    /// The propagation limit was reached; the mesh is open there.
+    Limit,
+}
+
+/// One component found, by the seed that started it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Component {
+    pub seed: DVec3,
+    /// Where the search from the seed met the surface.
+    pub start: DVec3,
+    pub cells: u64,
+    pub triangles: usize,
+}
+
+/// What happened to a seed that did not start a component.
+#[derive(Clone, Debug, PartialEq)]
+pub enum SeedNote {
+    /// Its surface had been found already from an earlier seed (index given).
+    SameComponent { seed: DVec3, as_seed: usize },
+    /// No surface was found from it within the domain.
+    NoSurface { seed: DVec3 },
+}
+
+/// What a run did, for `--stats`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Stats {
+    pub cell: f64,
+    /// Field evaluations at lattice corners (each corner once).
+    pub corner_evaluations: u64,
+    /// Field evaluations to find the surface from the seeds or by searching the domain.
+    pub search_evaluations: u64,
+    pub refine_evaluations: u64,
+    pub normal_evaluations: u64,
+    pub cells_visited: u64,
+    /// Corners whose value was NaN or infinite (treated as outside or inside).
+    pub non_finite: u64,
+    pub components: Vec<Component>,
+    pub seed_notes: Vec<SeedNote>,
+    pub stops: Vec<Stop>,
+    pub vertices: usize,
+    pub triangles: usize,
+    pub search: Duration,
+    pub propagation: Duration,
+    pub refinement: Duration,
+    pub normals: Duration,
+}
+
+impl Stats {
+    /// Every field evaluation the run made.
+    pub fn evaluations(&self) -> u64 {
+        self.corner_evaluations
+            + self.search_evaluations
+            + self.refine_evaluations
+            + self.normal_evaluations
+    }
+}
+
+/// Polygonizes the components of `field` (zero set, inside negative) that the seeds (or the
+/// domain search) reach.
+///
+/// ```
+/// use skelform_field::{Aabb, FnField, DVec3};
+/// use skelform_polygonize::continuation::{polygonize, Options};
+/// let sphere = FnField(|p: DVec3| p.length() - 0.5);
+/// let opts = Options { domain: Aabb::cube(1.0), cell: 0.05, seeds: vec![DVec3::ZERO], ..Options::default() };
+/// let (mesh, stats) = polygonize(&sphere, &opts).unwrap();
+/// assert!(mesh.triangle_count() > 0);
+/// assert_eq!(stats.components.len(), 1);
+/// ```
+pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats), Error> {
+    let grid = Grid::with_cell(&options.domain, options.cell)?;
+    if options.tolerance.is_nan() || options.tolerance <= 0.0 || options.tolerance >= 1.0 {
+        return Err(Error::BadOption(format!(
+            "tolerance must be between 0 and 1 (got {})",
+            options.tolerance
+        )));
+    }
+    let mut run = Run::new(field, grid, options);
+    let t = Instant::now();
+    let starts = find_starts(&mut run)?;
+    run.stats.search = t.elapsed();
+
+    let t = Instant::now();
+    for (seed_index, seed, start) in starts {
+        let Some(cube) = run.surface_cube_near(start) else {
+            run.stats.seed_notes.push(SeedNote::NoSurface { seed });
+            continue;
+        };
+        if let Some(&owner) = run.visited.get(&cube) {
+            run.stats.seed_notes.push(SeedNote::SameComponent { seed, as_seed: owner });
+            continue;
+        }
+        let before = (run.visited.len() as u64, run.triangles.len());
+        run.propagate(cube, seed_index)?;
+        run.stats.components.push(Component {
+            seed,
+            start,
+            cells: run.visited.len() as u64 - before.0,
+            triangles: run.triangles.len() - before.1,
+        });
+    }
+    run.stats.propagation = t.elapsed();
+    run.stats.cells_visited = run.visited.len() as u64;
+    run.finish()
+}
+
+/// A cube or lattice point as one integer key.
+type Key = u64;
+
+struct Run<'a> {
+    field: &'a dyn Field,
+    grid: Grid,
+    opts: &'a Options,
+    /// Corner values, each evaluated once.
+    values: FxHashMap<Key, f32>,
+    /// Every cube visited, with the seed whose component reached it.
+    visited: FxHashMap<Key, usize>,
+    /// Vertex per lattice segment: `point key * 8 + direction bits`.
+    edge_vertex: FxHashMap<Key, u32>,
+    vertices: Vec<GridVertex>,
+    triangles: Vec<[u32; 3]>,
+    stats: Stats,
+}
+
+impl<'a> Run<'a> {
+    fn new(field: &'a dyn Field, grid: Grid, opts: &'a Options) -> Self {
+        Run {
+            field,
+            grid,
+            opts,
+            values: FxHashMap::default(),
+            visited: FxHashMap::default(),
+            edge_vertex: FxHashMap::default(),
+            vertices: Vec::new(),
+            triangles: Vec::new(),
+            stats: Stats { cell: grid.cell, ..Stats::default() },
+        }
+    }
+
+    fn key(&self, [i, j, k]: [u32; 3]) -> Key {
+        let [nx, ny, _] = self.grid.dims;
+        i as u64 + nx as u64 * (j as u64 + ny as u64 * k as u64)
+    }
+
+    fn unkey(&self, key: Key) -> [u32; 3] {
+        let [nx, ny, _] = self.grid.dims.map(|d| d as u64);
+        [(key % nx) as u32, ((key / nx) % ny) as u32, (key / (nx * ny)) as u32]
+    }
+
+    /// The cube holding a point (clamped into the lattice).
+    fn cube_of(&self, p: DVec3) -> Key {
+        let rel = (p - self.grid.origin) / self.grid.cell;
+        let idx: [u32; 3] = std::array::from_fn(|a| {
+            (rel[a].floor().max(0.0) as u32).min(self.grid.dims[a] as u32 - 2)
+        });
+        self.key(idx)
+    }
+
+    fn point(&self, p: [u32; 3]) -> DVec3 {
+        self.grid.point(p[0] as usize, p[1] as usize, p[2] as usize)
+    }
+
+    /// A cube the surface crosses: the one holding `p` or, when the surface slips between its
+    /// corners there, one of its 26 neighbours (the first in lattice order).
+    fn surface_cube_near(&mut self, p: DVec3) -> Option<Key> {
+        let c = self.unkey(self.cube_of(p));
+        let max: [u32; 3] = self.grid.dims.map(|d| d as u32 - 2);
+        let mut candidates = vec![self.key(c)];
+        for dz in -1i64..=1 {
+            for dy in -1i64..=1 {
+                for dx in -1i64..=1 {
+                    let n = [c[0] as i64 + dx, c[1] as i64 + dy, c[2] as i64 + dz];
+                    if n.iter().zip(max).all(|(&x, m)| x >= 0 && x <= m as i64)
+                        && (dx, dy, dz) != (0, 0, 0)
+                    {
+                        candidates.push(self.key(n.map(|x| x as u32)));
+                    }
+                }
+            }
+        }
+        let mut corners = Vec::new();
+        for &k in &candidates {
+            self.corner_keys(k, &mut corners);
+        }
+        self.evaluate_corners(&mut corners);
+        candidates.into_iter().find(|&k| {
+            let case = case_of(&self.cube_values(self.unkey(k)));
+            case != 0 && case != 255
+        })
+    }
+
+    /// Evaluates the corners not yet cached, in parallel batches.
+    fn evaluate_corners(&mut self, keys: &mut Vec<Key>) {
+        keys.sort_unstable();
+        keys.dedup();
+        keys.retain(|k| !self.values.contains_key(k));
+        if keys.is_empty() {
+            return;
+        }
+        let points: Vec<DVec3> = keys.iter().map(|&k| self.point(self.unkey(k))).collect();
+        let mut out = vec![0.0; points.len()];
+        out.par_chunks_mut(1024)
+            .zip(points.par_chunks(1024))
+            .for_each(|(o, p)| self.field.eval_many(p, o));
+        self.stats.corner_evaluations += points.len() as u64;
+        for (&k, v) in keys.iter().zip(out) {
+            let v = if v.is_finite() {
+                v.clamp(-f32::MAX as f64, f32::MAX as f64) as f32
+            } else {
+                self.stats.non_finite += 1;
+                if v == f64::NEG_INFINITY { -f32::MAX } else { f32::MAX }
+            };
+            self.values.insert(k, v);
+        }
+    }
+
+    fn cube_values(&self, base: [u32; 3]) -> [f32; 8] {
+        CORNERS.map(|c| {
+            let p = [base[0] + c[0] as u32, base[1] + c[1] as u32, base[2] + c[2] as u32];
+            self.values[&self.key(p)]
+        })
+    }
+
+    fn corner_keys(&self, cube: Key, out: &mut Vec<Key>) {
+        let b = self.unkey(cube);
+        out.extend(
+            CORNERS
+                .iter()
+                .map(|c| self.key([b[0] + c[0] as u32, b[1] + c[1] as u32, b[2] + c[2] as u32])),
+        );
+    }
+
+    /// Breadth-first propagation from one cube, in waves processed in lattice order.
+    fn propagate(&mut self, start: Key, seed_index: usize) -> Result<(), Error> {
+        let origin = self.unkey(start);
+        let mut wave = vec![start];
+        self.visited.insert(start, seed_index);
+        let mut corners = Vec::new();
+        let mut stops = [false; 3];
+        let max_index: [u32; 3] = self.grid.dims.map(|d| d as u32 - 2);
+        while !wave.is_empty() {
+            corners.clear();
+            for &c in &wave {
+                self.corner_keys(c, &mut corners);
+            }
+            self.evaluate_corners(&mut corners);
+            let mut next = Vec::new();
+            for &cube in &wave {
+                let base = self.unkey(cube);
+                let v = self.cube_values(base);
+                let case = case_of(&v);
+                if case == 0 || case == 255 {
+                    continue;
+                }
+                self.polygonize(base, &v);
+                for (f, q) in FACES.iter().enumerate() {
+                    let inside = q.iter().filter(|&&c| v[c] < 0.0).count();
+                    if inside == 0 || inside == 4 {
+                        continue;
+                    }
+                    let (axis, side) = (f / 2, f % 2);
+                    let mut n = base;
+                    if side == 0 {
+                        if n[axis] == 0 {
+                            stops[0] = true;
+                            continue;
+                        }
+                        n[axis] -= 1;
+                    } else {
+                        if n[axis] == max_index[axis] {
+                            stops[0] = true;
+                            continue;
+                        }
+                        n[axis] += 1;
+                    }
+                    if let Some(limit) = self.opts.limit
+                        && n[axis].abs_diff(origin[axis]) > limit
+                    {
+                        stops[2] = true;
+                        continue;
+                    }
+                    let key = self.key(n);
+                    if self.visited.contains_key(&key) {
+                        continue;
+                    }
+                    if self.visited.len() as u64 >= self.opts.max_cells {
+                        stops[1] = true;
+                        continue;
+                    }
+                    self.visited.insert(key, seed_index);
+                    next.push(key);
+                }
+            }
+            next.sort_unstable();
+            wave = next;
+            let p = Progress { phase: "propagating", done: self.visited.len() as u64, total: None };
+            if self.opts.control.report(p).is_break() {
+                return Err(Error::Cancelled);
+            }
+        }
+        for (hit, stop) in stops.iter().zip([Stop::Domain, Stop::Budget, Stop::Limit]) {
+            if *hit && !self.stats.stops.contains(&stop) {
+                self.stats.stops.push(stop);
+            }
+        }
+        Ok(())
+    }
+
+    fn polygonize(&mut self, base: [u32; 3], v: &[f32; 8]) {
+        let mut sink = RunSink { run: self, base };
+        match sink.run.opts.cells {
+            Cells::Cubes => {
+                polygonize_cube(v, &mut sink);
+            }
+            Cells::Tetrahedra => polygonize_tetrahedra(v, &mut sink),
+        }
+    }
+
+    fn finish(mut self) -> Result<(Mesh, Stats), Error> {
+        let t = Instant::now();
+        let how = Placement {
+            refine: self.opts.refine,
+            roots: RootOptions {
+                method: self.opts.root,
+                tolerance: self.opts.tolerance,
+                t_min: crate::grid::cell::T_MIN,
+                ..RootOptions::default()
+            },
+            tolerance: self.opts.tolerance,
+        };
+        let values = &self.values;
+        let grid = self.grid;
+        let [nx, ny, _] = grid.dims.map(|d| d as u64);
+        let value =
+            |p: [u32; 3]| values[&(p[0] as u64 + nx * (p[1] as u64 + ny * p[2] as u64))] as f64;
+        let (positions, evals) = place_vertices(self.field, &grid, &self.vertices, value, &how);
+        self.stats.refine_evaluations = evals;
+        self.stats.refinement = t.elapsed();
+        let t = Instant::now();
+        let normals = if self.opts.normals && !self.triangles.is_empty() {
+            let (n, evals) = gradient_normals(self.field, &positions, &self.triangles);
+            self.stats.normal_evaluations = evals;
+            n
+        } else {
+            Vec::new()
+        };
+        self.stats.normals = t.elapsed();
+        let mesh = Mesh {
+            positions: positions.iter().map(|p| p.as_vec3().to_array()).collect(),
+            normals,
+            triangles: self.triangles,
+            ..Mesh::default()
+        };
+        self.stats.vertices = mesh.vertex_count();
+        self.stats.triangles = mesh.triangle_count();
+        Ok((mesh, self.stats))
+    }
+}
+
+/// The run's side of the cube and tetrahedron sinks: vertices keyed by lattice segment.
+struct RunSink<'r, 'a> {
+    run: &'r mut Run<'a>,
+    base: [u32; 3],
+}
+
+impl RunSink<'_, '_> {
+    fn segment(&mut self, c0: usize, c1: usize, t: f64) -> u32 {
+        let o = CORNERS[c0];
+        let lo =
+            [self.base[0] + o[0] as u32, self.base[1] + o[1] as u32, self.base[2] + o[2] as u32];
+        let dir = (c1 ^ c0) as u8;
+        let key = self.run.key(lo) * 8 + dir as u64;
+        let run = &mut *self.run;
+        *run.edge_vertex.entry(key).or_insert_with(|| {
+            run.vertices.push(GridVertex { base: lo, place: Place::Edge { dir, t } });
+            run.vertices.len() as u32 - 1
+        })
+    }
+}
+
+impl CubeSink for RunSink<'_, '_> {
+    fn edge_vertex(&mut self, e: usize, t: f64) -> u32 {
+        let [c0, c1] = EDGES[e];
+        self.segment(c0, c1, t)
+    }
+
+    fn cell_vertex(&mut self, offset: [f64; 3]) -> u32 {
+        self.run.vertices.push(GridVertex { base: self.base, place: Place::Cell { offset } });
+        self.run.vertices.len() as u32 - 1
+    }
+
+    fn triangle(&mut self, t: [u32; 3]) {
+        self.run.triangles.push(t);
+    }
+}
+
+impl TetraSink for RunSink<'_, '_> {
+    fn segment_vertex(&mut self, c0: usize, c1: usize, t: f64) -> u32 {
+        self.segment(c0, c1, t)
+    }
+
+    fn triangle(&mut self, t: [u32; 3]) {
+        self.run.triangles.push(t);
+    }
+}
+
+/// Where propagation starts: for each seed, a point where the surface is; with no seeds, the
+/// crossings a coarse search of the domain finds.
+fn find_starts(run: &mut Run) -> Result<Vec<(usize, DVec3, DVec3)>, Error> {
+    let opts = run.opts;
+    if opts.seeds.is_empty() {
+        return search_domain(run);
+    }
+    let mut starts = Vec::new();
+    for (i, &seed) in opts.seeds.iter().enumerate() {
+        if !run.grid.bounds().contains(seed) {
+            return Err(Error::BadSeed {
+                seed: seed.to_array(),
+                why: "it is outside the domain".into(),
+            });
+        }
+        match search_from(run, seed)? {
+            Some(p) => starts.push((i, seed, p)),
+            None => run.stats.seed_notes.push(SeedNote::NoSurface { seed }),
+        }
+    }
+    if starts.is_empty() {
+        let s = opts.seeds[0];
+        return Err(Error::BadSeed {
+            seed: s.to_array(),
+            why: "no surface was found from it (or any other seed) along 26 directions within the domain".into(),
+        });
+    }
+    Ok(starts)
+}
+
+/// The 26 directions to the neighbours of a lattice point, axes first.
+fn directions() -> Vec<DVec3> {
+    let mut d: Vec<DVec3> = Vec::new();
+    for x in -1..=1 {
+        for y in -1..=1 {
+            for z in -1..=1 {
+                if (x, y, z) != (0, 0, 0) {
+                    d.push(DVec3::new(x as f64, y as f64, z as f64));
+                }
+            }
+        }
+    }
+    d.sort_by_key(|v| (v.x.abs() + v.y.abs() + v.z.abs()) as i32);
+    d
+}
+
+/// Marches out from `seed` in 26 directions, a cell at a time, to the first sign change
+/// within the domain, and bisects it to the surface.
+fn search_from(run: &mut Run, seed: DVec3) -> Result<Option<DVec3>, Error> {
+    let field = run.field;
+    let f0 = field.eval(seed);
+    run.stats.search_evaluations += 1;
+    if !f0.is_finite() {
+        return Err(Error::BadSeed {
+            seed: seed.to_array(),
+            why: format!("the field is {f0} there"),
+        });
+    }
+    if f0 == 0.0 {
+        return Ok(Some(seed));
+    }
+    let bounds = run.grid.bounds();
+    let h = run.grid.cell;
+    let longest = bounds.size().max_element();
+    let steps = (longest / h).ceil() as usize + 1;
+    // Nearest crossing first: walk all directions outward together, a batch of steps at a time.
+    let dirs = directions();
+    let mut reach = 1usize;
+    while reach <= steps {
+        let upto = (reach * 2).min(steps);
+        let mut pts = Vec::new();
+        let mut which = Vec::new();
+        for s in reach..=upto {
+            for (d, dir) in dirs.iter().enumerate() {
+                let p = seed + *dir * (h * s as f64);
+                if bounds.contains(p) {
+                    pts.push(p);
+                    which.push((s, d));
+                }
+            }
+        }
+        if pts.is_empty() {
+            break;
+        }
+        let mut vals = vec![0.0; pts.len()];
+        field.eval_many(&pts, &mut vals);
+        run.stats.search_evaluations += pts.len() as u64;
+        if let Some(n) =
+            (0..pts.len()).find(|&n| vals[n].is_finite() && (vals[n] < 0.0) != (f0 < 0.0))
+        {
+            let (s, d) = which[n];
+            let prev = seed + dirs[d] * (h * (s - 1) as f64);
+            let fp = if s == 1 { f0 } else { field.eval(prev) };
+            return Ok(Some(bisect(run, prev, fp, pts[n])));
+        }
+        reach = upto + 1;
+    }
+    Ok(None)
+}
+
+/// A point on the surface between `a` (value `fa`) and `b` (opposite sign), to a small
+/// fraction of a cell.
+fn bisect(run: &mut Run, mut a: DVec3, fa: f64, mut b: DVec3) -> DVec3 {
+    let inside_a = fa < 0.0;
+    for _ in 0..20 {
+        let m = (a + b) * 0.5;
+        let fm = run.field.eval(m);
+        run.stats.search_evaluations += 1;
+        if (fm < 0.0) == inside_a {
+            a = m;
+        } else {
+            b = m;
+        }
+    }
+    (a + b) * 0.5
+}
+
+/// With no seeds: sample a coarse lattice and start from every coarse edge with a sign
+/// change (each component at least `search_stride` cells across is found).
+fn search_domain(run: &mut Run) -> Result<Vec<(usize, DVec3, DVec3)>, Error> {
+    let stride = run.opts.search_stride.max(1);
+    let dims = run.grid.dims.map(|d| (d - 1).div_ceil(stride) + 1);
+    let at = |i: usize, j: usize, k: usize| {
+        let p = run.grid.point(i * stride, j * stride, k * stride);
+        p.min(run.grid.bounds().max)
+    };
+    let mut pts = Vec::with_capacity(dims.iter().product());
+    for k in 0..dims[2] {
+        for j in 0..dims[1] {
+            for i in 0..dims[0] {
+                pts.push(at(i, j, k));
+            }
+        }
+    }
+    let mut vals = vec![0.0; pts.len()];
+    vals.par_chunks_mut(1024)
+        .zip(pts.par_chunks(1024))
+        .for_each(|(o, p)| run.field.eval_many(p, o));
+    run.stats.search_evaluations += pts.len() as u64;
+    let idx = |i: usize, j: usize, k: usize| i + dims[0] * (j + dims[1] * k);
+    let mut starts = Vec::new();
+    for k in 0..dims[2] {
+        for j in 0..dims[1] {
+            for i in 0..dims[0] {
+                let a = idx(i, j, k);
+                for (di, dj, dk) in [(1, 0, 0), (0, 1, 0), (0, 0, 1)] {
+                    let (ni, nj, nk) = (i + di, j + dj, k + dk);
+                    if ni >= dims[0] || nj >= dims[1] || nk >= dims[2] {
+                        continue;
+                    }
+                    let b = idx(ni, nj, nk);
+                    if vals[a].is_finite()
+                        && vals[b].is_finite()
+                        && (vals[a] < 0.0) != (vals[b] < 0.0)
+                    {
+                        let p = bisect(run, pts[a], vals[a], pts[b]);
+                        starts.push((starts.len(), pts[a], p));
+                    }
+                }
+            }
+        }
+    }
+    if starts.is_empty() {
+        return Err(Error::NoSurfaceFound { samples: pts.len() as u64, stride });
+    }
+    Ok(starts)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn directions_are_the_26_neighbours_axes_first() {
+        let d = directions();
+        assert_eq!(d.len(), 26);
+        assert!(d[..6].iter().all(|v| v.length() == 1.0));
+    }
+}

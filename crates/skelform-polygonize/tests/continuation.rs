@@ -1,0 +1,298 @@
+//! The continuation polygonizer: the same surfaces as the grid polygonizer, at a cost that
+//! grows with area, with clear reports when propagation is cut short.
+
+use glam::DVec3;
+use skelform_field::formula::Formula;
+use skelform_field::{Aabb, Field, FnField};
+use skelform_mesh::Mesh;
+use skelform_mesh::check::{Report, check};
+use skelform_polygonize::continuation::{Cells, Options, SeedNote, Stats, Stop, polygonize};
+use skelform_polygonize::refine::RootMethod;
+use skelform_polygonize::{Error, grid};
+
+fn run(field: &dyn Field, domain: Aabb, cell: f64, seeds: &[DVec3], cells: Cells) -> (Mesh, Stats) {
+    let opts = Options { domain, cell, seeds: seeds.to_vec(), cells, ..Options::default() };
+    polygonize(field, &opts).expect("polygonize")
+}
+
+fn closed(m: &Mesh, genera: &[i64], what: &str) -> Report {
+    let r = check(m);
+    assert!(r.is_closed_manifold(), "{what}:\n{r}");
+    assert_eq!(r.outward, Some(true), "{what}");
+    let mut g: Vec<i64> = r.components.iter().map(|c| c.genus.unwrap()).collect();
+    g.sort_unstable();
+    assert_eq!(g, genera, "{what}");
+    r
+}
+
+fn torus() -> Formula {
+    Formula::parse("q = sqrt(x^2 + y^2) - 0.6\nq^2 + z^2 - 0.25^2").unwrap()
+}
+
+fn torus_distance(p: DVec3) -> f64 {
+    ((p.truncate().length() - 0.6).powi(2) + p.z * p.z).sqrt() - 0.25
+}
+
+#[test]
+fn shapes_are_closed_with_the_right_genus_in_both_variants() {
+    let sphere = FnField(|p: DVec3| p.length() - 0.8);
+    let double = Formula::parse(
+        "l = (sqrt((x + 0.6)^2 + y^2) - 0.5)^2 + z^2 - 0.2^2\nr = (sqrt((x - 0.6)^2 + y^2) - 0.5)^2 + z^2 - 0.2^2\nmin(l, r)",
+    )
+    .unwrap();
+    let wide = Aabb::new(DVec3::new(-1.4, -0.8, -0.4), DVec3::new(1.4, 0.8, 0.4));
+    for cells in [Cells::Cubes, Cells::Tetrahedra] {
+        for h in [0.3, 0.1, 2.0 / 63.0] {
+            let (m, _) = run(&sphere, Aabb::cube(1.0), h, &[DVec3::ZERO], cells);
+            closed(&m, &[0], &format!("sphere {cells:?} {h}"));
+            let err = m
+                .positions
+                .iter()
+                .map(|p| (DVec3::from_array(p.map(f64::from)).length() - 0.8).abs())
+                .fold(0.0, f64::max);
+            assert!(err < 0.01 * h, "sphere {cells:?} {h}: {err}");
+        }
+        let (m, s) = run(&torus(), Aabb::cube(1.0), 0.04, &[DVec3::new(0.6, 0.0, 0.0)], cells);
+        closed(&m, &[1], &format!("torus {cells:?}"));
+        let err = m
+            .positions
+            .iter()
+            .map(|p| torus_distance(DVec3::from_array(p.map(f64::from))).abs())
+            .fold(0.0, f64::max);
+        assert!(err < 0.01 * s.cell, "torus {cells:?}: {err}");
+        let (m, _) = run(&double, wide, 0.03, &[DVec3::new(-1.1, 0.0, 0.0)], cells);
+        closed(&m, &[2], &format!("double torus {cells:?}"));
+    }
+}
+
+#[test]
+fn cube_variant_makes_the_grid_polygonizers_mesh() {
+    let f =
+        Formula::parse("sin(3*x)*cos(3*y) + sin(3*y)*cos(3*z) + sin(3*z)*cos(3*x) - 0.3").unwrap();
+    let domain = Aabb::cube(1.0);
+    let h = 2.0 / 40.0;
+    let gopts =
+        grid::Options { domain, resolution: grid::Resolution::Cell(h), ..Default::default() };
+    let (g, _) = grid::polygonize(&f, &gopts).unwrap();
+    // Seed every component the grid mesh has, from one of its vertices.
+    let r = check(&g);
+    let seeds: Vec<DVec3> = r
+        .components
+        .iter()
+        .map(|c| {
+            DVec3::from_array(g.positions[g.triangles[c.first_face][0] as usize].map(f64::from))
+        })
+        .collect();
+    let (m, s) = run(&f, domain, h, &seeds, Cells::Cubes);
+    assert_eq!(s.components.len(), r.components.len());
+    assert_eq!(m.triangle_count(), g.triangle_count());
+    let key = |p: &[f32; 3]| p.map(f32::to_bits);
+    let mut a: Vec<_> = g.positions.iter().map(key).collect();
+    let mut b: Vec<_> = m.positions.iter().map(key).collect();
+    a.sort_unstable();
+    b.sort_unstable();
+    assert_eq!(a, b, "the same vertices, bit for bit");
+}
+
+#[test]
+fn tetrahedra_make_more_triangles_within_a_cell_of_the_cubes() {
+    let sphere = FnField(|p: DVec3| p.length() - 0.8);
+    let (c, _) = run(&sphere, Aabb::cube(1.0), 0.05, &[DVec3::ZERO], Cells::Cubes);
+    let (t, _) = run(&sphere, Aabb::cube(1.0), 0.05, &[DVec3::ZERO], Cells::Tetrahedra);
+    assert!(
+        t.triangle_count() as f64 > 1.5 * c.triangle_count() as f64,
+        "{} vs {}",
+        t.triangle_count(),
+        c.triangle_count()
+    );
+}
+
+#[test]
+fn evaluations_grow_with_area_not_volume() {
+    let sphere = FnField(|p: DVec3| p.length() - 0.8);
+    let (_, coarse) =
+        run(&sphere, Aabb::cube(1.0), 2.0 / 64.0, &[DVec3::new(0.8, 0.0, 0.0)], Cells::Cubes);
+    let (_, fine) =
+        run(&sphere, Aabb::cube(1.0), 2.0 / 128.0, &[DVec3::new(0.8, 0.0, 0.0)], Cells::Cubes);
+    let ratio = fine.corner_evaluations as f64 / coarse.corner_evaluations as f64;
+    assert!(
+        (3.5..4.6).contains(&ratio),
+        "halving the cell multiplied corner evaluations by {ratio}"
+    );
+    let ratio = fine.evaluations() as f64 / coarse.evaluations() as f64;
+    assert!((3.5..4.6).contains(&ratio), "all evaluations: {ratio}");
+}
+
+#[test]
+fn small_object_in_a_large_domain_is_cheap() {
+    let sphere = FnField(|p: DVec3| p.length() - 0.1);
+    let domain = Aabb::cube(5.0);
+    let h = 0.02;
+    let (m, s) = run(&sphere, domain, h, &[DVec3::ZERO], Cells::Cubes);
+    closed(&m, &[0], "small sphere");
+    let full = skelform_field::grid::Grid::with_cell(&domain, h).unwrap().sample_count();
+    assert!(s.evaluations() * 100 <= full, "{} evaluations vs {full} samples", s.evaluations());
+}
+
+#[test]
+fn the_domain_search_finds_every_component() {
+    let f = FnField(|p: DVec3| {
+        let a = (p - DVec3::new(-0.6, 0.0, 0.0)).length() - 0.3;
+        let b = (p - DVec3::new(0.6, 0.2, 0.0)).length() - 0.25;
+        a.min(b)
+    });
+    let (m, s) = run(&f, Aabb::cube(1.0), 0.04, &[], Cells::Cubes);
+    closed(&m, &[0, 0], "two spheres, no seeds");
+    assert_eq!(s.components.len(), 2);
+    assert!(s.seed_notes.iter().all(|n| matches!(n, SeedNote::SameComponent { .. })));
+}
+
+#[test]
+fn seeds_of_one_component_are_reported_as_such() {
+    let sphere = FnField(|p: DVec3| p.length() - 0.5);
+    let seeds = [DVec3::ZERO, DVec3::new(0.5, 0.0, 0.0), DVec3::new(0.9, 0.9, 0.9)];
+    let (_, s) = run(&sphere, Aabb::cube(1.0), 0.05, &seeds, Cells::Cubes);
+    assert_eq!(s.components.len(), 1);
+    assert_eq!(s.seed_notes.len(), 2);
+    assert!(s.seed_notes.iter().all(|n| matches!(n, SeedNote::SameComponent { as_seed: 0, .. })));
+}
+
+#[test]
+fn bad_seeds_get_clear_errors() {
+    let plane_far = FnField(|p: DVec3| p.x + 10.0); // no surface in the domain
+    let opts = Options {
+        domain: Aabb::cube(1.0),
+        cell: 0.1,
+        seeds: vec![DVec3::ZERO],
+        ..Options::default()
+    };
+    let e = polygonize(&plane_far, &opts).unwrap_err();
+    assert!(matches!(e, Error::BadSeed { .. }), "{e}");
+    assert!(e.to_string().contains("no surface was found"), "{e}");
+    let sphere = FnField(|p: DVec3| p.length() - 0.5);
+    let opts = Options {
+        domain: Aabb::cube(1.0),
+        cell: 0.1,
+        seeds: vec![DVec3::splat(3.0)],
+        ..Options::default()
+    };
+    assert!(polygonize(&sphere, &opts).unwrap_err().to_string().contains("outside the domain"));
+    let nan = FnField(|_: DVec3| f64::NAN);
+    let opts = Options {
+        domain: Aabb::cube(1.0),
+        cell: 0.1,
+        seeds: vec![DVec3::ZERO],
+        ..Options::default()
+    };
+    assert!(polygonize(&nan, &opts).unwrap_err().to_string().contains("NaN"));
+    let opts = Options { domain: Aabb::cube(1.0), cell: 0.1, ..Options::default() };
+    assert!(matches!(polygonize(&plane_far, &opts).unwrap_err(), Error::NoSurfaceFound { .. }));
+}
+
+#[test]
+fn nans_in_the_field_do_not_hang_or_panic() {
+    let f = FnField(|p: DVec3| if p.x > 0.3 { f64::NAN } else { p.length() - 0.6 });
+    let (m, s) = run(&f, Aabb::cube(1.0), 0.05, &[DVec3::new(-0.6, 0.0, 0.0)], Cells::Cubes);
+    assert!(s.non_finite > 0);
+    assert!(m.triangle_count() > 0);
+    let r = check(&m);
+    assert_eq!(r.non_manifold_edges, 0);
+    assert!(r.consistently_oriented);
+}
+
+#[test]
+fn stops_at_the_domain_the_budget_and_the_limit_are_reported() {
+    let cylinder = FnField(|p: DVec3| (p.x * p.x + p.y * p.y).sqrt() - 0.5);
+    let (m, s) = run(&cylinder, Aabb::cube(1.0), 0.1, &[DVec3::ZERO], Cells::Cubes);
+    assert_eq!(s.stops, vec![Stop::Domain]);
+    let r = check(&m);
+    assert!(r.boundary_edges > 0 && r.non_manifold_edges == 0 && r.consistently_oriented);
+
+    let sphere = FnField(|p: DVec3| p.length() - 0.8);
+    let opts = Options {
+        domain: Aabb::cube(1.0),
+        cell: 0.02,
+        seeds: vec![DVec3::ZERO],
+        max_cells: 500,
+        ..Options::default()
+    };
+    let (m, s) = polygonize(&sphere, &opts).unwrap();
+    assert_eq!(s.stops, vec![Stop::Budget]);
+    assert!(s.cells_visited <= 500);
+    assert!(check(&m).boundary_edges > 0);
+
+    // The chapter's unbounded two-tori surface, t1 = t2, with a propagation limit of 7.
+    let two_tori = Formula::parse(
+        "R = 1; r = R/4\n\
+         t1 = (x^2 + y^2 + z^2 + R^2 - r^2)^2 - 4*R^2*(x^2 + y^2)\n\
+         t2 = (x^2 + (y + R)^2 + z^2 + R^2 - r^2)^2 - 4*R^2*((y + R)^2 + z^2)\n\
+         t1 - t2",
+    )
+    .unwrap();
+    let opts = Options {
+        domain: Aabb::cube(50.0),
+        cell: 0.1,
+        seeds: vec![DVec3::new(0.0, -0.5, 0.0)],
+        limit: Some(7),
+        ..Options::default()
+    };
+    let (m, s) = polygonize(&two_tori, &opts).unwrap();
+    assert_eq!(s.stops, vec![Stop::Limit]);
+    assert!(m.triangle_count() > 0);
+    assert!(s.cells_visited <= 15 * 15 * 15);
+}
+
+#[test]
+fn bisection_and_regula_falsi_reach_the_same_surface() {
+    let t = torus();
+    let mut evals = Vec::new();
+    for (root, tol) in
+        [(RootMethod::Bisection, 1.0 / 1024.0), (RootMethod::RegulaFalsi, 1.0 / 1024.0)]
+    {
+        let opts = Options {
+            domain: Aabb::cube(1.0),
+            cell: 2.0 / 100.0,
+            seeds: vec![DVec3::new(0.6, 0.0, 0.0)],
+            root,
+            tolerance: tol,
+            ..Options::default()
+        };
+        let (m, s) = polygonize(&t, &opts).unwrap();
+        let err = m
+            .positions
+            .iter()
+            .map(|p| torus_distance(DVec3::from_array(p.map(f64::from))).abs())
+            .fold(0.0, f64::max);
+        assert!(err < s.cell / 1024.0 * 2.0, "{root:?}: {err}");
+        evals.push(s.refine_evaluations);
+    }
+    assert!(evals[1] < evals[0], "regula falsi needs fewer evaluations: {evals:?}");
+}
+
+#[test]
+fn same_mesh_on_any_thread_count() {
+    let f = torus();
+    let go = |threads| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| run(&f, Aabb::cube(1.0), 0.03, &[], Cells::Tetrahedra).0)
+    };
+    let one = go(1);
+    assert!(go(2) == one && go(4) == one);
+}
+
+#[test]
+fn cancellation_stops_the_run() {
+    use skelform_field::control::Control;
+    use std::ops::ControlFlow;
+    let sphere = FnField(|p: DVec3| p.length() - 0.8);
+    let opts = Options {
+        domain: Aabb::cube(1.0),
+        cell: 0.01,
+        seeds: vec![DVec3::ZERO],
+        control: Control::with_callback(|p| {
+            if p.done > 100 { ControlFlow::Break(()) } else { ControlFlow::Continue(()) }
+        }),
+        ..Options::default()
+    };
+    assert_eq!(polygonize(&sphere, &opts).unwrap_err(), Error::Cancelled);
+}
