@@ -5,6 +5,7 @@
 //! failure (nothing to mesh, cannot write), 2 bad input or usage.
 
 mod progress;
+mod report;
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -13,8 +14,10 @@ use std::time::Instant;
 
 use anyhow::anyhow;
 use clap::{Args, Parser, Subcommand};
+use skelform_field::DVec3;
 use skelform_mesh::io::{Format, WriteOptions, read_mesh, write_mesh};
-use skelform_polygonize::grid::{self, Resolution, Stats};
+use skelform_polygonize::grid::{self, Resolution};
+use skelform_polygonize::{continuation, refine::RootMethod};
 use skelform_scene::{Method, Scene};
 
 #[derive(Parser)]
@@ -49,9 +52,25 @@ struct MeshArgs {
     /// Cell size (overrides the scene).
     #[arg(long)]
     cell: Option<f64>,
-    /// Polygonizer (overrides the scene): grid.
+    /// Polygonizer (overrides the scene): grid, continuation or tetra.
     #[arg(long)]
     method: Option<String>,
+    /// continuation/tetra: start from this point on or near the surface (repeatable;
+    /// replaces the scene's seeds), e.g. --seed 0.6,0,0.
+    #[arg(long, value_parser = parse_point, allow_hyphen_values = true)]
+    seed: Vec<[f64; 3]>,
+    /// continuation/tetra: root finder, regula-falsi or bisection (overrides the scene).
+    #[arg(long)]
+    root: Option<String>,
+    /// Root-finding tolerance as a fraction of the cell (overrides the scene).
+    #[arg(long)]
+    tolerance: Option<f64>,
+    /// continuation/tetra: stop after visiting this many cubes.
+    #[arg(long)]
+    max_cells: Option<u64>,
+    /// continuation/tetra: stop this many cubes from each start, in every direction.
+    #[arg(long)]
+    limit: Option<u32>,
     /// Worker threads (default: all cores). The mesh is the same for any count.
     #[arg(long)]
     threads: Option<usize>,
@@ -149,6 +168,15 @@ fn parse_bytes(s: &str) -> Result<u64, String> {
     Ok((n * mult as f64) as u64)
 }
 
+fn parse_point(s: &str) -> Result<[f64; 3], String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    let nums: Vec<f64> = parts.iter().filter_map(|p| p.parse().ok()).collect();
+    match <[f64; 3]>::try_from(nums) {
+        Ok(p) if parts.len() == 3 && p.iter().all(|x| x.is_finite()) => Ok(p),
+        _ => Err(format!("'{s}' is not a point like 0.5,0,-1")),
+    }
+}
+
 fn load_scene(path: &Path) -> Result<Scene, Failure> {
     Scene::load(path).map_err(input)
 }
@@ -199,37 +227,105 @@ fn mesh(a: MeshArgs) -> Result<(), Failure> {
 
     let show_progress = !a.quiet && std::io::stderr().is_terminal();
     let control = progress::control(show_progress);
-    let options = grid::Options {
-        domain: scene.domain,
-        resolution,
-        refine: scene.refine && !a.no_refine,
-        tolerance: scene.tolerance,
-        normals: scene.output.normals && !a.no_normals,
-        max_memory: a.max_memory,
-        control,
+    let refine = scene.refine && !a.no_refine;
+    let tolerance = match a.tolerance {
+        Some(t) if !(t > 0.0 && t < 1.0) => {
+            return Err(input(anyhow!("--tolerance is a fraction of the cell, between 0 and 1")));
+        }
+        Some(t) => t,
+        None => scene.tolerance,
     };
+    let normals = scene.output.normals && !a.no_normals;
     let started = Instant::now();
+    let field = scene.field.as_ref();
     let result = match method {
-        Method::Grid => pool.install(|| grid::polygonize(scene.field.as_ref(), &options)),
+        Method::Grid => {
+            let options = grid::Options {
+                domain: scene.domain,
+                resolution,
+                refine,
+                tolerance,
+                normals,
+                max_memory: a.max_memory,
+                control,
+            };
+            pool.install(|| grid::polygonize(field, &options))
+                .map(|(m, s)| (m, report::Run::Grid(s)))
+        }
+        Method::Continuation | Method::Tetra => {
+            let cell = grid::grid_for(&grid::Options {
+                domain: scene.domain,
+                resolution,
+                ..Default::default()
+            })
+            .map_err(|e| input(anyhow!("{}: {e}", scene.origin)))?
+            .cell;
+            let c = &scene.continuation;
+            let defaults = continuation::Options::default();
+            let root = match a.root.as_deref() {
+                None => c.root,
+                Some("regula-falsi") => RootMethod::RegulaFalsi,
+                Some("bisection") => RootMethod::Bisection,
+                Some(other) => {
+                    return Err(input(anyhow!(
+                        "unknown root finder '{other}'; expected regula-falsi or bisection"
+                    )));
+                }
+            };
+            let options = continuation::Options {
+                domain: scene.domain,
+                cell,
+                seeds: if a.seed.is_empty() {
+                    c.seeds.clone()
+                } else {
+                    a.seed.iter().map(|p| DVec3::from_array(*p)).collect()
+                },
+                search_stride: c.search_stride.unwrap_or(defaults.search_stride),
+                cells: if method == Method::Tetra {
+                    continuation::Cells::Tetrahedra
+                } else {
+                    continuation::Cells::Cubes
+                },
+                root,
+                tolerance,
+                refine,
+                normals,
+                max_cells: a.max_cells.or(c.max_cells).unwrap_or(defaults.max_cells),
+                limit: a.limit.or(c.limit),
+                control,
+            };
+            pool.install(|| continuation::polygonize(field, &options))
+                .map(|(m, s)| (m, report::Run::Continuation(s)))
+        }
     };
     progress::finish();
-    let (mesh, stats) = result.map_err(|e| match e {
-        skelform_polygonize::Error::TooMuchMemory { .. } | skelform_polygonize::Error::Grid(_) => {
-            input(anyhow!("{}: {e}", scene.origin))
+    let (mesh, stats) = result.map_err(|e| {
+        use skelform_polygonize::Error as E;
+        match e {
+            E::TooMuchMemory { .. } | E::Grid(_) | E::BadSeed { .. } | E::BadOption(_) => {
+                input(anyhow!("{}: {e}", scene.origin))
+            }
+            E::NoSurfaceFound { .. } => runtime(anyhow!("{}: {e}", scene.origin)),
+            e => runtime(e),
         }
-        e => runtime(e),
     })?;
     if mesh.is_empty() {
-        return Err(runtime(no_surface(&scene, &stats)));
+        return Err(runtime(report::no_surface(&scene, &stats)));
+    }
+    if !a.quiet {
+        for w in report::warnings(&stats) {
+            eprintln!("warning: {w}");
+        }
     }
     let t = Instant::now();
     let write_opts = WriteOptions { ascii: a.ascii || scene.output.ascii, normals: !a.no_normals };
     write_mesh(&out, &mesh, format, &write_opts).map_err(runtime)?;
     let writing = t.elapsed();
+    let total = started.elapsed();
     if a.json {
-        println!("{}", stats_json(&scene, &out, method, &stats, writing, started.elapsed()));
+        println!("{}", report::json(&scene, &out, method, &stats, writing, total));
     } else if a.stats {
-        print_stats(&stats, writing, started.elapsed());
+        report::print(&stats, writing, total);
     }
     if !a.quiet && !a.json {
         eprintln!(
@@ -240,89 +336,6 @@ fn mesh(a: MeshArgs) -> Result<(), Failure> {
         );
     }
     Ok(())
-}
-
-fn no_surface(scene: &Scene, s: &Stats) -> anyhow::Error {
-    let where_ = if s.min_sample >= 0.0 { "outside (f ≥ 0)" } else { "inside (f < 0)" };
-    anyhow!(
-        "{}: no surface in the domain: all {} samples are {where_}, values from {} to {}; \
-         check the formula, the iso value and the domain box",
-        scene.origin,
-        s.samples,
-        s.min_sample,
-        s.max_sample
-    )
-}
-
-fn secs(d: std::time::Duration) -> f64 {
-    d.as_secs_f64()
-}
-
-fn print_stats(s: &Stats, writing: std::time::Duration, total: std::time::Duration) {
-    let [nx, ny, nz] = s.grid_dims;
-    println!("grid          {nx} × {ny} × {nz} samples, cell {:.6}", s.cell);
-    println!("samples       {}", s.samples);
-    if s.non_finite_samples > 0 {
-        println!(
-            "non-finite    {} samples were NaN or ±∞ (treated as outside/inside)",
-            s.non_finite_samples
-        );
-    }
-    println!(
-        "evaluations   {} (samples {}, root finding {}, normals {})",
-        s.evaluations(),
-        s.samples,
-        s.refine_evaluations,
-        s.normal_evaluations
-    );
-    println!("ambiguous     {} faces decided, {} interior tunnels", s.ambiguous_faces, s.tunnels);
-    println!("vertices      {}", s.vertices);
-    println!("triangles     {}", s.triangles);
-    println!(
-        "time          sampling {:.3}s, extraction {:.3}s, refinement {:.3}s, normals {:.3}s, writing {:.3}s, total {:.3}s",
-        secs(s.sampling),
-        secs(s.extraction),
-        secs(s.refinement),
-        secs(s.normals),
-        secs(writing),
-        secs(total)
-    );
-}
-
-fn stats_json(
-    scene: &Scene,
-    out: &Path,
-    method: Method,
-    s: &Stats,
-    writing: std::time::Duration,
-    total: std::time::Duration,
-) -> serde_json::Value {
-    serde_json::json!({
-        "scene": scene.origin,
-        "output": out.display().to_string(),
-        "method": method.name(),
-        "grid": { "dims": s.grid_dims, "cell": s.cell },
-        "samples": s.samples,
-        "non_finite_samples": s.non_finite_samples,
-        "evaluations": {
-            "total": s.evaluations(),
-            "samples": s.samples,
-            "root_finding": s.refine_evaluations,
-            "normals": s.normal_evaluations,
-        },
-        "ambiguous_faces": s.ambiguous_faces,
-        "tunnels": s.tunnels,
-        "vertices": s.vertices,
-        "triangles": s.triangles,
-        "seconds": {
-            "sampling": secs(s.sampling),
-            "extraction": secs(s.extraction),
-            "refinement": secs(s.refinement),
-            "normals": secs(s.normals),
-            "writing": secs(writing),
-            "total": secs(total),
-        },
-    })
 }
 
 fn check(a: CheckArgs) -> Result<(), Failure> {

@@ -49,6 +49,8 @@ pub struct Scene {
     pub refine: bool,
     /// Root-finding tolerance as a fraction of the cell.
     pub tolerance: f64,
+    /// Settings of the continuation and tetra methods.
+    pub continuation: Continuation,
     /// The field with the iso value already subtracted: its zero set is the surface.
     pub field: Arc<dyn Field>,
     /// The compiled formula (before the iso value), for `skelform info`.
@@ -68,6 +70,16 @@ impl std::fmt::Debug for Scene {
             .field("iso", &self.iso)
             .finish_non_exhaustive()
     }
+}
+
+/// Settings that only the continuation polygonizer reads.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Continuation {
+    pub seeds: Vec<skelform_field::DVec3>,
+    pub root: skelform_polygonize::refine::RootMethod,
+    pub max_cells: Option<u64>,
+    pub limit: Option<u32>,
+    pub search_stride: Option<usize>,
 }
 
 /// Output settings a scene may state; the command line overrides them.

@@ -12,7 +12,8 @@ use skelform_mesh::io::Format;
 use skelform_polygonize::grid::Resolution;
 use toml::Spanned;
 
-use crate::{Output, Scene, SceneError, iso_field, line_col};
+use crate::{Continuation, Output, Scene, SceneError, iso_field, line_col};
+use skelform_polygonize::refine::RootMethod;
 
 /// Which polygonizer a scene asks for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -20,10 +21,15 @@ pub enum Method {
     /// Sample a lattice, then marching cubes.
     #[default]
     Grid,
+    /// Propagate cubes from seeds across the surface (dissertation ch. 3).
+    Continuation,
+    /// The same, each cube split into six tetrahedra.
+    Tetra,
 }
 
 impl Method {
-    pub const ALL: &'static [(&'static str, Method)] = &[("grid", Method::Grid)];
+    pub const ALL: &'static [(&'static str, Method)] =
+        &[("grid", Method::Grid), ("continuation", Method::Continuation), ("tetra", Method::Tetra)];
 
     pub fn name(self) -> &'static str {
         Method::ALL.iter().find(|(_, m)| *m == self).map_or("?", |(n, _)| n)
@@ -82,6 +88,16 @@ struct MeshSection {
     method: Option<Spanned<String>>,
     refine: Option<bool>,
     tolerance: Option<Spanned<f64>>,
+    /// Continuation: points on or near the surface to start from.
+    seeds: Option<Spanned<Vec<[f64; 3]>>>,
+    /// Continuation: root finder, "regula-falsi" (default) or "bisection".
+    root: Option<Spanned<String>>,
+    /// Continuation: most cubes to visit.
+    max_cells: Option<Spanned<i64>>,
+    /// Continuation: most cubes from each starting cube, in every direction.
+    limit: Option<Spanned<i64>>,
+    /// Continuation without seeds: stride of the domain search, in cells.
+    search_stride: Option<Spanned<i64>>,
 }
 
 #[derive(Deserialize)]
@@ -146,6 +162,11 @@ pub(crate) fn build(text: &str, origin: &str) -> Result<Scene, SceneError> {
         method: None,
         refine: None,
         tolerance: None,
+        seeds: None,
+        root: None,
+        max_cells: None,
+        limit: None,
+        search_stride: None,
     });
     let resolution = match (&mesh.resolution, &mesh.cell) {
         (Some(_), Some(c)) => {
@@ -191,6 +212,8 @@ pub(crate) fn build(text: &str, origin: &str) -> Result<Scene, SceneError> {
         None => 1e-4,
     };
 
+    let continuation = continuation_settings(&cx, &mesh, &domain)?;
+
     let f = file.field.get_ref();
     let iso = f.iso.as_ref().map_or(0.0, |s| *s.get_ref());
     if !iso.is_finite() {
@@ -231,6 +254,7 @@ pub(crate) fn build(text: &str, origin: &str) -> Result<Scene, SceneError> {
         method,
         refine: mesh.refine.unwrap_or(true),
         tolerance,
+        continuation,
         field: iso_field(formula.clone(), iso),
         formula,
         iso,
@@ -241,6 +265,49 @@ pub(crate) fn build(text: &str, origin: &str) -> Result<Scene, SceneError> {
             normals: out.normals.unwrap_or(true),
         },
     })
+}
+
+/// The continuation polygonizer's settings, checked.
+fn continuation_settings(
+    cx: &Ctx,
+    mesh: &MeshSection,
+    domain: &Aabb,
+) -> Result<Continuation, SceneError> {
+    let mut c = Continuation::default();
+    if let Some(seeds) = &mesh.seeds {
+        for s in seeds.get_ref() {
+            let p = DVec3::from_array(*s);
+            if !domain.contains(p) {
+                return Err(cx.at(seeds.span().start, format!("seed {s:?} is outside the domain")));
+            }
+            c.seeds.push(p);
+        }
+    }
+    if let Some(r) = &mesh.root {
+        c.root = match r.get_ref().as_str() {
+            "regula-falsi" => RootMethod::RegulaFalsi,
+            "bisection" => RootMethod::Bisection,
+            other => {
+                return Err(cx.at(
+                    r.span().start,
+                    format!("unknown root finder '{other}'; expected regula-falsi or bisection"),
+                ));
+            }
+        };
+    }
+    let positive = |v: &Option<Spanned<i64>>, what: &str| -> Result<Option<u64>, SceneError> {
+        match v {
+            Some(n) if *n.get_ref() < 1 => {
+                Err(cx.at(n.span().start, format!("{what} must be a whole number of at least 1")))
+            }
+            Some(n) => Ok(Some(*n.get_ref() as u64)),
+            None => Ok(None),
+        }
+    };
+    c.max_cells = positive(&mesh.max_cells, "max_cells")?;
+    c.limit = positive(&mesh.limit, "limit")?.map(|l| l.min(u32::MAX as u64) as u32);
+    c.search_stride = positive(&mesh.search_stride, "search_stride")?.map(|s| s as usize);
+    Ok(c)
 }
 
 fn parse_format(s: &str) -> Option<Format> {
