@@ -7,20 +7,20 @@
 //! so for every component it reaches it makes the very mesh the grid polygonizer makes. The
 //! tetrahedral variant splits each cube into six tetrahedra (no ambiguity; more triangles).
 //!
-//! Guarantees: each lattice corner is evaluated once (a hash map caches values) and each
-//! edge root is found once and shared; a surface closed inside the domain comes out closed,
+//! Guarantees: each lattice corner is evaluated once (values are kept in sparse bricks) and
+//! each edge root is found once and shared; a surface closed inside the domain comes out closed,
 //! manifold and consistently oriented; the output does not depend on the thread count
 //! (cubes are processed in waves, each in lattice order). Not guaranteed: components without
 //! a seed are found (give seeds, or let the domain search look for them; it can miss
 //! components smaller than its stride).
 
+mod lattice;
 pub mod tetra;
 
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
 use rayon::prelude::*;
-use rustc_hash::FxHashMap;
 use skelform_field::control::{Control, Progress};
 use skelform_field::grid::Grid;
 use skelform_field::{Aabb, Field};
@@ -31,6 +31,7 @@ use crate::grid::cell::{CubeSink, case_of, polygonize_cube};
 use crate::grid::cube::{CORNERS, EDGES, FACES};
 use crate::grid::{GridVertex, Place, Placement, place_vertices};
 use crate::refine::{RootMethod, RootOptions, gradient_normals};
+use lattice::Lattice;
 use tetra::{TetraSink, polygonize_tetrahedra};
 
 /// How each cube is polygonized.
@@ -185,21 +186,21 @@ pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats),
             run.stats.seed_notes.push(SeedNote::NoSurface { seed });
             continue;
         };
-        if let Some(&owner) = run.visited.get(&cube) {
+        if let Some(owner) = run.lattice.owner(run.unkey(cube)) {
             run.stats.seed_notes.push(SeedNote::SameComponent { seed, as_seed: owner });
             continue;
         }
-        let before = (run.visited.len() as u64, run.triangles.len());
+        let before = (run.lattice.visited(), run.triangles.len());
         run.propagate(cube, seed_index)?;
         run.stats.components.push(Component {
             seed,
             start,
-            cells: run.visited.len() as u64 - before.0,
+            cells: run.lattice.visited() - before.0,
             triangles: run.triangles.len() - before.1,
         });
     }
     run.stats.propagation = t.elapsed();
-    run.stats.cells_visited = run.visited.len() as u64;
+    run.stats.cells_visited = run.lattice.visited();
     run.finish()
 }
 
@@ -210,12 +211,10 @@ struct Run<'a> {
     field: &'a dyn Field,
     grid: Grid,
     opts: &'a Options,
-    /// Corner values, each evaluated once.
-    values: FxHashMap<Key, f32>,
-    /// Every cube visited, with the seed whose component reached it.
-    visited: FxHashMap<Key, usize>,
-    /// Vertex per lattice segment: `point key * 8 + direction bits`.
-    edge_vertex: FxHashMap<Key, u32>,
+    /// Corner values (each evaluated once) and visited cubes.
+    lattice: Lattice,
+    /// Values at the two ends of each edge vertex's segment, recorded when it is made.
+    ends: Vec<[f32; 2]>,
     vertices: Vec<GridVertex>,
     triangles: Vec<[u32; 3]>,
     stats: Stats,
@@ -227,9 +226,8 @@ impl<'a> Run<'a> {
             field,
             grid,
             opts,
-            values: FxHashMap::default(),
-            visited: FxHashMap::default(),
-            edge_vertex: FxHashMap::default(),
+            lattice: Lattice::new(grid.dims, if opts.cells == Cells::Tetrahedra { 7 } else { 3 }),
+            ends: Vec::new(),
             vertices: Vec::new(),
             triangles: Vec::new(),
             stats: Stats { cell: grid.cell, ..Stats::default() },
@@ -277,72 +275,64 @@ impl<'a> Run<'a> {
                 }
             }
         }
-        let mut corners = Vec::new();
-        for &k in &candidates {
-            self.corner_keys(k, &mut corners);
-        }
-        self.evaluate_corners(&mut corners);
+        self.evaluate_corners(&candidates);
         candidates.into_iter().find(|&k| {
             let case = case_of(&self.cube_values(self.unkey(k)));
             case != 0 && case != 255
         })
     }
 
-    /// Evaluates the corners not yet cached, in parallel batches.
-    fn evaluate_corners(&mut self, keys: &mut Vec<Key>) {
-        keys.sort_unstable();
-        keys.dedup();
-        keys.retain(|k| !self.values.contains_key(k));
-        if keys.is_empty() {
+    /// Evaluates the corners of these cubes that are not known yet, in parallel batches.
+    fn evaluate_corners(&mut self, cubes: &[Key]) {
+        let mut todo: Vec<[u32; 3]> = Vec::new();
+        for &c in cubes {
+            let b = self.unkey(c);
+            for o in CORNERS {
+                let p = [b[0] + o[0] as u32, b[1] + o[1] as u32, b[2] + o[2] as u32];
+                if self.lattice.queue(p) {
+                    todo.push(p);
+                }
+            }
+        }
+        if todo.is_empty() {
             return;
         }
-        let points: Vec<DVec3> = keys.iter().map(|&k| self.point(self.unkey(k))).collect();
+        let points: Vec<DVec3> = todo.iter().map(|&p| self.point(p)).collect();
         let mut out = vec![0.0; points.len()];
         out.par_chunks_mut(1024)
             .zip(points.par_chunks(1024))
             .for_each(|(o, p)| self.field.eval_many(p, o));
         self.stats.corner_evaluations += points.len() as u64;
-        for (&k, v) in keys.iter().zip(out) {
+        for (&p, v) in todo.iter().zip(out) {
             let v = if v.is_finite() {
                 v.clamp(-f32::MAX as f64, f32::MAX as f64) as f32
             } else {
                 self.stats.non_finite += 1;
                 if v == f64::NEG_INFINITY { -f32::MAX } else { f32::MAX }
             };
-            self.values.insert(k, v);
+            self.lattice.set_value(p, v);
         }
     }
 
-    fn cube_values(&self, base: [u32; 3]) -> [f32; 8] {
+    fn cube_values(&mut self, base: [u32; 3]) -> [f32; 8] {
         CORNERS.map(|c| {
-            let p = [base[0] + c[0] as u32, base[1] + c[1] as u32, base[2] + c[2] as u32];
-            self.values[&self.key(p)]
+            self.lattice.value([
+                base[0] + c[0] as u32,
+                base[1] + c[1] as u32,
+                base[2] + c[2] as u32,
+            ])
         })
-    }
-
-    fn corner_keys(&self, cube: Key, out: &mut Vec<Key>) {
-        let b = self.unkey(cube);
-        out.extend(
-            CORNERS
-                .iter()
-                .map(|c| self.key([b[0] + c[0] as u32, b[1] + c[1] as u32, b[2] + c[2] as u32])),
-        );
     }
 
     /// Breadth-first propagation from one cube, in waves processed in lattice order.
     fn propagate(&mut self, start: Key, seed_index: usize) -> Result<(), Error> {
         let origin = self.unkey(start);
         let mut wave = vec![start];
-        self.visited.insert(start, seed_index);
-        let mut corners = Vec::new();
+        self.lattice.visit(origin, seed_index);
         let mut stops = [false; 3];
         let max_index: [u32; 3] = self.grid.dims.map(|d| d as u32 - 2);
         while !wave.is_empty() {
-            corners.clear();
-            for &c in &wave {
-                self.corner_keys(c, &mut corners);
-            }
-            self.evaluate_corners(&mut corners);
+            self.evaluate_corners(&wave);
             let mut next = Vec::new();
             for &cube in &wave {
                 let base = self.unkey(cube);
@@ -378,21 +368,20 @@ impl<'a> Run<'a> {
                         stops[2] = true;
                         continue;
                     }
-                    let key = self.key(n);
-                    if self.visited.contains_key(&key) {
+                    if self.lattice.owner(n).is_some() {
                         continue;
                     }
-                    if self.visited.len() as u64 >= self.opts.max_cells {
+                    if self.lattice.visited() >= self.opts.max_cells {
                         stops[1] = true;
                         continue;
                     }
-                    self.visited.insert(key, seed_index);
-                    next.push(key);
+                    self.lattice.visit(n, seed_index);
+                    next.push(self.key(n));
                 }
             }
             next.sort_unstable();
             wave = next;
-            let p = Progress { phase: "propagating", done: self.visited.len() as u64, total: None };
+            let p = Progress { phase: "propagating", done: self.lattice.visited(), total: None };
             if self.opts.control.report(p).is_break() {
                 return Err(Error::Cancelled);
             }
@@ -406,7 +395,7 @@ impl<'a> Run<'a> {
     }
 
     fn polygonize(&mut self, base: [u32; 3], v: &[f32; 8]) {
-        let mut sink = RunSink { run: self, base };
+        let mut sink = RunSink { run: self, base, v: *v };
         match sink.run.opts.cells {
             Cells::Cubes => {
                 polygonize_cube(v, &mut sink);
@@ -427,12 +416,14 @@ impl<'a> Run<'a> {
             },
             tolerance: self.opts.tolerance,
         };
-        let values = &self.values;
-        let grid = self.grid;
-        let [nx, ny, _] = grid.dims.map(|d| d as u64);
-        let value =
-            |p: [u32; 3]| values[&(p[0] as u64 + nx * (p[1] as u64 + ny * p[2] as u64))] as f64;
-        let (positions, evals) = place_vertices(self.field, &grid, &self.vertices, value, &how);
+        let ends = &self.ends;
+        let (positions, evals) = place_vertices(
+            self.field,
+            &self.grid,
+            &self.vertices,
+            |i| ends[i].map(f64::from),
+            &how,
+        );
         self.stats.refine_evaluations = evals;
         self.stats.refinement = t.elapsed();
         let t = Instant::now();
@@ -460,19 +451,20 @@ impl<'a> Run<'a> {
 struct RunSink<'r, 'a> {
     run: &'r mut Run<'a>,
     base: [u32; 3],
+    v: [f32; 8],
 }
 
 impl RunSink<'_, '_> {
-    fn segment(&mut self, c0: usize, c1: usize, t: f64) -> u32 {
+    fn segment(&mut self, c0: usize, c1: usize, t: f64, ends: [f32; 2]) -> u32 {
         let o = CORNERS[c0];
         let lo =
             [self.base[0] + o[0] as u32, self.base[1] + o[1] as u32, self.base[2] + o[2] as u32];
         let dir = (c1 ^ c0) as u8;
-        let key = self.run.key(lo) * 8 + dir as u64;
-        let run = &mut *self.run;
-        *run.edge_vertex.entry(key).or_insert_with(|| {
-            run.vertices.push(GridVertex { base: lo, place: Place::Edge { dir, t } });
-            run.vertices.len() as u32 - 1
+        let Run { lattice, vertices, ends: all_ends, .. } = &mut *self.run;
+        lattice.edge_vertex(lo, dir, || {
+            vertices.push(GridVertex { base: lo, place: Place::Edge { dir, t } });
+            all_ends.push(ends);
+            vertices.len() as u32 - 1
         })
     }
 }
@@ -480,10 +472,11 @@ impl RunSink<'_, '_> {
 impl CubeSink for RunSink<'_, '_> {
     fn edge_vertex(&mut self, e: usize, t: f64) -> u32 {
         let [c0, c1] = EDGES[e];
-        self.segment(c0, c1, t)
+        self.segment(c0, c1, t, [self.v[c0], self.v[c1]])
     }
 
     fn cell_vertex(&mut self, offset: [f64; 3]) -> u32 {
+        self.run.ends.push([0.0; 2]);
         self.run.vertices.push(GridVertex { base: self.base, place: Place::Cell { offset } });
         self.run.vertices.len() as u32 - 1
     }
@@ -495,7 +488,7 @@ impl CubeSink for RunSink<'_, '_> {
 
 impl TetraSink for RunSink<'_, '_> {
     fn segment_vertex(&mut self, c0: usize, c1: usize, t: f64) -> u32 {
-        self.segment(c0, c1, t)
+        self.segment(c0, c1, t, [self.v[c0], self.v[c1]])
     }
 
     fn triangle(&mut self, t: [u32; 3]) {

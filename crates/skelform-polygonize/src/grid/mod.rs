@@ -164,7 +164,11 @@ pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats),
         tolerance: options.tolerance,
     };
     let value = |p: [u32; 3]| volume.get(p[0] as usize, p[1] as usize, p[2] as usize) as f64;
-    let (positions, evals) = place_vertices(field, &grid, &ex.vertices, value, &how);
+    let ends = |i: usize| {
+        let v = &ex.vertices[i];
+        [value(v.base), v.tip().map_or(0.0, value)]
+    };
+    let (positions, evals) = place_vertices(field, &grid, &ex.vertices, ends, &how);
     stats.refine_evaluations = evals;
     stats.refinement = t.elapsed();
     if options.control.is_cancelled() {
@@ -203,13 +207,13 @@ pub(crate) struct Placement {
 
 /// Vertex positions: interpolated, then (if asked) refined on the field, edge vertices by
 /// root finding between their segment's ends, interior vertices by Newton projection.
-/// `value` gives the sampled value at a lattice point. Returns the positions and the field
-/// evaluations made.
+/// `ends(i)` gives the sampled values at the two ends of vertex `i`'s segment. Returns the
+/// positions and the field evaluations made.
 pub(crate) fn place_vertices(
     field: &dyn Field,
     grid: &Grid,
     vertices: &[GridVertex],
-    value: impl Fn([u32; 3]) -> f64,
+    ends: impl Fn(usize) -> [f64; 2],
     how: &Placement,
 ) -> (Vec<DVec3>, u64) {
     let mut positions: Vec<DVec3> = vertices.iter().map(|v| v.position(grid)).collect();
@@ -222,13 +226,8 @@ pub(crate) fn place_vertices(
         match (v.place, v.tip()) {
             (Place::Edge { t, .. }, Some(tip)) => {
                 edge.push(i);
-                brackets.push(Bracket {
-                    p0: at(v.base),
-                    p1: at(tip),
-                    f0: value(v.base),
-                    f1: value(tip),
-                    t,
-                });
+                let [f0, f1] = ends(i);
+                brackets.push(Bracket { p0: at(v.base), p1: at(tip), f0, f1, t });
             }
             _ => cell.push(i),
         }
