@@ -1,0 +1,93 @@
+//! `skelform mesh --method continuation|tetra` as a user runs it.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn skelform(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_skelform")).args(args).output().expect("run skelform")
+}
+
+fn example(name: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples").join(name).display().to_string()
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+fn check(mesh: &Path) -> serde_json::Value {
+    let o = skelform(&["check", mesh.to_str().unwrap(), "--json"]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
+#[test]
+fn chapter_three_scenes_mesh_as_the_chapter_describes() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("m.ply");
+    let o = out.to_str().unwrap();
+    for (scene, genus) in [
+        ("continuation/sphere-cell-0.4.toml", 0),
+        ("continuation/sphere-cell-0.1.toml", 0),
+        ("continuation/torus.toml", 1),
+        ("continuation/jacks.toml", 0),
+    ] {
+        let r = skelform(&["mesh", &example(scene), "-o", o, "--stats"]);
+        assert!(r.status.success(), "{scene}: {}", text(&r.stderr));
+        assert!(text(&r.stdout).contains("stopped by    nothing (closed)"), "{scene}: {}", text(&r.stdout));
+        let c = check(&out);
+        assert_eq!(c["boundary_edges"], 0, "{scene}");
+        assert_eq!(c["non_manifold_edges"], 0, "{scene}");
+        assert_eq!(c["outward"], true, "{scene}");
+        assert_eq!(c["components"][0]["genus"], genus, "{scene}");
+    }
+    // The unbounded surface stops at the propagation limit, says so, and is open there.
+    let r = skelform(&["mesh", &example("continuation/two-tori.toml"), "-o", o]);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    assert!(text(&r.stderr).contains("warning: propagation reached its limit"), "{}", text(&r.stderr));
+    let c = check(&out);
+    assert!(c["boundary_edges"].as_u64().unwrap() > 0);
+    assert_eq!(c["non_manifold_edges"], 0);
+}
+
+#[test]
+fn methods_agree_and_tetra_makes_more_triangles() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut tris = Vec::new();
+    for m in ["grid", "continuation", "tetra"] {
+        let out = dir.path().join(format!("{m}.ply"));
+        let r = skelform(&[
+            "mesh", &example("torus.toml"), "-o", out.to_str().unwrap(), "--method", m, "--cell", "0.04",
+            "--seed", "0.6,0,0", "--json",
+        ]);
+        assert!(r.status.success(), "{m}: {}", text(&r.stderr));
+        let j: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
+        assert_eq!(j["method"], m);
+        assert_eq!(check(&out)["components"][0]["genus"], 1, "{m}");
+        tris.push(j["triangles"].as_u64().unwrap());
+    }
+    assert_eq!(tris[0], tris[1], "continuation with cubes makes the grid's mesh");
+    assert!(tris[2] > tris[1]);
+}
+
+#[test]
+fn seed_problems_are_clear() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("m.ply");
+    let o = out.to_str().unwrap();
+    let sphere = example("sphere.toml");
+    let r = skelform(&["mesh", &sphere, "-o", o, "--method", "continuation", "--seed", "5,0,0"]);
+    assert_eq!(r.status.code(), Some(2), "{}", text(&r.stderr));
+    assert!(text(&r.stderr).contains("outside the domain"), "{}", text(&r.stderr));
+    let r = skelform(&["mesh", &sphere, "-o", o, "--method", "continuation", "--seed", "0,0"]);
+    assert_eq!(r.status.code(), Some(2));
+    assert!(text(&r.stderr).contains("not a point"), "{}", text(&r.stderr));
+    let r = skelform(&["mesh", &sphere, "-o", o, "--method", "continuation", "--root", "newton"]);
+    assert_eq!(r.status.code(), Some(2));
+    assert!(text(&r.stderr).contains("unknown root finder 'newton'"), "{}", text(&r.stderr));
+    // A cell budget cuts the mesh short and says so.
+    let r = skelform(&["mesh", &sphere, "-o", o, "--method", "continuation", "--seed", "0,0,0", "--max-cells", "50"]);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    assert!(text(&r.stderr).contains("ran out of cells"), "{}", text(&r.stderr));
+    assert!(!text(&r.stderr).contains("panicked"));
+}
