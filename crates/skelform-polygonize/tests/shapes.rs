@@ -38,7 +38,7 @@ fn max_error(m: &Mesh, cell: f64, distance: impl Fn(DVec3) -> f64) -> f64 {
 #[test]
 fn sphere_at_many_resolutions() {
     let sphere = FnField(|p: DVec3| p.length() - 0.8);
-    for n in [4, 5, 7, 8, 13, 32, 64, 101] {
+    for n in [4, 5, 7, 8, 13, 32, 64, 65, 101, 128, 129] {
         let (m, cell) = mesh(&sphere, Aabb::cube(1.0), n);
         assert_closed_with_genus(&m, &[0], &format!("sphere at {n}"));
         let err = max_error(&m, cell, |p| p.length() - 0.8);

@@ -14,7 +14,7 @@ use rayon::prelude::*;
 use skelform_field::control::{Control, Progress};
 use skelform_field::grid::{Grid, Volume};
 
-use super::cell::{CubeSink, case_of, polygonize_cube};
+use super::cell::{CubeSink, polygonize_cube};
 use super::cube::{CORNERS, EDGES, edge_axis};
 
 /// Cube layers per slab. A constant, so that results never depend on the thread count.
@@ -149,14 +149,71 @@ fn merge(outputs: Vec<Slab>) -> Extraction {
     out
 }
 
-/// Edge vertex maps for a run of sample layers: x- and y-edges per layer, z-edges per gap.
+/// Edge vertex maps for one layer of cubes: x- and y-edges on the layer below and the layer
+/// above, z-edges between them. Entries are reset through lists of the slots set, so the
+/// cost of clearing follows the number of vertices, not the size of the layer.
 struct EdgeMaps {
     nx: usize,
     layer: usize,
-    /// `xy[(k - z0) * 2 * layer + axis * layer + i + nx * j]`
-    xy: Vec<u32>,
-    /// `z[(k - z0) * layer + i + nx * j]`
+    /// `[axis * layer + i + nx * j]` for x (axis 0) and y (axis 1) edges of the lower layer.
+    lower: Vec<u32>,
+    upper: Vec<u32>,
+    /// `[i + nx * j]`
     z: Vec<u32>,
+    lower_set: Vec<u32>,
+    upper_set: Vec<u32>,
+    z_set: Vec<u32>,
+}
+
+impl EdgeMaps {
+    fn new(nx: usize, ny: usize) -> Self {
+        let layer = nx * ny;
+        EdgeMaps {
+            nx,
+            layer,
+            lower: vec![NONE; 2 * layer],
+            upper: vec![NONE; 2 * layer],
+            z: vec![NONE; layer],
+            lower_set: Vec::new(),
+            upper_set: Vec::new(),
+            z_set: Vec::new(),
+        }
+    }
+
+    /// Moves up one layer: the upper layer becomes the lower, the new upper and the z-edges
+    /// are cleared.
+    fn advance(&mut self) {
+        for &s in &self.lower_set {
+            self.lower[s as usize] = NONE;
+        }
+        for &s in &self.z_set {
+            self.z[s as usize] = NONE;
+        }
+        self.lower_set.clear();
+        self.z_set.clear();
+        std::mem::swap(&mut self.lower, &mut self.upper);
+        std::mem::swap(&mut self.lower_set, &mut self.upper_set);
+    }
+}
+
+/// Bit `i` of the row words: whether sample `i` of the row is inside (`f < 0`).
+fn row_signs(values: &[f32], out: &mut [u64]) {
+    for (w, chunk) in out.iter_mut().zip(values.chunks(64)) {
+        let mut bits = 0u64;
+        for (b, &v) in chunk.iter().enumerate() {
+            bits |= ((v < 0.0) as u64) << b;
+        }
+        *w = bits;
+    }
+}
+
+/// Sign words of every row of layer `k`: `ny` rows of `words` words.
+fn layer_signs(volume: &Volume, k: usize, words: usize, out: &mut [u64]) {
+    let [nx, ny, _] = volume.grid.dims;
+    let layer = &volume.values[k * nx * ny..(k + 1) * nx * ny];
+    for (row, o) in layer.chunks(nx).zip(out.chunks_mut(words)) {
+        row_signs(row, o);
+    }
 }
 
 fn extract_slab(
@@ -169,13 +226,7 @@ fn extract_slab(
     let [nx, ny, nz] = grid.dims;
     let layer = nx * ny;
     let last = z1 == nz - 1;
-    // Layers z0..z1 inclusive hold x/y edges the slab's cubes use; z1 is borrowed unless last.
-    let mut maps = EdgeMaps {
-        nx,
-        layer,
-        xy: vec![NONE; (z1 - z0 + 1) * 2 * layer],
-        z: vec![NONE; (z1 - z0) * layer],
-    };
+    let mut maps = EdgeMaps::new(nx, ny);
     let mut slab = Slab {
         vertices: Vec::new(),
         triangles: Vec::new(),
@@ -186,28 +237,61 @@ fn extract_slab(
     };
     let vals = &volume.values;
     let offsets: [usize; 8] = CORNERS.map(|[x, y, z]| x + nx * y + layer * z);
+    // Sign bits of the sample layers below and above the current layer of cubes: a cube has
+    // the surface in it when its eight bits are not all equal, which 64 cubes at a time
+    // reduce to a few word operations; only those cubes are visited.
+    let words = nx.div_ceil(64);
+    let mut below = vec![0u64; ny * words];
+    let mut above = vec![0u64; ny * words];
+    layer_signs(volume, z0, words, &mut below);
+    // Cubes are i < nx - 1: mask out the last sample's bit and everything past it.
+    let valid = |w: usize| -> u64 {
+        let first = w * 64;
+        let cubes = (nx - 1).saturating_sub(first).min(64);
+        if cubes == 64 { u64::MAX } else { (1u64 << cubes) - 1 }
+    };
     for k in z0..z1 {
         if control.is_cancelled() {
             return Err(Cancelled);
         }
+        layer_signs(volume, k + 1, words, &mut above);
         for j in 0..ny - 1 {
-            let row = nx * j + layer * k;
-            for i in 0..nx - 1 {
-                let base = row + i;
-                let v: [f32; 8] = offsets.map(|o| vals[base + o]);
-                let case = case_of(&v);
-                if case == 0 || case == 255 {
-                    continue;
+            let rows = [
+                &below[j * words..(j + 1) * words],
+                &below[(j + 1) * words..(j + 2) * words],
+                &above[j * words..(j + 1) * words],
+                &above[(j + 1) * words..(j + 2) * words],
+            ];
+            let any = |w: usize| rows.iter().fold(0u64, |m, r| m | r[w]);
+            let all = |w: usize| rows.iter().fold(u64::MAX, |m, r| m & r[w]);
+            for w in 0..words {
+                let (or, and) = (any(w), all(w));
+                let (or_next, and_next) =
+                    if w + 1 < words { (any(w + 1) & 1, all(w + 1) & 1) } else { (0, 0) };
+                // Cube i spans samples i and i + 1.
+                let some_inside = or | (or >> 1) | (or_next << 63);
+                let all_inside = and & ((and >> 1) | (and_next << 63));
+                let mut mixed = some_inside & !all_inside & valid(w);
+                while mixed != 0 {
+                    let i = w * 64 + mixed.trailing_zeros() as usize;
+                    mixed &= mixed - 1;
+                    let base = nx * j + layer * k + i;
+                    let v: [f32; 8] = offsets.map(|o| vals[base + o]);
+                    let mut sink =
+                        SlabSink { slab: &mut slab, maps: &mut maps, at: [i, j, k], z1, last };
+                    let outcome = polygonize_cube(&v, &mut sink);
+                    slab.ambiguous_faces += outcome.ambiguous_faces as u64;
+                    slab.tunnels += outcome.tunnel as u64;
                 }
-                let mut sink =
-                    SlabSink { slab: &mut slab, maps: &mut maps, at: [i, j, k], z0, z1, last };
-                let outcome = polygonize_cube(&v, &mut sink);
-                slab.ambiguous_faces += outcome.ambiguous_faces as u64;
-                slab.tunnels += outcome.tunnel as u64;
             }
         }
+        if k == z0 {
+            // Every vertex on the slab's bottom layer is made by its first layer of cubes.
+            slab.bottom = maps.lower.clone();
+        }
+        maps.advance();
+        std::mem::swap(&mut below, &mut above);
     }
-    slab.bottom = maps.xy[..2 * layer].to_vec();
     Ok(slab)
 }
 
@@ -216,7 +300,6 @@ struct SlabSink<'a> {
     slab: &'a mut Slab,
     maps: &'a mut EdgeMaps,
     at: [usize; 3],
-    z0: usize,
     z1: usize,
     last: bool,
 }
@@ -231,12 +314,11 @@ impl CubeSink for SlabSink<'_> {
         let axis = edge_axis(e);
         let maps = &mut *self.maps;
         let cell = bi + maps.nx * bj;
-        let slot = if axis == 2 {
-            (bk - self.z0) * maps.layer + cell
-        } else {
-            (bk - self.z0) * 2 * maps.layer + axis * maps.layer + cell
+        let (map, set, slot) = match (axis, dz) {
+            (2, _) => (&mut maps.z, &mut maps.z_set, cell),
+            (_, 0) => (&mut maps.lower, &mut maps.lower_set, axis * maps.layer + cell),
+            _ => (&mut maps.upper, &mut maps.upper_set, axis * maps.layer + cell),
         };
-        let map = if axis == 2 { &mut maps.z } else { &mut maps.xy };
         if map[slot] != NONE {
             return map[slot];
         }
@@ -251,6 +333,7 @@ impl CubeSink for SlabSink<'_> {
             self.slab.vertices.len() as u32 - 1
         };
         map[slot] = id;
+        set.push(slot as u32);
         id
     }
 
