@@ -34,7 +34,11 @@ fn chapter_three_scenes_mesh_as_the_chapter_describes() {
     ] {
         let r = skelform(&["mesh", &example(scene), "-o", o, "--stats"]);
         assert!(r.status.success(), "{scene}: {}", text(&r.stderr));
-        assert!(text(&r.stdout).contains("stopped by    nothing (closed)"), "{scene}: {}", text(&r.stdout));
+        assert!(
+            text(&r.stdout).contains("stopped by    nothing (closed)"),
+            "{scene}: {}",
+            text(&r.stdout)
+        );
         let c = check(&out);
         assert_eq!(c["boundary_edges"], 0, "{scene}");
         assert_eq!(c["non_manifold_edges"], 0, "{scene}");
@@ -44,7 +48,11 @@ fn chapter_three_scenes_mesh_as_the_chapter_describes() {
     // The unbounded surface stops at the propagation limit, says so, and is open there.
     let r = skelform(&["mesh", &example("continuation/two-tori.toml"), "-o", o]);
     assert!(r.status.success(), "{}", text(&r.stderr));
-    assert!(text(&r.stderr).contains("warning: propagation reached its limit"), "{}", text(&r.stderr));
+    assert!(
+        text(&r.stderr).contains("warning: propagation reached its limit"),
+        "{}",
+        text(&r.stderr)
+    );
     let c = check(&out);
     assert!(c["boundary_edges"].as_u64().unwrap() > 0);
     assert_eq!(c["non_manifold_edges"], 0);
@@ -57,8 +65,17 @@ fn methods_agree_and_tetra_makes_more_triangles() {
     for m in ["grid", "continuation", "tetra"] {
         let out = dir.path().join(format!("{m}.ply"));
         let r = skelform(&[
-            "mesh", &example("torus.toml"), "-o", out.to_str().unwrap(), "--method", m, "--cell", "0.04",
-            "--seed", "0.6,0,0", "--json",
+            "mesh",
+            &example("torus.toml"),
+            "-o",
+            out.to_str().unwrap(),
+            "--method",
+            m,
+            "--cell",
+            "0.04",
+            "--seed",
+            "0.6,0,0",
+            "--json",
         ]);
         assert!(r.status.success(), "{m}: {}", text(&r.stderr));
         let j: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
@@ -86,7 +103,18 @@ fn seed_problems_are_clear() {
     assert_eq!(r.status.code(), Some(2));
     assert!(text(&r.stderr).contains("unknown root finder 'newton'"), "{}", text(&r.stderr));
     // A cell budget cuts the mesh short and says so.
-    let r = skelform(&["mesh", &sphere, "-o", o, "--method", "continuation", "--seed", "0,0,0", "--max-cells", "50"]);
+    let r = skelform(&[
+        "mesh",
+        &sphere,
+        "-o",
+        o,
+        "--method",
+        "continuation",
+        "--seed",
+        "0,0,0",
+        "--max-cells",
+        "50",
+    ]);
     assert!(r.status.success(), "{}", text(&r.stderr));
     assert!(text(&r.stderr).contains("ran out of cells"), "{}", text(&r.stderr));
     assert!(!text(&r.stderr).contains("panicked"));

@@ -17,14 +17,21 @@ fn load(name: &str) -> Scene {
 fn bench(c: &mut Criterion) {
     for name in ["continuation/blobs-50.toml", "continuation/torus.toml"] {
         let scene = load(name);
-        let gopts = grid::Options { domain: scene.domain, resolution: scene.resolution, ..Default::default() };
+        let gopts = grid::Options {
+            domain: scene.domain,
+            resolution: scene.resolution,
+            ..Default::default()
+        };
         let cell = grid::grid_for(&gopts).expect("grid").cell;
         let mut group = c.benchmark_group(name);
         group.sample_size(10);
         group.bench_function(BenchmarkId::new("grid", cell), |b| {
             b.iter(|| grid::polygonize(scene.field.as_ref(), &gopts).expect("grid"))
         });
-        for (label, cells) in [("continuation", continuation::Cells::Cubes), ("tetra", continuation::Cells::Tetrahedra)] {
+        for (label, cells) in [
+            ("continuation", continuation::Cells::Cubes),
+            ("tetra", continuation::Cells::Tetrahedra),
+        ] {
             let opts = continuation::Options {
                 domain: scene.domain,
                 cell,
@@ -33,7 +40,9 @@ fn bench(c: &mut Criterion) {
                 ..Default::default()
             };
             group.bench_function(BenchmarkId::new(label, cell), |b| {
-                b.iter(|| continuation::polygonize(scene.field.as_ref(), &opts).expect("continuation"))
+                b.iter(|| {
+                    continuation::polygonize(scene.field.as_ref(), &opts).expect("continuation")
+                })
             });
         }
         group.finish();
