@@ -4,6 +4,7 @@
 //! polygonizer, writes the mesh and prints statistics. Exit codes: 0 success, 1 runtime
 //! failure (nothing to mesh, cannot write), 2 bad input or usage.
 
+mod extract;
 mod progress;
 mod report;
 mod run;
@@ -34,6 +35,8 @@ enum Command {
     Check(CheckArgs),
     /// Show what a scene describes: domain, grid, memory needed, the compiled formula.
     Info(InfoArgs),
+    /// Marching cubes on a raw float32 volume (extraction only, no field).
+    Extract(extract::ExtractArgs),
 }
 
 #[derive(Args)]
@@ -94,6 +97,7 @@ fn main() -> ExitCode {
         Command::Mesh(a) => mesh(a),
         Command::Check(a) => check(a),
         Command::Info(a) => info(a),
+        Command::Extract(a) => extract::extract(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -166,7 +166,7 @@ pub fn run_scene(scene: &Scene, a: &RunArgs) -> Result<(Mesh, report::Run, Metho
     Ok((mesh, stats, method))
 }
 
-fn parse_bytes(s: &str) -> Result<u64, String> {
+pub fn parse_bytes(s: &str) -> Result<u64, String> {
     let s = s.trim();
     let (num, mult) = match s.char_indices().find(|(_, c)| c.is_ascii_alphabetic()) {
         Some((i, _)) => {
@@ -190,7 +190,7 @@ fn parse_bytes(s: &str) -> Result<u64, String> {
     Ok((n * mult as f64) as u64)
 }
 
-fn parse_point(s: &str) -> Result<[f64; 3], String> {
+pub fn parse_point(s: &str) -> Result<[f64; 3], String> {
     let parts: Vec<&str> = s.split(',').map(str::trim).collect();
     let nums: Vec<f64> = parts.iter().filter_map(|p| p.parse().ok()).collect();
     match <[f64; 3]>::try_from(nums) {

@@ -1,0 +1,230 @@
+"""skelform against its peers on the same work, in one run on one machine.
+
+Extraction only: every tool reads the same precomputed float32 volume and extracts the
+zero level set; we time the extraction call alone (for skelform, the time it reports for its
+extraction, after reading the file). Sampling plus extraction: each tool evaluates the field
+its fastest way (NumPy for the Python tools, skelform's compiled formulas) and extracts.
+Each measurement runs in a fresh process, which also gives its peak memory. Medians of
+--runs runs. Writes a Markdown table to bench/results/latest.md and prints it.
+"""
+
+import argparse
+import json
+import os
+import platform
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+SKELFORM = ROOT / "target" / "release" / "skelform"
+FSN = ROOT / "target" / "release" / "examples" / "fsn_peer"
+CACHE = Path(__file__).resolve().parent / ".cache"
+
+TAU = 6.283185307179586
+
+# name: (domain half-width, NumPy expression of x y z, the same in skelform's language)
+FIELDS = {
+    "sphere": (1.0, "np.sqrt(x*x + y*y + z*z) - 0.8", "sqrt(x^2 + y^2 + z^2) - 0.8"),
+    "torus": (1.0, "(np.sqrt(x*x + y*y) - 0.6)**2 + z*z - 0.0625", "(sqrt(x^2 + y^2) - 0.6)^2 + z^2 - 0.0625"),
+    "gyroid": (TAU, "np.sin(x)*np.cos(y) + np.sin(y)*np.cos(z) + np.sin(z)*np.cos(x)",
+               "sin(x)*cos(y) + sin(y)*cos(z) + sin(z)*cos(x)"),
+}
+
+
+def blobs():
+    """Twenty Gaussian blobs at fixed pseudo-random places (a simple LCG, reproducible)."""
+    seed = 2024
+    out = []
+    for _ in range(20):
+        vals = []
+        for _ in range(4):
+            seed = (seed * 1103515245 + 12345) % (1 << 31)
+            vals.append(seed / float(1 << 31))
+        out.append(((vals[0] * 2 - 1) * 0.6, (vals[1] * 2 - 1) * 0.6, (vals[2] * 2 - 1) * 0.6, 12 + 10 * vals[3]))
+    return out
+
+
+BLOBS = blobs()
+FIELDS["blobs"] = (
+    1.0,
+    "0.5 - (" + " + ".join(f"np.exp(-{k:.4f}*((x-{a:.4f})**2 + (y-{b:.4f})**2 + (z-{c:.4f})**2))" for a, b, c, k in BLOBS) + ")",
+    "0.5 - (" + " + ".join(f"exp(-{k:.4f}*((x-{a:.4f})^2 + (y-{b:.4f})^2 + (z-{c:.4f})^2))" for a, b, c, k in BLOBS) + ")",
+)
+
+
+def numpy_volume(field, n):
+    import numpy as np  # noqa: F401 (used by eval)
+    h, expr, _ = FIELDS[field]
+    t = np.linspace(-h, h, n, dtype=np.float64)
+    z, y, x = np.meshgrid(t, t, t, indexing="ij")  # x fastest in memory
+    return eval(expr).astype(np.float32)
+
+
+def volume_file(field, n):
+    CACHE.mkdir(exist_ok=True)
+    path = CACHE / f"{field}-{n}.raw"
+    if not path.exists():
+        numpy_volume(field, n).tofile(path)
+    return path
+
+
+# ---- worker mode: one measurement in a fresh process ------------------------------------
+
+def worker(tool, field, n, mode):
+    result = {}
+    # skelform and fast-surface-nets run as child processes: load nothing here, so that the
+    # child's peak memory is its own.
+    if tool in ("skelform-1", "skelform-all"):
+        threads = "1" if tool == "skelform-1" else str(os.cpu_count())
+        with tempfile.TemporaryDirectory() as d:
+            if mode == "extract":
+                cmd = [str(SKELFORM), "extract", str(volume_file(field, n)), "--dims", f"{n},{n},{n}",
+                       "-o", f"{d}/m.ply", "--json", "--threads", threads]
+                j = json.loads(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout)
+                result["seconds"] = j["seconds"]["extraction"]
+            else:
+                h, _, formula = FIELDS[field]
+                scene = Path(d) / "s.toml"
+                scene.write_text(f'[domain]\nmin = [{-h}, {-h}, {-h}]\nmax = [{h}, {h}, {h}]\n'
+                                 f'[mesh]\nresolution = {n}\nrefine = false\n[field]\nformula = "{formula}"\n')
+                cmd = [str(SKELFORM), "mesh", str(scene), "-o", f"{d}/m.ply", "--json", "--threads", threads,
+                       "--no-normals", "--no-refine"]
+                j = json.loads(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout)
+                result["seconds"] = j["seconds"]["sampling"] + j["seconds"]["extraction"]
+            result["vertices"], result["triangles"] = j["vertices"], j["triangles"]
+        result["peak_mib"] = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
+        return result
+    if tool == "fast-surface-nets":
+        if mode != "extract":
+            return None
+        out = subprocess.run([str(FSN), str(volume_file(field, n)), str(n), str(n), str(n)],
+                             check=True, capture_output=True, text=True).stdout
+        j = json.loads(out)
+        j["peak_mib"] = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
+        return j
+    import numpy as np
+    if tool == "scikit-image":
+        from skimage.measure import marching_cubes
+    elif tool == "PyMCubes":
+        import mcubes
+    elif tool == "VTK FlyingEdges3D":
+        import vtk
+        from vtk.util import numpy_support
+    if mode == "extract":
+        vol = np.fromfile(volume_file(field, n), dtype=np.float32).reshape(n, n, n)
+    t0 = time.perf_counter()
+    if mode == "both":
+        vol = numpy_volume(field, n)
+    if tool == "scikit-image":
+        t = time.perf_counter()
+        verts, faces, _, _ = marching_cubes(vol, level=0.0)
+    elif tool == "PyMCubes":
+        t = time.perf_counter()
+        verts, faces = mcubes.marching_cubes(vol, 0.0)
+    elif tool == "VTK FlyingEdges3D":
+        img = vtk.vtkImageData()
+        img.SetDimensions(n, n, n)
+        arr = numpy_support.numpy_to_vtk(vol.ravel(), deep=False, array_type=vtk.VTK_FLOAT)
+        img.GetPointData().SetScalars(arr)
+        fe = vtk.vtkFlyingEdges3D()
+        fe.SetInputData(img)
+        fe.SetValue(0, 0.0)
+        fe.ComputeNormalsOff()
+        fe.ComputeGradientsOff()
+        fe.ComputeScalarsOff()
+        t = time.perf_counter()
+        fe.Update()
+        out = fe.GetOutput()
+        verts, faces = range(out.GetNumberOfPoints()), range(out.GetNumberOfPolys())
+    else:
+        raise SystemExit(f"unknown tool {tool}")
+    end = time.perf_counter()
+    result["seconds"] = end - (t if mode == "extract" else t0)
+    result["vertices"], result["triangles"] = len(verts), len(faces)
+    result["peak_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    return result
+
+
+TOOLS = ["skelform-1", "skelform-all", "VTK FlyingEdges3D", "PyMCubes", "scikit-image", "fast-surface-nets"]
+
+
+def measure(tool, field, n, mode, runs):
+    samples = []
+    for _ in range(runs):
+        out = subprocess.run([sys.executable, __file__, "--worker", tool, field, str(n), mode],
+                             check=True, capture_output=True, text=True).stdout
+        r = json.loads(out)
+        if r is None:
+            return None
+        samples.append(r)
+    med = statistics.median(s["seconds"] for s in samples)
+    return {"seconds": med, "vertices": samples[0]["vertices"], "triangles": samples[0]["triangles"],
+            "peak_mib": max(s["peak_mib"] for s in samples)}
+
+
+def machine():
+    cpu = "unknown CPU"
+    try:
+        for line in open("/proc/cpuinfo"):
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return f"{cpu}, {os.cpu_count()} cores, {platform.system()} {platform.release()}, Python {platform.python_version()}"
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--worker", nargs=4, metavar=("TOOL", "FIELD", "N", "MODE"), help=argparse.SUPPRESS)
+    ap.add_argument("--sizes", default="128,256,384")
+    ap.add_argument("--fields", default="sphere,torus,gyroid,blobs")
+    ap.add_argument("--runs", type=int, default=5)
+    ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "latest.md"))
+    a = ap.parse_args()
+    if a.worker:
+        tool, field, n, mode = a.worker
+        print(json.dumps(worker(tool, field, int(n), mode)))
+        return
+    sizes = [int(s) for s in a.sizes.split(",")]
+    fields = a.fields.split(",")
+    lines = [f"# skelform against its peers", "",
+             f"One run of `bench/peers/run.sh` on {time.strftime('%Y-%m-%d')}: {machine()}.",
+             f"Medians of {a.runs} runs, each in a fresh process; ratio = peer time / skelform single-threaded time",
+             "(above 1: skelform is faster). Peak memory is the process's maximum resident set.", ""]
+    started = time.time()
+    for field in fields:
+        for n in sizes:
+            volume_file(field, n)
+    for mode, title in [("extract", "Extraction only, from the same float32 volume"),
+                        ("both", "Sampling plus extraction, each tool evaluating the field its fastest way")]:
+        lines += [f"## {title}", "",
+                  "| field | samples | tool | ms | ratio | vertices | triangles | peak MiB |",
+                  "|---|---|---|---|---|---|---|---|"]
+        for field in fields:
+            for n in sizes:
+                base = None
+                for tool in TOOLS:
+                    r = measure(tool, field, n, mode, a.runs)
+                    if r is None:
+                        continue
+                    if tool == "skelform-1":
+                        base = r["seconds"]
+                    ratio = "" if tool.startswith("skelform-1") else f"{r['seconds'] / base:.2f}"
+                    lines.append(f"| {field} | {n}³ | {tool} | {r['seconds'] * 1000:.1f} | {ratio} | "
+                                 f"{r['vertices']:,} | {r['triangles']:,} | {r['peak_mib']:.0f} |")
+                    print(lines[-1], flush=True)
+        lines.append("")
+    lines.append(f"Total benchmark time: {time.time() - started:.0f} s.")
+    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(a.out).write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()

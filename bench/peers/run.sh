@@ -1,0 +1,14 @@
+#!/usr/bin/env bash
+# skelform against scikit-image, PyMCubes, VTK (Flying Edges) and fast-surface-nets, on the
+# same volumes, in one run. Creates its own Python virtual environment (bench/peers/.venv),
+# installs the peers from PyPI, builds skelform in release mode, and writes
+# bench/results/latest.md. Options go to peers.py (--sizes 128,256 --fields torus --runs 3).
+set -euo pipefail
+here=$(cd "$(dirname "$0")" && pwd)
+root=$(cd "$here/../.." && pwd)
+if [ ! -x "$here/.venv/bin/python" ]; then
+    python3 -m venv "$here/.venv"
+fi
+"$here/.venv/bin/pip" install --quiet --disable-pip-version-check numpy scikit-image PyMCubes vtk
+(cd "$root" && cargo build --release --quiet --bin skelform && cargo build --release --quiet -p skelform-polygonize --example fsn_peer)
+exec "$here/.venv/bin/python" "$here/peers.py" "$@"

@@ -1,0 +1,146 @@
+//! `skelform extract`: marching cubes on a sampled volume from a raw file, without a field.
+//!
+//! This is the extraction-only path that other isosurface tools offer (scikit-image's
+//! `marching_cubes`, VTK's Flying Edges, PyMCubes): the same topology guarantees as
+//! `skelform mesh`, with vertices placed by linear interpolation (there is no field to
+//! refine on) and no normals.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::anyhow;
+use clap::Args;
+use skelform_field::DVec3;
+use skelform_field::control::Control;
+use skelform_field::grid::{Grid, Volume};
+use skelform_mesh::io::{WriteOptions, write_mesh};
+use skelform_polygonize::grid::extract_mesh;
+
+use crate::{Failure, input, output_format, run::parse_bytes, run::parse_point, runtime};
+
+#[derive(Args)]
+pub struct ExtractArgs {
+    /// Raw little-endian float32 samples, x varying fastest, then y, then z (a C-ordered
+    /// NumPy array indexed [z][y][x], written with `tofile`).
+    volume: PathBuf,
+    /// Samples along x, y and z, e.g. 256,256,256.
+    #[arg(long, value_parser = parse_dims)]
+    dims: [usize; 3],
+    /// Output mesh (.ply, .obj, .stl).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// The level to extract; inside is below it.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    iso: f64,
+    /// Position of the first sample.
+    #[arg(long, value_parser = parse_point, allow_hyphen_values = true, default_value = "0,0,0")]
+    origin: [f64; 3],
+    /// Distance between samples.
+    #[arg(long, default_value_t = 1.0)]
+    spacing: f64,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Print statistics as JSON on standard output.
+    #[arg(long)]
+    json: bool,
+    /// Write PLY as text.
+    #[arg(long)]
+    ascii: bool,
+    /// Refuse volumes that would need more memory than this (default 4G).
+    #[arg(long, value_parser = parse_bytes, default_value = "4G")]
+    max_memory: u64,
+    /// No summary line.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+fn parse_dims(s: &str) -> Result<[usize; 3], String> {
+    let parts: Vec<Option<usize>> = s.split(',').map(|p| p.trim().parse().ok()).collect();
+    match parts.as_slice() {
+        [Some(x), Some(y), Some(z)] if *x >= 2 && *y >= 2 && *z >= 2 => Ok([*x, *y, *z]),
+        _ => Err(format!("'{s}' is not three sample counts of at least 2, like 256,256,256")),
+    }
+}
+
+pub fn extract(a: ExtractArgs) -> Result<(), Failure> {
+    let format = output_format(&a.output)?;
+    if !(a.spacing.is_finite() && a.spacing > 0.0) {
+        return Err(input(anyhow!("--spacing must be a positive length")));
+    }
+    let count: u64 = a.dims.iter().map(|&d| d as u64).product();
+    let bytes = count * 4;
+    // The samples as f32, plus about as much again for the extraction's bookkeeping.
+    if 2 * bytes > a.max_memory {
+        return Err(input(anyhow!(
+            "{}: a {}×{}×{} volume needs about {:.2} GiB, over the limit of {:.2} GiB (--max-memory)",
+            a.volume.display(),
+            a.dims[0],
+            a.dims[1],
+            a.dims[2],
+            (2 * bytes) as f64 / (1u64 << 30) as f64,
+            a.max_memory as f64 / (1u64 << 30) as f64
+        )));
+    }
+    let size = std::fs::metadata(&a.volume)
+        .map_err(|e| input(anyhow!("{}: {e}", a.volume.display())))?
+        .len();
+    if size != bytes {
+        return Err(input(anyhow!(
+            "{}: {size} bytes, but {}×{}×{} float32 samples take {bytes}",
+            a.volume.display(),
+            a.dims[0],
+            a.dims[1],
+            a.dims[2]
+        )));
+    }
+    let raw =
+        std::fs::read(&a.volume).map_err(|e| input(anyhow!("{}: {e}", a.volume.display())))?;
+    let iso = a.iso as f32;
+    let values: Vec<f32> =
+        raw.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]) - iso).collect();
+    drop(raw);
+    let grid = Grid { origin: DVec3::from_array(a.origin), cell: a.spacing, dims: a.dims };
+    let volume = Volume::from_values(grid, values);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(a.threads.unwrap_or(0))
+        .build()
+        .map_err(|e| runtime(anyhow!("cannot start the threads: {e}")))?;
+    let t = Instant::now();
+    let mesh = pool.install(|| extract_mesh(&volume, &Control::default())).map_err(runtime)?;
+    let extraction = t.elapsed();
+    if mesh.is_empty() {
+        return Err(runtime(anyhow!(
+            "{}: no surface: no sample pair straddles the iso value {}",
+            a.volume.display(),
+            a.iso
+        )));
+    }
+    let t = Instant::now();
+    write_mesh(&a.output, &mesh, format, &WriteOptions { ascii: a.ascii, normals: false })
+        .map_err(runtime)?;
+    let writing = t.elapsed();
+    if a.json {
+        println!(
+            "{}",
+            serde_json::json!({
+                "volume": a.volume.display().to_string(),
+                "dims": a.dims,
+                "threads": pool.current_num_threads(),
+                "non_finite_samples": volume.non_finite,
+                "vertices": mesh.vertex_count(),
+                "triangles": mesh.triangle_count(),
+                "seconds": { "extraction": extraction.as_secs_f64(), "writing": writing.as_secs_f64() },
+            })
+        );
+    } else if !a.quiet {
+        eprintln!(
+            "wrote {} ({} vertices, {} triangles; extraction {:.3}s)",
+            a.output.display(),
+            mesh.vertex_count(),
+            mesh.triangle_count(),
+            extraction.as_secs_f64()
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,85 @@
+//! `skelform extract` on raw float32 volumes.
+
+use std::process::{Command, Output};
+
+fn skelform(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_skelform")).args(args).output().expect("run skelform")
+}
+
+/// A sphere of radius `r` sampled on n³ points of [-1, 1]³, x fastest, as raw bytes.
+fn sphere(n: usize, r: f32) -> Vec<u8> {
+    let mut out = Vec::with_capacity(n * n * n * 4);
+    let at = |i: usize| -1.0 + 2.0 * i as f32 / (n - 1) as f32;
+    for k in 0..n {
+        for j in 0..n {
+            for i in 0..n {
+                let v = (at(i).powi(2) + at(j).powi(2) + at(k).powi(2)).sqrt() - r;
+                out.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn extracts_a_closed_surface_from_a_raw_volume() {
+    let dir = tempfile::tempdir().unwrap();
+    let vol = dir.path().join("s.raw");
+    std::fs::write(&vol, sphere(40, 0.7)).unwrap();
+    let out = dir.path().join("s.ply");
+    let o = skelform(&[
+        "extract",
+        vol.to_str().unwrap(),
+        "--dims",
+        "40,40,40",
+        "-o",
+        out.to_str().unwrap(),
+        "--json",
+        "--spacing",
+        "0.05128205",
+        "--origin",
+        "-1,-1,-1",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(j["triangles"].as_u64().unwrap() > 1000);
+    let c = skelform(&["check", out.to_str().unwrap(), "--json"]);
+    let r: serde_json::Value = serde_json::from_slice(&c.stdout).unwrap();
+    assert_eq!(r["boundary_edges"], 0);
+    assert_eq!(r["components"][0]["genus"], 0);
+    assert_eq!(r["outward"], true);
+    // The iso value moves the surface: the level 0.1 of the distance is a larger sphere.
+    let o = skelform(&[
+        "extract",
+        vol.to_str().unwrap(),
+        "--dims",
+        "40,40,40",
+        "-o",
+        out.to_str().unwrap(),
+        "--iso",
+        "0.1",
+    ]);
+    assert!(o.status.success());
+}
+
+#[test]
+fn bad_volumes_are_refused_clearly() {
+    let dir = tempfile::tempdir().unwrap();
+    let vol = dir.path().join("s.raw");
+    std::fs::write(&vol, sphere(10, 0.5)).unwrap();
+    let out = dir.path().join("o.ply");
+    let (v, o) = (vol.to_str().unwrap(), out.to_str().unwrap());
+    for (args, code, needle) in [
+        (vec!["extract", v, "--dims", "10,10,11", "-o", o], 2, "bytes"),
+        (vec!["extract", v, "--dims", "10,10", "-o", o], 2, "sample counts"),
+        (vec!["extract", "/no/such.raw", "--dims", "10,10,10", "-o", o], 2, "/no/such.raw"),
+        (vec!["extract", v, "--dims", "10,10,10", "-o", o, "--iso", "5"], 1, "no surface"),
+        (vec!["extract", v, "--dims", "10000,10000,10000", "-o", o], 2, "GiB"),
+    ] {
+        let r = skelform(&args);
+        let err = String::from_utf8_lossy(&r.stderr).to_string();
+        assert_eq!(r.status.code(), Some(code), "{args:?}: {err}");
+        assert!(err.contains(needle), "{args:?}: {err}");
+        assert!(!out.exists());
+    }
+}

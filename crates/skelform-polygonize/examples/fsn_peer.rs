@@ -1,0 +1,38 @@
+//! A peer for `bench/peers`: Naive Surface Nets from the `fast-surface-nets` crate on a raw
+//! float32 volume (x fastest), timing the extraction alone.
+//!
+//! `cargo run --release -p skelform-polygonize --example fsn_peer -- VOLUME NX NY NZ`
+//! prints `{"seconds": …, "vertices": …, "triangles": …}`.
+
+use std::time::Instant;
+
+use fast_surface_nets::ndshape::RuntimeShape;
+use fast_surface_nets::{SurfaceNetsBuffer, surface_nets};
+
+fn main() -> Result<(), String> {
+    let args: Vec<String> = std::env::args().collect();
+    let [_, path, nx, ny, nz] = args.as_slice() else {
+        return Err("usage: fsn_peer VOLUME NX NY NZ".into());
+    };
+    let dims: Vec<u32> = [nx, ny, nz]
+        .iter()
+        .map(|s| s.parse::<u32>().map_err(|e| e.to_string()))
+        .collect::<Result<_, _>>()?;
+    let bytes = std::fs::read(path).map_err(|e| format!("{path}: {e}"))?;
+    let sdf: Vec<f32> =
+        bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+    if sdf.len() != dims.iter().map(|&d| d as usize).product::<usize>() {
+        return Err(format!("{path}: size does not match {dims:?}"));
+    }
+    let shape = RuntimeShape::<u32, 3>::new([dims[0], dims[1], dims[2]]);
+    let mut buffer = SurfaceNetsBuffer::default();
+    let t = Instant::now();
+    surface_nets(&sdf, &shape, [0; 3], [dims[0] - 1, dims[1] - 1, dims[2] - 1], &mut buffer);
+    let seconds = t.elapsed().as_secs_f64();
+    println!(
+        "{{\"seconds\": {seconds}, \"vertices\": {}, \"triangles\": {}}}",
+        buffer.positions.len(),
+        buffer.indices.len() / 3
+    );
+    Ok(())
+}
