@@ -26,7 +26,9 @@ pub mod control;
 pub mod field;
 pub mod formula;
 pub mod grid;
+pub mod region;
 
 pub use aabb::Aabb;
 pub use field::{Field, FnField, Iso, Negate};
 pub use glam::DVec3;
+pub use region::RegionField;

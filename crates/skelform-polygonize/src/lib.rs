@@ -4,6 +4,8 @@
 //!   ambiguous faces (asymptotic decider) and interiors (trilinear saddles). Closed surfaces
 //!   inside the domain come out closed, manifold and consistently oriented at any
 //!   resolution; output is identical on any thread count.
+//! - [`nonmanifold`]: several regions of space at once (ch. 4): labelled surfaces between
+//!   chosen pairs of regions, meeting along intersection curves.
 //! - [`refine`]: root finding along edges and gradient normals, shared by all polygonizers.
 //!
 //! A polygonizer knows nothing of files: it takes a field and options and returns a mesh and
@@ -25,6 +27,7 @@
 
 pub mod continuation;
 pub mod grid;
+pub mod nonmanifold;
 pub mod refine;
 
 use skelform_field::grid::GridError;

@@ -1,0 +1,148 @@
+//! Region functions: space divided into numbered regions, for non-manifold polygonization.
+//!
+//! Where a [`Field`](crate::Field) says inside or outside, a [`RegionField`] says *which*
+//! region a point is in (dissertation ch. 4). The surfaces between chosen pairs of regions
+//! meet along curves where three or more regions meet.
+
+use glam::DVec3;
+
+use crate::Field;
+
+/// A map from points to region ids.
+///
+/// Implementations must be deterministic and thread-safe, like fields.
+pub trait RegionField: Send + Sync {
+    /// The region of one point.
+    fn region(&self, p: DVec3) -> u32;
+
+    /// Regions of many points: `out[i] = region(points[i])`.
+    fn region_many(&self, points: &[DVec3], out: &mut [u32]) {
+        for (p, o) in points.iter().zip(out.iter_mut()) {
+            *o = self.region(*p);
+        }
+    }
+
+    /// Every region id this function can return, when it knows them (for checking that the
+    /// pairs a client asks for exist).
+    fn region_ids(&self) -> Option<Vec<u32>> {
+        None
+    }
+}
+
+/// Regions given in order, each by a field: a point belongs to the first region whose field
+/// is negative there, and otherwise to `default` (DESIGN.md, "Regions"). A field that is NaN
+/// at a point does not claim it.
+pub struct OrderedRegions {
+    pub regions: Vec<(u32, Box<dyn Field>)>,
+    pub default: u32,
+}
+
+impl RegionField for OrderedRegions {
+    fn region(&self, p: DVec3) -> u32 {
+        self.regions.iter().find(|(_, f)| f.eval(p) < 0.0).map_or(self.default, |(id, _)| *id)
+    }
+
+    fn region_many(&self, points: &[DVec3], out: &mut [u32]) {
+        const BATCH: usize = 256;
+        let mut values = [0.0f64; BATCH];
+        for (ps, os) in points.chunks(BATCH).zip(out.chunks_mut(BATCH)) {
+            let mut open: Vec<usize> = (0..ps.len()).collect();
+            os.iter_mut().for_each(|o| *o = self.default);
+            let mut pts = ps.to_vec();
+            for (id, field) in &self.regions {
+                if open.is_empty() {
+                    break;
+                }
+                let v = &mut values[..pts.len()];
+                field.eval_many(&pts, v);
+                let mut still = Vec::with_capacity(open.len());
+                let mut still_pts = Vec::with_capacity(open.len());
+                for ((&i, &val), &p) in open.iter().zip(v.iter()).zip(&pts) {
+                    if val < 0.0 {
+                        os[i] = *id;
+                    } else {
+                        still.push(i);
+                        still_pts.push(p);
+                    }
+                }
+                open = still;
+                pts = still_pts;
+            }
+        }
+    }
+
+    fn region_ids(&self) -> Option<Vec<u32>> {
+        let mut ids: Vec<u32> = self.regions.iter().map(|(id, _)| *id).collect();
+        ids.push(self.default);
+        ids.sort_unstable();
+        ids.dedup();
+        Some(ids)
+    }
+}
+
+/// Regions from a closure, for tests and Rust clients.
+pub struct FnRegions<F>(pub F);
+
+impl<F: Fn(DVec3) -> u32 + Send + Sync> RegionField for FnRegions<F> {
+    fn region(&self, p: DVec3) -> u32 {
+        (self.0)(p)
+    }
+}
+
+/// The two-region field of an ordinary surface: region 0 inside (`f < 0`), 1 outside, so a
+/// manifold surface is the region pair (0, 1).
+pub struct InsideOutside<F>(pub F);
+
+impl<F: Field> RegionField for InsideOutside<F> {
+    fn region(&self, p: DVec3) -> u32 {
+        let v = self.0.eval(p);
+        u32::from(v >= 0.0 || v.is_nan())
+    }
+
+    fn region_many(&self, points: &[DVec3], out: &mut [u32]) {
+        let mut v = vec![0.0; points.len()];
+        self.0.eval_many(points, &mut v);
+        for (o, x) in out.iter_mut().zip(v) {
+            *o = u32::from(x >= 0.0 || x.is_nan());
+        }
+    }
+
+    fn region_ids(&self) -> Option<Vec<u32>> {
+        Some(vec![0, 1])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::FnField;
+
+    #[test]
+    fn first_negative_region_wins_in_batches_too() {
+        let r = OrderedRegions {
+            regions: vec![
+                (1, Box::new(FnField(|p: DVec3| p.length() - 0.5))),
+                (2, Box::new(FnField(|p: DVec3| -p.z))),
+            ],
+            default: 3,
+        };
+        let pts: Vec<DVec3> = (0..1000)
+            .map(|i| {
+                DVec3::new(
+                    (i % 10) as f64 * 0.2 - 1.0,
+                    (i / 10 % 10) as f64 * 0.2 - 1.0,
+                    (i / 100) as f64 * 0.2 - 1.0,
+                )
+            })
+            .collect();
+        let mut out = vec![0; pts.len()];
+        r.region_many(&pts, &mut out);
+        for (p, o) in pts.iter().zip(&out) {
+            assert_eq!(*o, r.region(*p));
+        }
+        assert_eq!(r.region(DVec3::ZERO), 1);
+        assert_eq!(r.region(DVec3::new(0.0, 0.0, 0.9)), 2);
+        assert_eq!(r.region(DVec3::new(0.0, 0.0, -0.9)), 3);
+        assert_eq!(r.region_ids(), Some(vec![1, 2, 3]));
+    }
+}

@@ -1,0 +1,933 @@
+//! Non-manifold polygonization of multiple regions of space (dissertation ch. 4, after
+//! Bloomenthal and Ferguson): space is divided into numbered regions by a
+//! [`RegionField`]; the surfaces between chosen pairs of regions are polygonized together,
+//! meet along curves where three regions meet, and every triangle carries its pair.
+//!
+//! Steps, as the chapter gives them: cubes propagate from a start across faces that hold a
+//! surface of interest (or every cube of the domain is visited); each cube is split into
+//! five tetrahedra, alternating with the cube's parity; every tetrahedron edge is divided
+//! into `sections` pieces and each piece whose ends lie in different regions is bisected
+//! `refinements` times or more, to ε, so an edge can hold several vertices; looped pairs of
+//! crossings ((a,b) then (b,a) on one edge) are ignored. A face whose crossings pair off as
+//! disjoint lines has no face vertex; otherwise a contour follower walks small triangles
+//! along a contour to the first foreign region and puts the face vertex there. A
+//! tetrahedron without face vertices of interest gives polygons of 3 or 4 sides by walking
+//! from vertex to partner across its faces; one with them gets an internal vertex at their
+//! mean and a triangle to each face line of interest. Triangles are wound counter-clockwise
+//! seen from the lesser region of their pair. Afterwards vertices closer than
+//! `close_factor · ε` along a triangle edge are merged, degenerate triangles dropped, and
+//! vertices duplicated per region pair so each sheet has its own normal.
+//!
+//! Guarantees: deterministic output on any thread count; every triangle labelled with a
+//! pair of interest; intersection curves output as labelled polylines. Not guaranteed
+//! (the chapter's stated limits): one face vertex per face and one internal vertex per
+//! tetrahedron, so features finer than a cell can be lost; looped intersections are cut off.
+
+pub mod tets;
+
+use std::time::{Duration, Instant};
+
+use glam::DVec3;
+use rustc_hash::{FxHashMap, FxHashSet};
+use skelform_field::control::{Control, Progress};
+use skelform_field::grid::Grid;
+use skelform_field::{Aabb, RegionField};
+use skelform_mesh::{CurveEdge, Mesh, RegionPair, RegionTriple};
+
+use crate::Error;
+use crate::grid::cube::CORNERS;
+
+/// Settings of the non-manifold polygonizer.
+#[derive(Clone, Debug)]
+pub struct Options {
+    pub domain: Aabb,
+    pub cell: f64,
+    /// Start points within about half a cell of a surface of interest; with none, the
+    /// domain is searched every `search_stride` cells.
+    pub seeds: Vec<DVec3>,
+    pub search_stride: usize,
+    /// Visit every cube of the domain instead of propagating from starts.
+    pub full_grid: bool,
+    /// The surfaces to polygonize; empty means every pair that occurs.
+    pub interest: Vec<RegionPair>,
+    /// Edge sections (the chapter's n = 16).
+    pub sections: u32,
+    /// Least bisections per section (the chapter's m = 4).
+    pub refinements: u32,
+    /// Accuracy of edge and face vertices; `None`: cell / 256.
+    pub epsilon: Option<f64>,
+    /// Vertices closer than `close_factor · ε` along a triangle edge are merged.
+    pub close_factor: f64,
+    pub max_cells: u64,
+    pub control: Control,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            domain: Aabb::cube(1.0),
+            cell: 1.0 / 32.0,
+            seeds: Vec::new(),
+            search_stride: 4,
+            full_grid: false,
+            interest: Vec::new(),
+            sections: 16,
+            refinements: 4,
+            epsilon: None,
+            close_factor: 1.0,
+            max_cells: 5_000_000,
+            control: Control::default(),
+        }
+    }
+}
+
+/// What a run did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Stats {
+    pub cell: f64,
+    pub epsilon: f64,
+    pub region_evaluations: u64,
+    /// What a conventional (manifold) tetrahedral polygonizer would evaluate on the same
+    /// cells: the corners, and eight bisection steps on each edge whose ends differ (the
+    /// chapter's comparison, about four times fewer).
+    pub conventional_evaluations: u64,
+    pub cells_visited: u64,
+    pub edge_vertices: usize,
+    pub face_vertices: usize,
+    pub internal_vertices: usize,
+    /// Face vertices the contour follower could not reach (placed at the mean of the
+    /// face's crossings instead).
+    pub face_vertex_fallbacks: usize,
+    pub looped_pairs_ignored: usize,
+    pub merged_vertices: usize,
+    pub dropped_triangles: usize,
+    /// Triangles whose side regions could not be told apart by a probe (kept as wound).
+    pub unoriented_triangles: usize,
+    pub triangles_per_pair: Vec<(RegionPair, usize)>,
+    pub curve_length_per_triple: Vec<(RegionTriple, f64)>,
+    pub reached_domain: bool,
+    pub reached_budget: bool,
+    pub vertices: usize,
+    pub triangles: usize,
+    pub time: Duration,
+}
+
+/// A lattice point as one integer.
+type Key = u64;
+
+#[derive(Clone, Copy, Debug)]
+struct Crossing {
+    /// Regions before and after, in that direction.
+    from: u32,
+    to: u32,
+    vertex: u32,
+}
+
+/// A crossing met while walking a face boundary in one direction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Walked {
+    vertex: u32,
+    from: u32,
+    to: u32,
+}
+
+#[derive(Clone, Debug, Default)]
+struct FaceInfo {
+    /// Lines between two crossings (disjoint lines), with their pair.
+    lines: Vec<(u32, u32, RegionPair)>,
+    /// Crossings joined to the face vertex, with their pair.
+    spokes: Vec<(u32, RegionPair)>,
+    face_vertex: Option<u32>,
+    /// The regions meeting at the face vertex.
+    regions: Vec<u32>,
+}
+
+struct Run<'a> {
+    regions: &'a dyn RegionField,
+    grid: Grid,
+    opts: &'a Options,
+    eps: f64,
+    interest: Option<FxHashSet<RegionPair>>,
+    point_region: FxHashMap<Key, u32>,
+    edges: FxHashMap<(Key, Key), Vec<Crossing>>,
+    faces: FxHashMap<[Key; 3], FaceInfo>,
+    positions: Vec<DVec3>,
+    /// For edge vertices: the segment's direction and the regions before and after the
+    /// crossing along it, which say on which side of the surface each region lies.
+    crossing: Vec<Option<(DVec3, u32, u32)>>,
+    triangles: Vec<[u32; 3]>,
+    labels: Vec<RegionPair>,
+    curves: Vec<CurveEdge>,
+    visited: FxHashSet<Key>,
+    stats: Stats,
+}
+
+/// Polygonizes the surfaces of interest between the regions of `regions`.
+///
+/// ```
+/// use skelform_field::{Aabb, DVec3, region::FnRegions};
+/// use skelform_mesh::RegionPair;
+/// use skelform_polygonize::nonmanifold::{polygonize, Options};
+/// // A ball (1) cut by the plane z = 0 into an upper (2) and lower (3) half-space.
+/// let regions = FnRegions(|p: DVec3| if p.length() < 0.5 { 1 } else if p.z > 0.0 { 2 } else { 3 });
+/// let opts = Options { domain: Aabb::cube(1.0), cell: 0.1, full_grid: true, ..Options::default() };
+/// let (mesh, stats) = polygonize(&regions, &opts).unwrap();
+/// let pairs: Vec<RegionPair> = stats.triangles_per_pair.iter().map(|(p, _)| *p).collect();
+/// assert_eq!(pairs, vec![RegionPair(1, 2), RegionPair(1, 3), RegionPair(2, 3)]);
+/// assert!(!mesh.curves.is_empty());
+/// ```
+pub fn polygonize(regions: &dyn RegionField, options: &Options) -> Result<(Mesh, Stats), Error> {
+    let started = Instant::now();
+    let grid = Grid::with_cell(&options.domain, options.cell)?;
+    if options.sections == 0 || options.close_factor.is_nan() || options.close_factor < 0.0 {
+        return Err(Error::BadOption(
+            "sections must be at least 1 and close_factor not negative".into(),
+        ));
+    }
+    if let Some(ids) = regions.region_ids() {
+        for p in &options.interest {
+            for r in [p.0, p.1] {
+                if !ids.contains(&r) {
+                    return Err(Error::BadOption(format!(
+                        "the pair {}_{} names region {r}, which the region function does not have (it has {ids:?})",
+                        p.0, p.1
+                    )));
+                }
+            }
+        }
+    }
+    let eps = options.epsilon.unwrap_or(grid.cell / 256.0);
+    let mut run = Run {
+        regions,
+        grid,
+        opts: options,
+        eps,
+        interest: (!options.interest.is_empty())
+            .then(|| options.interest.iter().copied().collect()),
+        point_region: FxHashMap::default(),
+        edges: FxHashMap::default(),
+        faces: FxHashMap::default(),
+        positions: Vec::new(),
+        crossing: Vec::new(),
+        triangles: Vec::new(),
+        labels: Vec::new(),
+        curves: Vec::new(),
+        visited: FxHashSet::default(),
+        stats: Stats { cell: grid.cell, epsilon: eps, ..Stats::default() },
+    };
+    let starts = if options.full_grid { run.all_cubes() } else { run.starts()? };
+    run.propagate(starts)?;
+    run.orient();
+    let mesh = run.finish();
+    let mut stats = run.stats;
+    stats.time = started.elapsed();
+    Ok((mesh, stats))
+}
+
+impl Run<'_> {
+    fn key(&self, p: [u32; 3]) -> Key {
+        let [nx, ny, _] = self.grid.dims;
+        p[0] as u64 + nx as u64 * (p[1] as u64 + ny as u64 * p[2] as u64)
+    }
+
+    fn unkey(&self, k: Key) -> [u32; 3] {
+        let [nx, ny, _] = self.grid.dims.map(|d| d as u64);
+        [(k % nx) as u32, ((k / nx) % ny) as u32, (k / (nx * ny)) as u32]
+    }
+
+    fn point(&self, k: Key) -> DVec3 {
+        let p = self.unkey(k);
+        self.grid.point(p[0] as usize, p[1] as usize, p[2] as usize)
+    }
+
+    fn interesting(&self, pair: RegionPair) -> bool {
+        pair.0 != pair.1 && self.interest.as_ref().is_none_or(|s| s.contains(&pair))
+    }
+
+    fn regions_of(&mut self, pts: &[DVec3]) -> Vec<u32> {
+        let mut out = vec![0; pts.len()];
+        self.regions.region_many(pts, &mut out);
+        self.stats.region_evaluations += pts.len() as u64;
+        out
+    }
+
+    fn region_at(&mut self, p: DVec3) -> u32 {
+        self.stats.region_evaluations += 1;
+        self.regions.region(p)
+    }
+
+    /// Regions at lattice points, cached.
+    fn lattice_regions(&mut self, keys: &[Key]) {
+        let todo: Vec<Key> = {
+            let mut t: Vec<Key> =
+                keys.iter().copied().filter(|k| !self.point_region.contains_key(k)).collect();
+            t.sort_unstable();
+            t.dedup();
+            t
+        };
+        if todo.is_empty() {
+            return;
+        }
+        let pts: Vec<DVec3> = todo.iter().map(|&k| self.point(k)).collect();
+        let r = self.regions_of(&pts);
+        self.stats.conventional_evaluations += todo.len() as u64;
+        for (k, r) in todo.into_iter().zip(r) {
+            self.point_region.insert(k, r);
+        }
+    }
+
+    /// The crossings on the segment between two lattice points, in the direction a → b.
+    fn edge(&mut self, a: Key, b: Key) -> Vec<Walked> {
+        let (lo, hi) = if a < b { (a, b) } else { (b, a) };
+        if !self.edges.contains_key(&(lo, hi)) {
+            let c = self.sample_edge(lo, hi);
+            self.edges.insert((lo, hi), c);
+        }
+        let c = &self.edges[&(lo, hi)];
+        let walked = c.iter().map(|x| Walked { vertex: x.vertex, from: x.from, to: x.to });
+        if a < b {
+            walked.collect()
+        } else {
+            walked.rev().map(|w| Walked { from: w.to, to: w.from, ..w }).collect()
+        }
+    }
+
+    /// Sections, bisection, loop removal and vertices for one segment (lo → hi).
+    fn sample_edge(&mut self, lo: Key, hi: Key) -> Vec<Crossing> {
+        let (pa, pb) = (self.point(lo), self.point(hi));
+        let (ra, rb) = (self.point_region[&lo], self.point_region[&hi]);
+        let n = self.opts.sections as usize;
+        let inner: Vec<DVec3> = (1..n).map(|i| pa.lerp(pb, i as f64 / n as f64)).collect();
+        let mut rs = vec![ra];
+        rs.extend(self.regions_of(&inner));
+        rs.push(rb);
+        if ra != rb {
+            self.stats.conventional_evaluations += 8;
+        }
+        let len = (pb - pa).length();
+        let tol = (2.0 * self.eps / len).max(f64::EPSILON);
+        let mut found: Vec<(f64, u32, u32)> = Vec::new();
+        for i in 0..n {
+            if rs[i] != rs[i + 1] {
+                self.bisect(
+                    pa,
+                    pb,
+                    i as f64 / n as f64,
+                    rs[i],
+                    (i + 1) as f64 / n as f64,
+                    rs[i + 1],
+                    0,
+                    tol,
+                    &mut found,
+                );
+            }
+        }
+        // Looped pairs: a crossing (x, y) followed by (y, x) enters and leaves along this edge.
+        let mut kept: Vec<(f64, u32, u32)> = Vec::new();
+        for c in found {
+            if let Some(&(_, f, t)) = kept.last()
+                && f == c.2
+                && t == c.1
+            {
+                kept.pop();
+                self.stats.looped_pairs_ignored += 1;
+                continue;
+            }
+            kept.push(c);
+        }
+        kept.into_iter()
+            .map(|(t, from, to)| {
+                self.positions.push(pa.lerp(pb, t));
+                self.crossing.push(Some((pb - pa, from, to)));
+                self.stats.edge_vertices += 1;
+                Crossing { from, to, vertex: self.positions.len() as u32 - 1 }
+            })
+            .collect()
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn bisect(
+        &mut self,
+        pa: DVec3,
+        pb: DVec3,
+        t0: f64,
+        r0: u32,
+        t1: f64,
+        r1: u32,
+        depth: u32,
+        tol: f64,
+        out: &mut Vec<(f64, u32, u32)>,
+    ) {
+        if (t1 - t0 <= tol && depth >= self.opts.refinements) || depth > 60 {
+            out.push((0.5 * (t0 + t1), r0, r1));
+            return;
+        }
+        let tm = 0.5 * (t0 + t1);
+        let rm = self.region_at(pa.lerp(pb, tm));
+        if rm == r0 {
+            self.bisect(pa, pb, tm, rm, t1, r1, depth + 1, tol, out);
+        } else if rm == r1 {
+            self.bisect(pa, pb, t0, r0, tm, rm, depth + 1, tol, out);
+        } else {
+            // A foreign region: crossings on both sides of it.
+            self.bisect(pa, pb, t0, r0, tm, rm, depth + 1, tol, out);
+            self.bisect(pa, pb, tm, rm, t1, r1, depth + 1, tol, out);
+        }
+    }
+
+    /// Lines and the face vertex of a triangular face of lattice points.
+    fn face(&mut self, corners: [Key; 3]) -> FaceInfo {
+        let mut sorted = corners;
+        sorted.sort_unstable();
+        if let Some(f) = self.faces.get(&sorted) {
+            return f.clone();
+        }
+        // Walk the boundary in a fixed (sorted) order, so that both tetrahedra agree.
+        let [a, b, c] = sorted;
+        let mut ring: Vec<Walked> = Vec::new();
+        for (p, q) in [(a, b), (b, c), (c, a)] {
+            ring.extend(self.edge(p, q));
+        }
+        let mut info = FaceInfo::default();
+        let unmatched = pair_off(&ring, &mut info.lines);
+        if !unmatched.is_empty() {
+            let mut regions: Vec<u32> = unmatched.iter().flat_map(|w| [w.from, w.to]).collect();
+            regions.sort_unstable();
+            regions.dedup();
+            info.regions = regions;
+            let interesting: Vec<&Walked> = unmatched
+                .iter()
+                .filter(|w| self.interesting(RegionPair::new(w.from, w.to)))
+                .collect();
+            if !interesting.is_empty() {
+                let p = self.face_vertex(sorted, &unmatched, &interesting);
+                self.positions.push(p);
+                self.crossing.push(None);
+                self.stats.face_vertices += 1;
+                let v = self.positions.len() as u32 - 1;
+                info.face_vertex = Some(v);
+                info.spokes =
+                    unmatched.iter().map(|w| (w.vertex, RegionPair::new(w.from, w.to))).collect();
+            }
+        }
+        self.faces.insert(sorted, info.clone());
+        info
+    }
+
+    /// Where the contours of a face meet: follow the contour from a crossing of interest in
+    /// small equilateral steps to the first region foreign to it.
+    fn face_vertex(
+        &mut self,
+        corners: [Key; 3],
+        crossings: &[Walked],
+        starts: &[&Walked],
+    ) -> DVec3 {
+        let [a, b, c] = corners.map(|k| self.point(k));
+        let n = (b - a).cross(c - a);
+        let inside = |p: DVec3| {
+            let area = n.length_squared();
+            let w0 = (c - b).cross(p - b).dot(n) / area;
+            let w1 = (a - c).cross(p - c).dot(n) / area;
+            let w2 = (b - a).cross(p - a).dot(n) / area;
+            w0 >= -1e-9 && w1 >= -1e-9 && w2 >= -1e-9
+        };
+        let side = 2.0 * self.eps;
+        let max_steps = (8.0 * (b - a).length().max((c - a).length()) / side) as usize + 16;
+        for s in starts {
+            let v = self.positions[s.vertex as usize];
+            // The crossing lies on one of the three edges; find which, to step off it.
+            let edge_dir = [(a, b), (b, c), (c, a)]
+                .into_iter()
+                .map(|(p, q)| (q - p).normalize())
+                .min_by(|d1, d2| {
+                    let off = |d: &DVec3| {
+                        (v - a)
+                            .cross(*d)
+                            .length()
+                            .min((v - b).cross(*d).length())
+                            .min((v - c).cross(*d).length())
+                    };
+                    off(d1).total_cmp(&off(d2))
+                })
+                .unwrap_or(DVec3::X);
+            let mut px = v - edge_dir * side * 0.5;
+            let mut py = v + edge_dir * side * 0.5;
+            let (rx, ry) = (self.region_at(px), self.region_at(py));
+            let (x, y) = (s.from, s.to);
+            if !(rx == x && ry == y) {
+                std::mem::swap(&mut px, &mut py);
+                let (rx2, ry2) = (self.region_at(px), self.region_at(py));
+                if !(rx2 == x && ry2 == y) {
+                    continue;
+                }
+            }
+            let mid = (px + py) * 0.5;
+            let mut w = n.normalize().cross(py - px).normalize();
+            if !inside(mid + w * side) {
+                w = -w;
+            }
+            let mut apex = mid + w * side * 3f64.sqrt() * 0.5;
+            for _ in 0..max_steps {
+                if !inside(apex) {
+                    break;
+                }
+                let r = self.region_at(apex);
+                if r == x {
+                    let old = px;
+                    px = apex;
+                    apex = px + py - old;
+                } else if r == y {
+                    let old = py;
+                    py = apex;
+                    apex = px + py - old;
+                } else {
+                    return (px + py + apex) / 3.0;
+                }
+            }
+        }
+        self.stats.face_vertex_fallbacks += 1;
+        let n = crossings.len() as f64;
+        crossings.iter().map(|w| self.positions[w.vertex as usize]).sum::<DVec3>() / n
+    }
+
+    /// Polygonizes one tetrahedron of lattice points.
+    fn tetrahedron(&mut self, t: [Key; 4]) {
+        let mut faces: Vec<FaceInfo> = Vec::with_capacity(4);
+        for f in tets::FACES {
+            faces.push(self.face([t[f[0]], t[f[1]], t[f[2]]]));
+        }
+        let hubs: Vec<u32> = faces
+            .iter()
+            .filter(|f| f.spokes.iter().any(|(_, p)| self.interesting(*p)))
+            .filter_map(|f| f.face_vertex)
+            .collect();
+        if !hubs.is_empty() {
+            let centre = if hubs.len() == 1 {
+                hubs[0]
+            } else {
+                let m = hubs.iter().map(|&h| self.positions[h as usize]).sum::<DVec3>()
+                    / hubs.len() as f64;
+                self.positions.push(m);
+                self.crossing.push(None);
+                self.stats.internal_vertices += 1;
+                self.positions.len() as u32 - 1
+            };
+            for f in &faces {
+                let mut lines: Vec<(u32, u32, RegionPair)> = f.lines.clone();
+                if let Some(fv) = f.face_vertex {
+                    lines.extend(f.spokes.iter().map(|&(v, p)| (v, fv, p)));
+                    if fv != centre
+                        && f.spokes.iter().any(|(_, p)| self.interesting(*p))
+                        && f.regions.len() >= 3
+                    {
+                        let tri = RegionTriple::new([f.regions[0], f.regions[1], f.regions[2]]);
+                        self.curves.push(CurveEdge { v: [fv, centre], label: tri });
+                    }
+                }
+                for (u, v, pair) in lines {
+                    if self.interesting(pair) && u != centre && v != centre {
+                        self.triangles.push([u, v, centre]);
+                        self.labels.push(pair);
+                    }
+                }
+            }
+            return;
+        }
+        // Disjoint surfaces: walk vertex → partner in a face → the other face on its edge.
+        let mut partner: FxHashMap<(u32, usize), u32> = FxHashMap::default();
+        let mut pair_of: FxHashMap<u32, RegionPair> = FxHashMap::default();
+        let mut faces_of: FxHashMap<u32, Vec<usize>> = FxHashMap::default();
+        for (fi, f) in faces.iter().enumerate() {
+            for &(u, v, p) in &f.lines {
+                partner.insert((u, fi), v);
+                partner.insert((v, fi), u);
+                pair_of.insert(u, p);
+                pair_of.insert(v, p);
+                faces_of.entry(u).or_default().push(fi);
+                faces_of.entry(v).or_default().push(fi);
+            }
+        }
+        let mut starts: Vec<u32> = pair_of.keys().copied().collect();
+        starts.sort_unstable();
+        let mut used: FxHashSet<u32> = FxHashSet::default();
+        for s in starts {
+            let pair = pair_of[&s];
+            if used.contains(&s) || !self.interesting(pair) {
+                continue;
+            }
+            let mut poly = vec![s];
+            let (mut v, mut f) = (s, faces_of[&s][0]);
+            loop {
+                used.insert(v);
+                let Some(&w) = partner.get(&(v, f)) else { break };
+                used.insert(w);
+                if w == s {
+                    break;
+                }
+                poly.push(w);
+                let Some(&next) = faces_of[&w].iter().find(|&&g| g != f) else { break };
+                v = w;
+                f = next;
+                if poly.len() > 12 {
+                    break;
+                }
+            }
+            if poly.len() >= 3 {
+                for k in 1..poly.len() - 1 {
+                    self.triangles.push([poly[0], poly[k], poly[k + 1]]);
+                    self.labels.push(pair);
+                }
+            }
+        }
+    }
+
+    fn cube_tets(&self, c: [u32; 3]) -> Vec<[Key; 4]> {
+        tets::split(c[0], c[1], c[2])
+            .iter()
+            .map(|t| {
+                t.map(|corner| {
+                    let o = CORNERS[corner];
+                    self.key([c[0] + o[0] as u32, c[1] + o[1] as u32, c[2] + o[2] as u32])
+                })
+            })
+            .collect()
+    }
+
+    /// Polygonizes a cube; returns the cube faces (axis, side) holding a surface of interest.
+    fn cube(&mut self, c: [u32; 3]) -> Vec<(usize, usize)> {
+        let keys: Vec<Key> = CORNERS
+            .iter()
+            .map(|o| self.key([c[0] + o[0] as u32, c[1] + o[1] as u32, c[2] + o[2] as u32]))
+            .collect();
+        self.lattice_regions(&keys);
+        let mut open = Vec::new();
+        for t in self.cube_tets(c) {
+            self.tetrahedron(t);
+            for f in tets::FACES {
+                let pts = [t[f[0]], t[f[1]], t[f[2]]].map(|k| self.unkey(k));
+                // A tetrahedron face on the cube's boundary: its corners share a coordinate.
+                for axis in 0..3 {
+                    let v = pts[0][axis];
+                    if pts.iter().all(|p| p[axis] == v) {
+                        let info = self.face([t[f[0]], t[f[1]], t[f[2]]]);
+                        let lines =
+                            info.lines.iter().map(|l| l.2).chain(info.spokes.iter().map(|s| s.1));
+                        if lines.into_iter().any(|p| self.interesting(p)) {
+                            open.push((axis, usize::from(v != c[axis])));
+                        }
+                    }
+                }
+            }
+        }
+        open.sort_unstable();
+        open.dedup();
+        open
+    }
+
+    fn all_cubes(&self) -> Vec<[u32; 3]> {
+        let [nx, ny, nz] = self.grid.dims.map(|d| d as u32 - 1);
+        let mut v = Vec::with_capacity((nx * ny * nz) as usize);
+        for k in 0..nz {
+            for j in 0..ny {
+                for i in 0..nx {
+                    v.push([i, j, k]);
+                }
+            }
+        }
+        v
+    }
+
+    fn cube_of(&self, p: DVec3) -> [u32; 3] {
+        let rel = (p - self.grid.origin) / self.grid.cell;
+        std::array::from_fn(|a| (rel[a].floor().max(0.0) as u32).min(self.grid.dims[a] as u32 - 2))
+    }
+
+    /// Start cubes: from the seeds, or from a coarse search of the domain.
+    fn starts(&mut self) -> Result<Vec<[u32; 3]>, Error> {
+        let mut points = self.opts.seeds.clone();
+        if points.is_empty() {
+            let stride = self.opts.search_stride.max(1);
+            let dims = self.grid.dims.map(|d| (d - 1).div_ceil(stride) + 1);
+            let mut pts = Vec::new();
+            for k in 0..dims[2] {
+                for j in 0..dims[1] {
+                    for i in 0..dims[0] {
+                        let p = [i, j, k].map(|x| x * stride);
+                        let p =
+                            std::array::from_fn::<usize, 3, _>(|a| p[a].min(self.grid.dims[a] - 1));
+                        pts.push(self.grid.point(p[0], p[1], p[2]));
+                    }
+                }
+            }
+            let r = self.regions_of(&pts);
+            let idx = |i: usize, j: usize, k: usize| i + dims[0] * (j + dims[1] * k);
+            for k in 0..dims[2] {
+                for j in 0..dims[1] {
+                    for i in 0..dims[0] {
+                        for (di, dj, dk) in [(1, 0, 0), (0, 1, 0), (0, 0, 1)] {
+                            let (ni, nj, nk) = (i + di, j + dj, k + dk);
+                            if ni < dims[0] && nj < dims[1] && nk < dims[2] {
+                                let (a, b) = (idx(i, j, k), idx(ni, nj, nk));
+                                if self.interesting(RegionPair::new(r[a], r[b])) {
+                                    // Every cube along the coarse edge is a candidate start.
+                                    for s in 0..=stride {
+                                        points.push(pts[a].lerp(pts[b], s as f64 / stride as f64));
+                                    }
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+            if points.is_empty() {
+                return Err(Error::NoSurfaceFound { samples: pts.len() as u64, stride });
+            }
+        }
+        let seeded = !self.opts.seeds.is_empty();
+        let max = self.grid.dims.map(|d| d as i64 - 2);
+        let mut cubes: Vec<[u32; 3]> = Vec::new();
+        for p in points.iter().filter(|p| self.grid.bounds().contains(**p)) {
+            let c = self.cube_of(*p);
+            cubes.push(c);
+            if seeded {
+                // A seed within half a cell of the surface may sit on a lattice point or in a
+                // cube the surface misses: its 26 neighbours start too.
+                for d in 0..27i64 {
+                    let n = [d % 3 - 1, d / 3 % 3 - 1, d / 9 - 1];
+                    let q: [i64; 3] = std::array::from_fn(|a| c[a] as i64 + n[a]);
+                    if q.iter().zip(max).all(|(&x, m)| (0..=m).contains(&x)) {
+                        cubes.push(q.map(|x| x as u32));
+                    }
+                }
+            }
+        }
+        if cubes.is_empty() {
+            return Err(Error::BadSeed {
+                seed: points[0].to_array(),
+                why: "it is outside the domain".into(),
+            });
+        }
+        cubes.sort_unstable();
+        cubes.dedup();
+        Ok(cubes)
+    }
+
+    fn propagate(&mut self, starts: Vec<[u32; 3]>) -> Result<(), Error> {
+        let max = self.grid.dims.map(|d| d as u32 - 2);
+        let mut wave: Vec<[u32; 3]> = Vec::new();
+        for c in starts {
+            let k = self.key(c);
+            if self.visited.insert(k) {
+                wave.push(c);
+            }
+        }
+        let propagate = !self.opts.full_grid;
+        while !wave.is_empty() {
+            let mut next = Vec::new();
+            for &c in &wave {
+                let open = self.cube(c);
+                if !propagate {
+                    continue;
+                }
+                for (axis, side) in open {
+                    let mut n = c;
+                    if side == 0 {
+                        if n[axis] == 0 {
+                            self.stats.reached_domain = true;
+                            continue;
+                        }
+                        n[axis] -= 1;
+                    } else {
+                        if n[axis] == max[axis] {
+                            self.stats.reached_domain = true;
+                            continue;
+                        }
+                        n[axis] += 1;
+                    }
+                    if self.visited.len() as u64 >= self.opts.max_cells {
+                        self.stats.reached_budget = true;
+                        continue;
+                    }
+                    if self.visited.insert(self.key(n)) {
+                        next.push(n);
+                    }
+                }
+            }
+            next.sort_unstable();
+            wave = next;
+            let p =
+                Progress { phase: "non-manifold", done: self.visited.len() as u64, total: None };
+            if self.opts.control.report(p).is_break() {
+                return Err(Error::Cancelled);
+            }
+        }
+        self.stats.cells_visited = self.visited.len() as u64;
+        Ok(())
+    }
+
+    /// Winds every triangle counter-clockwise seen from its lesser region. Each triangle has
+    /// an edge vertex of its own pair, whose lattice segment runs from one region into the
+    /// other: the normal must point back along it towards the lesser region. (A probe off
+    /// the triangle would do for large triangles, but a flat triangle under a curved surface
+    /// can have both probes on one side.)
+    fn orient(&mut self) {
+        for (t, pair) in self.triangles.iter_mut().zip(&self.labels) {
+            let [a, b, c] = t.map(|i| self.positions[i as usize]);
+            let n = (b - a).cross(c - a);
+            let witness = t.iter().find_map(|&v| match self.crossing[v as usize] {
+                Some((dir, from, to)) if RegionPair::new(from, to) == *pair => Some((dir, from)),
+                _ => None,
+            });
+            match witness {
+                // Along `dir` the region goes from `from` to the other: the lesser region lies
+                // against `dir` when it is `from`.
+                Some((dir, from)) => {
+                    let towards_lesser = if from == pair.0 { -dir } else { dir };
+                    if n.dot(towards_lesser) < 0.0 {
+                        t.swap(1, 2);
+                    }
+                }
+                None => self.stats.unoriented_triangles += 1,
+            }
+        }
+    }
+
+    /// Merges close vertices, drops degenerate triangles, duplicates vertices per pair.
+    fn finish(&mut self) -> Mesh {
+        let n = self.positions.len();
+        let mut parent: Vec<u32> = (0..n as u32).collect();
+        fn root(p: &mut [u32], mut x: u32) -> u32 {
+            while p[x as usize] != x {
+                p[x as usize] = p[p[x as usize] as usize];
+                x = p[x as usize];
+            }
+            x
+        }
+        let limit = self.opts.close_factor * self.eps;
+        for t in &self.triangles {
+            for k in 0..3 {
+                let (u, v) = (t[k], t[(k + 1) % 3]);
+                if self.positions[u as usize].distance(self.positions[v as usize]) < limit {
+                    let (ru, rv) = (root(&mut parent, u), root(&mut parent, v));
+                    if ru != rv {
+                        parent[ru.max(rv) as usize] = ru.min(rv);
+                        self.stats.merged_vertices += 1;
+                    }
+                }
+            }
+        }
+        let mut sum: FxHashMap<u32, (DVec3, f64)> = FxHashMap::default();
+        for v in 0..n as u32 {
+            let r = root(&mut parent, v);
+            let e = sum.entry(r).or_insert((DVec3::ZERO, 0.0));
+            e.0 += self.positions[v as usize];
+            e.1 += 1.0;
+        }
+        // Duplicate per (merged vertex, pair); keep first-use order, so output is stable.
+        let mut copy: FxHashMap<(u32, RegionPair), u32> = FxHashMap::default();
+        let mut first_copy: FxHashMap<u32, u32> = FxHashMap::default();
+        let mut mesh = Mesh::default();
+        let mut counts: FxHashMap<RegionPair, usize> = FxHashMap::default();
+        for (t, &pair) in self.triangles.iter().zip(&self.labels) {
+            let r = t.map(|v| root(&mut parent, v));
+            if r[0] == r[1] || r[1] == r[2] || r[0] == r[2] {
+                self.stats.dropped_triangles += 1;
+                continue;
+            }
+            let tri = r.map(|v| {
+                *copy.entry((v, pair)).or_insert_with(|| {
+                    let (s, c) = sum[&v];
+                    mesh.positions.push((s / c).as_vec3().to_array());
+                    let id = mesh.positions.len() as u32 - 1;
+                    first_copy.entry(v).or_insert(id);
+                    id
+                })
+            });
+            mesh.triangles.push(tri);
+            mesh.labels.push(pair);
+            *counts.entry(pair).or_default() += 1;
+        }
+        // Normals per copy: area-weighted, from its pair's triangles only.
+        let mut acc = vec![DVec3::ZERO; mesh.positions.len()];
+        for t in &mesh.triangles {
+            let [a, b, c] = t.map(|i| DVec3::from_array(mesh.positions[i as usize].map(f64::from)));
+            let nrm = (b - a).cross(c - a);
+            for &i in t {
+                acc[i as usize] += nrm;
+            }
+        }
+        mesh.normals = acc.iter().map(|n| n.normalize_or_zero().as_vec3().to_array()).collect();
+        let mut lengths: FxHashMap<RegionTriple, f64> = FxHashMap::default();
+        for c in &self.curves {
+            let r = c.v.map(|v| root(&mut parent, v));
+            if r[0] == r[1] {
+                continue;
+            }
+            let (Some(&a), Some(&b)) = (first_copy.get(&r[0]), first_copy.get(&r[1])) else {
+                continue;
+            };
+            let pa = DVec3::from_array(mesh.positions[a as usize].map(f64::from));
+            let pb = DVec3::from_array(mesh.positions[b as usize].map(f64::from));
+            *lengths.entry(c.label).or_default() += pa.distance(pb);
+            mesh.curves.push(CurveEdge { v: [a, b], label: c.label });
+        }
+        let mut per_pair: Vec<(RegionPair, usize)> = counts.into_iter().collect();
+        per_pair.sort_unstable();
+        self.stats.triangles_per_pair = per_pair;
+        let mut per_triple: Vec<(RegionTriple, f64)> = lengths.into_iter().collect();
+        per_triple.sort_by_key(|(t, _)| *t);
+        self.stats.curve_length_per_triple = per_triple;
+        self.stats.vertices = mesh.vertex_count();
+        self.stats.triangles = mesh.triangle_count();
+        mesh
+    }
+}
+
+/// Pairs off crossings around a face boundary like brackets: (x→y) with a later (y→x) with
+/// everything between them paired too. Paired crossings become disjoint lines; the rest
+/// meet at the face vertex.
+fn pair_off(ring: &[Walked], lines: &mut Vec<(u32, u32, RegionPair)>) -> Vec<Walked> {
+    // Reduce the cycle: remove adjacent matching pairs until none is left (cyclically).
+    let mut items: Vec<Walked> = ring.to_vec();
+    loop {
+        let n = items.len();
+        if n < 2 {
+            break;
+        }
+        let found = (0..n).find(|&i| {
+            let (a, b) = (items[i], items[(i + 1) % n]);
+            a.from == b.to && a.to == b.from
+        });
+        let Some(i) = found else { break };
+        let (a, b) = (items[i], items[(i + 1) % n]);
+        lines.push((a.vertex, b.vertex, RegionPair::new(a.from, a.to)));
+        let j = (i + 1) % n;
+        let (hi, lo) = if i > j { (i, j) } else { (j, i) };
+        items.remove(hi);
+        items.remove(lo);
+    }
+    items
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn w(vertex: u32, from: u32, to: u32) -> Walked {
+        Walked { vertex, from, to }
+    }
+
+    #[test]
+    fn disjoint_lines_pair_off_and_intersections_remain() {
+        let mut lines = Vec::new();
+        // Two parallel bands 1 | 2 | 3 across a face: all paired.
+        let left = pair_off(&[w(0, 1, 2), w(1, 2, 3), w(2, 3, 2), w(3, 2, 1)], &mut lines);
+        assert!(left.is_empty());
+        assert_eq!(lines.len(), 2);
+        // Three regions meeting inside: nothing pairs.
+        lines.clear();
+        let left = pair_off(&[w(0, 1, 2), w(1, 2, 3), w(2, 3, 1)], &mut lines);
+        assert_eq!(left.len(), 3);
+        assert!(lines.is_empty());
+    }
+}

@@ -1,0 +1,293 @@
+//! The non-manifold polygonizer on the chapter's examples.
+
+use std::collections::{BTreeMap, BTreeSet};
+
+use glam::DVec3;
+use skelform_field::region::{FnRegions, InsideOutside};
+use skelform_field::{Aabb, FnField, RegionField};
+use skelform_mesh::check::check;
+use skelform_mesh::{Mesh, RegionPair};
+use skelform_polygonize::nonmanifold::{Options, polygonize};
+
+/// The chapter's saucer-and-square: 0 outside the cube, 1 the saucer, 2 above, 3 below.
+fn saucer_and_square() -> impl RegionField {
+    FnRegions(|p: DVec3| {
+        let sigmoid = |d: f64| {
+            if d.abs() > 1.0 {
+                0.0
+            } else {
+                1.0 - (4.0 * d.powi(6) - 17.0 * d.powi(4) + 22.0 * d * d) / 9.0
+            }
+        };
+        let saucer = 0.35 * sigmoid(1.4 * (p.x * p.x + p.y * p.y).sqrt());
+        if p.x.abs().max(p.y.abs()).max(p.z.abs()) > 1.0 {
+            0
+        } else if saucer > p.z.abs() {
+            1
+        } else if p.z > 0.0 {
+            2
+        } else {
+            3
+        }
+    })
+}
+
+/// Degree of each edge, with vertices identified by position (they are duplicated per pair),
+/// keyed by the two positions.
+fn edge_degrees(m: &Mesh) -> BTreeMap<([u32; 3], [u32; 3]), usize> {
+    // Vertices are duplicated per pair; identify them by position for the topology.
+    let mut id: BTreeMap<[u32; 3], u32> = BTreeMap::new();
+    let canon: Vec<u32> = m
+        .positions
+        .iter()
+        .map(|p| {
+            let n = id.len() as u32;
+            *id.entry(p.map(f32::to_bits)).or_insert(n)
+        })
+        .collect();
+    let mut deg = BTreeMap::new();
+    for t in &m.triangles {
+        for k in 0..3 {
+            let (u, v) = (t[k] as usize, t[(k + 1) % 3] as usize);
+            let (a, b) = (m.positions[u].map(f32::to_bits), m.positions[v].map(f32::to_bits));
+            let _ = (canon[u], canon[v]);
+            *deg.entry(if a < b { (a, b) } else { (b, a) }).or_insert(0) += 1;
+        }
+    }
+    deg
+}
+
+fn saucer_options() -> Options {
+    Options {
+        domain: Aabb::cube(1.2),
+        cell: 0.1,
+        seeds: vec![DVec3::new(0.0, 0.0, 0.35)],
+        interest: vec![RegionPair(1, 2), RegionPair(1, 3), RegionPair(2, 3)],
+        ..Options::default()
+    }
+}
+
+#[test]
+fn saucer_and_square_is_a_closed_non_manifold_complex() {
+    let regions = saucer_and_square();
+    let (m, s) = polygonize(&regions, &saucer_options()).unwrap();
+    let pairs: Vec<RegionPair> = s.triangles_per_pair.iter().map(|(p, _)| *p).collect();
+    assert_eq!(pairs, vec![RegionPair(1, 2), RegionPair(1, 3), RegionPair(2, 3)], "{s:?}");
+    let deg = edge_degrees(&m);
+    let hist = deg.values().fold(BTreeMap::new(), |mut h, &d| {
+        *h.entry(d).or_insert(0) += 1;
+        h
+    });
+    eprintln!("edge degrees {hist:?}, stats {s:?}");
+    // The square (2,3) reaches the cube's boundary and is cut there: boundary edges only on
+    // the domain faces x, y = ±1.
+    for ((a, b), d) in &deg {
+        if *d == 1 {
+            let (pa, pb) = (a.map(f32::from_bits), b.map(f32::from_bits));
+            let on_side = |p: [f32; 3]| p[0].abs() > 0.95 || p[1].abs() > 0.95;
+            if !(on_side(pa) || on_side(pb)) {
+                eprintln!("open edge inside the cube at {pa:?}-{pb:?}");
+            }
+        }
+        assert!(*d <= 3, "edge of degree {d}");
+    }
+    assert!(
+        hist.get(&3).copied().unwrap_or(0) > 0,
+        "the saucer's rim is an intersection curve: {hist:?}"
+    );
+    assert!(!m.curves.is_empty());
+}
+
+#[test]
+fn vertices_lie_between_their_regions_and_triangles_face_the_lesser_region() {
+    let regions = saucer_and_square();
+    let (m, s) = polygonize(&regions, &saucer_options()).unwrap();
+    let eps = s.epsilon;
+    // Each vertex copy belongs to one pair (vertices are duplicated per pair); its normal is
+    // its pair's area-weighted triangle normal, so it also says which way the triangles face.
+    let mut pair_of = vec![None; m.positions.len()];
+    for (t, p) in m.triangles.iter().zip(&m.labels) {
+        for &v in t {
+            pair_of[v as usize] = Some(*p);
+        }
+    }
+    // Vertices on the intersection curves (face and internal vertices) meet three regions;
+    // the test is for the vertices inside the sheets.
+    let on_curve: BTreeSet<[u32; 3]> = m
+        .curves
+        .iter()
+        .flat_map(|c| c.v)
+        .map(|v| m.positions[v as usize].map(f32::to_bits))
+        .collect();
+    let (mut ok, mut total, mut wrong_side) = (0, 0, 0);
+    for (i, p) in m.positions.iter().enumerate() {
+        let Some(pair) = pair_of[i] else { continue };
+        if on_curve.contains(&p.map(f32::to_bits)) {
+            continue;
+        }
+        let (p, n) =
+            (DVec3::from_array(p.map(f64::from)), DVec3::from_array(m.normals[i].map(f64::from)));
+        let (front, back) = (regions.region(p + n * 2.0 * eps), regions.region(p - n * 2.0 * eps));
+        total += 1;
+        if front == pair.0 && back == pair.1 {
+            ok += 1;
+        }
+        if front == pair.1 && back == pair.0 {
+            wrong_side += 1;
+        }
+    }
+    eprintln!("{ok} of {total} vertices between their regions, {wrong_side} facing the wrong way");
+    assert_eq!(wrong_side, 0, "vertex normals point into the greater region");
+    assert!(ok as f64 >= 0.95 * total as f64, "{ok} of {total} vertices between their regions");
+}
+
+#[test]
+fn a_single_pair_gives_the_closed_manifold_a_manifold_polygonizer_gives() {
+    let sphere = InsideOutside(FnField(|p: DVec3| p.length() - 0.7));
+    let opts = Options {
+        domain: Aabb::cube(1.0),
+        cell: 0.1,
+        seeds: vec![DVec3::new(0.7, 0.0, 0.0)],
+        ..Options::default()
+    };
+    let (m, s) = polygonize(&sphere, &opts).unwrap();
+    eprintln!("{s:?}");
+    let r = check(&m);
+    assert!(r.is_closed_manifold(), "{r}");
+    assert_eq!(r.components[0].genus, Some(0));
+    // Wound counter-clockwise from region 0, the inside: normals point in, volume negative.
+    assert_eq!(r.outward, Some(false));
+    assert_eq!(s.triangles_per_pair.len(), 1);
+    assert!(m.curves.is_empty());
+}
+
+#[test]
+fn interest_in_a_missing_region_is_an_error() {
+    let sphere = InsideOutside(FnField(|p: DVec3| p.length() - 0.7));
+    let opts = Options { interest: vec![RegionPair(0, 5)], ..Options::default() };
+    let e = polygonize(&sphere, &opts).unwrap_err();
+    assert!(e.to_string().contains("region 5"), "{e}");
+    let flat = InsideOutside(FnField(|_: DVec3| 1.0));
+    assert!(polygonize(&flat, &Options::default()).is_err());
+}
+
+#[test]
+fn evaluations_compare_with_a_conventional_polygonizer() {
+    let regions = saucer_and_square();
+    let (_, s) = polygonize(&regions, &saucer_options()).unwrap();
+    let ratio = s.region_evaluations as f64 / s.conventional_evaluations as f64;
+    eprintln!(
+        "region evaluations {} vs conventional {}: {ratio:.1}×",
+        s.region_evaluations, s.conventional_evaluations
+    );
+    assert!(ratio > 1.0);
+    let curves: BTreeSet<_> = s.curve_length_per_triple.iter().map(|(t, _)| *t).collect();
+    assert!(!curves.is_empty());
+}
+
+/// The chapter's sphere-and-square (fig. 4.9): 1 the ball, 2 outside the square's cube, 3
+/// above the plane, 4 below; surfaces (1,3), (1,4), (3,4). The circle where the sphere meets
+/// the plane is a curve of degree 3 (regions 1, 3, 4), the square's border one of degree 1.
+#[test]
+fn sphere_and_square_meet_along_the_circle() {
+    let regions = FnRegions(|p: DVec3| {
+        if p.length() < 0.5 {
+            1
+        } else if p.x.abs().max(p.y.abs()).max(p.z.abs()) > 0.9 {
+            2
+        } else if p.z > 0.0 {
+            3
+        } else {
+            4
+        }
+    });
+    let opts = Options {
+        domain: Aabb::cube(1.0),
+        cell: 0.08,
+        full_grid: true,
+        interest: vec![RegionPair(1, 3), RegionPair(1, 4), RegionPair(3, 4)],
+        ..Options::default()
+    };
+    let (m, s) = polygonize(&regions, &opts).unwrap();
+    let pairs: Vec<RegionPair> = s.triangles_per_pair.iter().map(|(p, _)| *p).collect();
+    assert_eq!(pairs, vec![RegionPair(1, 3), RegionPair(1, 4), RegionPair(3, 4)]);
+    let deg = edge_degrees(&m);
+    let on_circle =
+        |p: [f32; 3]| ((p[0] * p[0] + p[1] * p[1]).sqrt() - 0.5).abs() < 0.05 && p[2].abs() < 0.03;
+    let on_border = |p: [f32; 3]| p[0].abs().max(p[1].abs()) > 0.85 && p[2].abs() < 0.03;
+    let (mut three_on_circle, mut one_on_border) = (0, 0);
+    for ((a, b), d) in &deg {
+        let (pa, pb) = (a.map(f32::from_bits), b.map(f32::from_bits));
+        match d {
+            3 => {
+                assert!(on_circle(pa) && on_circle(pb), "degree 3 off the circle: {pa:?} {pb:?}");
+                three_on_circle += 1;
+            }
+            1 => {
+                assert!(
+                    on_border(pa) && on_border(pb),
+                    "open edge off the square's border: {pa:?} {pb:?}"
+                );
+                one_on_border += 1;
+            }
+            2 => {}
+            d => panic!("edge of degree {d} at {pa:?} {pb:?}"),
+        }
+    }
+    assert!(three_on_circle > 20 && one_on_border > 20, "{three_on_circle} {one_on_border}");
+    // The circle's length is 2π·0.5.
+    let circle: f64 =
+        s.curve_length_per_triple.iter().filter(|(t, _)| t.0 == [1, 3, 4]).map(|(_, l)| l).sum();
+    assert!(
+        (circle - std::f64::consts::PI).abs() < 0.1 * std::f64::consts::PI,
+        "circle length {circle}"
+    );
+}
+
+/// Sphere with a hole (fig. 4.28): 1 a small ball cutting into 2, a large ball; 0 outside.
+/// Interest in (0, 2) alone gives the large sphere with a hole where the small ball cuts it;
+/// adding (1, 2) closes the hole with the scoop.
+#[test]
+fn sphere_with_a_hole_and_its_scoop() {
+    let regions = FnRegions(|p: DVec3| {
+        if (p - DVec3::new(0.55, 0.0, 0.0)).length() < 0.35 {
+            1
+        } else if p.length() < 0.7 {
+            2
+        } else {
+            0
+        }
+    });
+    let base = Options {
+        domain: Aabb::cube(1.0),
+        cell: 0.08,
+        seeds: vec![DVec3::new(-0.7, 0.0, 0.0)],
+        ..Options::default()
+    };
+    let hole = Options { interest: vec![RegionPair(0, 2)], ..base.clone() };
+    let (m, _) = polygonize(&regions, &hole).unwrap();
+    let r = check(&m);
+    assert_eq!(r.components.len(), 1);
+    assert_eq!(r.components[0].boundary_loops, 1, "one hole:\n{r}");
+    assert_eq!(r.non_manifold_edges, 0);
+    let scoop = Options { interest: vec![RegionPair(0, 2), RegionPair(1, 2)], ..base };
+    let (m, s) = polygonize(&regions, &scoop).unwrap();
+    assert_eq!(s.triangles_per_pair.len(), 2);
+    let deg = edge_degrees(&m);
+    assert!(
+        deg.values().all(|&d| d == 2),
+        "sphere and scoop close up: {:?}",
+        deg.values().filter(|&&d| d != 2).count()
+    );
+}
+
+#[test]
+fn same_mesh_on_any_thread_count() {
+    let regions = saucer_and_square();
+    let run = |t| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build().unwrap();
+        pool.install(|| polygonize(&regions, &saucer_options()).unwrap().0)
+    };
+    let one = run(1);
+    assert!(run(2) == one);
+}
