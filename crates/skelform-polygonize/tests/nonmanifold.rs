@@ -59,7 +59,9 @@ fn edge_degrees(m: &Mesh) -> BTreeMap<([u32; 3], [u32; 3]), usize> {
 
 fn saucer_options() -> Options {
     Options {
-        domain: Aabb::cube(1.2),
+        // 25 cells of 0.1 centred on the origin: no lattice plane lies on z = 0, which would
+        // put crossings on lattice points (a degenerate case the follower does not resolve).
+        domain: Aabb::cube(1.23),
         cell: 0.1,
         seeds: vec![DVec3::new(0.0, 0.0, 0.35)],
         interest: vec![RegionPair(1, 2), RegionPair(1, 3), RegionPair(2, 3)],

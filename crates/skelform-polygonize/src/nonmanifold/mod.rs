@@ -431,25 +431,21 @@ impl Run<'_> {
             let w2 = (b - a).cross(p - a).dot(n) / area;
             w0 >= -1e-9 && w1 >= -1e-9 && w2 >= -1e-9
         };
-        let side = 2.0 * self.eps;
+        // Steps of 4ε: the start straddles the crossing by 2ε on each side, more than the ε
+        // within which bisection placed it, so both ends are surely in their regions.
+        let side = 4.0 * self.eps;
         let max_steps = (8.0 * (b - a).length().max((c - a).length()) / side) as usize + 16;
         for s in starts {
             let v = self.positions[s.vertex as usize];
-            // The crossing lies on one of the three edges; find which, to step off it.
+            // The crossing lies on one of the three edges; find which, to step along it.
             let edge_dir = [(a, b), (b, c), (c, a)]
                 .into_iter()
-                .map(|(p, q)| (q - p).normalize())
-                .min_by(|d1, d2| {
-                    let off = |d: &DVec3| {
-                        (v - a)
-                            .cross(*d)
-                            .length()
-                            .min((v - b).cross(*d).length())
-                            .min((v - c).cross(*d).length())
-                    };
-                    off(d1).total_cmp(&off(d2))
+                .map(|(p, q)| {
+                    let d = (q - p).normalize();
+                    ((v - p).cross(d).length(), d)
                 })
-                .unwrap_or(DVec3::X);
+                .min_by(|x, y| x.0.total_cmp(&y.0))
+                .map_or(DVec3::X, |(_, d)| d);
             let mut px = v - edge_dir * side * 0.5;
             let mut py = v + edge_dir * side * 0.5;
             let (rx, ry) = (self.region_at(px), self.region_at(py));
