@@ -5,7 +5,9 @@
 //! failure (nothing to mesh, cannot write), 2 bad input or usage.
 
 mod extract;
+mod gallery;
 mod progress;
+mod render;
 mod report;
 mod run;
 
@@ -37,6 +39,10 @@ enum Command {
     Info(InfoArgs),
     /// Marching cubes on a raw float32 volume (extraction only, no field).
     Extract(extract::ExtractArgs),
+    /// Draw a scene (meshed first) or a mesh file as a PNG picture.
+    Render(render::RenderArgs),
+    /// Render every example scene into docs/gallery, with a page of figures and statistics.
+    Gallery(gallery::GalleryArgs),
 }
 
 #[derive(Args)]
@@ -98,6 +104,8 @@ fn main() -> ExitCode {
         Command::Check(a) => check(a),
         Command::Info(a) => info(a),
         Command::Extract(a) => extract::extract(a),
+        Command::Render(a) => render::render(a),
+        Command::Gallery(a) => gallery::gallery(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -7,12 +7,25 @@ use anyhow::anyhow;
 use serde_json::json;
 use skelform_polygonize::continuation::{self, SeedNote, Stop};
 use skelform_polygonize::grid;
+use skelform_polygonize::healed::{self, PointKind};
 use skelform_scene::{Method, Scene};
 
 /// The statistics of whichever polygonizer ran.
 pub enum Run {
     Grid(grid::Stats),
     Continuation(continuation::Stats),
+    Healed(Box<healed::Stats>),
+}
+
+impl Run {
+    /// Every field evaluation the run made.
+    pub fn evaluations(&self) -> u64 {
+        match self {
+            Run::Grid(s) => s.evaluations(),
+            Run::Continuation(s) => s.evaluations(),
+            Run::Healed(s) => s.evaluations(),
+        }
+    }
 }
 
 fn secs(d: Duration) -> f64 {
@@ -43,6 +56,7 @@ pub fn no_surface(scene: &Scene, run: &Run) -> anyhow::Error {
                 scene.origin
             )
         }
+        Run::Healed(s) => healed_no_surface(scene, s),
     }
 }
 
@@ -78,6 +92,7 @@ pub fn warnings(run: &Run) -> Vec<String> {
                 ));
             }
         }
+        Run::Healed(s) => healed_warnings(s, &mut w),
     }
     w
 }
@@ -157,6 +172,7 @@ pub fn print(run: &Run, writing: Duration, total: Duration) {
                 secs(total)
             );
         }
+        Run::Healed(s) => healed_print(s, writing, total),
     }
 }
 
@@ -215,6 +231,7 @@ pub fn json(
                 "normals": secs(s.normals),
             },
         }),
+        Run::Healed(s) => healed_json(s),
     };
     j["scene"] = json!(scene.origin);
     j["output"] = json!(out.display().to_string());
@@ -222,4 +239,206 @@ pub fn json(
     j["seconds"]["writing"] = json!(secs(writing));
     j["seconds"]["total"] = json!(secs(total));
     j
+}
+
+/// A computed point to a millionth (the numerical noise of a solve below that is not news).
+fn at(p: skelform_field::DVec3) -> String {
+    let r = |v: f64| {
+        let x = (v * 1e6).round() / 1e6;
+        if x == 0.0 { 0.0 } else { x }
+    };
+    format!("({}, {}, {})", r(p.x), r(p.y), r(p.z))
+}
+
+fn point_kind(k: PointKind) -> &'static str {
+    match k {
+        PointKind::Cone => "cone apex",
+        PointKind::Isolated => "isolated point",
+        PointKind::Pinch => "pinch point",
+        PointKind::Triple => "triple point",
+        PointKind::Degenerate => "degenerate point",
+    }
+}
+
+fn healed_no_surface(scene: &Scene, s: &healed::Stats) -> anyhow::Error {
+    let where_ = if s.min_sample >= 0.0 { "outside (f ≥ 0)" } else { "inside (f < 0)" };
+    let found = if s.singular_lines.is_empty() && s.singular_points.is_empty() {
+        String::new()
+    } else {
+        format!(
+            "; the zero set is there but never changes sign ({} bare lines, {} points, see --stats), \
+             which no sign-based method can mesh",
+            s.singular_lines.len(),
+            s.singular_points.len()
+        )
+    };
+    anyhow!(
+        "{}: no surface in the domain: all {} samples are {where_}, values from {} to {}{found}; \
+         check the formula, the iso value and the domain box",
+        scene.origin,
+        s.samples,
+        s.min_sample,
+        s.max_sample
+    )
+}
+
+fn healed_warnings(s: &healed::Stats, w: &mut Vec<String>) {
+    if s.non_finite_samples > 0 {
+        w.push(format!(
+            "{} samples were NaN or infinite (treated as outside/inside)",
+            s.non_finite_samples
+        ));
+    }
+    for u in &s.unresolved {
+        w.push(format!(
+            "a self-intersection near {} was not healed ({} cubes kept as marching cubes made them): {}",
+            at(u.center),
+            u.cubes,
+            u.reason
+        ));
+    }
+    for l in &s.singular_lines {
+        let (a, b) = (l.points[0], l.points[l.points.len() - 1]);
+        w.push(format!(
+            "the zero set is a bare line from {} to {} (length {:.4}): reported, not meshed",
+            at(a),
+            at(b),
+            l.length
+        ));
+    }
+    for p in &s.singular_points {
+        if matches!(p.kind, PointKind::Isolated | PointKind::Degenerate) {
+            w.push(format!("{} at {}: reported, not meshed", point_kind(p.kind), at(p.position)));
+        }
+    }
+}
+
+fn healed_print(s: &healed::Stats, writing: Duration, total: Duration) {
+    let [nx, ny, nz] = s.grid_dims;
+    println!("grid          {nx} × {ny} × {nz} samples, cell {:.6}", s.cell);
+    println!("samples       {}", s.samples);
+    println!(
+        "evaluations   {} (samples {}, root finding {}, normals {}, critical test {}, singular search {})",
+        s.evaluations(),
+        s.samples,
+        s.refine_evaluations,
+        s.normal_evaluations,
+        s.critical_evaluations,
+        s.search_evaluations
+    );
+    let c = &s.critical_cubes;
+    println!(
+        "critical      {} vertices; {} cubes (class 10: {}, class 12: {}, class 13: {}, other: {})",
+        s.critical_vertices,
+        c.total(),
+        c.class10,
+        c.class12,
+        c.class13,
+        c.other
+    );
+    println!(
+        "search        {} thesis face points (class 10/12/13 faces), {} seeds tried",
+        s.face_points, s.seeds_tried
+    );
+    // The thesis's table: "triangles by standard MC: …; by HMC: … (correct triangles by MC …,
+    // triangles used for healing the critical cubes …)".
+    println!(
+        "triangles     standard MC {}; HMC {} (kept MC {}, healing {})",
+        s.mc_triangles, s.triangles, s.kept_mc_triangles, s.healing_triangles
+    );
+    let length: f64 = s.curves.iter().map(|c| c.length).sum::<f64>() + 0.0;
+    println!(
+        "curves        {} self-intersection curves, length {:.4}, {} curve edges (4 triangles each)",
+        s.curves.len(),
+        length,
+        s.curve_edges
+    );
+    println!(
+        "healed        {} regions, {} cubes; {} regions not healed; {} lattice edges and {} faces checked",
+        s.zones,
+        s.healed_cubes,
+        s.unresolved.len(),
+        s.edges_checked,
+        s.faces_checked
+    );
+    println!(
+        "singular      {} points, {} bare lines",
+        s.singular_points.len(),
+        s.singular_lines.len()
+    );
+    for p in s.singular_points.iter().take(20) {
+        println!("  {} at {}", point_kind(p.kind), at(p.position));
+    }
+    for l in s.singular_lines.iter().take(20) {
+        let (a, b) = (l.points[0], l.points[l.points.len() - 1]);
+        println!("  bare line {} to {}, length {:.4}", at(a), at(b), l.length);
+    }
+    for u in &s.unresolved {
+        println!("  not healed near {}: {} cubes, {}", at(u.center), u.cubes, u.reason);
+    }
+    println!("vertices      {}", s.vertices);
+    println!("triangles     {}", s.triangles);
+    println!(
+        "time          sampling {:.3}s, extraction {:.3}s, refinement {:.3}s, search {:.3}s, healing {:.3}s, normals {:.3}s, writing {:.3}s, total {:.3}s",
+        secs(s.sampling),
+        secs(s.extraction),
+        secs(s.refinement),
+        secs(s.search),
+        secs(s.healing),
+        secs(s.normals),
+        secs(writing),
+        secs(total)
+    );
+}
+
+fn healed_json(s: &healed::Stats) -> serde_json::Value {
+    let c = &s.critical_cubes;
+    json!({
+        "grid": { "dims": s.grid_dims, "cell": s.cell },
+        "samples": s.samples,
+        "non_finite_samples": s.non_finite_samples,
+        "evaluations": {
+            "total": s.evaluations(),
+            "samples": s.samples,
+            "root_finding": s.refine_evaluations,
+            "normals": s.normal_evaluations,
+            "critical_test": s.critical_evaluations,
+            "singular_search": s.search_evaluations,
+        },
+        "critical": {
+            "vertices": s.critical_vertices,
+            "cubes": { "class10": c.class10, "class12": c.class12, "class13": c.class13, "other": c.other },
+        },
+        "seeds_tried": s.seeds_tried,
+        "face_points": s.face_points,
+        "mc_triangles": s.mc_triangles,
+        "kept_mc_triangles": s.kept_mc_triangles,
+        "healing_triangles": s.healing_triangles,
+        "curve_edges": s.curve_edges,
+        "curves": s.curves.iter().map(|c| json!({
+            "points": c.points.len(), "closed": c.closed, "length": c.length, "healed": c.healed,
+            "start": c.points.first().map(|p| p.to_array()), "end": c.points.last().map(|p| p.to_array()),
+        })).collect::<Vec<_>>(),
+        "singular_points": s.singular_points.iter().map(|p| json!({
+            "kind": point_kind(p.kind), "position": p.position.to_array(),
+        })).collect::<Vec<_>>(),
+        "singular_lines": s.singular_lines.iter().map(|l| json!({
+            "start": l.points.first().map(|p| p.to_array()), "end": l.points.last().map(|p| p.to_array()),
+            "length": l.length, "points": l.points.len(),
+        })).collect::<Vec<_>>(),
+        "healed": { "regions": s.zones, "cubes": s.healed_cubes, "edges_checked": s.edges_checked, "faces_checked": s.faces_checked },
+        "unresolved": s.unresolved.iter().map(|u| json!({
+            "center": u.center.to_array(), "cubes": u.cubes, "reason": u.reason,
+        })).collect::<Vec<_>>(),
+        "vertices": s.vertices,
+        "triangles": s.triangles,
+        "seconds": {
+            "sampling": secs(s.sampling),
+            "extraction": secs(s.extraction),
+            "refinement": secs(s.refinement),
+            "search": secs(s.search),
+            "healing": secs(s.healing),
+            "normals": secs(s.normals),
+        },
+    })
 }

@@ -8,7 +8,7 @@ use clap::Args;
 use skelform_field::DVec3;
 use skelform_mesh::Mesh;
 use skelform_polygonize::grid::{self, Resolution};
-use skelform_polygonize::{continuation, refine::RootMethod};
+use skelform_polygonize::{continuation, healed, refine::RootMethod};
 use skelform_scene::{Method, Scene};
 
 use crate::{Failure, input, progress, report, runtime};
@@ -22,7 +22,7 @@ pub struct RunArgs {
     /// Cell size (overrides the scene).
     #[arg(long)]
     pub cell: Option<f64>,
-    /// Polygonizer (overrides the scene): grid, continuation or tetra.
+    /// Polygonizer (overrides the scene): grid, continuation, tetra or healed.
     #[arg(long)]
     pub method: Option<String>,
     /// continuation/tetra: start from this point on or near the surface (repeatable;
@@ -150,6 +150,27 @@ pub fn run_scene(scene: &Scene, a: &RunArgs) -> Result<(Mesh, report::Run, Metho
             };
             pool.install(|| continuation::polygonize(field, &options))
                 .map(|(m, s)| (m, report::Run::Continuation(s)))
+        }
+        Method::Healed => {
+            let h = &scene.healed;
+            let options = healed::Options {
+                domain: scene.domain,
+                resolution,
+                refine,
+                tolerance,
+                normals,
+                max_memory: a.max_memory,
+                epsilon: match (h.epsilon, h.critical_cells) {
+                    (Some(e), _) => healed::Epsilon::Absolute(e),
+                    (None, Some(c)) => healed::Epsilon::Cells(c),
+                    (None, None) => healed::Options::default().epsilon,
+                },
+                split_sheets: h.split_sheets,
+                control,
+                ..healed::Options::default()
+            };
+            pool.install(|| healed::polygonize(field, &options))
+                .map(|(m, s)| (m, report::Run::Healed(Box::new(s))))
         }
     };
     progress::finish();

@@ -236,7 +236,7 @@ fn files_round_trip_through_paths() {
     }
     let names = listing(dir.path());
     assert_eq!(names, ["a.ply", "b.PLY", "c.obj", "d.stl"]);
-    let e = read_mesh(&dir.path().join("x.glb")).unwrap_err();
+    let e = read_mesh(&dir.path().join("x.gltf")).unwrap_err();
     assert!(matches!(e, IoError::UnknownFormat { .. }), "{e}");
     let e = read_mesh(&dir.path().join("missing.ply")).unwrap_err();
     assert!(

@@ -4,8 +4,10 @@
 //!   ambiguous faces (asymptotic decider) and interiors (trilinear saddles). Closed surfaces
 //!   inside the domain come out closed, manifold and consistently oriented at any
 //!   resolution; output is identical on any thread count.
-//! - [`nonmanifold`]: several regions of space at once (ch. 4): labelled surfaces between
-//!   chosen pairs of regions, meeting along intersection curves.
+//! - [`healed`]: healed marching cubes for surfaces that cross themselves: the grid
+//!   polygonizer, then the cubes round self-intersection curves re-triangulated so that the
+//!   sheets cross cleanly (edges of four triangles along the curves, which are output as
+//!   polylines); cone apexes fanned; bare lines and points reported.
 //! - [`refine`]: root finding along edges and gradient normals, shared by all polygonizers.
 //!
 //! A polygonizer knows nothing of files: it takes a field and options and returns a mesh and
@@ -27,6 +29,7 @@
 
 pub mod continuation;
 pub mod grid;
+pub mod healed;
 pub mod nonmanifold;
 pub mod refine;
 

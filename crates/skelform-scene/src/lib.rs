@@ -43,6 +43,9 @@ pub struct Scene {
     pub origin: String,
     pub name: Option<String>,
     pub description: Option<String>,
+    /// The dissertation figure the scene reproduces (`figure = "3.12"` in `[scene]`), shown
+    /// beside its picture in the gallery.
+    pub figure: Option<String>,
     pub domain: Aabb,
     pub resolution: Resolution,
     pub method: Method,
@@ -51,6 +54,8 @@ pub struct Scene {
     pub tolerance: f64,
     /// Settings of the continuation and tetra methods.
     pub continuation: Continuation,
+    /// Settings of the healed method.
+    pub healed: Healed,
     /// The field with the iso value already subtracted: its zero set is the surface.
     pub field: Arc<dyn Field>,
     /// The compiled formula (before the iso value), for `skelform info`.
@@ -80,6 +85,18 @@ pub struct Continuation {
     pub max_cells: Option<u64>,
     pub limit: Option<u32>,
     pub search_stride: Option<usize>,
+}
+
+/// Settings that only the healed polygonizer reads (`[mesh]` keys `epsilon`,
+/// `critical_cells`, `split_sheets`).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Healed {
+    /// The thesis's absolute critical test, `|f_x| + |f_y| + |f_z| < epsilon`.
+    pub epsilon: Option<f64>,
+    /// The scale-free critical test in cells (the default when neither is given).
+    pub critical_cells: Option<f64>,
+    /// One copy of each self-intersection vertex per sheet, with that sheet's normal.
+    pub split_sheets: bool,
 }
 
 /// Output settings a scene may state; the command line overrides them.

@@ -12,7 +12,7 @@ use skelform_mesh::io::Format;
 use skelform_polygonize::grid::Resolution;
 use toml::Spanned;
 
-use crate::{Continuation, Output, Scene, SceneError, iso_field, line_col};
+use crate::{Continuation, Healed, Output, Scene, SceneError, iso_field, line_col};
 use skelform_polygonize::refine::RootMethod;
 
 /// Which polygonizer a scene asks for.
@@ -25,11 +25,18 @@ pub enum Method {
     Continuation,
     /// The same, each cube split into six tetrahedra.
     Tetra,
+    /// Marching cubes healed along self-intersections (Nguyen 2016): the sheets of a surface
+    /// that crosses itself meet along curves instead of being joined wrongly.
+    Healed,
 }
 
 impl Method {
-    pub const ALL: &'static [(&'static str, Method)] =
-        &[("grid", Method::Grid), ("continuation", Method::Continuation), ("tetra", Method::Tetra)];
+    pub const ALL: &'static [(&'static str, Method)] = &[
+        ("grid", Method::Grid),
+        ("continuation", Method::Continuation),
+        ("tetra", Method::Tetra),
+        ("healed", Method::Healed),
+    ];
 
     pub fn name(self) -> &'static str {
         Method::ALL.iter().find(|(_, m)| *m == self).map_or("?", |(n, _)| n)
@@ -71,6 +78,8 @@ struct File {
 struct SceneInfo {
     name: Option<String>,
     description: Option<String>,
+    /// The figure of the dissertation the scene reproduces, e.g. "3.12" (for the gallery).
+    figure: Option<String>,
 }
 
 #[derive(Deserialize)]
@@ -98,6 +107,12 @@ struct MeshSection {
     limit: Option<Spanned<i64>>,
     /// Continuation without seeds: stride of the domain search, in cells.
     search_stride: Option<Spanned<i64>>,
+    /// Healed: the thesis's critical test |fx| + |fy| + |fz| < epsilon (absolute).
+    epsilon: Option<Spanned<f64>>,
+    /// Healed: the scale-free critical test, |∇f| < critical_cells · cell · |H| (default 2).
+    critical_cells: Option<Spanned<f64>>,
+    /// Healed: one copy of each self-intersection vertex per sheet, with that sheet's normal.
+    split_sheets: Option<bool>,
 }
 
 #[derive(Deserialize)]
@@ -167,6 +182,9 @@ pub(crate) fn build(text: &str, origin: &str) -> Result<Scene, SceneError> {
         max_cells: None,
         limit: None,
         search_stride: None,
+        epsilon: None,
+        critical_cells: None,
+        split_sheets: None,
     });
     let resolution = match (&mesh.resolution, &mesh.cell) {
         (Some(_), Some(c)) => {
@@ -213,6 +231,7 @@ pub(crate) fn build(text: &str, origin: &str) -> Result<Scene, SceneError> {
     };
 
     let continuation = continuation_settings(&cx, &mesh, &domain)?;
+    let healed = healed_settings(&cx, &mesh)?;
 
     let f = file.field.get_ref();
     let iso = f.iso.as_ref().map_or(0.0, |s| *s.get_ref());
@@ -249,12 +268,14 @@ pub(crate) fn build(text: &str, origin: &str) -> Result<Scene, SceneError> {
         origin: origin.to_string(),
         name: file.scene.as_ref().and_then(|s| s.name.clone()),
         description: file.scene.as_ref().and_then(|s| s.description.clone()),
+        figure: file.scene.as_ref().and_then(|s| s.figure.clone()),
         domain,
         resolution,
         method,
         refine: mesh.refine.unwrap_or(true),
         tolerance,
         continuation,
+        healed,
         field: iso_field(formula.clone(), iso),
         formula,
         iso,
@@ -308,6 +329,26 @@ fn continuation_settings(
     c.limit = positive(&mesh.limit, "limit")?.map(|l| l.min(u32::MAX as u64) as u32);
     c.search_stride = positive(&mesh.search_stride, "search_stride")?.map(|s| s as usize);
     Ok(c)
+}
+
+/// The healed polygonizer's settings, checked.
+fn healed_settings(cx: &Ctx, mesh: &MeshSection) -> Result<Healed, SceneError> {
+    let positive = |v: &Option<Spanned<f64>>, what: &str| -> Result<Option<f64>, SceneError> {
+        match v {
+            Some(x) if !(x.get_ref().is_finite() && *x.get_ref() > 0.0) => Err(cx.at(
+                x.span().start,
+                format!("{what} must be a positive number (got {})", x.get_ref()),
+            )),
+            Some(x) => Ok(Some(*x.get_ref())),
+            None => Ok(None),
+        }
+    };
+    let epsilon = positive(&mesh.epsilon, "epsilon")?;
+    let critical_cells = positive(&mesh.critical_cells, "critical_cells")?;
+    if let (Some(_), Some(c)) = (&mesh.epsilon, &mesh.critical_cells) {
+        return Err(cx.at(c.span().start, "give either 'epsilon' or 'critical_cells', not both"));
+    }
+    Ok(Healed { epsilon, critical_cells, split_sheets: mesh.split_sheets.unwrap_or(false) })
 }
 
 fn parse_format(s: &str) -> Option<Format> {

@@ -1,4 +1,4 @@
-//! Mesh readers and writers: PLY, OBJ and STL.
+//! Mesh readers and writers: PLY, OBJ, STL and binary glTF.
 //!
 //! Writers to a path are atomic: the mesh is written into a temporary file in the target
 //! directory (`.NAME.tmp-PID-N`), flushed and synced, then renamed over the target. On any
@@ -16,10 +16,12 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::mesh::{Mesh, MeshError};
 
+pub mod gltf;
 pub mod obj;
 pub mod ply;
 pub mod stl;
 
+pub use gltf::{read_glb, write_glb};
 pub use obj::{read_obj, write_obj};
 pub use ply::{read_ply, write_ply};
 pub use stl::{read_stl, write_stl};
@@ -33,11 +35,14 @@ pub enum Format {
     Obj,
     /// Binary STL: unlabelled triangle soup, welded on reading.
     Stl,
+    /// Binary glTF 2.0: one primitive and material per region pair, normals, curves as
+    /// lines; what Blender, MeshLab and web viewers open.
+    Glb,
 }
 
 impl Format {
     /// Every supported format.
-    pub const ALL: [Format; 3] = [Format::Ply, Format::Obj, Format::Stl];
+    pub const ALL: [Format; 4] = [Format::Ply, Format::Obj, Format::Stl, Format::Glb];
 
     /// The format named by the extension of `path` (case-insensitive), if any.
     pub fn from_path(path: &Path) -> Option<Format> {
@@ -55,6 +60,7 @@ impl Format {
             Format::Ply => "ply",
             Format::Obj => "obj",
             Format::Stl => "stl",
+            Format::Glb => "glb",
         }
     }
 }
@@ -65,6 +71,7 @@ impl fmt::Display for Format {
             Format::Ply => "PLY",
             Format::Obj => "OBJ",
             Format::Stl => "STL",
+            Format::Glb => "glTF binary",
         })
     }
 }
@@ -110,7 +117,7 @@ pub enum IoError {
     #[error("cannot write{}: {msg}", name(.path))]
     Unsupported { path: Option<PathBuf>, msg: String },
     /// The extension names no supported format.
-    #[error("{}: unknown mesh format: expected the extension .ply, .obj or .stl", .path.display())]
+    #[error("{}: unknown mesh format: expected the extension .ply, .obj, .stl or .glb", .path.display())]
     UnknownFormat { path: PathBuf },
 }
 
@@ -204,6 +211,7 @@ pub fn read_mesh_from(bytes: &[u8], format: Format) -> Result<Mesh, IoError> {
         Format::Ply => read_ply(bytes),
         Format::Obj => read_obj(bytes),
         Format::Stl => read_stl(bytes),
+        Format::Glb => read_glb(bytes),
     }
 }
 
@@ -219,6 +227,7 @@ pub fn write_mesh_to(
         Format::Ply => write_ply(w, mesh, opts),
         Format::Obj => write_obj(w, mesh, opts),
         Format::Stl => write_stl(w, mesh),
+        Format::Glb => write_glb(w, mesh, opts),
     }
 }
 
@@ -359,7 +368,8 @@ mod tests {
         assert_eq!(Format::from_path(Path::new("a/b.PLY")), Some(Format::Ply));
         assert_eq!(Format::from_path(Path::new("x.Obj")), Some(Format::Obj));
         assert_eq!(Format::from_path(Path::new("x.stl")), Some(Format::Stl));
-        assert_eq!(Format::from_path(Path::new("x.glb")), None);
+        assert_eq!(Format::from_path(Path::new("x.GLB")), Some(Format::Glb));
+        assert_eq!(Format::from_path(Path::new("x.gltf")), None);
         assert_eq!(Format::from_path(Path::new("ply")), None);
     }
 

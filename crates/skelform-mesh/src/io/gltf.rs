@@ -1,0 +1,840 @@
+//! Binary glTF 2.0 (`.glb`): the format Blender, MeshLab and web viewers open directly.
+//!
+//! Written: one mesh with one triangle primitive per region pair (one primitive for an
+//! unlabelled mesh), each with its own material, and a second mesh of line primitives, one
+//! per curve label, when the mesh has curves. Every primitive has its own `POSITION`
+//! accessor (with the `min` and `max` glTF requires), a `NORMAL` accessor when normals are
+//! written, and 32-bit indices; a vertex shared by two region pairs is written once for
+//! each. Normals are unit length and turned, where needed, to agree with the winding of
+//! the primitive's triangles (counter-clockwise from the lesser region, glTF's front face),
+//! so viewers light each sheet from its front; meshes without normals get area-weighted
+//! ones from the faces. Materials are double sided, because the sheets of non-manifold
+//! meshes and open surfaces are seen from both sides. Materials take the shared palette
+//! ([`region_colour`], also used by the renderer) in the order of the sorted labels. Labels
+//! are kept in each primitive's `extras` (`{"skelform": {"regions": [a, b]}}` and
+//! `{"curve": [a, b, c]}`), so skelform reads them back. All little-endian; both chunks
+//! padded to 4 bytes (JSON with spaces, BIN with zeros).
+//!
+//! Read: GLB files with their buffer in the BIN chunk, float `VEC3` positions and normals,
+//! indices of any unsigned type (or none), triangle and line primitives. Nodes are not
+//! walked: every mesh is read in its own coordinates, so files whose nodes move, turn or
+//! scale meshes are refused rather than misread. Vertices with identical coordinates are
+//! welded across primitives (region boundaries meet again); labels come from the
+//! `extras` above when every triangle primitive has them. Sparse accessors, external or
+//! embedded-URI buffers, and other primitive modes are reported as errors.
+
+use std::io::Write;
+
+use serde_json::{Value, json};
+
+use super::{IoError, Welder, WriteOptions, buffered, finish};
+use crate::mesh::{CurveEdge, Mesh, RegionPair, RegionTriple};
+
+/// Colours for region pairs, in the order of the sorted distinct labels of a mesh (sRGB).
+/// Shared by the glTF writer and the renderer, so files and pictures agree.
+pub const REGION_COLOURS: [[u8; 3]; 10] = [
+    [84, 140, 204],
+    [230, 142, 62],
+    [104, 176, 96],
+    [206, 86, 86],
+    [152, 118, 196],
+    [72, 178, 178],
+    [214, 182, 72],
+    [210, 124, 172],
+    [140, 110, 82],
+    [150, 150, 150],
+];
+
+/// The colour of an unlabelled surface (sRGB).
+pub const SURFACE_COLOUR: [u8; 3] = [176, 192, 214];
+
+/// The colour of the `index`-th distinct region pair of a mesh (sorted order), cycling.
+pub fn region_colour(index: usize) -> [u8; 3] {
+    REGION_COLOURS[index % REGION_COLOURS.len()]
+}
+
+const MAGIC: u32 = 0x4654_6C67; // "glTF"
+const CHUNK_JSON: u32 = 0x4E4F_534A; // "JSON"
+const CHUNK_BIN: u32 = 0x004E_4942; // "BIN\0"
+const ARRAY_BUFFER: u32 = 34962;
+const ELEMENT_ARRAY_BUFFER: u32 = 34963;
+const FLOAT: u32 = 5126;
+const UNSIGNED_INT: u32 = 5125;
+const MODE_LINES: u32 = 1;
+const MODE_TRIANGLES: u32 = 4;
+
+/// An sRGB byte as the linear value glTF's `baseColorFactor` wants.
+fn linear(c: u8) -> f64 {
+    let s = f64::from(c) / 255.0;
+    if s <= 0.04045 { s / 12.92 } else { ((s + 0.055) / 1.055).powf(2.4) }
+}
+
+/// The binary chunk and the JSON that describes it, built together.
+struct Builder {
+    bin: Vec<u8>,
+    views: Vec<Value>,
+    accessors: Vec<Value>,
+}
+
+impl Builder {
+    fn view(&mut self, bytes: &[u8], target: u32) -> usize {
+        debug_assert!(self.bin.len().is_multiple_of(4));
+        self.views.push(json!({
+            "buffer": 0,
+            "byteOffset": self.bin.len(),
+            "byteLength": bytes.len(),
+            "target": target,
+        }));
+        self.bin.extend_from_slice(bytes);
+        while !self.bin.len().is_multiple_of(4) {
+            self.bin.push(0);
+        }
+        self.views.len() - 1
+    }
+
+    fn vec3(&mut self, data: &[[f32; 3]], bounds: bool) -> usize {
+        let bytes: Vec<u8> = data.iter().flatten().flat_map(|c| c.to_le_bytes()).collect();
+        let view = self.view(&bytes, ARRAY_BUFFER);
+        let mut a = json!({
+            "bufferView": view,
+            "componentType": FLOAT,
+            "count": data.len(),
+            "type": "VEC3",
+        });
+        if bounds {
+            let mut lo = [f32::INFINITY; 3];
+            let mut hi = [f32::NEG_INFINITY; 3];
+            for p in data {
+                for k in 0..3 {
+                    lo[k] = lo[k].min(p[k]);
+                    hi[k] = hi[k].max(p[k]);
+                }
+            }
+            // As f64, the exact values of the f32 components: a reader comparing in either
+            // precision finds the same numbers.
+            a["min"] = json!(lo.map(f64::from));
+            a["max"] = json!(hi.map(f64::from));
+        }
+        self.accessors.push(a);
+        self.accessors.len() - 1
+    }
+
+    fn indices(&mut self, data: &[u32]) -> usize {
+        let bytes: Vec<u8> = data.iter().flat_map(|c| c.to_le_bytes()).collect();
+        let view = self.view(&bytes, ELEMENT_ARRAY_BUFFER);
+        self.accessors.push(json!({
+            "bufferView": view,
+            "componentType": UNSIGNED_INT,
+            "count": data.len(),
+            "type": "SCALAR",
+        }));
+        self.accessors.len() - 1
+    }
+}
+
+/// The right-hand normal of a triangle with the length of twice its area.
+fn face_normal(mesh: &Mesh, t: [u32; 3]) -> [f64; 3] {
+    let p = t.map(|i| mesh.positions[i as usize].map(f64::from));
+    let u = [p[1][0] - p[0][0], p[1][1] - p[0][1], p[1][2] - p[0][2]];
+    let v = [p[2][0] - p[0][0], p[2][1] - p[0][1], p[2][2] - p[0][2]];
+    [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
+}
+
+fn unit(n: [f64; 3]) -> Option<[f32; 3]> {
+    let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+    (l > 0.0 && l.is_finite()).then(|| n.map(|c| (c / l) as f32))
+}
+
+/// Renumbers the vertices that `items` use, in order of first use.
+fn compact<const N: usize>(items: &[[u32; N]], vertices: usize) -> (Vec<u32>, Vec<u32>) {
+    let mut local = vec![u32::MAX; vertices];
+    let mut used = Vec::new();
+    let mut indices = Vec::with_capacity(items.len() * N);
+    for item in items {
+        for &v in item {
+            let slot = &mut local[v as usize];
+            if *slot == u32::MAX {
+                *slot = used.len() as u32;
+                used.push(v);
+            }
+            indices.push(*slot);
+        }
+    }
+    (used, indices)
+}
+
+/// The whole `.glb` file for `mesh`.
+pub fn encode_glb(mesh: &Mesh, opts: &WriteOptions) -> Result<Vec<u8>, IoError> {
+    mesh.validate().map_err(IoError::invalid)?;
+    if let Some(v) = mesh.positions.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+        return Err(IoError::unsupported(format!(
+            "vertex {v} has a coordinate that is not a finite number, which glTF cannot hold"
+        )));
+    }
+    // Triangles grouped by label, each group in mesh order.
+    let groups: Vec<(Option<RegionPair>, Vec<[u32; 3]>)> = if mesh.labels.is_empty() {
+        vec![(None, mesh.triangles.clone())]
+    } else {
+        let mut map = std::collections::BTreeMap::<RegionPair, Vec<[u32; 3]>>::new();
+        for (t, l) in mesh.triangles.iter().zip(&mesh.labels) {
+            map.entry(*l).or_default().push(*t);
+        }
+        map.into_iter().map(|(l, t)| (Some(l), t)).collect()
+    };
+    let groups: Vec<_> = groups.into_iter().filter(|(_, t)| !t.is_empty()).collect();
+
+    let mut b = Builder { bin: Vec::new(), views: Vec::new(), accessors: Vec::new() };
+    let mut materials = Vec::new();
+    let mut primitives = Vec::new();
+    for (k, (label, tris)) in groups.iter().enumerate() {
+        let (used, indices) = compact(tris, mesh.positions.len());
+        let positions: Vec<[f32; 3]> =
+            used.iter().map(|&v| mesh.positions[v as usize].map(|c| c + 0.0)).collect();
+        let mut attributes = json!({ "POSITION": b.vec3(&positions, true) });
+        if opts.normals {
+            // The group's own area-weighted normals: the fallback, and the side to face.
+            let mut local = vec![[0.0f64; 3]; used.len()];
+            for t in indices.chunks_exact(3) {
+                let n = face_normal(mesh, [0, 1, 2].map(|j| used[t[j] as usize]));
+                for &v in t {
+                    for c in 0..3 {
+                        local[v as usize][c] += n[c];
+                    }
+                }
+            }
+            let normals: Vec<[f32; 3]> = used
+                .iter()
+                .zip(&local)
+                .map(|(&v, face)| {
+                    let own = mesh.normals.get(v as usize).and_then(|n| unit(n.map(f64::from)));
+                    match (own, unit(*face)) {
+                        (Some(n), Some(f)) => {
+                            let d = n[0] * f[0] + n[1] * f[1] + n[2] * f[2];
+                            if d < 0.0 { n.map(|c| -c) } else { n }
+                        }
+                        (Some(n), None) => n,
+                        (None, Some(f)) => f,
+                        (None, None) => [0.0, 0.0, 1.0],
+                    }
+                })
+                .collect();
+            attributes["NORMAL"] = json!(b.vec3(&normals, false));
+        }
+        let indices = b.indices(&indices);
+        let (name, colour, extras) = match label {
+            Some(l) => (
+                format!("region {}_{}", l.0, l.1),
+                region_colour(k),
+                json!({ "skelform": { "regions": [l.0, l.1] } }),
+            ),
+            None => ("surface".to_string(), SURFACE_COLOUR, json!({})),
+        };
+        materials.push(json!({
+            "name": name,
+            "pbrMetallicRoughness": {
+                "baseColorFactor": [linear(colour[0]), linear(colour[1]), linear(colour[2]), 1.0],
+                "metallicFactor": 0.0,
+                "roughnessFactor": 0.6,
+            },
+            "doubleSided": true,
+        }));
+        let mut p = json!({
+            "attributes": attributes,
+            "indices": indices,
+            "material": materials.len() - 1,
+            "mode": MODE_TRIANGLES,
+        });
+        if label.is_some() {
+            p["extras"] = extras;
+        }
+        primitives.push(p);
+    }
+
+    let mut curve_primitives = Vec::new();
+    if !mesh.curves.is_empty() {
+        let mut map = std::collections::BTreeMap::<RegionTriple, Vec<[u32; 2]>>::new();
+        for c in &mesh.curves {
+            map.entry(c.label).or_default().push(c.v);
+        }
+        for (label, edges) in map {
+            let (used, indices) = compact(&edges, mesh.positions.len());
+            let positions: Vec<[f32; 3]> =
+                used.iter().map(|&v| mesh.positions[v as usize].map(|c| c + 0.0)).collect();
+            let pos = b.vec3(&positions, true);
+            let ind = b.indices(&indices);
+            curve_primitives.push(json!({
+                "attributes": { "POSITION": pos },
+                "indices": ind,
+                "mode": MODE_LINES,
+                "extras": { "skelform": { "curve": label.0 } },
+            }));
+        }
+    }
+
+    let mut doc = json!({
+        "asset": { "version": "2.0", "generator": concat!("skelform ", env!("CARGO_PKG_VERSION")) },
+    });
+    let mut meshes = Vec::new();
+    let mut nodes = Vec::new();
+    if !primitives.is_empty() {
+        meshes.push(json!({ "name": "surfaces", "primitives": primitives }));
+        nodes.push(json!({ "name": "surfaces", "mesh": meshes.len() - 1 }));
+    }
+    if !curve_primitives.is_empty() {
+        meshes.push(json!({ "name": "curves", "primitives": curve_primitives }));
+        nodes.push(json!({ "name": "curves", "mesh": meshes.len() - 1 }));
+    }
+    if !nodes.is_empty() {
+        doc["scene"] = json!(0);
+        doc["scenes"] = json!([{ "nodes": (0..nodes.len()).collect::<Vec<_>>() }]);
+        doc["nodes"] = json!(nodes);
+        doc["meshes"] = json!(meshes);
+        doc["materials"] = json!(materials);
+        doc["accessors"] = json!(b.accessors);
+        doc["bufferViews"] = json!(b.views);
+        doc["buffers"] = json!([{ "byteLength": b.bin.len() }]);
+    }
+    if materials.is_empty()
+        && let Some(d) = doc.as_object_mut()
+    {
+        d.remove("materials");
+    }
+
+    let mut text = serde_json::to_vec(&doc)
+        .map_err(|e| IoError::unsupported(format!("cannot serialise the glTF JSON: {e}")))?;
+    while !text.len().is_multiple_of(4) {
+        text.push(b' ');
+    }
+    let bin_chunk = if b.bin.is_empty() { 0 } else { 8 + b.bin.len() };
+    let total = 12 + 8 + text.len() + bin_chunk;
+    let total = u32::try_from(total)
+        .map_err(|_| IoError::unsupported("the mesh is too large for a .glb file (over 4 GiB)"))?;
+    let mut out = Vec::with_capacity(total as usize);
+    out.extend_from_slice(&MAGIC.to_le_bytes());
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&total.to_le_bytes());
+    out.extend_from_slice(&(text.len() as u32).to_le_bytes());
+    out.extend_from_slice(&CHUNK_JSON.to_le_bytes());
+    out.extend_from_slice(&text);
+    if !b.bin.is_empty() {
+        out.extend_from_slice(&(b.bin.len() as u32).to_le_bytes());
+        out.extend_from_slice(&CHUNK_BIN.to_le_bytes());
+        out.extend_from_slice(&b.bin);
+    }
+    Ok(out)
+}
+
+/// Writes `mesh` as binary glTF. Nothing is written for an invalid mesh.
+pub fn write_glb(w: &mut impl Write, mesh: &Mesh, opts: &WriteOptions) -> Result<(), IoError> {
+    let bytes = encode_glb(mesh, opts)?;
+    let mut w = buffered(w);
+    w.write_all(&bytes).map_err(IoError::write)?;
+    finish(w)
+}
+
+fn u32_at(bytes: &[u8], at: usize) -> Option<u32> {
+    Some(u32::from_le_bytes(*bytes.get(at..)?.first_chunk::<4>()?))
+}
+
+/// Reads a `.glb` file from its whole contents (see the module documentation for what is
+/// accepted).
+pub fn read_glb(bytes: &[u8]) -> Result<Mesh, IoError> {
+    let len = bytes.len();
+    let bad = |at: usize, msg: String| IoError::binary(at as u64, msg);
+    let (Some(magic), Some(version), Some(total)) =
+        (u32_at(bytes, 0), u32_at(bytes, 4), u32_at(bytes, 8))
+    else {
+        return Err(bad(len, format!("truncated glTF header: expected 12 bytes, found {len}")));
+    };
+    if magic != MAGIC {
+        return Err(bad(0, "not a binary glTF file: it does not start with 'glTF'".into()));
+    }
+    if version != 2 {
+        return Err(bad(4, format!("glTF version {version}; only version 2 is supported")));
+    }
+    if total as usize != len {
+        return Err(bad(
+            8,
+            format!("the header gives a length of {total} bytes, the file has {len}"),
+        ));
+    }
+    let (Some(json_len), Some(json_type)) = (u32_at(bytes, 12), u32_at(bytes, 16)) else {
+        return Err(bad(len, "truncated glTF file: no JSON chunk".into()));
+    };
+    if json_type != CHUNK_JSON {
+        return Err(bad(16, "the first chunk is not the JSON chunk".into()));
+    }
+    let json_end =
+        20usize.checked_add(json_len as usize).filter(|&e| e <= len).ok_or_else(|| {
+            bad(12, format!("the JSON chunk of {json_len} bytes runs past the end of the file"))
+        })?;
+    let doc: Value = serde_json::from_slice(&bytes[20..json_end])
+        .map_err(|e| bad(20, format!("the JSON chunk is not valid JSON: {e}")))?;
+    let mut bin: &[u8] = &[];
+    let mut at = json_end;
+    while at < len {
+        let (Some(clen), Some(ctype)) = (u32_at(bytes, at), u32_at(bytes, at + 4)) else {
+            return Err(bad(at, "truncated chunk header".into()));
+        };
+        let end = (at + 8).checked_add(clen as usize).filter(|&e| e <= len).ok_or_else(|| {
+            bad(at, format!("a chunk of {clen} bytes runs past the end of the file"))
+        })?;
+        if ctype == CHUNK_BIN && bin.is_empty() {
+            bin = &bytes[at + 8..end];
+        }
+        at = end;
+    }
+    Reader { doc: &doc, bin }.mesh()
+}
+
+struct Reader<'a> {
+    doc: &'a Value,
+    bin: &'a [u8],
+}
+
+fn json_err(msg: String) -> IoError {
+    IoError::binary(20, msg)
+}
+
+impl Reader<'_> {
+    fn list(&self, key: &str) -> &[Value] {
+        self.doc.get(key).and_then(Value::as_array).map_or(&[], |v| v.as_slice())
+    }
+
+    fn index(v: Option<&Value>, what: &str) -> Result<Option<usize>, IoError> {
+        match v {
+            None => Ok(None),
+            Some(v) => v
+                .as_u64()
+                .map(|i| Some(i as usize))
+                .ok_or_else(|| json_err(format!("{what} must be a whole number"))),
+        }
+    }
+
+    /// The bytes of accessor `i` and its element layout: (data, count, stride, component).
+    fn accessor(&self, i: usize, want: &str) -> Result<(&[u8], usize, usize, u32), IoError> {
+        let a = self
+            .list("accessors")
+            .get(i)
+            .ok_or_else(|| json_err(format!("accessor {i} does not exist")))?;
+        if a.get("sparse").is_some() {
+            return Err(json_err(format!("accessor {i} is sparse, which is not supported")));
+        }
+        let ty = a.get("type").and_then(Value::as_str).unwrap_or("");
+        if ty != want {
+            return Err(json_err(format!("accessor {i} has type '{ty}', expected {want}")));
+        }
+        let component = a.get("componentType").and_then(Value::as_u64).unwrap_or(0) as u32;
+        let size = match component {
+            5121 => 1,
+            5123 => 2,
+            5125 | 5126 => 4,
+            other => {
+                return Err(json_err(format!(
+                    "accessor {i} has unsupported component type {other}"
+                )));
+            }
+        };
+        let count = a.get("count").and_then(Value::as_u64).unwrap_or(0) as usize;
+        let elem = size * if want == "VEC3" { 3 } else { 1 };
+        let view_i = Self::index(a.get("bufferView"), "bufferView")?
+            .ok_or_else(|| json_err(format!("accessor {i} has no buffer view")))?;
+        let view = self
+            .list("bufferViews")
+            .get(view_i)
+            .ok_or_else(|| json_err(format!("buffer view {view_i} does not exist")))?;
+        let buffer = view.get("buffer").and_then(Value::as_u64).unwrap_or(u64::MAX);
+        let uri = self.list("buffers").get(buffer as usize).and_then(|b| b.get("uri"));
+        if buffer != 0 || uri.is_some() {
+            return Err(json_err(format!(
+                "buffer view {view_i} is not in the file's BIN chunk; external buffers are not supported"
+            )));
+        }
+        let v_off = view.get("byteOffset").and_then(Value::as_u64).unwrap_or(0) as usize;
+        let v_len = view.get("byteLength").and_then(Value::as_u64).unwrap_or(0) as usize;
+        let stride = view.get("byteStride").and_then(Value::as_u64).map_or(elem, |s| s as usize);
+        let a_off = a.get("byteOffset").and_then(Value::as_u64).unwrap_or(0) as usize;
+        let data = v_off
+            .checked_add(v_len)
+            .and_then(|end| self.bin.get(v_off..end))
+            .ok_or_else(|| json_err(format!("buffer view {view_i} runs past the BIN chunk")))?;
+        let needed = if count == 0 {
+            Some(0)
+        } else {
+            (count - 1)
+                .checked_mul(stride)
+                .and_then(|n| n.checked_add(elem))
+                .and_then(|n| n.checked_add(a_off))
+        };
+        if stride < elem || needed.is_none_or(|n| n > data.len()) {
+            return Err(json_err(format!("accessor {i} runs past its buffer view")));
+        }
+        Ok((&data[a_off..], count, stride, component))
+    }
+
+    fn vec3(&self, i: usize) -> Result<Vec<[f32; 3]>, IoError> {
+        let (data, count, stride, component) = self.accessor(i, "VEC3")?;
+        if component != FLOAT {
+            return Err(json_err(format!("accessor {i}: only float vectors are supported")));
+        }
+        Ok((0..count)
+            .map(|k| {
+                std::array::from_fn(|c| {
+                    let at = k * stride + 4 * c;
+                    f32::from_le_bytes([data[at], data[at + 1], data[at + 2], data[at + 3]])
+                })
+            })
+            .collect())
+    }
+
+    fn scalars(&self, i: usize) -> Result<Vec<u32>, IoError> {
+        let (data, count, stride, component) = self.accessor(i, "SCALAR")?;
+        Ok((0..count)
+            .map(|k| {
+                let at = k * stride;
+                match component {
+                    5121 => u32::from(data[at]),
+                    5123 => u32::from(u16::from_le_bytes([data[at], data[at + 1]])),
+                    _ => u32::from_le_bytes([data[at], data[at + 1], data[at + 2], data[at + 3]]),
+                }
+            })
+            .collect())
+    }
+
+    fn mesh(&self) -> Result<Mesh, IoError> {
+        for (k, n) in self.list("nodes").iter().enumerate() {
+            let moved = ["matrix", "translation", "rotation", "scale"].iter().any(|key| {
+                n.get(*key).is_some_and(|v| {
+                    let identity: &[f64] = match *key {
+                        "matrix" => {
+                            &[1., 0., 0., 0., 0., 1., 0., 0., 0., 0., 1., 0., 0., 0., 0., 1.]
+                        }
+                        "translation" => &[0., 0., 0.],
+                        "rotation" => &[0., 0., 0., 1.],
+                        _ => &[1., 1., 1.],
+                    };
+                    let got: Vec<f64> = v
+                        .as_array()
+                        .map_or(Vec::new(), |a| a.iter().filter_map(Value::as_f64).collect());
+                    got != identity
+                })
+            });
+            if moved {
+                return Err(json_err(format!(
+                    "node {k} transforms its mesh; node transforms are not supported"
+                )));
+            }
+        }
+        let mut welder = Welder::new();
+        let mut normals: Vec<Option<[f32; 3]>> = Vec::new();
+        let mut mesh = Mesh::default();
+        let mut labels: Vec<Option<RegionPair>> = Vec::new();
+        for (mi, m) in self.list("meshes").iter().enumerate() {
+            let prims =
+                m.get("primitives").and_then(Value::as_array).map_or(&[][..], |v| v.as_slice());
+            for (pi, p) in prims.iter().enumerate() {
+                let attrs = p.get("attributes");
+                let pos_i = Self::index(attrs.and_then(|a| a.get("POSITION")), "POSITION")?
+                    .ok_or_else(|| json_err(format!("mesh {mi} primitive {pi} has no POSITION")))?;
+                let positions = self.vec3(pos_i)?;
+                let prim_normals = match Self::index(attrs.and_then(|a| a.get("NORMAL")), "NORMAL")?
+                {
+                    Some(i) => {
+                        let n = self.vec3(i)?;
+                        if n.len() != positions.len() {
+                            return Err(json_err(format!(
+                                "mesh {mi} primitive {pi}: {} normals for {} positions",
+                                n.len(),
+                                positions.len()
+                            )));
+                        }
+                        Some(n)
+                    }
+                    None => None,
+                };
+                let index = match Self::index(p.get("indices"), "indices")? {
+                    Some(i) => self.scalars(i)?,
+                    None => (0..positions.len() as u32).collect(),
+                };
+                if let Some(&bad) = index.iter().find(|&&v| v as usize >= positions.len()) {
+                    return Err(json_err(format!(
+                        "mesh {mi} primitive {pi} uses vertex {bad} of {}",
+                        positions.len()
+                    )));
+                }
+                let global: Vec<u32> = positions
+                    .iter()
+                    .enumerate()
+                    .map(|(k, q)| {
+                        let g = welder.index(*q);
+                        if g as usize == normals.len() {
+                            normals.push(prim_normals.as_ref().map(|n| n[k]));
+                        }
+                        g
+                    })
+                    .collect();
+                let extras = p.get("extras").and_then(|e| e.get("skelform"));
+                let ids = |key: &str| -> Option<Vec<u32>> {
+                    extras?
+                        .get(key)?
+                        .as_array()?
+                        .iter()
+                        .map(|v| v.as_u64().and_then(|x| u32::try_from(x).ok()))
+                        .collect()
+                };
+                match p.get("mode").and_then(Value::as_u64).unwrap_or(u64::from(MODE_TRIANGLES))
+                    as u32
+                {
+                    MODE_TRIANGLES => {
+                        let label = ids("regions").and_then(|r| match r[..] {
+                            [a, b] if a != b => Some(RegionPair::new(a, b)),
+                            _ => None,
+                        });
+                        for t in index.chunks_exact(3) {
+                            mesh.triangles.push([0, 1, 2].map(|j| global[t[j] as usize]));
+                            labels.push(label);
+                        }
+                    }
+                    MODE_LINES => {
+                        if let Some([a, b, c]) =
+                            ids("curve").as_deref().and_then(|r| <[u32; 3]>::try_from(r).ok())
+                        {
+                            for e in index.chunks_exact(2) {
+                                mesh.curves.push(CurveEdge {
+                                    v: [global[e[0] as usize], global[e[1] as usize]],
+                                    label: RegionTriple::new([a, b, c]),
+                                });
+                            }
+                        }
+                    }
+                    other => {
+                        return Err(json_err(format!(
+                            "mesh {mi} primitive {pi} has mode {other}; only triangles (4) and lines (1) are supported"
+                        )));
+                    }
+                }
+            }
+        }
+        mesh.positions = welder.positions;
+        if !normals.is_empty() && normals.iter().all(Option::is_some) {
+            mesh.normals = normals.into_iter().flatten().collect();
+        }
+        if !labels.is_empty() && labels.iter().all(Option::is_some) {
+            mesh.labels = labels.into_iter().flatten().collect();
+        }
+        Ok(mesh)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn linear_colours() {
+        assert_eq!(linear(0), 0.0);
+        assert_eq!(linear(255), 1.0);
+        assert!((linear(188) - 0.5).abs() < 0.01);
+    }
+
+    /// A tetrahedron split among three region pairs, with normals and a curve: the
+    /// synthetic stand-in for the saucer-and-square scene (three surfaces, one curve).
+    fn three_pairs() -> Mesh {
+        Mesh {
+            positions: vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [0.0, 0.0, 1.0],
+                [-0.5, 2.0, 0.25],
+            ],
+            normals: vec![
+                [0.0, 0.0, -2.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [0.0, 0.0, 1.0],
+                [0.0; 3],
+            ],
+            triangles: vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3], [2, 4, 3]],
+            labels: vec![
+                RegionPair(1, 2),
+                RegionPair(1, 3),
+                RegionPair(1, 2),
+                RegionPair(2, 3),
+                RegionPair(1, 2),
+            ],
+            curves: vec![
+                CurveEdge { v: [0, 1], label: RegionTriple([1, 2, 3]) },
+                CurveEdge { v: [1, 3], label: RegionTriple([1, 2, 3]) },
+            ],
+        }
+    }
+
+    fn chunks(glb: &[u8]) -> (Value, &[u8]) {
+        assert_eq!(&glb[0..4], b"glTF");
+        assert_eq!(u32_at(glb, 4), Some(2));
+        assert_eq!(u32_at(glb, 8), Some(glb.len() as u32));
+        let jl = u32_at(glb, 12).unwrap() as usize;
+        assert_eq!(&glb[16..20], b"JSON");
+        assert_eq!(jl % 4, 0);
+        let doc: Value = serde_json::from_slice(&glb[20..20 + jl]).unwrap();
+        let bl = u32_at(glb, 20 + jl).unwrap() as usize;
+        assert_eq!(&glb[24 + jl..28 + jl], b"BIN\0");
+        assert_eq!(bl % 4, 0);
+        assert_eq!(28 + jl + bl, glb.len());
+        (doc, &glb[28 + jl..])
+    }
+
+    #[test]
+    fn one_primitive_and_material_per_region_pair() {
+        let m = three_pairs();
+        let glb = encode_glb(&m, &WriteOptions::default()).unwrap();
+        let (doc, bin) = chunks(&glb);
+        assert_eq!(doc["buffers"][0]["byteLength"].as_u64(), Some(bin.len() as u64));
+        let materials = doc["materials"].as_array().unwrap();
+        assert_eq!(materials.len(), 3);
+        assert_eq!(materials[0]["name"], "region 1_2");
+        assert_eq!(materials[2]["name"], "region 2_3");
+        let prims = doc["meshes"][0]["primitives"].as_array().unwrap();
+        let counts: Vec<u64> = prims
+            .iter()
+            .map(|p| {
+                doc["accessors"][p["indices"].as_u64().unwrap() as usize]["count"].as_u64().unwrap()
+                    / 3
+            })
+            .collect();
+        assert_eq!(counts, vec![3, 1, 1]);
+        assert_eq!(prims[1]["extras"]["skelform"]["regions"], json!([1, 3]));
+        // Every buffer view lies in the BIN chunk, 4-byte aligned; every accessor in its view.
+        for v in doc["bufferViews"].as_array().unwrap() {
+            let (off, len) = (v["byteOffset"].as_u64().unwrap(), v["byteLength"].as_u64().unwrap());
+            assert_eq!(off % 4, 0);
+            assert!(off + len <= bin.len() as u64);
+        }
+        for a in doc["accessors"].as_array().unwrap() {
+            let v = &doc["bufferViews"][a["bufferView"].as_u64().unwrap() as usize];
+            let per = if a["type"] == "VEC3" { 12 } else { 4 };
+            assert_eq!(a["count"].as_u64().unwrap() * per, v["byteLength"].as_u64().unwrap());
+        }
+        // POSITION min and max are the exact bounds of what is stored.
+        let reader = Reader { doc: &doc, bin };
+        for p in prims {
+            let i = p["attributes"]["POSITION"].as_u64().unwrap() as usize;
+            let pos = reader.vec3(i).unwrap();
+            for k in 0..3 {
+                let lo = pos.iter().map(|q| q[k]).fold(f32::INFINITY, f32::min);
+                let hi = pos.iter().map(|q| q[k]).fold(f32::NEG_INFINITY, f32::max);
+                assert_eq!(doc["accessors"][i]["min"][k].as_f64(), Some(f64::from(lo)));
+                assert_eq!(doc["accessors"][i]["max"][k].as_f64(), Some(f64::from(hi)));
+            }
+            // Normals are unit length (the zero normal replaced from the faces).
+            let n = reader.vec3(p["attributes"]["NORMAL"].as_u64().unwrap() as usize).unwrap();
+            assert_eq!(n.len(), pos.len());
+            for v in n {
+                assert!((v.iter().map(|c| c * c).sum::<f32>() - 1.0).abs() < 1e-5, "{v:?}");
+            }
+        }
+        // The curve is a line primitive without a material.
+        let curves = &doc["meshes"][1]["primitives"][0];
+        assert_eq!(curves["mode"], 1);
+        assert!(curves.get("material").is_none());
+    }
+
+    #[test]
+    fn normals_face_the_winding() {
+        // Vertex 0's normal points down (−z) but its (1, 2) faces [0, 2, 1] wind towards −z
+        // while [0, 3, 2] winds towards −x: the written normal agrees with their sum.
+        let m = three_pairs();
+        let glb = encode_glb(&m, &WriteOptions::default()).unwrap();
+        let (doc, bin) = chunks(&glb);
+        let reader = Reader { doc: &doc, bin };
+        let p = &doc["meshes"][0]["primitives"][0];
+        let n = reader.vec3(p["attributes"]["NORMAL"].as_u64().unwrap() as usize).unwrap();
+        assert_eq!(n[0], [0.0, 0.0, -1.0]);
+        let mut flipped = m.clone();
+        flipped.normals[0] = [0.0, 0.0, 3.0];
+        let glb = encode_glb(&flipped, &WriteOptions::default()).unwrap();
+        let (doc, bin) = chunks(&glb);
+        let n = Reader { doc: &doc, bin }
+            .vec3(p["attributes"]["NORMAL"].as_u64().unwrap() as usize)
+            .unwrap();
+        assert_eq!(n[0], [0.0, 0.0, -1.0]);
+    }
+
+    #[test]
+    fn round_trip_keeps_triangles_labels_and_curves() {
+        let m = three_pairs();
+        let back = read_glb(&encode_glb(&m, &WriteOptions::default()).unwrap()).unwrap();
+        assert_eq!(back.positions.len(), m.positions.len());
+        assert_eq!(back.label_counts(), m.label_counts());
+        assert_eq!(back.curves.len(), 2);
+        assert_eq!(back.normals.len(), back.positions.len());
+        let corners = |mesh: &Mesh| {
+            let mut v: Vec<_> = mesh
+                .triangles
+                .iter()
+                .zip(&mesh.labels)
+                .map(|(t, l)| (t.map(|i| mesh.positions[i as usize].map(f32::to_bits)), *l))
+                .collect();
+            v.sort();
+            v
+        };
+        assert_eq!(corners(&back), corners(&m));
+        // Unlabelled, without normals.
+        let plain = Mesh { labels: Vec::new(), curves: Vec::new(), ..m.clone() };
+        let opts = WriteOptions { normals: false, ..Default::default() };
+        let glb = encode_glb(&plain, &opts).unwrap();
+        let (doc, _) = chunks(&glb);
+        assert_eq!(doc["materials"].as_array().unwrap().len(), 1);
+        assert!(doc["meshes"][0]["primitives"][0]["attributes"].get("NORMAL").is_none());
+        let back = read_glb(&glb).unwrap();
+        assert!(back.labels.is_empty() && back.normals.is_empty());
+        assert_eq!(back.triangles.len(), 5);
+    }
+
+    #[test]
+    fn an_empty_mesh_is_a_valid_empty_file() {
+        let glb = encode_glb(&Mesh::default(), &WriteOptions::default()).unwrap();
+        assert_eq!(u32_at(&glb, 8), Some(glb.len() as u32));
+        let doc: Value = serde_json::from_slice(&glb[20..]).unwrap();
+        assert!(doc.get("meshes").is_none() && doc.get("buffers").is_none());
+        assert!(read_glb(&glb).unwrap().triangles.is_empty());
+    }
+
+    #[test]
+    fn bad_meshes_and_bad_files_are_errors() {
+        let mut m = three_pairs();
+        m.positions[4][0] = f32::NAN;
+        assert!(
+            encode_glb(&m, &WriteOptions::default()).unwrap_err().to_string().contains("vertex 4")
+        );
+        let good = encode_glb(&three_pairs(), &WriteOptions::default()).unwrap();
+        let e = read_glb(&good[..good.len() - 4]).unwrap_err();
+        assert!(e.to_string().contains("length"), "{e}");
+        let e = read_glb(b"glTF").unwrap_err();
+        assert!(e.to_string().contains("truncated"), "{e}");
+        let mut wrong = good.clone();
+        wrong[0] = b'x';
+        assert!(read_glb(&wrong).unwrap_err().to_string().contains("does not start with"));
+        // Every truncation and every flipped byte gives an error or a valid mesh, never a panic.
+        for n in 0..good.len() {
+            if let Ok(m) = read_glb(&good[..n]) {
+                assert!(m.validate().is_ok());
+            }
+        }
+        for k in (0..good.len()).step_by(3) {
+            let mut b = good.clone();
+            b[k] ^= 0x5A;
+            if let Ok(m) = read_glb(&b) {
+                assert!(m.validate().is_ok());
+            }
+        }
+    }
+
+    #[test]
+    fn compact_numbers_vertices_by_first_use() {
+        let (used, idx) = compact(&[[5, 2, 9], [2, 9, 7]], 10);
+        assert_eq!(used, vec![5, 2, 9, 7]);
+        assert_eq!(idx, vec![0, 1, 2, 1, 2, 3]);
+    }
+}

@@ -1,0 +1,841 @@
+//! Healed marching cubes (Nguyen 2016, "Triangulation of non-manifold implicit surfaces using
+//! healing techniques"): marching cubes for surfaces that cross themselves.
+//!
+//! Where `f = 0` crosses itself (`xyz = 0`, a plane through a sphere, the Whitney umbrella),
+//! `f` changes sign across each sheet, so near the crossing its signs form a checkerboard and
+//! marching cubes joins the sheets wrongly: ragged tubes and caps instead of two sheets
+//! passing through each other. Healing finds the crossings and re-triangulates the cubes
+//! around them so that the sheets meet along the self-intersection curve.
+//!
+//! # The pipeline
+//!
+//! 1. Marching cubes on the lattice, exactly as [`crate::grid`] does it.
+//! 2. **Critical vertices** (thesis eq. 4.1): marching-cubes vertices where the gradient is
+//!    small, `|f_x| + |f_y| + |f_z| < ε` ([`Epsilon::Absolute`]), or, by default,
+//!    `|∇f| < ρ · cell · ‖H‖` ([`Epsilon::Cells`]): a Newton step for `∇f = 0` would be
+//!    shorter than `ρ` cells, which does not depend on how `f` is scaled. Their cubes are the
+//!    critical cubes, counted by the thesis's classes 10, 12 and 13 (see [`config`]).
+//! 3. **Self-intersection points**: on each face of a critical class 10/12/13 cube whose four
+//!    edges all cross the surface, the thesis's point (where the two segments joining
+//!    opposite edge points meet) seeds a Gauss–Newton solve on that face for `∇f = 0, f = 0`;
+//!    every critical vertex seeds the same solve in space. A sample-based scan adds seeds
+//!    where `|f|` has a local minimum among same-signed samples (surfaces that never change
+//!    sign, which no two-point method sees).
+//! 4. **Curves and points**: each singular point found is classified by its Hessian: on a
+//!    crossing curve (two sheets), on a bare line (a "handle"), a cone apex, an isolated
+//!    point, or degenerate. Curves are traced by predictor–corrector continuation (the
+//!    thesis's future work) and cut at lattice faces (the thesis's face points), triple
+//!    points (its class-13 interior points) and pinch points.
+//! 5. **Healing**: the marching-cubes triangles of the cubes round the curves are replaced.
+//!    The region grows until marching cubes is right on its boundary; the segments marching
+//!    cubes leaves there (the traces of the sheet pieces leaving the curves) are each zipped
+//!    onto the curve they follow, and each nappe round a cone apex is fanned to the apex (see
+//!    `zone`). The thesis fans each piece of one cube onto that cube's segment; along a
+//!    straight crossing the bands make exactly its triangles (8 per class-10 cube, 24 in the
+//!    class-13 cube of a triple point), so its Xano counts come out exactly.
+//! 6. **Normals** from the gradient. On a self-intersection the gradient vanishes, so each
+//!    curve vertex takes the normal of one sheet (the gradient just off the curve, into one
+//!    piece); with [`Options::split_sheets`] every sheet gets its own copy of the vertex and
+//!    its own normal (for smooth shading).
+//!
+//! # Beyond the thesis
+//!
+//! - **More than one cell can resolve.** The thesis heals cube by cube with patterns for one
+//!   self-intersection segment (classes 10, 12) or one triple point (13) and assumes the
+//!   rest hold at most one self-intersection point (§4.2, §5.3). Its future work proposes
+//!   subdividing critical cubes. We do not subdivide: new vertices on a subdivided face would
+//!   have to be shared with the neighbouring cube, and no subdivision of lattice faces shows
+//!   a crossing whose sheets are symmetric about the lattice axes (the Whitney umbrella's:
+//!   no axis-aligned square has one corner in each of its four wedges, at any size).
+//!   Instead, what subdivision is for is done directly: the curves are followed at a quarter
+//!   of a cell by continuation (so one cell may hold several segments, a turn, a triple or a
+//!   pinch point), every lattice edge on the healed region's boundary is searched for
+//!   crossings its samples miss (the extremum of `f` along it, by bisection on the
+//!   derivative), every boundary face with four crossings has its saddle found on the field,
+//!   and the region grows until both agree with marching cubes. What the bands still cannot
+//!   explain keeps the marching-cubes triangles and is reported ([`Stats::unresolved`]).
+//! - **Point singularities** are found by minimising `|∇f|` and `|f|` (Gauss–Newton from
+//!   the critical vertices) and classified by the Hessian. A cone apex (the double cone)
+//!   is healed: marching cubes leaves the two nappes apart with blunt tips, here each nappe
+//!   is fanned to the apex, which becomes a vertex shared by both (a non-manifold vertex;
+//!   every edge has two triangles). Isolated points and degenerate points are reported.
+//! - **Bare lines**: the Whitney umbrella's handle (`z < 0`), where `f ≥ 0` touches zero
+//!   along a line without changing sign, is traced through the pinch point and reported as a
+//!   singular line; no triangle is made there.
+//!
+//! # What is guaranteed
+//!
+//! - Every triangle edge inside the domain has two triangles, except the edges of the
+//!   self-intersection curves, which have four (two sheets crossing): the output is **not** a
+//!   manifold, by design. With `split_sheets` the curve edges are doubled instead (two per
+//!   sheet), and welding vertices by position gives back the four.
+//! - A healed region is used only when every curve edge in it got exactly four triangles and
+//!   every boundary segment was explained; otherwise its marching-cubes triangles are kept
+//!   and it is reported in [`Stats::unresolved`]. So the mesh never has a hole that marching
+//!   cubes would not have (boundary edges only where the surface leaves the domain).
+//! - Self-intersection curves are in [`Mesh::curves`] with the label `RegionTriple([0, 0,
+//!   0])`: PLY writes them as the `edge` element, OBJ as `l` lines.
+//! - Bare lines and points (a handle, an isolated point) are reported in
+//!   [`Stats::singular_lines`] and [`Stats::singular_points`], never meshed: a surface that
+//!   does not change sign has no sheets to mesh.
+//! - The output does not depend on the number of threads.
+//!
+//! Not guaranteed: that every self-intersection is found (a curve no seed comes near, one
+//! much thinner than a cell); triangle orientation is towards `f > 0`, which changes from one
+//! side of a crossing to the other, so sheets are not consistently oriented across curves.
+
+pub mod config;
+mod local;
+mod network;
+mod trace;
+mod zone;
+
+use std::time::{Duration, Instant};
+
+use glam::DVec3;
+use rayon::prelude::*;
+use rustc_hash::{FxHashMap, FxHashSet};
+use skelform_field::Aabb;
+use skelform_field::Field;
+use skelform_field::control::{Control, Progress};
+use skelform_field::grid::{Grid, Volume, sample};
+use skelform_mesh::{CurveEdge, Mesh, RegionTriple};
+
+use crate::Error;
+use crate::grid::cell::{T_MIN, case_of};
+use crate::grid::cube::{EDGES, FACES, edge_between, other_axes};
+use crate::grid::table::table;
+use crate::grid::{self, GridVertex, Place, Placement, Resolution, extract, place_vertices};
+use crate::refine::{RootOptions, face_normals};
+use config::ThesisClass;
+use local::{Probe, sym_eigen};
+use trace::{TraceOptions, Tracer};
+use zone::{Lattice, Outcome};
+
+pub use trace::{PointKind, SingularPoint};
+pub use zone::Unresolved;
+
+/// The label of self-intersection curves in [`Mesh::curves`].
+pub const SELF_INTERSECTION: RegionTriple = RegionTriple([0, 0, 0]);
+
+/// When a marching-cubes vertex counts as critical (thesis eq. 4.1).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Epsilon {
+    /// `|f_x| + |f_y| + |f_z| < ε`, the thesis's test (it uses ε = 0.2 at cell 0.15). Depends
+    /// on how the field is scaled.
+    Absolute(f64),
+    /// `|∇f| < ρ · cell · ‖H‖`: one Newton step for `∇f = 0` from the vertex is shorter than
+    /// `ρ` cells. Does not depend on the field's scale.
+    Cells(f64),
+}
+
+/// Settings of the healed polygonizer.
+#[derive(Clone, Debug)]
+pub struct Options {
+    /// The box to sample; the lattice covers it (grown to whole cells, centred).
+    pub domain: Aabb,
+    pub resolution: Resolution,
+    /// Move vertices onto the surface by root finding (else linear interpolation).
+    pub refine: bool,
+    /// Root-finding tolerance, as a fraction of the cell.
+    pub tolerance: f64,
+    /// Compute per-vertex normals from the gradient.
+    pub normals: bool,
+    /// Refuse, before allocating, work that would need more memory than this (bytes).
+    pub max_memory: u64,
+    /// The critical-vertex test.
+    pub epsilon: Epsilon,
+    /// Give each sheet its own copy of each self-intersection vertex (its own normal), so that
+    /// each sheet shades smoothly; the curve edges stay on the first copy.
+    pub split_sheets: bool,
+    /// Most cubes all healed regions together may have; beyond it nothing is healed (and the
+    /// regions are reported).
+    pub max_healed_cubes: usize,
+    pub control: Control,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Self {
+            domain: Aabb::cube(1.0),
+            resolution: Resolution::Samples(128),
+            refine: true,
+            tolerance: 1e-4,
+            normals: true,
+            max_memory: 4 << 30,
+            epsilon: Epsilon::Cells(2.0),
+            split_sheets: false,
+            max_healed_cubes: 1_000_000,
+            control: Control::default(),
+        }
+    }
+}
+
+/// Critical cubes by the thesis's classes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CriticalCubes {
+    pub class10: usize,
+    pub class12: usize,
+    pub class13: usize,
+    /// Critical cubes of other configurations (the thesis leaves them; here they are healed
+    /// like any other when a curve passes through them).
+    pub other: usize,
+}
+
+impl CriticalCubes {
+    pub fn total(&self) -> usize {
+        self.class10 + self.class12 + self.class13 + self.other
+    }
+}
+
+/// A traced self-intersection curve.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SelfIntersection {
+    /// Points along it, about a quarter of a cell apart.
+    pub points: Vec<DVec3>,
+    pub closed: bool,
+    pub length: f64,
+    /// Whether it is meshed (its region was healed).
+    pub healed: bool,
+}
+
+/// A line where the zero set is the line alone (the Whitney umbrella's handle): reported, not
+/// meshed.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SingularLine {
+    pub points: Vec<DVec3>,
+    pub length: f64,
+}
+
+/// What a run did, for `--stats`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Stats {
+    pub grid_dims: [usize; 3],
+    pub cell: f64,
+    pub samples: u64,
+    pub non_finite_samples: u64,
+    pub min_sample: f32,
+    pub max_sample: f32,
+    pub refine_evaluations: u64,
+    pub normal_evaluations: u64,
+    /// Gradients for the critical-vertex test (and its Hessians).
+    pub critical_evaluations: u64,
+    /// Evaluations of the singular-point search, tracing and zone checks.
+    pub search_evaluations: u64,
+    /// Triangles of plain marching cubes on the same lattice.
+    pub mc_triangles: usize,
+    /// Marching-cubes triangles kept (outside healed regions).
+    pub kept_mc_triangles: usize,
+    /// Triangles made by healing.
+    pub healing_triangles: usize,
+    pub triangles: usize,
+    pub vertices: usize,
+    pub critical_vertices: usize,
+    pub critical_cubes: CriticalCubes,
+    /// The thesis's face points: where the segments joining opposite crossings meet, on the
+    /// faces with four crossings of critical class 10/12/13 cubes (seeds for the search).
+    pub face_points: usize,
+    /// Seeds given to the singular-point search (after skipping those near what was found).
+    pub seeds_tried: u64,
+    /// Healed regions, and their cubes.
+    pub zones: usize,
+    pub healed_cubes: usize,
+    /// Regions left as marching cubes made them, and why.
+    pub unresolved: Vec<Unresolved>,
+    /// Lattice edges and faces checked on the field while growing healed regions.
+    pub edges_checked: usize,
+    pub faces_checked: usize,
+    /// Edges of self-intersection curves in the mesh.
+    pub curve_edges: usize,
+    pub curves: Vec<SelfIntersection>,
+    pub singular_points: Vec<SingularPoint>,
+    pub singular_lines: Vec<SingularLine>,
+    pub sampling: Duration,
+    pub extraction: Duration,
+    pub refinement: Duration,
+    pub search: Duration,
+    pub healing: Duration,
+    pub normals: Duration,
+}
+
+impl Stats {
+    /// Every field evaluation the run made.
+    pub fn evaluations(&self) -> u64 {
+        self.samples
+            + self.refine_evaluations
+            + self.normal_evaluations
+            + self.critical_evaluations
+            + self.search_evaluations
+    }
+}
+
+const CHUNK: usize = 1024;
+
+fn report(control: &Control, phase: &'static str, done: u64, total: u64) -> Result<(), Error> {
+    match control.report(Progress { phase, done, total: Some(total) }) {
+        std::ops::ControlFlow::Continue(()) => Ok(()),
+        std::ops::ControlFlow::Break(()) => Err(Error::Cancelled),
+    }
+}
+
+/// Polygonizes `field` (zero set, inside negative), healing its self-intersections.
+///
+/// ```
+/// use skelform_field::{Aabb, FnField, DVec3};
+/// use skelform_polygonize::grid::Resolution;
+/// use skelform_polygonize::healed::{polygonize, Options};
+/// // Two planes crossing along the x axis.
+/// let f = FnField(|p: DVec3| p.y * p.z);
+/// let opts = Options { domain: Aabb::cube(1.0), resolution: Resolution::Samples(12), ..Options::default() };
+/// let (mesh, stats) = polygonize(&f, &opts).unwrap();
+/// assert!(stats.curve_edges > 0);
+/// assert_eq!(mesh.curves.len(), stats.curve_edges);
+/// ```
+pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats), Error> {
+    check_options(options)?;
+    let control = &options.control;
+    let gopts = grid::Options {
+        domain: options.domain,
+        resolution: options.resolution,
+        ..grid::Options::default()
+    };
+    let grid = grid::grid_for(&gopts)?;
+    let needed = grid::memory_needed(&grid);
+    if needed > options.max_memory {
+        return Err(Error::TooMuchMemory { needed, limit: options.max_memory, dims: grid.dims });
+    }
+    let h = grid.cell;
+    let mut stats = Stats { grid_dims: grid.dims, cell: h, ..Stats::default() };
+
+    // 1. Marching cubes.
+    let t = Instant::now();
+    let volume = sample(field, &grid, control)?;
+    stats.sampling = t.elapsed();
+    stats.samples = grid.sample_count();
+    stats.non_finite_samples = volume.non_finite;
+    let (lo, hi) = volume
+        .values
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+    stats.min_sample = lo;
+    stats.max_sample = hi;
+    let t = Instant::now();
+    let ex = extract(&volume, control).map_err(|_| Error::Cancelled)?;
+    stats.extraction = t.elapsed();
+    stats.mc_triangles = ex.triangles.len();
+
+    let t = Instant::now();
+    let how = Placement {
+        refine: options.refine,
+        roots: RootOptions { tolerance: options.tolerance, t_min: T_MIN, ..RootOptions::default() },
+        tolerance: options.tolerance,
+    };
+    let value = |p: [u32; 3]| volume.get(p[0] as usize, p[1] as usize, p[2] as usize) as f64;
+    let ends = |i: usize| {
+        let v = &ex.vertices[i];
+        [value(v.base), v.tip().map_or(0.0, value)]
+    };
+    let (positions, evals) = place_vertices(field, &grid, &ex.vertices, ends, &how);
+    stats.refine_evaluations = evals;
+    stats.refinement = t.elapsed();
+    if control.is_cancelled() {
+        return Err(Error::Cancelled);
+    }
+
+    // 2. Gradients everywhere (normals and the critical test).
+    let t = Instant::now();
+    let lat = Lattice::new(grid);
+    let grads = gradients(field, &positions);
+    stats.normal_evaluations = positions.len() as u64;
+    let critical = critical_vertices(field, &positions, &grads, options.epsilon, h, &mut stats);
+    stats.critical_vertices = critical.iter().filter(|&&c| c).count();
+    let cube_of_tri: Vec<Option<usize>> =
+        ex.triangles.par_iter().map(|t| triangle_cube(&lat, &ex.vertices, t)).collect();
+    let mut critical_cubes: Vec<usize> = ex
+        .triangles
+        .iter()
+        .zip(&cube_of_tri)
+        .filter(|(t, _)| t.iter().any(|&v| critical[v as usize]))
+        .filter_map(|(_, c)| *c)
+        .collect();
+    critical_cubes.sort_unstable();
+    critical_cubes.dedup();
+    let critical_set: FxHashSet<usize> = critical_cubes.iter().copied().collect();
+    let edge_vertex =
+        zone::edge_vertices(&lat, &ex.vertices, &ex.triangles, &cube_of_tri, &critical_set);
+
+    // 3–4. Seeds, singular points and curves.
+    let mut tracer = Tracer::new(
+        Probe::new(field, h),
+        grid,
+        TraceOptions { step: 0.25, max_steps: 64 * (grid.dims.iter().sum::<usize>() + 16) },
+    );
+    let tbl = table();
+    let mut face_seeds: Vec<(DVec3, usize)> = Vec::new();
+    for &ci in &critical_cubes {
+        let c = lat.coords(ci);
+        let v = lat.corner_values(&volume, c);
+        let case = case_of(&v);
+        match config::thesis_class(case as u8) {
+            Some(ThesisClass::Ten) => stats.critical_cubes.class10 += 1,
+            Some(ThesisClass::Twelve) => stats.critical_cubes.class12 += 1,
+            Some(ThesisClass::Thirteen) => stats.critical_cubes.class13 += 1,
+            None => {
+                stats.critical_cubes.other += 1;
+                continue;
+            }
+        }
+        let amb = tbl.ambiguous[case];
+        for f in 0..6 {
+            if amb & (1 << f) != 0
+                && let Some(p) = face_point(&lat, &edge_vertex, &positions, c, f)
+            {
+                face_seeds.push((p, f / 2));
+            }
+        }
+    }
+    let scan = scan_seeds(&volume);
+    let total = (face_seeds.len() + stats.critical_vertices + scan.len()) as u64;
+    let mut done = 0u64;
+    stats.face_points = face_seeds.len();
+    for &(p, axis) in &face_seeds {
+        let (b, c) = other_axes(axis);
+        tracer.seed(p, &[unit(b), unit(c)]);
+        done += 1;
+        if done.is_multiple_of(64) {
+            report(control, "searching singular points", done, total)?;
+        }
+    }
+    let all = [DVec3::X, DVec3::Y, DVec3::Z];
+    let seeds = critical.iter().enumerate().filter(|(_, c)| **c).map(|(i, _)| positions[i]);
+    for p in seeds.chain(scan.iter().copied()) {
+        tracer.seed(p, &all);
+        done += 1;
+        if done.is_multiple_of(64) {
+            report(control, "searching singular points", done, total)?;
+        }
+    }
+    stats.search = t.elapsed();
+
+    // 5. Healing, tracing again from any self-intersection found on a region's boundary.
+    let t = Instant::now();
+    let mut zone_probe = Probe::new(field, h);
+    let mut rounds = 0;
+    let mut trust_decider = false;
+    let (net, healing) = loop {
+        rounds += 1;
+        let net = network::build(&mut tracer);
+        report(control, "healing", 0, 1)?;
+        let input = zone::Input {
+            grid,
+            volume: &volume,
+            vertices: &ex.vertices,
+            positions: &positions,
+            triangles: &ex.triangles,
+            cube_of_tri: &cube_of_tri,
+            net: &net,
+            max_cubes: options.max_healed_cubes,
+        };
+        if trust_decider {
+            let healing = zone::heal_ignoring_seeds(&input, &mut zone_probe);
+            break (net, healing);
+        }
+        match zone::heal(&input, &mut zone_probe) {
+            Outcome::Healed(h) => break (net, h),
+            Outcome::Seeds(seeds) => {
+                let mut new = false;
+                for (p, axis) in seeds {
+                    let (b, c) = other_axes(axis);
+                    new |= tracer.seed(p, &[unit(b), unit(c)]);
+                }
+                // Nothing new to trace (or enough rounds): heal with what there is, trusting
+                // the decider on those faces.
+                trust_decider = !new || rounds >= 8;
+            }
+        }
+    };
+    stats.seeds_tried = tracer.seeds_tried;
+    stats.search_evaluations = tracer.probe.evals + zone_probe.evals;
+    stats.healing = t.elapsed();
+    report(control, "healing", 1, 1)?;
+
+    // 6. The mesh.
+    let t = Instant::now();
+    let n_mc = ex.vertices.len() as u32;
+    let mut triangles: Vec<[u32; 3]> = ex
+        .triangles
+        .iter()
+        .zip(&cube_of_tri)
+        .filter(|(_, c)| c.is_none_or(|c| !healing.cubes.contains(&c)))
+        .map(|(t, _)| *t)
+        .collect();
+    stats.kept_mc_triangles = triangles.len();
+    stats.healing_triangles = healing.triangles.len();
+    let first_heal = triangles.len();
+    triangles.extend_from_slice(&healing.triangles);
+    let mut positions_all: Vec<DVec3> = positions.clone();
+    positions_all.extend(net.nodes.iter().map(|n| n.p));
+    let mut normals_all: Vec<DVec3> = grads.iter().map(|g| g.normalize_or_zero()).collect();
+    normals_all.resize(positions_all.len(), DVec3::ZERO);
+    let mut probe = Probe::new(field, h);
+    // Per band, the normal at each curve vertex: the gradient just off the curve, into the band.
+    let mut band_normal: FxHashMap<(u32, u32), DVec3> = FxHashMap::default();
+    for (k, tri) in healing.triangles.iter().enumerate() {
+        let band = healing.band_of[k];
+        for (i, &v) in tri.iter().enumerate() {
+            if v < n_mc || band_normal.contains_key(&(v, band)) {
+                continue;
+            }
+            let p = positions_all[v as usize];
+            let others = (positions_all[tri[(i + 1) % 3] as usize]
+                + positions_all[tri[(i + 2) % 3] as usize])
+                * 0.5;
+            let dir = (others - p).normalize_or_zero();
+            let n = probe
+                .grad(p + dir * (1e-3 * h))
+                .map_or(DVec3::ZERO, |(_, g)| g.normalize_or_zero());
+            band_normal.insert((v, band), n);
+        }
+    }
+    let mut node_bands: Vec<(u32, u32)> = band_normal.keys().copied().collect();
+    node_bands.sort_unstable();
+    for &(v, band) in &node_bands {
+        if normals_all[v as usize] == DVec3::ZERO {
+            normals_all[v as usize] = band_normal[&(v, band)];
+        }
+    }
+    if options.split_sheets {
+        split_sheets(
+            &mut triangles[first_heal..],
+            &healing.band_of,
+            &node_bands,
+            &band_normal,
+            &mut positions_all,
+            &mut normals_all,
+        );
+    }
+    stats.normal_evaluations += probe.evals;
+    let mut curves: Vec<[u32; 2]> =
+        healing.curve_edges.iter().map(|&[a, b]| [a + n_mc, b + n_mc]).collect();
+    curves.sort_unstable();
+    curves.dedup();
+
+    // Compact: only vertices that a triangle or curve uses, in their order.
+    let mut used = vec![false; positions_all.len()];
+    for t in &triangles {
+        for &v in t {
+            used[v as usize] = true;
+        }
+    }
+    for c in &curves {
+        used[c[0] as usize] = true;
+        used[c[1] as usize] = true;
+    }
+    let mut remap = vec![u32::MAX; positions_all.len()];
+    let mut mesh = Mesh::default();
+    let mut kept_positions = Vec::new();
+    for (i, &u) in used.iter().enumerate() {
+        if u {
+            remap[i] = kept_positions.len() as u32;
+            kept_positions.push(positions_all[i]);
+        }
+    }
+    mesh.triangles = triangles.iter().map(|t| t.map(|v| remap[v as usize])).collect();
+    mesh.positions = kept_positions.iter().map(|p| p.as_vec3().to_array()).collect();
+    mesh.curves = curves
+        .iter()
+        .map(|c| CurveEdge { v: c.map(|v| remap[v as usize]), label: SELF_INTERSECTION })
+        .collect();
+    if options.normals && !mesh.triangles.is_empty() {
+        let mut n: Vec<DVec3> =
+            (0..used.len()).filter(|&i| used[i]).map(|i| normals_all[i]).collect();
+        if n.iter().any(|x| *x == DVec3::ZERO || !x.is_finite()) {
+            let face = face_normals(&kept_positions, &mesh.triangles);
+            for (x, f) in n.iter_mut().zip(face) {
+                if *x == DVec3::ZERO || !x.is_finite() {
+                    *x = DVec3::from_array(f.map(f64::from));
+                }
+            }
+        }
+        mesh.normals = n.iter().map(|x| x.as_vec3().to_array()).collect();
+    }
+    stats.normals = t.elapsed();
+
+    // Report.
+    let healed_edges: FxHashSet<[u32; 2]> = healing.curve_edges.iter().copied().collect();
+    stats.curves = net
+        .runs
+        .iter()
+        .map(|r| {
+            let n = r.fine.len();
+            let mut length: f64 = r.fine.windows(2).map(|w| (w[1] - w[0]).length()).sum();
+            if r.closed && n > 1 {
+                length += (r.fine[0] - r.fine[n - 1]).length();
+            }
+            let healed = r
+                .nodes
+                .windows(2)
+                .any(|w| healed_edges.contains(&[w[0].min(w[1]), w[0].max(w[1])]));
+            SelfIntersection { points: r.fine.clone(), closed: r.closed, length, healed }
+        })
+        .collect();
+    stats.singular_lines = net
+        .lines
+        .iter()
+        .map(|l| SingularLine {
+            points: l.clone(),
+            length: l.windows(2).map(|w| (w[1] - w[0]).length()).sum(),
+        })
+        .collect();
+    stats.singular_points = net.points.clone();
+    stats.zones = healing.zones;
+    stats.healed_cubes = healing.cubes.len();
+    stats.unresolved = healing.unresolved;
+    stats.edges_checked = healing.edges_checked;
+    stats.faces_checked = healing.faces_checked;
+    stats.curve_edges = mesh.curves.len();
+    stats.triangles = mesh.triangles.len();
+    stats.vertices = mesh.positions.len();
+    Ok((mesh, stats))
+}
+
+fn check_options(o: &Options) -> Result<(), Error> {
+    if !(o.tolerance > 0.0 && o.tolerance < 1.0) {
+        return Err(Error::BadOption(format!(
+            "tolerance must be between 0 and 1 (got {})",
+            o.tolerance
+        )));
+    }
+    match o.epsilon {
+        Epsilon::Absolute(e) | Epsilon::Cells(e) if !(e.is_finite() && e > 0.0) => {
+            Err(Error::BadOption(format!("epsilon must be a positive number (got {e})")))
+        }
+        _ => Ok(()),
+    }
+}
+
+fn unit(a: usize) -> DVec3 {
+    let mut u = DVec3::ZERO;
+    u[a] = 1.0;
+    u
+}
+
+/// Gradients at every vertex, in fixed chunks (non-finite ones become zero).
+fn gradients(field: &dyn Field, positions: &[DVec3]) -> Vec<DVec3> {
+    let mut out = vec![DVec3::ZERO; positions.len()];
+    out.par_chunks_mut(CHUNK).zip(positions.par_chunks(CHUNK)).for_each(|(o, p)| {
+        let mut v = vec![0.0; p.len()];
+        field.eval_grad_many(p, &mut v, o);
+        for g in o.iter_mut() {
+            if !g.is_finite() {
+                *g = DVec3::ZERO;
+            }
+        }
+    });
+    out
+}
+
+/// The thesis's critical test at every vertex.
+fn critical_vertices(
+    field: &dyn Field,
+    positions: &[DVec3],
+    grads: &[DVec3],
+    eps: Epsilon,
+    h: f64,
+    stats: &mut Stats,
+) -> Vec<bool> {
+    match eps {
+        Epsilon::Absolute(e) => {
+            grads.iter().map(|g| g.x.abs() + g.y.abs() + g.z.abs() < e).collect()
+        }
+        Epsilon::Cells(rho) => {
+            let d = 1e-4 * h;
+            stats.critical_evaluations += 3 * positions.len() as u64;
+            let mut out = vec![false; positions.len()];
+            out.par_chunks_mut(CHUNK)
+                .zip(positions.par_chunks(CHUNK).zip(grads.par_chunks(CHUNK)))
+                .for_each(|(o, (p, g))| {
+                    let mut v = vec![0.0; p.len()];
+                    let mut cols = [
+                        vec![DVec3::ZERO; p.len()],
+                        vec![DVec3::ZERO; p.len()],
+                        vec![DVec3::ZERO; p.len()],
+                    ];
+                    for (a, col) in cols.iter_mut().enumerate() {
+                        let q: Vec<DVec3> = p.iter().map(|x| *x + unit(a) * d).collect();
+                        field.eval_grad_many(&q, &mut v, col);
+                    }
+                    for i in 0..p.len() {
+                        let m = glam::DMat3::from_cols(
+                            (cols[0][i] - g[i]) / d,
+                            (cols[1][i] - g[i]) / d,
+                            (cols[2][i] - g[i]) / d,
+                        );
+                        let hm = (m + m.transpose()) * 0.5;
+                        if !hm.is_finite() {
+                            continue;
+                        }
+                        let (vals, _) = sym_eigen(hm);
+                        o[i] = g[i].length() < rho * h * vals[2].abs();
+                    }
+                });
+            out
+        }
+    }
+}
+
+/// The cube a marching-cubes triangle belongs to.
+fn triangle_cube(lat: &Lattice, vertices: &[GridVertex], t: &[u32; 3]) -> Option<usize> {
+    let belongs = |v: &GridVertex, c: [usize; 3]| match v.place {
+        Place::Cell { .. } => v.base.map(|x| x as usize) == c,
+        Place::Edge { dir, .. } => {
+            let axis = dir.trailing_zeros() as usize;
+            (0..3).all(|a| {
+                let b = v.base[a] as usize;
+                if a == axis { b == c[a] } else { b == c[a] || b == c[a] + 1 }
+            })
+        }
+    };
+    let v0 = &vertices[t[0] as usize];
+    let candidates: Vec<usize> = match v0.place {
+        Place::Cell { .. } => vec![lat.cube(v0.base.map(|x| x as usize))],
+        Place::Edge { dir, .. } => {
+            let axis = dir.trailing_zeros() as usize;
+            lat.around_edge(v0.base.map(|x| x as usize), axis).iter().flatten().copied().collect()
+        }
+    };
+    candidates.into_iter().find(|&c| {
+        let cc = lat.coords(c);
+        t.iter().all(|&v| belongs(&vertices[v as usize], cc))
+    })
+}
+
+/// The thesis's self-intersection estimate on face `f` of cube `c`: where the segments
+/// joining the crossings on opposite sides of the face meet.
+fn face_point(
+    lat: &Lattice,
+    edge_vertex: &FxHashMap<u64, u32>,
+    positions: &[DVec3],
+    c: [usize; 3],
+    f: usize,
+) -> Option<DVec3> {
+    let q = FACES[f];
+    let mut pts = [DVec3::ZERO; 4];
+    for (k, p) in pts.iter_mut().enumerate() {
+        let e = edge_between(q[k], q[(k + 1) % 4]);
+        let o = crate::grid::cube::CORNERS[EDGES[e][0]];
+        let base = [c[0] + o[0], c[1] + o[1], c[2] + o[2]];
+        let v = *edge_vertex.get(&lat.edge_key(base, crate::grid::cube::edge_axis(e)))?;
+        *p = positions[v as usize];
+    }
+    let (b, cc) = other_axes(f / 2);
+    let two = |p: DVec3| glam::DVec2::new(p[b], p[cc]);
+    let (a0, a1, b0, b1) = (two(pts[0]), two(pts[2]), two(pts[1]), two(pts[3]));
+    let (da, db) = (a1 - a0, b1 - b0);
+    let den = da.perp_dot(db);
+    if den.abs() < 1e-300 {
+        return None;
+    }
+    let s = (b0 - a0).perp_dot(db) / den;
+    let x = a0 + da * s;
+    let mut p = pts[0];
+    p[b] = x.x;
+    p[cc] = x.y;
+    p.is_finite().then_some(p)
+}
+
+/// Lattice points where `|f|` is smallest among its 26 neighbours, all 27 of one sign, and
+/// well below their largest: where a surface that never changes sign may touch zero.
+fn scan_seeds(volume: &Volume) -> Vec<DVec3> {
+    let g: &Grid = &volume.grid;
+    let [nx, ny, nz] = g.dims;
+    if nx < 3 || ny < 3 || nz < 3 {
+        return Vec::new();
+    }
+    let mut out: Vec<(usize, DVec3)> = (1..nz - 1)
+        .into_par_iter()
+        .flat_map_iter(|k| {
+            let mut found = Vec::new();
+            for j in 1..ny - 1 {
+                for i in 1..nx - 1 {
+                    let v = volume.get(i, j, k);
+                    let neg = v < 0.0;
+                    let a = v.abs();
+                    let mut ok = true;
+                    let mut top = 0f32;
+                    'n: for dz in 0..3 {
+                        for dy in 0..3 {
+                            for dx in 0..3 {
+                                let w = volume.get(i + dx - 1, j + dy - 1, k + dz - 1);
+                                if (w < 0.0) != neg || w.abs() < a {
+                                    ok = false;
+                                    break 'n;
+                                }
+                                top = top.max(w.abs());
+                            }
+                        }
+                    }
+                    if ok && a < 0.25 * top {
+                        found.push((g.index(i, j, k), g.point(i, j, k)));
+                    }
+                }
+            }
+            found
+        })
+        .collect();
+    out.sort_by_key(|x| x.0);
+    out.truncate(10_000);
+    out.into_iter().map(|x| x.1).collect()
+}
+
+/// Gives each sheet at each curve vertex its own copy of the vertex: bands whose normals at
+/// the vertex are parallel or opposite are one sheet (its two halves across the curve).
+fn split_sheets(
+    triangles: &mut [[u32; 3]],
+    band_of: &[u32],
+    node_bands: &[(u32, u32)],
+    band_normal: &FxHashMap<(u32, u32), DVec3>,
+    positions: &mut Vec<DVec3>,
+    normals: &mut Vec<DVec3>,
+) {
+    // (vertex, band) → the vertex id that band uses.
+    let mut use_id: FxHashMap<(u32, u32), u32> = FxHashMap::default();
+    let mut i = 0;
+    while i < node_bands.len() {
+        let v = node_bands[i].0;
+        let mut j = i;
+        while j < node_bands.len() && node_bands[j].0 == v {
+            j += 1;
+        }
+        let mut sheets: Vec<(DVec3, u32)> = Vec::new();
+        for &(_, band) in &node_bands[i..j] {
+            let n = band_normal[&(v, band)];
+            let id = match sheets.iter().find(|s| s.0.dot(n).abs() > 0.8) {
+                Some(s) => s.1,
+                None => {
+                    let id = if sheets.is_empty() {
+                        v
+                    } else {
+                        positions.push(positions[v as usize]);
+                        normals.push(n);
+                        positions.len() as u32 - 1
+                    };
+                    if sheets.is_empty() {
+                        normals[v as usize] = n;
+                    }
+                    sheets.push((n, id));
+                    id
+                }
+            };
+            use_id.insert((v, band), id);
+        }
+        i = j;
+    }
+    for (t, &band) in triangles.iter_mut().zip(band_of) {
+        for v in t.iter_mut() {
+            if let Some(&id) = use_id.get(&(*v, band)) {
+                *v = id;
+            }
+        }
+    }
+}

@@ -1,0 +1,1134 @@
+//! Healing zones: the cubes around the self-intersection network whose marching-cubes
+//! triangles are replaced.
+//!
+//! The thesis replaces the triangles of each critical cube by hand-made patterns fanned onto
+//! the self-intersection segment of that cube. Here the same is done for a connected set of
+//! cubes at once, which is what lets one cell hold more than one segment, curves that turn,
+//! pinch points and cone apexes:
+//!
+//! 1. The zone starts as every cube within a twentieth of a cell of the network, and grows
+//!    until marching cubes is right on its boundary: no boundary lattice edge crosses the
+//!    surface twice between its samples (found from the field: the sign of `f` at the
+//!    extremum along the edge), and every boundary face with four crossings pairs them as
+//!    the field does (the sign of `f` at the face's saddle, where the decider uses the
+//!    bilinear interpolant). A saddle with `f = 0` on a boundary face is a curve point the
+//!    search missed: it becomes a seed and the network is traced again.
+//! 2. On the zone's boundary the surface meets the faces in segments that marching cubes
+//!    shares with the cubes outside, and on the domain box in segments where the mesh ends
+//!    (but not on box faces where a curve leaves the box, or whose edges hide crossings:
+//!    there marching cubes pairs the crossings wrongly). They chain into loops, and into
+//!    paths that end where curves leave the box: the traces of the sheets that leave the
+//!    network. A loop that no curve explains (a sheet grazing the zone) is a disk.
+//! 3. Each trace is mapped onto the network (each vertex to its nearest node, joined by
+//!    shortest network paths, back-and-forth moves removed except at the ends of curves, where
+//!    a sheet folds round as on the Whitney umbrella) and the band between the trace and that
+//!    walk is triangulated by zipping the two. A loop round a cone apex is fanned to it.
+//! 4. The zone is accepted only if every network edge in it gets exactly four triangles (two
+//!    sheets crossing), every trace was explained, and every cone was fanned. Otherwise its
+//!    marching-cubes triangles are kept and the zone is reported: never worse than marching
+//!    cubes, never a hole.
+//!
+//! Every boundary segment is traversed as the zone-side cube traverses it in marching cubes,
+//! so the bands are oriented like the triangles they meet: towards `f > 0`, which flips from
+//! one side of a crossing to the other.
+
+use std::collections::BinaryHeap;
+
+use glam::DVec3;
+use rustc_hash::{FxHashMap, FxHashSet};
+use skelform_field::grid::{Grid, Volume};
+
+use super::local::Probe;
+use super::network::{Network, NodeKind};
+use crate::grid::cell::{case_of, face_decisions};
+use crate::grid::cube::{CORNERS, EDGES, FACES, edge_axis, other_axes};
+use crate::grid::table::table;
+use crate::grid::{GridVertex, Place};
+
+/// A zone whose marching-cubes triangles were kept, and why.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Unresolved {
+    /// The centre of its cubes.
+    pub center: DVec3,
+    pub cubes: usize,
+    pub reason: String,
+}
+
+/// The replacement triangles. Vertex ids below `mc_vertices` are marching-cubes vertices;
+/// `mc_vertices + k` is network node `k`.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Healing {
+    /// Cubes whose marching-cubes triangles are replaced (accepted zones only).
+    pub cubes: FxHashSet<usize>,
+    pub triangles: Vec<[u32; 3]>,
+    /// Network edges that carry bands (node ids).
+    pub curve_edges: Vec<[u32; 2]>,
+    /// For each band triangle, the band (sheet piece) it belongs to.
+    pub band_of: Vec<u32>,
+    pub zones: usize,
+    pub unresolved: Vec<Unresolved>,
+    /// Lattice edges and faces checked on the field while growing the zones.
+    pub edges_checked: usize,
+    pub faces_checked: usize,
+}
+
+/// What healing needs to know.
+pub(crate) struct Input<'a> {
+    pub grid: Grid,
+    pub volume: &'a Volume,
+    pub vertices: &'a [GridVertex],
+    pub positions: &'a [DVec3],
+    /// The marching-cubes triangles and the cube of each.
+    pub triangles: &'a [[u32; 3]],
+    pub cube_of_tri: &'a [Option<usize>],
+    pub net: &'a Network,
+    /// Most cubes in all zones together.
+    pub max_cubes: usize,
+}
+
+/// Either new seeds (curve points the search missed), or the healing.
+pub(crate) enum Outcome {
+    Seeds(Vec<(DVec3, usize)>),
+    Healed(Healing),
+}
+
+/// Cube and lattice indexing.
+#[derive(Clone, Copy)]
+pub(crate) struct Lattice {
+    pub grid: Grid,
+    pub cubes: [usize; 3],
+}
+
+impl Lattice {
+    pub fn new(grid: Grid) -> Self {
+        Lattice { grid, cubes: grid.dims.map(|d| d - 1) }
+    }
+
+    pub fn cube(&self, c: [usize; 3]) -> usize {
+        c[0] + self.cubes[0] * (c[1] + self.cubes[1] * c[2])
+    }
+
+    pub fn coords(&self, i: usize) -> [usize; 3] {
+        let [cx, cy, _] = self.cubes;
+        [i % cx, (i / cx) % cy, i / (cx * cy)]
+    }
+
+    pub fn point_index(&self, p: [usize; 3]) -> u64 {
+        let [nx, ny, _] = self.grid.dims;
+        p[0] as u64 + nx as u64 * (p[1] as u64 + ny as u64 * p[2] as u64)
+    }
+
+    /// Key of the lattice edge from point `p` along `axis`.
+    pub fn edge_key(&self, p: [usize; 3], axis: usize) -> u64 {
+        self.point_index(p) * 3 + axis as u64
+    }
+
+    /// The cube holding a point (clamped into the lattice).
+    pub fn cube_of(&self, p: DVec3) -> [usize; 3] {
+        let r = (p - self.grid.origin) / self.grid.cell;
+        std::array::from_fn(|a| (r[a].floor().max(0.0) as usize).min(self.cubes[a] - 1))
+    }
+
+    /// The four cubes round a lattice edge, in cyclic order (`None` outside the lattice).
+    pub fn around_edge(&self, p: [usize; 3], axis: usize) -> [Option<usize>; 4] {
+        let (b, c) = other_axes(axis);
+        [(0, 0), (1, 0), (1, 1), (0, 1)].map(|(db, dc): (usize, usize)| {
+            let mut q = p;
+            if q[b] < db || q[c] < dc {
+                return None;
+            }
+            q[b] -= db;
+            q[c] -= dc;
+            (q[0] < self.cubes[0] && q[1] < self.cubes[1] && q[2] < self.cubes[2])
+                .then(|| self.cube(q))
+        })
+    }
+
+    /// The cube across face `f` of cube `c`.
+    pub fn neighbour(&self, c: [usize; 3], f: usize) -> Option<usize> {
+        let (a, s) = (f / 2, f % 2);
+        let mut q = c;
+        if s == 0 {
+            q[a] = q[a].checked_sub(1)?;
+        } else {
+            q[a] += 1;
+            if q[a] >= self.cubes[a] {
+                return None;
+            }
+        }
+        Some(self.cube(q))
+    }
+
+    pub fn corner_values(&self, volume: &Volume, c: [usize; 3]) -> [f32; 8] {
+        CORNERS.map(|o| volume.get(c[0] + o[0], c[1] + o[1], c[2] + o[2]))
+    }
+
+    pub fn add_near(&self, p: DVec3, margin: f64, out: &mut FxHashSet<usize>) {
+        let r = (p - self.grid.origin) / self.grid.cell;
+        let range = |a: usize| {
+            let lo = (r[a] - margin).floor().max(0.0) as usize;
+            let hi = ((r[a] + margin).floor().max(0.0) as usize).min(self.cubes[a] - 1);
+            lo.min(self.cubes[a] - 1)..=hi
+        };
+        for k in range(2) {
+            for j in range(1) {
+                for i in range(0) {
+                    out.insert(self.cube([i, j, k]));
+                }
+            }
+        }
+    }
+}
+
+/// Lattice edge key → marching-cubes vertex, for the edges of the given cubes that cross the
+/// surface (found through those cubes' triangles, so that no map of every vertex is kept).
+pub(crate) fn edge_vertices(
+    lat: &Lattice,
+    vertices: &[GridVertex],
+    triangles: &[[u32; 3]],
+    cube_of_tri: &[Option<usize>],
+    cubes: &FxHashSet<usize>,
+) -> FxHashMap<u64, u32> {
+    let mut map = FxHashMap::default();
+    if cubes.is_empty() {
+        return map;
+    }
+    for (t, c) in triangles.iter().zip(cube_of_tri) {
+        if c.is_some_and(|c| cubes.contains(&c)) {
+            for &v in t {
+                if let Place::Edge { dir, .. } = vertices[v as usize].place {
+                    let base = vertices[v as usize].base.map(|x| x as usize);
+                    map.insert(lat.edge_key(base, dir.trailing_zeros() as usize), v);
+                }
+            }
+        }
+    }
+    map
+}
+
+/// The face two cube edges share, if any.
+fn common_face(a: usize, b: usize) -> Option<usize> {
+    let on = |f: usize, e: usize| {
+        let q = FACES[f];
+        let [c0, c1] = EDGES[e];
+        q.contains(&c0) && q.contains(&c1)
+    };
+    (0..6).find(|&f| on(f, a) && on(f, b))
+}
+
+/// Heals around the network, or asks for more seeds first.
+pub(crate) fn heal(inp: &Input, probe: &mut Probe) -> Outcome {
+    heal_with(inp, probe, true)
+}
+
+/// Heals around the network, trusting the decider on boundary faces whose saddle is on the
+/// surface (when tracing from there found nothing new).
+pub(crate) fn heal_ignoring_seeds(inp: &Input, probe: &mut Probe) -> Healing {
+    match heal_with(inp, probe, false) {
+        Outcome::Healed(h) => h,
+        Outcome::Seeds(_) => Healing::default(),
+    }
+}
+
+fn heal_with(inp: &Input, probe: &mut Probe, accept_seeds: bool) -> Outcome {
+    let lat = Lattice::new(inp.grid);
+    let h = inp.grid.cell;
+    let mut out = Healing::default();
+
+    // 1. The initial zone: cubes near the network.
+    let mut zone: FxHashSet<usize> = FxHashSet::default();
+    for r in &inp.net.runs {
+        let n = r.fine.len();
+        let count = if r.closed { n } else { n.saturating_sub(1) };
+        for &p in &r.fine {
+            lat.add_near(p, 0.05, &mut zone);
+        }
+        for w in 0..count {
+            let (a, b) = (r.fine[w], r.fine[(w + 1) % n]);
+            for s in 1..4 {
+                lat.add_near(a.lerp(b, s as f64 / 4.0), 0.05, &mut zone);
+            }
+        }
+    }
+    for (k, node) in inp.net.nodes.iter().enumerate() {
+        let margin = if node.kind == NodeKind::Cone { 1.0 } else { 0.05 };
+        lat.add_near(node.p, margin, &mut zone);
+        for &(m, _) in &inp.net.adj[k] {
+            let q = inp.net.nodes[m as usize].p;
+            for s in 1..8 {
+                lat.add_near(node.p.lerp(q, s as f64 / 8.0), 0.05, &mut zone);
+            }
+        }
+    }
+    if zone.is_empty() {
+        return Outcome::Healed(out);
+    }
+
+    // 2. Grow until marching cubes is right on the boundary.
+    let mut edge_memo: FxHashMap<u64, bool> = FxHashMap::default();
+    let mut face_memo: FxHashMap<u64, FaceVerdict> = FxHashMap::default();
+    let t = table();
+    let mut overflow = false;
+    loop {
+        let mut sorted: Vec<usize> = zone.iter().copied().collect();
+        sorted.sort_unstable();
+        let mut add: Vec<usize> = Vec::new();
+        let mut seeds: Vec<(DVec3, usize)> = Vec::new();
+        for &ci in &sorted {
+            let c = lat.coords(ci);
+            for (e, &[c0, _]) in EDGES.iter().enumerate() {
+                let o = CORNERS[c0];
+                let p = [c[0] + o[0], c[1] + o[1], c[2] + o[2]];
+                let axis = edge_axis(e);
+                let around = lat.around_edge(p, axis);
+                let inz = around.map(|x| x.map(|x| zone.contains(&x)));
+                // Two zone cubes touching along this edge only: the zone's boundary would not
+                // be a surface there.
+                let diag = |a: usize, b: usize| {
+                    inz[a] == Some(true)
+                        && inz[b] == Some(true)
+                        && inz[(a + 1) % 4] == Some(false)
+                        && inz[(b + 1) % 4] == Some(false)
+                };
+                if diag(0, 2) || diag(1, 3) {
+                    add.extend(around.iter().flatten());
+                    continue;
+                }
+                if !inz.contains(&Some(false)) {
+                    continue;
+                }
+                let key = lat.edge_key(p, axis);
+                let hidden = *edge_memo.entry(key).or_insert_with(|| {
+                    out.edges_checked += 1;
+                    edge_hides_crossings(probe, inp.volume, &lat, p, axis)
+                });
+                if hidden {
+                    add.extend(around.iter().flatten());
+                }
+            }
+            let v = lat.corner_values(inp.volume, c);
+            let case = case_of(&v);
+            let amb = t.ambiguous[case];
+            for f in 0..6 {
+                let Some(nb) = lat.neighbour(c, f) else { continue };
+                if zone.contains(&nb) || amb & (1 << f) == 0 {
+                    continue;
+                }
+                let o = CORNERS[FACES[f][0]];
+                let key =
+                    lat.point_index([c[0] + o[0], c[1] + o[1], c[2] + o[2]]) * 3 + (f / 2) as u64;
+                let verdict = *face_memo.entry(key).or_insert_with(|| {
+                    out.faces_checked += 1;
+                    face_verdict(probe, &lat, &v, c, f)
+                });
+                match verdict {
+                    FaceVerdict::Agree => {}
+                    FaceVerdict::Disagree => add.push(nb),
+                    FaceVerdict::Singular(p) if accept_seeds => seeds.push((p, f / 2)),
+                    FaceVerdict::Singular(_) => {}
+                }
+            }
+        }
+        if !seeds.is_empty() {
+            return Outcome::Seeds(seeds);
+        }
+        add.retain(|x| !zone.contains(x));
+        if add.is_empty() {
+            break;
+        }
+        zone.extend(add);
+        if zone.len() > inp.max_cubes {
+            overflow = true;
+            break;
+        }
+    }
+
+    // 3. Connected components, each healed or kept.
+    let edge_vertex = edge_vertices(&lat, inp.vertices, inp.triangles, inp.cube_of_tri, &zone);
+    let mut sorted: Vec<usize> = zone.iter().copied().collect();
+    sorted.sort_unstable();
+    let mut seen: FxHashSet<usize> = FxHashSet::default();
+    for &start in &sorted {
+        if !seen.insert(start) {
+            continue;
+        }
+        let mut comp = vec![start];
+        let mut k = 0;
+        while k < comp.len() {
+            let c = lat.coords(comp[k]);
+            k += 1;
+            for f in 0..6 {
+                if let Some(nb) = lat.neighbour(c, f)
+                    && zone.contains(&nb)
+                    && seen.insert(nb)
+                {
+                    comp.push(nb);
+                }
+            }
+        }
+        comp.sort_unstable();
+        let set: FxHashSet<usize> = comp.iter().copied().collect();
+        let center = comp.iter().fold(DVec3::ZERO, |s, &c| {
+            let q = lat.coords(c);
+            s + inp.grid.point(q[0], q[1], q[2]) + DVec3::splat(0.5 * h)
+        }) / comp.len() as f64;
+        let result = if overflow {
+            Err("the zone grew past the limit on healed cubes".to_string())
+        } else {
+            heal_component(inp, &lat, &set, &comp, &edge_vertex, probe, &mut edge_memo)
+        };
+        match result {
+            Ok(bands) => {
+                out.zones += 1;
+                out.cubes.extend(comp.iter().copied());
+                let base = out.band_of.iter().max().map_or(0, |b| b + 1);
+                out.triangles.extend(bands.triangles);
+                out.band_of.extend(bands.band_of.iter().map(|b| b + base));
+                out.curve_edges.extend(bands.edges);
+            }
+            Err(reason) => out.unresolved.push(Unresolved { center, cubes: comp.len(), reason }),
+        }
+    }
+    Outcome::Healed(out)
+}
+
+/// Whether the field crosses zero between the samples of a lattice edge more often than
+/// their signs show (a sheet pair passing between them).
+fn edge_hides_crossings(
+    probe: &mut Probe,
+    volume: &Volume,
+    lat: &Lattice,
+    p: [usize; 3],
+    axis: usize,
+) -> bool {
+    let grid = &lat.grid;
+    let mut q = p;
+    q[axis] += 1;
+    let p0 = grid.point(p[0], p[1], p[2]);
+    let p1 = grid.point(q[0], q[1], q[2]);
+    let s0 = volume.get(p[0], p[1], p[2]) < 0.0;
+    let s1 = volume.get(q[0], q[1], q[2]) < 0.0;
+    let us = [0.0, 0.25, 0.5, 0.75, 1.0];
+    let pts: Vec<DVec3> = us.iter().map(|&u| p0.lerp(p1, u)).collect();
+    let Some((vals, grads)) = probe.grads(&pts) else { return false };
+    let mut signs = [s0, vals[1] < 0.0, vals[2] < 0.0, vals[3] < 0.0, s1];
+    signs[0] = s0;
+    let d: Vec<f64> = grads.iter().map(|g| g[axis]).collect();
+    let mut roots = (0..4).filter(|&k| signs[k] != signs[k + 1]).count();
+    for k in 0..4 {
+        if signs[k] != signs[k + 1] || d[k] * d[k + 1] >= 0.0 {
+            continue;
+        }
+        // An extremum inside: bisect on the derivative.
+        let (mut a, mut b, da) = (us[k], us[k + 1], d[k]);
+        let mut value = 0.0;
+        for _ in 0..24 {
+            let m = 0.5 * (a + b);
+            let Some((f, g)) = probe.grad(p0.lerp(p1, m)) else { return false };
+            value = f;
+            if (g[axis] < 0.0) == (da < 0.0) {
+                a = m;
+            } else {
+                b = m;
+            }
+        }
+        if (value < 0.0) != signs[k] {
+            roots += 2;
+        }
+    }
+    roots != usize::from(s0 != s1)
+}
+
+/// Whether an edge of face `f` of cube `c` crosses the surface between its samples.
+fn box_face_hides(
+    probe: &mut Probe,
+    volume: &Volume,
+    lat: &Lattice,
+    memo: &mut FxHashMap<u64, bool>,
+    c: [usize; 3],
+    f: usize,
+) -> bool {
+    let q = FACES[f];
+    (0..4).any(|k| {
+        let e = crate::grid::cube::edge_between(q[k], q[(k + 1) % 4]);
+        let o = CORNERS[EDGES[e][0]];
+        let p = [c[0] + o[0], c[1] + o[1], c[2] + o[2]];
+        let axis = edge_axis(e);
+        *memo
+            .entry(lat.edge_key(p, axis))
+            .or_insert_with(|| edge_hides_crossings(probe, volume, lat, p, axis))
+    })
+}
+
+/// What the field says about a boundary face with four crossings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum FaceVerdict {
+    /// It pairs the crossings as the decider does (or has no saddle to say otherwise).
+    Agree,
+    Disagree,
+    /// Its saddle is on the surface: a self-intersection point the search missed.
+    Singular(DVec3),
+}
+
+/// Finds the saddle of `f` restricted to face `f` of cube `c` by Newton's method from the
+/// bilinear interpolant's saddle, and compares the sign there with the asymptotic decider.
+fn face_verdict(
+    probe: &mut Probe,
+    lat: &Lattice,
+    v: &[f32; 8],
+    c: [usize; 3],
+    f: usize,
+) -> FaceVerdict {
+    let grid = &lat.grid;
+    let h = grid.cell;
+    let axis = f / 2;
+    let (b, cax) = other_axes(axis);
+    let decided_inside = face_decisions(v, 1 << f) & (1 << f) != 0;
+    let o = CORNERS[FACES[f][0]];
+    let lo = grid.point(c[0] + o[0], c[1] + o[1], c[2] + o[2]);
+    // Corner values by in-face coordinates (s along b, t along c).
+    let mut val = [[0.0f64; 2]; 2];
+    for &k in &FACES[f] {
+        let q = CORNERS[k];
+        val[q[b]][q[cax]] = v[k] as f64;
+    }
+    let den = val[0][0] - val[1][0] - val[0][1] + val[1][1];
+    let (mut s, mut t) = if den.abs() > 1e-300 {
+        (
+            ((val[0][0] - val[0][1]) / den).clamp(0.05, 0.95),
+            ((val[0][0] - val[1][0]) / den).clamp(0.05, 0.95),
+        )
+    } else {
+        (0.5, 0.5)
+    };
+    let at = |s: f64, t: f64| {
+        let mut p = lo;
+        p[b] += s * h;
+        p[cax] += t * h;
+        p
+    };
+    let Some(scale) = probe.gradient_scale(at(s, t), h) else { return FaceVerdict::Agree };
+    if scale <= 0.0 {
+        return FaceVerdict::Agree;
+    }
+    for _ in 0..30 {
+        let Some(j) = probe.jet(at(s, t)) else { return FaceVerdict::Agree };
+        let (gb, gc) = (j.g[b], j.g[cax]);
+        if (gb * gb + gc * gc).sqrt() <= 1e-8 * scale {
+            let tiny = 1e-6 * scale * h;
+            if j.f.abs() <= tiny {
+                return FaceVerdict::Singular(at(s, t));
+            }
+            let inside_joined = j.f < 0.0;
+            return if inside_joined == decided_inside {
+                FaceVerdict::Agree
+            } else {
+                FaceVerdict::Disagree
+            };
+        }
+        let (hbb, hbc, hcc) = (j.h.col(b)[b], j.h.col(cax)[b], j.h.col(cax)[cax]);
+        let det = hbb * hcc - hbc * hbc;
+        if det.abs() < 1e-300 {
+            return FaceVerdict::Agree;
+        }
+        let mut ds = -(hcc * gb - hbc * gc) / det / h;
+        let mut dt = -(hbb * gc - hbc * gb) / det / h;
+        let len = (ds * ds + dt * dt).sqrt();
+        if len > 0.25 {
+            ds *= 0.25 / len;
+            dt *= 0.25 / len;
+        }
+        s += ds;
+        t += dt;
+        if !(-0.01..=1.01).contains(&s) || !(-0.01..=1.01).contains(&t) {
+            return FaceVerdict::Agree;
+        }
+    }
+    FaceVerdict::Agree
+}
+
+/// The bands of one zone.
+struct Bands {
+    triangles: Vec<[u32; 3]>,
+    band_of: Vec<u32>,
+    edges: Vec<[u32; 2]>,
+}
+
+/// Whether a marching-cubes vertex lies on the domain box.
+fn on_box(v: &GridVertex, dims: [usize; 3]) -> bool {
+    match v.place {
+        Place::Edge { dir, .. } => {
+            let axis = dir.trailing_zeros() as usize;
+            (0..3).any(|a| a != axis && (v.base[a] == 0 || v.base[a] as usize == dims[a] - 1))
+        }
+        Place::Cell { .. } => false,
+    }
+}
+
+#[derive(Clone, Copy, PartialEq)]
+struct Dist(f64, u32);
+impl Eq for Dist {}
+impl PartialOrd for Dist {
+    fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(o))
+    }
+}
+impl Ord for Dist {
+    // Reversed, for a min-heap.
+    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
+        o.0.total_cmp(&self.0).then(o.1.cmp(&self.1))
+    }
+}
+
+/// Shortest network path from `a` to `b` (both included), within `limit` length.
+fn shortest_path(net: &Network, a: u32, b: u32, limit: f64) -> Option<Vec<u32>> {
+    if a == b {
+        return Some(vec![a]);
+    }
+    let mut dist: FxHashMap<u32, (f64, u32)> = FxHashMap::default();
+    let mut heap = BinaryHeap::new();
+    dist.insert(a, (0.0, u32::MAX));
+    heap.push(Dist(0.0, a));
+    while let Some(Dist(d, n)) = heap.pop() {
+        if n == b {
+            break;
+        }
+        if d > dist.get(&n).map_or(f64::INFINITY, |x| x.0) || d > limit {
+            continue;
+        }
+        let mut adj = net.adj[n as usize].clone();
+        adj.sort_unstable();
+        for (m, _) in adj {
+            let nd = d + (net.nodes[m as usize].p - net.nodes[n as usize].p).length();
+            if nd < dist.get(&m).map_or(f64::INFINITY, |x| x.0) {
+                dist.insert(m, (nd, n));
+                heap.push(Dist(nd, m));
+            }
+        }
+    }
+    dist.get(&b)?;
+    let mut path = vec![b];
+    let mut n = b;
+    while n != a {
+        n = dist.get(&n)?.1;
+        path.push(n);
+    }
+    path.reverse();
+    Some(path)
+}
+
+/// Builds and checks the bands of one zone.
+fn heal_component(
+    inp: &Input,
+    lat: &Lattice,
+    set: &FxHashSet<usize>,
+    comp: &[usize],
+    edge_vertex: &FxHashMap<u64, u32>,
+    probe: &mut Probe,
+    edge_memo: &mut FxHashMap<u64, bool>,
+) -> Result<Bands, String> {
+    let t = table();
+    let net = inp.net;
+    let h = inp.grid.cell;
+    let n_mc = inp.vertices.len() as u32;
+
+    // Faces of the domain box where a curve leaves it: there marching cubes pairs the four
+    // crossings of the two sheets wrongly, so their segments are not used; the traces end on
+    // those faces' edges and the bands on the exit node.
+    let bounds = inp.grid.bounds();
+    let mut exit_faces: FxHashSet<(usize, usize)> = FxHashSet::default();
+    for n in net.nodes.iter().filter(|n| n.kind == NodeKind::Exit) {
+        let mut cubes = FxHashSet::default();
+        lat.add_near(n.p, 1e-6, &mut cubes);
+        for c in cubes {
+            for a in 0..3 {
+                if (n.p[a] - bounds.min[a]).abs() <= 1e-6 * h {
+                    exit_faces.insert((c, 2 * a));
+                }
+                if (n.p[a] - bounds.max[a]).abs() <= 1e-6 * h {
+                    exit_faces.insert((c, 2 * a + 1));
+                }
+            }
+        }
+    }
+
+    // Trace segments on the zone's boundary, directed as the zone-side cube has them: on
+    // faces shared with cubes outside, and on the domain box (where the bands end with the
+    // mesh), except where curves leave it.
+    let mut next: FxHashMap<u32, u32> = FxHashMap::default();
+    let mut has_prev: FxHashSet<u32> = FxHashSet::default();
+    for &ci in comp {
+        let c = lat.coords(ci);
+        let v = lat.corner_values(inp.volume, c);
+        let case = case_of(&v);
+        if case == 0 || case == 255 {
+            continue;
+        }
+        let amb = t.ambiguous[case];
+        let dec = if amb == 0 { 0 } else { face_decisions(&v, amb) };
+        let entry = t.entry(case, dec as usize);
+        let vid = |e: u8| -> Result<u32, String> {
+            let e = e as usize;
+            let o = CORNERS[EDGES[e][0]];
+            let p = [c[0] + o[0], c[1] + o[1], c[2] + o[2]];
+            edge_vertex
+                .get(&lat.edge_key(p, edge_axis(e)))
+                .copied()
+                .ok_or_else(|| "a boundary crossing has no marching-cubes vertex".to_string())
+        };
+        for l in 0..entry.loop_count as usize {
+            let edges = t.loop_edges(entry, l);
+            let n = edges.len();
+            for k in 0..n {
+                let (ea, eb) = (edges[k], edges[(k + 1) % n]);
+                let Some(f) = common_face(ea as usize, eb as usize) else {
+                    return Err("a loop side on no face".into());
+                };
+                match lat.neighbour(c, f) {
+                    Some(nb) if set.contains(&nb) => continue,
+                    None if exit_faces.contains(&(ci, f)) => continue,
+                    // A box face where the lattice misses crossings (near where a curve
+                    // leaves) is left out like an exit face.
+                    None if box_face_hides(probe, inp.volume, lat, edge_memo, c, f) => continue,
+                    _ => {}
+                }
+                let (a, b) = (vid(ea)?, vid(eb)?);
+                if next.insert(a, b).is_some() || !has_prev.insert(b) {
+                    return Err(
+                        "the zone's boundary is not a surface where the sheets cross it".into()
+                    );
+                }
+            }
+        }
+    }
+
+    // Network nodes and edges in this zone.
+    let node_in = |k: usize| set.contains(&lat.cube(lat.cube_of(net.nodes[k].p)));
+    let nodes: Vec<u32> = (0..net.nodes.len()).filter(|&k| node_in(k)).map(|k| k as u32).collect();
+    let node_set: FxHashSet<u32> = nodes.iter().copied().collect();
+    let edges: Vec<u32> = (0..net.edges.len() as u32)
+        .filter(|&e| {
+            let [a, b] = net.edges[e as usize];
+            node_set.contains(&a) || node_set.contains(&b)
+        })
+        .collect();
+    if nodes.is_empty() {
+        return Err("no self-intersection in the zone".into());
+    }
+    let mut buckets: FxHashMap<[usize; 3], Vec<u32>> = FxHashMap::default();
+    for &k in &nodes {
+        buckets.entry(lat.cube_of(net.nodes[k as usize].p)).or_default().push(k);
+    }
+    let reach = lat.cubes.iter().copied().max().unwrap_or(1);
+    let nearest = |p: DVec3| -> Option<u32> {
+        let c = lat.cube_of(p);
+        let mut best: Option<(f64, u32)> = None;
+        for r in 0..=reach {
+            // Nothing in ring r can beat a distance below (r - 1) cells.
+            if let Some((d, _)) = best
+                && d < (r as f64 - 1.0) * h
+            {
+                break;
+            }
+            let lo = |a: usize| c[a].saturating_sub(r);
+            let hi = |a: usize| (c[a] + r).min(lat.cubes[a] - 1);
+            for k in lo(2)..=hi(2) {
+                for j in lo(1)..=hi(1) {
+                    for i in lo(0)..=hi(0) {
+                        let ring = [i.abs_diff(c[0]), j.abs_diff(c[1]), k.abs_diff(c[2])];
+                        if ring.iter().copied().max().unwrap_or(0) != r {
+                            continue;
+                        }
+                        for &n in buckets.get(&[i, j, k]).into_iter().flatten() {
+                            let d = (net.nodes[n as usize].p - p).length();
+                            if best.is_none_or(|b| d < b.0 || (d == b.0 && n < b.1)) {
+                                best = Some((d, n));
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        best.map(|b| b.1)
+    };
+    let is_leaf = |n: u32| net.degree(n) <= 1;
+    let limit = 4.0 * h;
+
+    // Components of the trace: paths from their first vertex, then loops.
+    let mut starts: Vec<u32> = next.keys().copied().filter(|v| !has_prev.contains(v)).collect();
+    starts.sort_unstable();
+    let mut used: FxHashSet<u32> = FxHashSet::default();
+    let mut components: Vec<(Vec<u32>, bool)> = Vec::new();
+    for s in starts {
+        let mut path = vec![s];
+        let mut v = s;
+        used.insert(s);
+        while let Some(&w) = next.get(&v) {
+            if !used.insert(w) {
+                return Err("a trace path runs into itself".into());
+            }
+            path.push(w);
+            v = w;
+        }
+        components.push((path, false));
+    }
+    let mut rest: Vec<u32> = next.keys().copied().filter(|v| !used.contains(v)).collect();
+    rest.sort_unstable();
+    for s in rest {
+        if used.contains(&s) {
+            continue;
+        }
+        let mut path = vec![s];
+        used.insert(s);
+        let mut v = s;
+        loop {
+            let Some(&w) = next.get(&v) else {
+                return Err("a trace loop does not close".into());
+            };
+            if w == s {
+                break;
+            }
+            if !used.insert(w) {
+                return Err("a trace loop runs into another".into());
+            }
+            path.push(w);
+            v = w;
+        }
+        path.push(s);
+        components.push((path, true));
+    }
+
+    let mut bands = Bands { triangles: Vec::new(), band_of: Vec::new(), edges: Vec::new() };
+    let mut usage: FxHashMap<u32, u32> = FxHashMap::default();
+    let mut cone_fans: FxHashMap<u32, u32> = FxHashMap::default();
+    for (band, (trace, closed)) in components.iter().enumerate() {
+        let pos = |v: u32| inp.positions[v as usize];
+        // Walk: nearest nodes joined by shortest paths.
+        let mut walk: Vec<u32> = Vec::new();
+        let mut w: Vec<usize> = Vec::with_capacity(trace.len());
+        for &v in trace {
+            let Some(n) = nearest(pos(v)) else { return Err("no node near a trace".into()) };
+            match walk.last() {
+                None => walk.push(n),
+                Some(&last) if last != n => {
+                    let Some(path) = shortest_path(net, last, n, limit) else {
+                        return Err("a trace jumps between unconnected curves".into());
+                    };
+                    walk.extend_from_slice(&path[1..]);
+                }
+                _ => {}
+            }
+            w.push(walk.len() - 1);
+        }
+        // Back-and-forth moves are wiggles, except round the end of a curve: a sheet that
+        // folds round a pinch point turns there, and the nearest nodes may turn one node early.
+        let mut from = 1;
+        while let Some(j) = (from..walk.len().saturating_sub(1))
+            .find(|&j| walk[j - 1] == walk[j + 1] && !is_leaf(walk[j]))
+        {
+            if let Some(path) = path_to_end(net, walk[j], walk[j - 1], 2.5 * h) {
+                // Go on to the end and back.
+                let extra = 2 * (path.len() - 1);
+                let mut round: Vec<u32> = path[1..].to_vec();
+                round.extend(path[..path.len() - 1].iter().rev());
+                walk.splice(j + 1..j + 1, round);
+                for x in w.iter_mut() {
+                    if *x > j {
+                        *x += extra;
+                    }
+                }
+                from = j + extra + 1;
+                continue;
+            }
+            walk.drain(j..j + 2);
+            for x in w.iter_mut() {
+                if *x == j || *x == j + 1 {
+                    *x = j - 1;
+                } else if *x > j + 1 {
+                    *x -= 2;
+                }
+            }
+            from = 1;
+        }
+        // Open traces end on the domain box, as do the curves they follow.
+        if !closed {
+            let first = trace[0];
+            let last = *trace.last().unwrap_or(&first);
+            if on_box(&inp.vertices[first as usize], inp.grid.dims)
+                && let Some(path) = path_to_exit(net, walk[0], 2.5 * h)
+            {
+                let extra = path.len() - 1;
+                let mut nw: Vec<u32> = path.into_iter().rev().collect();
+                nw.extend_from_slice(&walk[1..]);
+                walk = nw;
+                for x in w.iter_mut() {
+                    *x += extra;
+                }
+            }
+            let end = *walk.last().unwrap_or(&0);
+            if on_box(&inp.vertices[last as usize], inp.grid.dims)
+                && let Some(path) = path_to_exit(net, end, 2.5 * h)
+            {
+                walk.extend_from_slice(&path[1..]);
+            }
+        }
+        let trivial = walk.len() == 1;
+        if trivial {
+            let n = walk[0];
+            if !closed {
+                return Err("an open trace along no self-intersection curve".into());
+            }
+            if net.nodes[n as usize].kind != NodeKind::Cone {
+                // A sheet piece that enters the zone and leaves it without reaching a curve
+                // (a tangential graze, a corner cut off): a disk, fanned from its first
+                // vertex. Were it really a piece round a curve, that curve's edges would lack
+                // it, and the check below would refuse the zone.
+                for k in 1..trace.len().saturating_sub(2) {
+                    bands.triangles.push([trace[0], trace[k], trace[k + 1]]);
+                    bands.band_of.push(band as u32);
+                }
+                continue;
+            }
+            *cone_fans.entry(n).or_insert(0) += 1;
+        }
+        if !trivial && walk.iter().any(|&n| net.nodes[n as usize].kind == NodeKind::Cone) {
+            return Err("a trace runs through a cone apex".into());
+        }
+        // Zip the trace (i) with the walk (j): a sequence of steps, each one triangle.
+        let (nt, nw) = (trace.len() - 1, walk.len() - 1);
+        let mut steps: Vec<bool> = Vec::with_capacity(nt + nw); // true: along the trace
+        let (mut i, mut j) = (0usize, 0usize);
+        let mut turned_at: Option<usize> = None;
+        while i < nt || j < nw {
+            // Round the end of a curve the walk comes straight back: the trace must move on
+            // between the two steps, or the second triangle would fold onto the first.
+            let folds = j >= 1 && j < nw && walk[j + 1] == walk[j - 1] && turned_at == Some(i);
+            let advance_trace = if i == nt {
+                false
+            } else if j == nw || j >= w[i + 1] || folds {
+                true
+            } else if j < w[i] {
+                false
+            } else {
+                // The shorter rung.
+                let (ti, tn) = (pos(trace[i]), pos(trace[i + 1]));
+                let (wj, wn) = (net.nodes[walk[j] as usize].p, net.nodes[walk[j + 1] as usize].p);
+                (tn - wj).length() <= (ti - wn).length()
+            };
+            if advance_trace {
+                i += 1;
+            } else {
+                turned_at = Some(i);
+                j += 1;
+            }
+            steps.push(advance_trace);
+        }
+        let tri_of = |steps: &[bool], k: usize, i: usize, j: usize| -> [u32; 3] {
+            if steps[k] {
+                [trace[i], trace[i + 1], n_mc + walk[j]]
+            } else {
+                [trace[i], n_mc + walk[j + 1], n_mc + walk[j]]
+            }
+        };
+        let place = |v: u32| {
+            if v < n_mc { inp.positions[v as usize] } else { net.nodes[(v - n_mc) as usize].p }
+        };
+        let normal = |t: [u32; 3]| {
+            let q = t.map(place);
+            (q[1] - q[0]).cross(q[2] - q[0])
+        };
+        let flat = |t: [u32; 3]| {
+            let q = t.map(place);
+            let e = (q[1] - q[0]).length_squared()
+                + (q[2] - q[1]).length_squared()
+                + (q[0] - q[2]).length_squared();
+            normal(t).length() <= 1e-6 * e
+        };
+        let emit = |steps: &[bool]| {
+            let (mut i, mut j) = (0, 0);
+            let mut out = Vec::with_capacity(steps.len());
+            for k in 0..steps.len() {
+                out.push((tri_of(steps, k, i, j), i, j));
+                if steps[k] {
+                    i += 1;
+                } else {
+                    j += 1;
+                }
+            }
+            out
+        };
+        // A triangle whose three points are on one line (a curve crossing the lattice plane a
+        // trace runs in) is flipped with a neighbour: swapping two unlike steps moves the rung
+        // between them to the quad's other diagonal.
+        let mut tris = emit(&steps);
+        for k in 0..steps.len() {
+            if !flat(tris[k].0) {
+                continue;
+            }
+            for m in [k.wrapping_sub(1), k + 1] {
+                if m >= steps.len() || steps[m] == steps[k] {
+                    continue;
+                }
+                let (a, b) = (k.min(m), k.max(m));
+                let mut trial = steps.clone();
+                trial.swap(a, b);
+                let t2 = emit(&trial);
+                let (x, y) = (t2[a].0, t2[b].0);
+                let distinct = |t: [u32; 3]| t[0] != t[1] && t[1] != t[2] && t[0] != t[2];
+                if distinct(x)
+                    && distinct(y)
+                    && !flat(x)
+                    && !flat(y)
+                    && normal(x).dot(normal(y)) > 0.0
+                {
+                    steps = trial;
+                    tris = t2;
+                    break;
+                }
+            }
+        }
+        for (t, _, _) in &tris {
+            bands.triangles.push(*t);
+            bands.band_of.push(band as u32);
+        }
+        let mut j = 0usize;
+        for &along_trace in &steps {
+            if !along_trace {
+                let Some(e) = net.edge_between(walk[j], walk[j + 1]) else {
+                    return Err("a walk step is not a network edge".into());
+                };
+                *usage.entry(e).or_insert(0) += 1;
+                j += 1;
+            }
+        }
+    }
+
+    // Two sheets cross along every curve: each edge carries four bands.
+    for &e in &edges {
+        let n = usage.get(&e).copied().unwrap_or(0);
+        if n != 4 {
+            let [a, b] = net.edges[e as usize];
+            let mid = (net.nodes[a as usize].p + net.nodes[b as usize].p) * 0.5;
+            return Err(format!(
+                "{n} sheet pieces (not 4) meet the self-intersection near ({:.3}, {:.3}, {:.3})",
+                mid.x, mid.y, mid.z
+            ));
+        }
+        bands.edges.push(net.edges[e as usize]);
+    }
+    for &k in &nodes {
+        if net.nodes[k as usize].kind == NodeKind::Cone
+            && cone_fans.get(&k).copied().unwrap_or(0) == 0
+        {
+            return Err("no sheet reaches the cone apex".into());
+        }
+    }
+    Ok(bands)
+}
+
+/// A path from `a` (not back through `not`) to the end of a curve inside the domain (a pinch
+/// point or a lost end) within `limit`.
+fn path_to_end(net: &Network, a: u32, not: u32, limit: f64) -> Option<Vec<u32>> {
+    let mut best: Option<(f64, Vec<u32>)> = None;
+    let mut frontier = vec![(a, 0.0, vec![a])];
+    while let Some((n, d, path)) = frontier.pop() {
+        for &(m, _) in &net.adj[n as usize] {
+            if m == not || path.contains(&m) {
+                continue;
+            }
+            let nd = d + (net.nodes[m as usize].p - net.nodes[n as usize].p).length();
+            if nd > limit {
+                continue;
+            }
+            let mut np = path.clone();
+            np.push(m);
+            let kind = net.nodes[m as usize].kind;
+            if net.degree(m) <= 1 && matches!(kind, NodeKind::Pinch | NodeKind::End) {
+                if best.as_ref().is_none_or(|b| nd < b.0) {
+                    best = Some((nd, np));
+                }
+            } else {
+                frontier.push((m, nd, np));
+            }
+        }
+    }
+    best.map(|b| b.1)
+}
+
+/// The shortest network path from `a` to a node on the domain box within `limit`, if `a` is
+/// not one already.
+fn path_to_exit(net: &Network, a: u32, limit: f64) -> Option<Vec<u32>> {
+    if net.nodes[a as usize].kind == NodeKind::Exit {
+        return None;
+    }
+    let mut best: Option<(f64, Vec<u32>)> = None;
+    let mut frontier = vec![(a, 0.0, vec![a])];
+    while let Some((n, d, path)) = frontier.pop() {
+        for &(m, _) in &net.adj[n as usize] {
+            if path.contains(&m) {
+                continue;
+            }
+            let nd = d + (net.nodes[m as usize].p - net.nodes[n as usize].p).length();
+            if nd > limit {
+                continue;
+            }
+            let mut np = path.clone();
+            np.push(m);
+            if net.nodes[m as usize].kind == NodeKind::Exit {
+                if best.as_ref().is_none_or(|b| nd < b.0) {
+                    best = Some((nd, np));
+                }
+            } else {
+                frontier.push((m, nd, np));
+            }
+        }
+    }
+    best.map(|b| b.1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lattice_indexing_round_trips() {
+        let grid = Grid::with_cell(&skelform_field::Aabb::cube(1.0), 0.25).unwrap();
+        let lat = Lattice::new(grid);
+        assert_eq!(lat.cubes, [8, 8, 8]);
+        for i in [0, 7, 63, 100, 511] {
+            assert_eq!(lat.cube(lat.coords(i)), i);
+        }
+        let around = lat.around_edge([3, 4, 5], 2);
+        let got: Vec<[usize; 3]> = around.iter().map(|c| lat.coords(c.unwrap())).collect();
+        assert_eq!(got, vec![[3, 4, 5], [2, 4, 5], [2, 3, 5], [3, 3, 5]]);
+        assert_eq!(lat.around_edge([0, 0, 5], 2).iter().flatten().count(), 1);
+        assert_eq!(lat.neighbour([0, 0, 0], 0), None);
+        assert_eq!(lat.neighbour([0, 0, 0], 1), Some(lat.cube([1, 0, 0])));
+    }
+
+    #[test]
+    fn edges_share_the_faces_they_should() {
+        for a in 0..12 {
+            let count = (0..12).filter(|&b| b != a && common_face(a, b).is_some()).count();
+            // Each edge is on two faces, each with three other edges.
+            assert_eq!(count, 6, "edge {a}");
+        }
+    }
+
+    #[test]
+    fn hidden_crossings_on_an_edge() {
+        use skelform_field::{FnField, control::Control, grid::sample};
+        // A slab |x| < 0.05 around x = 0 between samples at x = -0.125 and 0.125.
+        let f = FnField(|p: DVec3| p.x * p.x - 0.0025);
+        let grid = Grid::with_cell(
+            &skelform_field::Aabb::new(DVec3::splat(-0.125), DVec3::splat(0.125)),
+            0.25,
+        )
+        .unwrap();
+        let vol = sample(&f, &grid, &Control::default()).unwrap();
+        let lat = Lattice::new(grid);
+        let mut probe = Probe::new(&f, 0.25);
+        assert!(edge_hides_crossings(&mut probe, &vol, &lat, [0, 0, 0], 0));
+        assert!(!edge_hides_crossings(&mut probe, &vol, &lat, [0, 0, 0], 1));
+    }
+}

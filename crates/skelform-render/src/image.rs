@@ -1,0 +1,187 @@
+//! The picture: 8-bit sRGB pixels, PNG encoding (the `png` crate), atomic files, and
+//! animated PNG for turntables.
+
+use std::fs;
+use std::io::{self, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use crate::RenderError;
+
+/// An sRGB colour, 8 bits a channel.
+pub type Rgb = [u8; 3];
+
+/// A picture: `width × height` sRGB pixels, row by row from the top.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Image {
+    pub width: u32,
+    pub height: u32,
+    /// `width * height` pixels, top row first.
+    pub pixels: Vec<Rgb>,
+}
+
+impl Image {
+    /// A picture of one colour.
+    pub fn new(width: u32, height: u32, fill: Rgb) -> Image {
+        Image { width, height, pixels: vec![fill; width as usize * height as usize] }
+    }
+
+    /// The pixel in column `x`, row `y` (from the top).
+    ///
+    /// # Panics
+    /// If `(x, y)` is outside the image.
+    pub fn pixel(&self, x: u32, y: u32) -> Rgb {
+        assert!(x < self.width && y < self.height, "pixel ({x}, {y}) outside the image");
+        self.pixels[y as usize * self.width as usize + x as usize]
+    }
+
+    pub(crate) fn set(&mut self, x: i64, y: i64, c: Rgb) {
+        if x >= 0 && y >= 0 && x < i64::from(self.width) && y < i64::from(self.height) {
+            self.pixels[y as usize * self.width as usize + x as usize] = c;
+        }
+    }
+
+    /// Blends `c` over the pixel with opacity `a` (in sRGB values; used for overlays).
+    pub(crate) fn blend(&mut self, x: i64, y: i64, c: Rgb, a: f32) {
+        if x >= 0 && y >= 0 && x < i64::from(self.width) && y < i64::from(self.height) {
+            let p = &mut self.pixels[y as usize * self.width as usize + x as usize];
+            for k in 0..3 {
+                p[k] = (f32::from(p[k]) * (1.0 - a) + f32::from(c[k]) * a).round() as u8;
+            }
+        }
+    }
+
+    /// The raw RGB bytes, row by row.
+    pub fn as_bytes(&self) -> Vec<u8> {
+        self.pixels.iter().flatten().copied().collect()
+    }
+
+    /// The picture as a PNG file's bytes (8-bit RGB, marked sRGB).
+    pub fn encode_png(&self) -> Result<Vec<u8>, RenderError> {
+        encode(std::slice::from_ref(self), 0)
+    }
+
+    /// Writes the picture as PNG to `path`, atomically: a temporary file in the same folder,
+    /// renamed over `path` once complete, so a failure never leaves a partial picture.
+    pub fn write_png(&self, path: &Path) -> Result<(), RenderError> {
+        write_atomic(path, &self.encode_png()?)
+    }
+}
+
+/// Writes `frames` as one animated PNG (APNG), looping forever, each frame shown for
+/// `delay_ms` milliseconds; viewers without APNG support show the first frame. Atomic like
+/// [`Image::write_png`]. All frames must have the same size.
+pub fn write_apng(path: &Path, frames: &[Image], delay_ms: u16) -> Result<(), RenderError> {
+    write_atomic(path, &encode(frames, delay_ms)?)
+}
+
+/// Encodes one image (`frames.len() == 1`) or an animation.
+pub fn encode(frames: &[Image], delay_ms: u16) -> Result<Vec<u8>, RenderError> {
+    let first = frames.first().ok_or_else(|| RenderError::Settings("no frames".into()))?;
+    if frames.iter().any(|f| f.width != first.width || f.height != first.height) {
+        return Err(RenderError::Settings("the frames differ in size".into()));
+    }
+    let mut out = Vec::new();
+    {
+        let mut enc = png::Encoder::new(&mut out, first.width, first.height);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
+        // Rendered pictures have large flat areas; the adaptive filter with the default
+        // deflate level keeps the gallery small without slowing big renders much.
+        enc.set_compression(png::Compression::Balanced);
+        if frames.len() > 1 {
+            let n = u32::try_from(frames.len())
+                .map_err(|_| RenderError::Settings("too many frames".into()))?;
+            enc.set_animated(n, 0).map_err(RenderError::Encode)?;
+            enc.set_frame_delay(delay_ms, 1000).map_err(RenderError::Encode)?;
+        }
+        let mut w = enc.write_header().map_err(RenderError::Encode)?;
+        for f in frames {
+            w.write_image_data(&f.as_bytes()).map_err(RenderError::Encode)?;
+        }
+        w.finish().map_err(RenderError::Encode)?;
+    }
+    Ok(out)
+}
+
+/// Writes `bytes` to a new temporary file beside `path`, syncs it and renames it over
+/// `path`; on any error the temporary file is removed and `path` is untouched.
+pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), RenderError> {
+    let fail = |source: io::Error| RenderError::Write { path: path.to_path_buf(), source };
+    let file_name = path.file_name().ok_or_else(|| {
+        fail(io::Error::new(io::ErrorKind::InvalidInput, "the path names no file"))
+    })?;
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let (tmp, mut file) = create_temp(dir, file_name).map_err(fail)?;
+    let result = file.write_all(bytes).and_then(|()| file.sync_all()).and_then(|()| {
+        drop(file);
+        fs::rename(&tmp, path)
+    });
+    if let Err(e) = result {
+        let _ = fs::remove_file(&tmp);
+        return Err(fail(e));
+    }
+    Ok(())
+}
+
+/// A new file `DIR/.NAME.tmp-PID-N` that did not exist before.
+fn create_temp(dir: &Path, file_name: &std::ffi::OsStr) -> io::Result<(PathBuf, fs::File)> {
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let pid = std::process::id();
+    let mut attempts = 0;
+    loop {
+        attempts += 1;
+        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+        let mut name = std::ffi::OsString::from(".");
+        name.push(file_name);
+        name.push(format!(".tmp-{pid}-{n}"));
+        let tmp = dir.join(name);
+        match fs::OpenOptions::new().write(true).create_new(true).open(&tmp) {
+            Ok(f) => return Ok((tmp, f)),
+            Err(e) if e.kind() == io::ErrorKind::AlreadyExists && attempts < 100 => continue,
+            Err(e) => return Err(e),
+        }
+    }
+}
+
+/// Linear light to an sRGB byte.
+pub(crate) fn to_srgb(c: f32) -> u8 {
+    let c = c.clamp(0.0, 1.0);
+    let s = if c <= 0.003_130_8 { 12.92 * c } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 };
+    (s * 255.0 + 0.5) as u8
+}
+
+/// An sRGB byte to linear light.
+pub(crate) fn to_linear(c: u8) -> f32 {
+    let s = f32::from(c) / 255.0;
+    if s <= 0.040_45 { s / 12.92 } else { ((s + 0.055) / 1.055).powf(2.4) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn srgb_round_trips() {
+        for c in 0..=255u8 {
+            assert_eq!(to_srgb(to_linear(c)), c);
+        }
+    }
+
+    #[test]
+    fn png_decodes_to_the_same_pixels() {
+        let mut img = Image::new(3, 2, [10, 20, 30]);
+        img.set(2, 1, [200, 100, 0]);
+        let bytes = img.encode_png().unwrap();
+        let dec = png::Decoder::new(std::io::Cursor::new(bytes));
+        let mut reader = dec.read_info().unwrap();
+        let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+        let info = reader.next_frame(&mut buf).unwrap();
+        assert_eq!((info.width, info.height), (3, 2));
+        assert_eq!(&buf[..info.buffer_size()], &img.as_bytes()[..]);
+    }
+}

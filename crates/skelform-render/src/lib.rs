@@ -1,0 +1,450 @@
+//! Pictures of meshes, on the CPU: a z-buffer rasterizer with smooth shading, region
+//! colours and a legend, curves drawn over the surface, an optional wireframe, optional
+//! transparency, and turntables.
+//!
+//! What it guarantees:
+//! - **Determinism.** The same mesh and [`Settings`] give the same pixels, bit for bit, on
+//!   any number of threads: work is split into fixed image tiles, each tile takes its
+//!   triangles in mesh order, and nothing is summed across tiles.
+//! - **Exact coverage.** Vertices are snapped to 1/256 pixel and coverage is decided in
+//!   integers with a top-left rule: neighbouring triangles neither overlap nor leave cracks,
+//!   so transparent sheets show no seams.
+//! - **The whole form in view.** By default the camera looks at the centre of the bounding
+//!   box of the triangles and stands as close as it can while every corner of the box is
+//!   inside the image, with a margin ([`Camera::fit`]). A turntable keeps one distance for
+//!   all frames.
+//! - **Both sides of every sheet.** Nothing is culled: open surfaces and the inner sheets
+//!   of non-manifold meshes show, their back sides in a darker colour.
+//! - **Clear errors** ([`RenderError`]) for an empty image, a mesh without triangles, an
+//!   invalid mesh or non-finite coordinates; never a panic on user data.
+//!
+//! What it does not do: shadows, reflections or global illumination (one directional light,
+//! a constant ambient term and a soft specular highlight); texture or per-vertex colour;
+//! text beyond the legend. Transparency composites every layer exactly, front to back, per
+//! pixel (an A-buffer per tile), so it costs memory in proportion to the layers of a tile.
+//!
+//! ```
+//! use skelform_mesh::Mesh;
+//! use skelform_render::{render, Settings};
+//!
+//! // A single triangle facing the default camera.
+//! let mesh = Mesh {
+//!     positions: vec![[-1.0, 0.0, -1.0], [1.0, 0.0, -1.0], [0.0, 0.0, 1.0]],
+//!     triangles: vec![[0, 1, 2]],
+//!     ..Mesh::default()
+//! };
+//! let settings = Settings { width: 64, height: 48, ..Settings::default() };
+//! let image = render(&mesh, &settings)?;
+//! assert_eq!((image.width, image.height), (64, 48));
+//! // The centre shows the surface, a corner shows the background.
+//! assert_ne!(image.pixel(32, 24), settings.background);
+//! assert_eq!(image.pixel(0, 0), settings.background);
+//! let png: Vec<u8> = image.encode_png()?;
+//! assert_eq!(&png[1..4], b"PNG");
+//! # Ok::<(), skelform_render::RenderError>(())
+//! ```
+
+mod camera;
+mod image;
+mod legend;
+mod raster;
+
+use std::path::PathBuf;
+
+use rayon::prelude::*;
+use skelform_mesh::io::gltf::{SURFACE_COLOUR, region_colour};
+use skelform_mesh::{Mesh, MeshError, RegionPair};
+
+pub use camera::{Camera, Projection, View};
+pub use image::{Image, Rgb, encode, write_apng};
+
+use legend::Swatch;
+use raster::{Look, Prepared, lin};
+
+/// The largest width or height of a picture, in pixels.
+pub const MAX_SIDE: u32 = 16384;
+
+/// Why a picture could not be made or written.
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    #[error("the image size {width}×{height} is empty: width and height must be at least 1")]
+    EmptyImage { width: u32, height: u32 },
+    #[error("the image size {width}×{height} is too large: at most {MAX_SIDE} pixels a side")]
+    TooLarge { width: u32, height: u32 },
+    #[error("the mesh has no triangles to draw")]
+    NoTriangles,
+    #[error("invalid mesh: {0}")]
+    InvalidMesh(#[from] MeshError),
+    #[error("vertex {vertex} has a coordinate that is not a finite number")]
+    NonFinite { vertex: usize },
+    #[error("invalid settings: {0}")]
+    Settings(String),
+    #[error("cannot encode the PNG: {0}")]
+    Encode(#[source] png::EncodingError),
+    #[error("cannot write {}: {source}", .path.display())]
+    Write {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+/// The light: a direction in camera space, and how much ambient, diffuse and specular light
+/// there is. Colours are computed in linear light as
+/// `albedo·(ambient + diffuse·max(n·l, 0)) + specular·max(n·h, 0)^shininess`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Light {
+    /// Towards the light, in camera space: `x` right, `y` up, `z` towards the viewer.
+    pub direction: [f32; 3],
+    pub ambient: f32,
+    pub diffuse: f32,
+    pub specular: f32,
+    pub shininess: f32,
+}
+
+impl Default for Light {
+    /// A key light from the upper left, in front: the usual studio light, which shows the
+    /// form's relief without hiding the side away from it (the ambient term keeps it soft).
+    fn default() -> Self {
+        Light {
+            direction: [-0.45, 0.6, 0.65],
+            ambient: 0.28,
+            diffuse: 0.72,
+            specular: 0.18,
+            shininess: 40.0,
+        }
+    }
+}
+
+/// Everything about a picture except the mesh.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Settings {
+    /// Size in pixels, each from 1 to [`MAX_SIDE`].
+    pub width: u32,
+    pub height: u32,
+    pub view: View,
+    pub projection: Projection,
+    /// Space left around the fitted box, as a fraction of the half-width and half-height.
+    pub margin: f64,
+    /// Samples per pixel along each axis (1 to 4): 2 gives smooth edges at 4× the work.
+    pub supersample: u32,
+    pub background: Rgb,
+    pub light: Light,
+    /// Front and back colours of an unlabelled surface.
+    pub surface: Rgb,
+    pub back: Rgb,
+    /// Colours for particular region pairs; others take the shared palette
+    /// ([`skelform_mesh::io::gltf::region_colour`]) in the order of the sorted labels.
+    pub region_colours: Vec<(RegionPair, Rgb)>,
+    /// Draw `mesh.curves` as lines of `curve_width` pixels.
+    pub curves: bool,
+    pub curve_colour: Rgb,
+    pub curve_width: f32,
+    /// Draw every visible triangle edge.
+    pub wireframe: bool,
+    pub wire_colour: Rgb,
+    pub wire_width: f32,
+    pub wire_opacity: f32,
+    /// See through every sheet: each layer covers `opacity` of what is behind it (more
+    /// where seen edge-on), composited exactly front to back.
+    pub transparent: bool,
+    pub opacity: f32,
+    /// A legend of region colours (and curves) in the top-left corner, for meshes with more
+    /// than one label or with curves, in pictures of at least 160 × 120 pixels.
+    pub legend: bool,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            width: 800,
+            height: 600,
+            view: View::default(),
+            projection: Projection::default(),
+            margin: 0.08,
+            supersample: 2,
+            background: [250, 250, 247],
+            light: Light::default(),
+            surface: SURFACE_COLOUR,
+            back: [222, 160, 118],
+            region_colours: Vec::new(),
+            curves: true,
+            curve_colour: [25, 25, 35],
+            curve_width: 3.0,
+            wireframe: false,
+            wire_colour: [40, 40, 50],
+            wire_width: 1.0,
+            wire_opacity: 0.6,
+            transparent: false,
+            opacity: 0.4,
+            legend: true,
+        }
+    }
+}
+
+impl Settings {
+    /// Checks every setting, with a message that names the one that is wrong.
+    pub fn validate(&self) -> Result<(), RenderError> {
+        let (width, height) = (self.width, self.height);
+        if width == 0 || height == 0 {
+            return Err(RenderError::EmptyImage { width, height });
+        }
+        if width > MAX_SIDE || height > MAX_SIDE {
+            return Err(RenderError::TooLarge { width, height });
+        }
+        let bad = |m: &str| Err(RenderError::Settings(m.to_string()));
+        if !(1..=4).contains(&self.supersample) {
+            return bad("supersample must be 1, 2, 3 or 4");
+        }
+        if !(self.view.azimuth.is_finite() && self.view.elevation.is_finite()) {
+            return bad("the view's azimuth and elevation must be finite numbers");
+        }
+        if !(-90.0..=90.0).contains(&self.view.elevation) {
+            return bad("elevation must be between -90 and 90 degrees");
+        }
+        if let Projection::Perspective { fov_degrees } = self.projection
+            && !(fov_degrees > 0.0 && fov_degrees < 170.0)
+        {
+            return bad("the field of view must be between 0 and 170 degrees");
+        }
+        if !(self.margin >= 0.0 && self.margin < 0.9) {
+            return bad("the margin must be from 0 to 0.9");
+        }
+        if !(self.opacity > 0.0 && self.opacity <= 1.0) {
+            return bad("opacity must be more than 0 and at most 1");
+        }
+        if !(self.wire_opacity >= 0.0 && self.wire_opacity <= 1.0) {
+            return bad("wire opacity must be from 0 to 1");
+        }
+        for (what, w) in [("curve", self.curve_width), ("wire", self.wire_width)] {
+            if !(w > 0.0 && w <= 64.0) {
+                return Err(RenderError::Settings(format!(
+                    "{what} width must be more than 0 and at most 64 pixels"
+                )));
+            }
+        }
+        let l = self.light;
+        let finite = l.direction.iter().all(|c| c.is_finite())
+            && [l.ambient, l.diffuse, l.specular, l.shininess]
+                .iter()
+                .all(|c| c.is_finite() && *c >= 0.0);
+        if !finite || l.direction == [0.0; 3] {
+            return bad("the light needs a non-zero direction and non-negative finite terms");
+        }
+        Ok(())
+    }
+}
+
+/// A mesh made ready to render from any number of views: normals and face colours are
+/// computed once.
+pub struct Renderer<'m> {
+    prepared: Prepared<'m>,
+}
+
+impl<'m> Renderer<'m> {
+    /// Checks the mesh and computes what every view needs.
+    pub fn new(mesh: &'m Mesh) -> Result<Renderer<'m>, RenderError> {
+        mesh.validate()?;
+        if mesh.triangles.is_empty() {
+            return Err(RenderError::NoTriangles);
+        }
+        if let Some(vertex) = mesh.positions.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+            return Err(RenderError::NonFinite { vertex });
+        }
+        let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+        for t in &mesh.triangles {
+            for &i in t {
+                let p = mesh.positions[i as usize];
+                for k in 0..3 {
+                    lo[k] = lo[k].min(p[k]);
+                    hi[k] = hi[k].max(p[k]);
+                }
+            }
+        }
+        let face_normals: Vec<[f32; 3]> = mesh
+            .triangles
+            .par_iter()
+            .map(|t| {
+                let n = face_normal(mesh, *t);
+                let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+                if l > 0.0 && l.is_finite() {
+                    [(n[0] / l) as f32, (n[1] / l) as f32, (n[2] / l) as f32]
+                } else {
+                    [0.0; 3]
+                }
+            })
+            .collect();
+        let normals =
+            if mesh.normals.is_empty() { vertex_normals(mesh) } else { mesh.normals.clone() };
+        let (pairs, colour_of) = if mesh.labels.is_empty() {
+            (Vec::new(), vec![0; mesh.triangles.len()])
+        } else {
+            let pairs: Vec<RegionPair> = mesh.label_counts().into_iter().map(|(p, _)| p).collect();
+            let colour_of = mesh
+                .labels
+                .par_iter()
+                .map(|l| pairs.binary_search(l).map_or(0, |i| i.min(u16::MAX as usize) as u16))
+                .collect();
+            (pairs, colour_of)
+        };
+        Ok(Renderer {
+            prepared: Prepared { mesh, normals, face_normals, colour_of, pairs, lo, hi },
+        })
+    }
+
+    /// The camera a picture with these settings uses.
+    pub fn camera(&self, settings: &Settings) -> Camera {
+        let p = &self.prepared;
+        Camera::fit(
+            p.lo,
+            p.hi,
+            settings.view,
+            settings.projection,
+            settings.width,
+            settings.height,
+            settings.margin,
+        )
+    }
+
+    /// The distinct region pairs with the colours the picture gives them, sorted; empty
+    /// for an unlabelled mesh.
+    pub fn region_colours(&self, settings: &Settings) -> Vec<(RegionPair, Rgb)> {
+        self.prepared
+            .pairs
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                let c = settings
+                    .region_colours
+                    .iter()
+                    .find(|(q, _)| q == p)
+                    .map_or_else(|| region_colour(i), |(_, c)| *c);
+                (*p, c)
+            })
+            .collect()
+    }
+
+    fn look(&self, s: &Settings) -> Look {
+        let (front, back): (Vec<_>, Vec<_>) = if self.prepared.pairs.is_empty() {
+            (vec![lin(s.surface)], vec![lin(s.back)])
+        } else {
+            // The back of a labelled sheet keeps its colour, darker, so the two sides of a
+            // sheet are told apart without confusing two labels.
+            self.region_colours(s).iter().map(|(_, c)| (lin(*c), lin(*c).map(|v| v * 0.55))).unzip()
+        };
+        Look {
+            front,
+            back,
+            background: lin(s.background),
+            light: s.light.direction,
+            ambient: s.light.ambient,
+            diffuse: s.light.diffuse,
+            specular: s.light.specular,
+            shininess: s.light.shininess,
+            curve: lin(s.curve_colour),
+            wire: lin(s.wire_colour),
+        }
+    }
+
+    fn legend(&self, s: &Settings) -> Vec<(Swatch, String)> {
+        // In a thumbnail the legend would hide the form.
+        if !s.legend || s.width < 160 || s.height < 120 {
+            return Vec::new();
+        }
+        let mut entries = Vec::new();
+        let colours = self.region_colours(s);
+        if colours.len() > 1 {
+            entries.push((Swatch::None, "regions".to_string()));
+            for (p, c) in colours {
+                entries.push((Swatch::Fill(c), format!("{}-{}", p.0, p.1)));
+            }
+        }
+        if s.curves && !self.prepared.mesh.curves.is_empty() {
+            entries.push((Swatch::Line(s.curve_colour), "curves".to_string()));
+        }
+        entries
+    }
+
+    /// One picture.
+    pub fn render(&self, settings: &Settings) -> Result<Image, RenderError> {
+        settings.validate()?;
+        let look = self.look(settings);
+        let mut img = raster::render_view(&self.prepared, settings, &look, self.camera(settings));
+        legend::draw(&mut img, &self.legend(settings));
+        Ok(img)
+    }
+
+    /// `frames` pictures turning once around the vertical (`z`) axis, starting at the
+    /// settings' azimuth, all at one camera distance so the form keeps its size.
+    pub fn turntable(&self, settings: &Settings, frames: u32) -> Result<Vec<Image>, RenderError> {
+        settings.validate()?;
+        if frames == 0 || frames > 3600 {
+            return Err(RenderError::Settings("a turntable needs from 1 to 3600 frames".into()));
+        }
+        let p = &self.prepared;
+        let views: Vec<View> = (0..frames)
+            .map(|k| View {
+                azimuth: settings.view.azimuth + 360.0 * f64::from(k) / f64::from(frames),
+                elevation: settings.view.elevation,
+            })
+            .collect();
+        let (_, cams) = Camera::fit_views(
+            p.lo,
+            p.hi,
+            &views,
+            settings.projection,
+            settings.width,
+            settings.height,
+            settings.margin,
+        );
+        let look = self.look(settings);
+        let entries = self.legend(settings);
+        Ok(cams
+            .into_iter()
+            .map(|cam| {
+                let mut img = raster::render_view(p, settings, &look, cam);
+                legend::draw(&mut img, &entries);
+                img
+            })
+            .collect())
+    }
+}
+
+/// Renders `mesh` as `settings` say, on the current rayon thread pool.
+pub fn render(mesh: &Mesh, settings: &Settings) -> Result<Image, RenderError> {
+    Renderer::new(mesh)?.render(settings)
+}
+
+/// The right-hand normal of a triangle, with the length of twice its area (in `f64`).
+fn face_normal(mesh: &Mesh, t: [u32; 3]) -> [f64; 3] {
+    let p = t.map(|i| mesh.positions[i as usize].map(f64::from));
+    let (u, v) = (
+        [p[1][0] - p[0][0], p[1][1] - p[0][1], p[1][2] - p[0][2]],
+        [p[2][0] - p[0][0], p[2][1] - p[0][1], p[2][2] - p[0][2]],
+    );
+    [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
+}
+
+/// Area-weighted vertex normals from the winding, for meshes that carry none; summed in
+/// triangle order, so the result does not depend on threads.
+fn vertex_normals(mesh: &Mesh) -> Vec<[f32; 3]> {
+    let mut acc = vec![[0.0f64; 3]; mesh.positions.len()];
+    for t in &mesh.triangles {
+        let n = face_normal(mesh, *t);
+        for &i in t {
+            for k in 0..3 {
+                acc[i as usize][k] += n[k];
+            }
+        }
+    }
+    acc.iter()
+        .map(|n| {
+            let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            if l > 0.0 {
+                [(n[0] / l) as f32, (n[1] / l) as f32, (n[2] / l) as f32]
+            } else {
+                [0.0; 3]
+            }
+        })
+        .collect()
+}
