@@ -216,8 +216,17 @@ fn info(a: InfoArgs) -> Result<(), Failure> {
         }
         Err(e) => println!("grid        invalid: {e}"),
     }
-    println!("iso         {}", scene.iso);
-    println!("formula     {} instructions", scene.formula.instruction_count());
+    match &scene.skeleton {
+        Some(sk) => println!(
+            "skeleton    {} elements in {} blending sets",
+            sk.element_count(),
+            sk.clique_count()
+        ),
+        None => {
+            println!("iso         {}", scene.iso);
+            println!("formula     {} instructions", scene.formula.instruction_count());
+        }
+    }
     if a.tape {
         println!("{}", scene.formula.tape());
     }

@@ -25,6 +25,7 @@
 //! The format is documented with examples in `docs/SCENES.md`.
 
 mod schema;
+mod skeleton;
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -35,6 +36,7 @@ use skelform_mesh::io::Format;
 use skelform_polygonize::grid::Resolution;
 
 pub use schema::{Method, ParseMethodError};
+pub use skeleton::Combine;
 
 /// A loaded, validated scene.
 #[derive(Clone)]
@@ -58,7 +60,11 @@ pub struct Scene {
     pub healed: Healed,
     /// The field with the iso value already subtracted: its zero set is the surface.
     pub field: Arc<dyn Field>,
-    /// The compiled formula (before the iso value), for `skelform info`.
+    /// The skeletal field when the scene has a `[skeleton]` (already in `field`, alone or
+    /// combined with the formula), for statistics and seeds.
+    pub skeleton: Option<Arc<skelform_skeleton::SkeletonField>>,
+    /// The compiled formula (before the iso value), for `skelform info`; the constant `1`
+    /// when the scene has a skeleton and no `[field]`.
     pub formula: Arc<Formula>,
     pub iso: f64,
     pub output: Output,

@@ -69,7 +69,9 @@ struct File {
     scene: Option<SceneInfo>,
     domain: Spanned<Domain>,
     mesh: Option<MeshSection>,
-    field: Spanned<FieldSection>,
+    field: Option<Spanned<FieldSection>>,
+    /// Skeletal elements and their blend (see `crate::skeleton`).
+    skeleton: Option<Spanned<crate::skeleton::SkeletonSection>>,
     output: Option<OutputSection>,
 }
 
@@ -230,23 +232,77 @@ pub(crate) fn build(text: &str, origin: &str) -> Result<Scene, SceneError> {
         None => 1e-4,
     };
 
-    let continuation = continuation_settings(&cx, &mesh, &domain)?;
+    let mut continuation = continuation_settings(&cx, &mesh, &domain)?;
     let healed = healed_settings(&cx, &mesh)?;
 
-    let f = file.field.get_ref();
-    let iso = f.iso.as_ref().map_or(0.0, |s| *s.get_ref());
-    if !iso.is_finite() {
-        return Err(
-            cx.at(f.iso.as_ref().map_or(0, |s| s.span().start), "iso must be a finite number")
-        );
-    }
-    let params: Vec<(String, f64)> = match &f.parameters {
-        Some(p) => p.get_ref().iter().map(|(k, v)| (k.clone(), *v)).collect(),
-        None => Vec::new(),
+    let skeleton = match &file.skeleton {
+        Some(s) => Some(crate::skeleton::build(s, &|o, m| cx.at(o, m))?),
+        None => None,
     };
-    let formula =
-        compile_formula(&cx, &f.formula, &params, f.parameters.as_ref().map(|p| p.span().start))?;
-    let formula = Arc::new(formula);
+    let (formula, iso, formula_field) = match &file.field {
+        Some(field) => {
+            let f = field.get_ref();
+            let iso = f.iso.as_ref().map_or(0.0, |s| *s.get_ref());
+            if !iso.is_finite() {
+                return Err(cx.at(
+                    f.iso.as_ref().map_or(0, |s| s.span().start),
+                    "iso must be a finite number",
+                ));
+            }
+            let params: Vec<(String, f64)> = match &f.parameters {
+                Some(p) => p.get_ref().iter().map(|(k, v)| (k.clone(), *v)).collect(),
+                None => Vec::new(),
+            };
+            let formula = compile_formula(
+                &cx,
+                &f.formula,
+                &params,
+                f.parameters.as_ref().map(|p| p.span().start),
+            )?;
+            let formula = Arc::new(formula);
+            let field = iso_field(formula.clone(), iso);
+            (formula, iso, Some(field))
+        }
+        None => {
+            let Some(sk) = &skeleton else {
+                return Err(cx.at(0, "a scene needs a [field] formula or a [skeleton]"));
+            };
+            // No formula: a constant stands in for `skelform info`.
+            let placeholder = Formula::parse("1").map_err(|e| cx.at(0, e.message()))?;
+            (Arc::new(placeholder), sk.field.iso().unwrap_or(0.0), None)
+        }
+    };
+    let field: Arc<dyn skelform_field::Field> = match (&skeleton, formula_field) {
+        (None, Some(f)) => f,
+        (Some(sk), None) => {
+            if let Some((_, at)) = sk.combine {
+                return Err(
+                    cx.at(at, "'combine' needs a [field] formula to combine the skeleton with")
+                );
+            }
+            sk.field.clone()
+        }
+        (Some(sk), Some(f)) => match sk.combine {
+            Some((op, _)) => {
+                Arc::new(crate::skeleton::Combined { skeleton: sk.field.clone(), formula: f, op })
+            }
+            None => {
+                return Err(cx.at(
+                    sk.section_at,
+                    "the scene has both a [skeleton] and a [field] formula: say how they combine \
+                     with combine = \"union\", \"intersection\" or \"difference\" in [skeleton]",
+                ));
+            }
+        },
+        (None, None) => return Err(cx.at(0, "a scene needs a [field] formula or a [skeleton]")),
+    };
+    if let Some(sk) = &skeleton
+        && continuation.seeds.is_empty()
+    {
+        // Seeding from the skeleton: one point on each element, where the surface is near.
+        continuation.seeds =
+            sk.field.seed_points().into_iter().filter(|p| domain.contains(*p)).collect();
+    }
 
     let out = file.output.unwrap_or(OutputSection {
         file: None,
@@ -276,7 +332,8 @@ pub(crate) fn build(text: &str, origin: &str) -> Result<Scene, SceneError> {
         tolerance,
         continuation,
         healed,
-        field: iso_field(formula.clone(), iso),
+        field,
+        skeleton: skeleton.map(|s| s.field),
         formula,
         iso,
         output: Output {

@@ -1,0 +1,752 @@
+//! The `[skeleton]` section: skeletal elements, their blend and groups, checked with
+//! positions, and built into a [`SkeletonField`].
+//!
+//! ```toml
+//! [skeleton]
+//! blend = "convolution"        # convolution (default), sum, union, elliptic, super-elliptic, combination
+//! kernel = "gaussian"          # convolution and sum: gaussian (default), wyvill, triweight, bspline
+//! radius = 0.1                 # default radius of the elements below
+//!
+//! [skeleton.groups]            # optional: name = [groups it blends with]
+//! palm = []
+//! finger1 = ["palm"]
+//!
+//! [[skeleton.segment]]
+//! a = [0, 0, 0]
+//! b = [0.5, 0, 0]
+//! group = "finger1"
+//! ```
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+use serde::Deserialize;
+use skelform_field::{Aabb, DVec3, Field};
+use skelform_skeleton::{
+    Blend, CubicCurve, Element, Falloff, GroupId, Kernel, Polygon, Segment, Shape, Skeleton,
+    SkeletonError, SkeletonField,
+};
+use toml::Spanned;
+
+use crate::SceneError;
+
+/// Makes a positioned error from a byte offset in the scene text.
+pub(crate) type At<'a> = &'a dyn Fn(usize, String) -> SceneError;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct SkeletonSection {
+    blend: Option<Spanned<String>>,
+    kernel: Option<Spanned<String>>,
+    iso: Option<Spanned<f64>>,
+    radius: Option<Spanned<f64>>,
+    range: Option<Spanned<f64>>,
+    thumbweight: Option<Spanned<f64>>,
+    falloff: Option<Spanned<String>>,
+    clamp: Option<Spanned<bool>>,
+    /// How the skeleton combines with a `[field]` formula in the same scene.
+    combine: Option<Spanned<String>>,
+    groups: Option<BTreeMap<String, Spanned<Vec<Spanned<String>>>>>,
+    point: Option<Vec<PointSpec>>,
+    segment: Option<Vec<SegmentSpec>>,
+    polyline: Option<Vec<PolylineSpec>>,
+    curve: Option<Vec<CurveSpec>>,
+    triangle: Option<Vec<PolygonSpec>>,
+    polygon: Option<Vec<PolygonSpec>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PointSpec {
+    at: Spanned<[f64; 3]>,
+    radius: Option<Spanned<f64>>,
+    strength: Option<Spanned<f64>>,
+    group: Option<Spanned<String>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SegmentSpec {
+    a: Spanned<[f64; 3]>,
+    b: Spanned<[f64; 3]>,
+    radius: Option<Spanned<f64>>,
+    strength: Option<Spanned<f64>>,
+    group: Option<Spanned<String>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PolylineSpec {
+    points: Spanned<Vec<[f64; 3]>>,
+    radius: Option<Spanned<f64>>,
+    strength: Option<Spanned<f64>>,
+    group: Option<Spanned<String>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CurveSpec {
+    /// Bézier control points: the curve starts at the first and ends at the last.
+    bezier: Spanned<[[f64; 3]; 4]>,
+    /// Largest distance between the curve and its segments; default a tenth of the radius.
+    tolerance: Option<Spanned<f64>>,
+    radius: Option<Spanned<f64>>,
+    strength: Option<Spanned<f64>>,
+    group: Option<Spanned<String>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PolygonSpec {
+    vertices: Spanned<Vec<[f64; 3]>>,
+    radius: Option<Spanned<f64>>,
+    strength: Option<Spanned<f64>>,
+    group: Option<Spanned<String>>,
+}
+
+/// How a skeleton and a formula in the same scene make one surface.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Combine {
+    /// Inside either: `min(skeleton, formula)`.
+    Union,
+    /// Inside both: `max(skeleton, formula)`.
+    Intersection,
+    /// Inside the skeleton and outside the formula: `max(skeleton, −formula)`.
+    Difference,
+}
+
+/// A skeleton section, built.
+pub(crate) struct Built {
+    pub field: Arc<SkeletonField>,
+    pub combine: Option<(Combine, usize)>,
+    pub section_at: usize,
+}
+
+pub(crate) fn build(s: &Spanned<SkeletonSection>, at: At) -> Result<Built, SceneError> {
+    let section_at = s.span().start;
+    let s = s.get_ref();
+    let err = |offset: usize, e: SkeletonError| at(offset, e.to_string());
+
+    // The blend and its parameters; a parameter that the blend does not read is an error.
+    let blend_name = s.blend.as_ref().map_or("convolution", |b| b.get_ref().as_str());
+    let blend_at = s.blend.as_ref().map_or(section_at, |b| b.span().start);
+    let kernel = match &s.kernel {
+        Some(k) => k.get_ref().parse::<Kernel>().map_err(|e| at(k.span().start, e.to_string()))?,
+        None => Kernel::Gaussian,
+    };
+    let number =
+        |v: &Option<Spanned<f64>>, default: f64| v.as_ref().map_or(default, |x| *x.get_ref());
+    let blend = match blend_name {
+        "convolution" => Blend::Convolution(kernel),
+        "sum" => Blend::Sum(kernel),
+        "union" => Blend::Union(match &s.falloff {
+            None => Falloff::Linear,
+            Some(f) => match f.get_ref().as_str() {
+                "linear" => Falloff::Linear,
+                "squared" => Falloff::Squared,
+                other => {
+                    return Err(at(
+                        f.span().start,
+                        format!("unknown falloff '{other}'; expected linear or squared"),
+                    ));
+                }
+            },
+        }),
+        "elliptic" => Blend::SuperElliptic { range: number(&s.range, 1.0), thumbweight: 2.0 },
+        "super-elliptic" => Blend::SuperElliptic {
+            range: number(&s.range, 1.0),
+            thumbweight: number(&s.thumbweight, 3.0),
+        },
+        "combination" => Blend::Combination {
+            range: number(&s.range, 1.0),
+            clamp: s.clamp.as_ref().is_none_or(|c| *c.get_ref()),
+        },
+        other => {
+            return Err(at(
+                blend_at,
+                format!(
+                    "unknown blend '{other}'; expected one of: convolution, sum, union, elliptic, \
+                     super-elliptic, combination"
+                ),
+            ));
+        }
+    };
+    let not_for = |key: &str, offset: usize, readers: &str| {
+        at(offset, format!("'{key}' does not apply to the {blend_name} blend (only to {readers})"))
+    };
+    if let Some(k) = &s.kernel
+        && !matches!(blend, Blend::Convolution(_) | Blend::Sum(_))
+    {
+        return Err(not_for("kernel", k.span().start, "convolution and sum"));
+    }
+    if let Some(f) = &s.falloff
+        && !matches!(blend, Blend::Union(_))
+    {
+        return Err(not_for("falloff", f.span().start, "union"));
+    }
+    if let Some(r) = &s.range
+        && !matches!(blend, Blend::SuperElliptic { .. } | Blend::Combination { .. })
+    {
+        return Err(not_for("range", r.span().start, "elliptic, super-elliptic and combination"));
+    }
+    if let Some(t) = &s.thumbweight
+        && blend_name != "super-elliptic"
+    {
+        return Err(not_for("thumbweight", t.span().start, "super-elliptic"));
+    }
+    if let Some(c) = &s.clamp
+        && !matches!(blend, Blend::Combination { .. })
+    {
+        return Err(not_for("clamp", c.span().start, "combination"));
+    }
+    if let Some(i) = &s.iso
+        && !blend.has_iso()
+    {
+        return Err(not_for("iso", i.span().start, "convolution, sum and combination"));
+    }
+    if let Some(r) = &s.radius
+        && !(r.get_ref().is_finite() && *r.get_ref() > 0.0)
+    {
+        return Err(err(r.span().start, SkeletonError::BadRadius(*r.get_ref())));
+    }
+
+    // Groups: declared first, then linked.
+    let mut skeleton = Skeleton::new();
+    if let Some(groups) = &s.groups {
+        for name in groups.keys() {
+            if name != "default" {
+                skeleton.add_group(name).map_err(|e| at(section_at, e.to_string()))?;
+            }
+        }
+        for (name, links) in groups {
+            let g = skeleton.group_named(name).unwrap_or(GroupId::DEFAULT);
+            for other in links.get_ref() {
+                let o = skeleton.group_named(other.get_ref()).ok_or_else(|| {
+                    at(other.span().start, unknown_group(other.get_ref(), &skeleton))
+                })?;
+                skeleton.blend_groups(g, o).map_err(|e| err(other.span().start, e))?;
+            }
+        }
+    }
+
+    // Elements. Each may name its radius, strength and group; the radius defaults to the
+    // section's.
+    let common = |element_at: usize,
+                  radius: &Option<Spanned<f64>>,
+                  strength: &Option<Spanned<f64>>,
+                  group: &Option<Spanned<String>>,
+                  skeleton: &Skeleton|
+     -> Result<(f64, f64, GroupId), SceneError> {
+        let r = match (radius, &s.radius) {
+            (Some(r), _) => {
+                let v = *r.get_ref();
+                if !(v.is_finite() && v > 0.0) {
+                    return Err(err(r.span().start, SkeletonError::BadRadius(v)));
+                }
+                v
+            }
+            (None, Some(d)) => *d.get_ref(),
+            (None, None) => {
+                return Err(at(
+                    element_at,
+                    "this element needs a radius (or give a default 'radius' in [skeleton])".into(),
+                ));
+            }
+        };
+        let w = match strength {
+            Some(w) if !w.get_ref().is_finite() => {
+                return Err(err(w.span().start, SkeletonError::BadStrength(*w.get_ref())));
+            }
+            Some(w) => *w.get_ref(),
+            None => 1.0,
+        };
+        let g = match group {
+            Some(g) => skeleton
+                .group_named(g.get_ref())
+                .ok_or_else(|| at(g.span().start, unknown_group(g.get_ref(), skeleton)))?,
+            None => GroupId::DEFAULT,
+        };
+        Ok((r, w, g))
+    };
+    let add =
+        |skeleton: &mut Skeleton, shape: Shape, (r, w, g): (f64, f64, GroupId), offset: usize| {
+            let e = Element::new(shape, r)
+                .and_then(|e| e.with_strength(w))
+                .map_err(|e| err(offset, e))?;
+            skeleton.push(e.in_group(g)).map_err(|e| err(offset, e))
+        };
+    let v3 = |a: &[f64; 3]| DVec3::from_array(*a);
+
+    for p in s.point.iter().flatten() {
+        let c = common(p.at.span().start, &p.radius, &p.strength, &p.group, &skeleton)?;
+        let at_ = v3(p.at.get_ref());
+        if !at_.is_finite() {
+            return Err(err(p.at.span().start, SkeletonError::NonFinite));
+        }
+        add(&mut skeleton, Shape::Point(at_), c, p.at.span().start)?;
+    }
+    for sg in s.segment.iter().flatten() {
+        let c = common(sg.a.span().start, &sg.radius, &sg.strength, &sg.group, &skeleton)?;
+        let seg = Segment::new(v3(sg.a.get_ref()), v3(sg.b.get_ref()))
+            .map_err(|e| err(sg.b.span().start, e))?;
+        add(&mut skeleton, Shape::Segment(seg), c, sg.a.span().start)?;
+    }
+    for pl in s.polyline.iter().flatten() {
+        let (r, w, g) =
+            common(pl.points.span().start, &pl.radius, &pl.strength, &pl.group, &skeleton)?;
+        let pts: Vec<DVec3> = pl.points.get_ref().iter().map(v3).collect();
+        let range =
+            skeleton.add_polyline(&pts, r, g).map_err(|e| err(pl.points.span().start, e))?;
+        set_strength(&mut skeleton, range, w).map_err(|e| err(pl.points.span().start, e))?;
+    }
+    for cv in s.curve.iter().flatten() {
+        let (r, w, g) =
+            common(cv.bezier.span().start, &cv.radius, &cv.strength, &cv.group, &skeleton)?;
+        let tol = match &cv.tolerance {
+            Some(t) => {
+                let v = *t.get_ref();
+                if !(v.is_finite() && v > 0.0) {
+                    return Err(at(
+                        t.span().start,
+                        format!("tolerance must be a positive length (got {v})"),
+                    ));
+                }
+                v
+            }
+            None => 0.1 * r,
+        };
+        let curve = CubicCurve::bezier(cv.bezier.get_ref().map(DVec3::from_array));
+        let range =
+            skeleton.add_curve(&curve, tol, r, g).map_err(|e| err(cv.bezier.span().start, e))?;
+        set_strength(&mut skeleton, range, w).map_err(|e| err(cv.bezier.span().start, e))?;
+    }
+    for (kind, list) in [("triangle", &s.triangle), ("polygon", &s.polygon)] {
+        for pg in list.iter().flatten() {
+            let vat = pg.vertices.span().start;
+            let c = common(vat, &pg.radius, &pg.strength, &pg.group, &skeleton)?;
+            let vs: Vec<DVec3> = pg.vertices.get_ref().iter().map(v3).collect();
+            if kind == "triangle" && vs.len() != 3 {
+                return Err(at(
+                    vat,
+                    format!(
+                        "a triangle has 3 vertices (got {}); use [[skeleton.polygon]] for more",
+                        vs.len()
+                    ),
+                ));
+            }
+            let poly = Polygon::new(vs).map_err(|e| err(vat, e))?;
+            add(&mut skeleton, Shape::Polygon(poly), c, vat)?;
+        }
+    }
+    if skeleton.is_empty() {
+        return Err(at(
+            section_at,
+            "the skeleton has no elements: add [[skeleton.point]], [[skeleton.segment]], \
+             [[skeleton.polyline]], [[skeleton.curve]], [[skeleton.triangle]] or [[skeleton.polygon]]"
+                .into(),
+        ));
+    }
+
+    let mut field = SkeletonField::new(&skeleton, blend).map_err(|e| {
+        let offset = match &e {
+            SkeletonError::BadParameter { name: "range", .. } => {
+                s.range.as_ref().map(|r| r.span().start)
+            }
+            SkeletonError::BadParameter { name: "thumbweight", .. } => {
+                s.thumbweight.as_ref().map(|r| r.span().start)
+            }
+            _ => None,
+        };
+        err(offset.unwrap_or(blend_at), e)
+    })?;
+    if let Some(i) = &s.iso {
+        field = field.with_iso(*i.get_ref()).map_err(|e| err(i.span().start, e))?;
+    }
+    let combine = match &s.combine {
+        None => None,
+        Some(c) => Some((
+            match c.get_ref().as_str() {
+                "union" => Combine::Union,
+                "intersection" => Combine::Intersection,
+                "difference" => Combine::Difference,
+                other => {
+                    return Err(at(
+                        c.span().start,
+                        format!(
+                            "unknown combine '{other}'; expected union, intersection or difference"
+                        ),
+                    ));
+                }
+            },
+            c.span().start,
+        )),
+    };
+    Ok(Built { field: Arc::new(field), combine, section_at })
+}
+
+fn set_strength(
+    skeleton: &mut Skeleton,
+    range: std::ops::Range<usize>,
+    w: f64,
+) -> Result<(), SkeletonError> {
+    for i in range {
+        skeleton.set_strength(i, w)?;
+    }
+    Ok(())
+}
+
+fn unknown_group(name: &str, skeleton: &Skeleton) -> String {
+    let known: Vec<&str> = skeleton.groups().iter().map(|g| g.name.as_str()).collect();
+    format!("unknown group '{name}'; declare it in [skeleton.groups] (known: {})", known.join(", "))
+}
+
+/// A skeleton and a formula combined by [`Combine`]; both already inside-negative.
+pub(crate) struct Combined {
+    pub skeleton: Arc<dyn Field>,
+    pub formula: Arc<dyn Field>,
+    pub op: Combine,
+}
+
+impl Combined {
+    /// The combined value and which operand it came from (true: the skeleton).
+    #[inline]
+    fn pick(&self, s: f64, f: f64) -> (f64, bool) {
+        match self.op {
+            Combine::Union => {
+                if f < s {
+                    (f, false)
+                } else {
+                    (s, true)
+                }
+            }
+            Combine::Intersection => {
+                if f > s {
+                    (f, false)
+                } else {
+                    (s, true)
+                }
+            }
+            Combine::Difference => {
+                if -f > s {
+                    (-f, false)
+                } else {
+                    (s, true)
+                }
+            }
+        }
+    }
+}
+
+impl Field for Combined {
+    fn eval(&self, p: DVec3) -> f64 {
+        self.pick(self.skeleton.eval(p), self.formula.eval(p)).0
+    }
+
+    fn eval_many(&self, points: &[DVec3], out: &mut [f64]) {
+        let mut other = vec![0.0; points.len()];
+        self.skeleton.eval_many(points, out);
+        self.formula.eval_many(points, &mut other);
+        for (o, f) in out.iter_mut().zip(other) {
+            *o = self.pick(*o, f).0;
+        }
+    }
+
+    fn gradient(&self, p: DVec3) -> DVec3 {
+        let (s, f) = (self.skeleton.eval(p), self.formula.eval(p));
+        match self.pick(s, f) {
+            (_, true) => self.skeleton.gradient(p),
+            (_, false) if self.op == Combine::Difference => -self.formula.gradient(p),
+            _ => self.formula.gradient(p),
+        }
+    }
+
+    fn eval_grad_many(&self, points: &[DVec3], values: &mut [f64], grads: &mut [DVec3]) {
+        let n = points.len();
+        let (mut fv, mut fg) = (vec![0.0; n], vec![DVec3::ZERO; n]);
+        self.skeleton.eval_grad_many(points, values, grads);
+        self.formula.eval_grad_many(points, &mut fv, &mut fg);
+        for i in 0..n {
+            let (v, from_skeleton) = self.pick(values[i], fv[i]);
+            values[i] = v;
+            if !from_skeleton {
+                grads[i] = if self.op == Combine::Difference { -fg[i] } else { fg[i] };
+            }
+        }
+    }
+
+    fn gradient_step(&self) -> f64 {
+        self.skeleton.gradient_step().min(self.formula.gradient_step())
+    }
+
+    fn has_exact_gradient(&self) -> bool {
+        self.skeleton.has_exact_gradient() && self.formula.has_exact_gradient()
+    }
+
+    fn bounds(&self) -> Option<Aabb> {
+        match self.op {
+            Combine::Union => None,
+            Combine::Intersection | Combine::Difference => self.skeleton.bounds(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::{Scene, SceneError};
+    use skelform_field::{DVec3, Field};
+
+    const HEAD: &str = "[domain]\nmin = [-1, -1, -1]\nmax = [1, 1, 1]\n";
+
+    fn parse(body: &str) -> Result<Scene, SceneError> {
+        Scene::parse(&format!("{HEAD}{body}"), "s.toml")
+    }
+
+    /// The error's line (counting the three lines of HEAD), column and message.
+    fn error(body: &str) -> (usize, usize, String) {
+        match parse(body) {
+            Err(SceneError::At { line, column, message, .. }) => (line, column, message),
+            Err(e) => panic!("an error without a position: {e}"),
+            Ok(_) => panic!("accepted:\n{body}"),
+        }
+    }
+
+    #[test]
+    fn a_skeleton_scene_is_a_skeletal_field_with_seeds() {
+        let s = parse(
+            "[skeleton]\nradius = 0.2\n[[skeleton.segment]]\na = [-0.5, 0, 0]\nb = [0.5, 0, 0]\n\
+             [[skeleton.point]]\nat = [0, 0.6, 0]\nradius = 0.15\n",
+        )
+        .unwrap();
+        let sk = s.skeleton.as_ref().expect("skeleton");
+        assert_eq!(sk.element_count(), 2);
+        assert!(s.field.eval(DVec3::ZERO) < 0.0);
+        assert!(s.field.eval(DVec3::new(0.0, 0.0, 0.2)).abs() < 0.01, "surface one radius out");
+        assert!(s.field.eval(DVec3::new(0.0, 0.0, 0.5)) > 0.0);
+        assert!(s.field.has_exact_gradient());
+        // Points come first, then segments, … (each kind in file order).
+        assert_eq!(s.continuation.seeds, vec![DVec3::new(0.0, 0.6, 0.0), DVec3::ZERO]);
+        assert_eq!(s.iso, 0.5);
+    }
+
+    #[test]
+    fn scene_seeds_win_over_skeleton_seeds() {
+        let s = parse(
+            "[mesh]\nseeds = [[0.1, 0, 0]]\n[skeleton]\nradius = 0.2\n[[skeleton.segment]]\na = [-0.5, 0, 0]\nb = [0.5, 0, 0]\n",
+        )
+        .unwrap();
+        assert_eq!(s.continuation.seeds, vec![DVec3::new(0.1, 0.0, 0.0)]);
+    }
+
+    #[test]
+    fn every_construct_parses() {
+        let s = parse(
+            r#"
+[skeleton]
+blend = "sum"
+kernel = "triweight"
+iso = 0.4
+radius = 0.1
+[skeleton.groups]
+a = []
+b = ["a"]
+[[skeleton.point]]
+at = [0, 0, 0]
+strength = 2
+group = "a"
+[[skeleton.segment]]
+a = [0, 0, 0]
+b = [0.3, 0, 0]
+group = "b"
+[[skeleton.polyline]]
+points = [[0, 0, 0], [0, 0.3, 0], [0, 0.3, 0.3]]
+strength = 0.5
+[[skeleton.curve]]
+bezier = [[0, 0, 0], [0, 0, 0.3], [0.3, 0, 0.3], [0.3, 0.3, 0.3]]
+[[skeleton.triangle]]
+vertices = [[0, 0, 0], [0.2, 0, 0], [0, 0.2, 0]]
+[[skeleton.polygon]]
+vertices = [[0, 0, 0.5], [0.2, 0, 0.5], [0.2, 0.2, 0.5], [0, 0.2, 0.5]]
+radius = 0.05
+"#,
+        )
+        .unwrap();
+        let sk = s.skeleton.unwrap();
+        assert!(sk.element_count() >= 7);
+        assert_eq!(sk.iso(), Some(0.4));
+        for (blend, extra) in [
+            ("union", "falloff = \"squared\""),
+            ("elliptic", "range = 0.5"),
+            ("super-elliptic", "thumbweight = 4"),
+            ("combination", "clamp = false"),
+        ] {
+            parse(&format!(
+                "[skeleton]\nblend = \"{blend}\"\n{extra}\nradius = 0.1\n[[skeleton.point]]\nat = [0, 0, 0]\n"
+            ))
+            .unwrap();
+        }
+    }
+
+    #[test]
+    fn bad_input_is_reported_with_its_line_and_column() {
+        let seg = "[[skeleton.segment]]\na = [0, 0, 0]\nb = [1, 0, 0]\n";
+        // Negative radius: at the value.
+        let (l, c, m) = error(&format!("[skeleton]\n{seg}radius = -0.1\n"));
+        assert_eq!((l, c), (8, 10), "{m}");
+        assert!(m.contains("radius must be a positive length (got -0.1)"), "{m}");
+        // Zero-length segment: at the second end.
+        let (l, c, m) =
+            error("[skeleton]\nradius = 0.1\n[[skeleton.segment]]\na = [0, 0, 0]\nb = [0, 0, 0]\n");
+        assert_eq!((l, c), (8, 5), "{m}");
+        assert!(m.contains("zero length"), "{m}");
+        // Degenerate polygon: at its vertices.
+        let (l, _, m) = error(
+            "[skeleton]\nradius = 0.1\n[[skeleton.triangle]]\nvertices = [[0, 0, 0], [1, 0, 0], [2, 0, 0]]\n",
+        );
+        assert_eq!(l, 7, "{m}");
+        assert!(m.contains("degenerate"), "{m}");
+        // Not planar.
+        let (l, _, m) = error(
+            "[skeleton]\nradius = 0.1\n[[skeleton.polygon]]\nvertices = [[0, 0, 0], [1, 0, 0], [1, 1, 0.5], [0, 1, 0]]\n",
+        );
+        assert_eq!(l, 7, "{m}");
+        assert!(m.contains("not planar"), "{m}");
+        // Unknown kernel: at the name.
+        let (l, c, m) = error(&format!("[skeleton]\nkernel = \"gauss\"\nradius = 0.1\n{seg}"));
+        assert_eq!((l, c), (5, 10), "{m}");
+        assert!(m.contains("unknown kernel 'gauss'") && m.contains("gaussian"), "{m}");
+        // Unknown group: at the group name.
+        let (l, c, m) = error(&format!(
+            "[skeleton]\nradius = 0.1\n[skeleton.groups]\npalm = []\n{seg}group = \"plam\"\n"
+        ));
+        assert_eq!((l, c), (11, 9), "{m}");
+        assert!(m.contains("unknown group 'plam'") && m.contains("palm"), "{m}");
+        // Unknown group in a blend list.
+        let (l, _, m) = error(&format!(
+            "[skeleton]\nradius = 0.1\n[skeleton.groups]\npalm = [\"thumb\"]\n{seg}"
+        ));
+        assert_eq!(l, 7, "{m}");
+        assert!(m.contains("unknown group 'thumb'"), "{m}");
+        // Repeated polyline point.
+        let (l, _, m) = error(
+            "[skeleton]\nradius = 0.1\n[[skeleton.polyline]]\npoints = [[0, 0, 0], [1, 0, 0], [1, 0, 0]]\n",
+        );
+        assert_eq!(l, 7, "{m}");
+        assert!(m.contains("point 2 repeats"), "{m}");
+        // No radius anywhere.
+        let (l, _, m) = error(&format!("[skeleton]\n{seg}"));
+        assert_eq!(l, 6, "{m}");
+        assert!(m.contains("needs a radius"), "{m}");
+        // A key the blend does not read.
+        let (l, c, m) = error(&format!(
+            "[skeleton]\nblend = \"union\"\nkernel = \"wyvill\"\nradius = 0.1\n{seg}"
+        ));
+        assert_eq!((l, c), (6, 10), "{m}");
+        assert!(m.contains("'kernel' does not apply to the union blend"), "{m}");
+        // Unknown key in an element.
+        let (l, _, m) = error(&format!("[skeleton]\nradius = 0.1\n{seg}raduis = 0.2\n"));
+        assert_eq!(l, 9, "{m}");
+        assert!(m.contains("raduis"), "{m}");
+        // Unknown blend.
+        let (_, _, m) = error(&format!("[skeleton]\nblend = \"metaball\"\nradius = 0.1\n{seg}"));
+        assert!(m.contains("unknown blend 'metaball'"), "{m}");
+        // A bad range.
+        let (l, c, m) =
+            error(&format!("[skeleton]\nblend = \"elliptic\"\nrange = -1\nradius = 0.1\n{seg}"));
+        assert_eq!((l, c), (6, 9), "{m}");
+        assert!(m.contains("range must be a positive number"), "{m}");
+        // No elements.
+        let (_, _, m) = error("[skeleton]\nradius = 0.1\n");
+        assert!(m.contains("no elements"), "{m}");
+        // Neither field nor skeleton.
+        let (_, _, m) = error("");
+        assert!(m.contains("[field] formula or a [skeleton]"), "{m}");
+        // Both, without saying how to combine.
+        let (_, _, m) =
+            error(&format!("[field]\nformula = \"z\"\n[skeleton]\nradius = 0.1\n{seg}"));
+        assert!(m.contains("combine"), "{m}");
+    }
+
+    #[test]
+    fn a_skeleton_combines_with_a_formula() {
+        let seg = "radius = 0.1\n[[skeleton.segment]]\na = [-0.5, 0, 0]\nb = [0.5, 0, 0]\n";
+        let s = parse(&format!(
+            "[field]\nformula = \"-z\"\n[skeleton]\ncombine = \"difference\"\n{seg}"
+        ))
+        .unwrap();
+        // The formula is inside above z = 0: that half of the tube is removed.
+        assert!(s.field.eval(DVec3::new(0.0, 0.0, 0.05)) > 0.0);
+        assert!(s.field.eval(DVec3::new(0.0, 0.0, -0.05)) < 0.0);
+        let g = s.field.gradient(DVec3::new(0.0, 0.0, 0.05));
+        assert!(g.z > 0.0, "{g}");
+        let s = parse(&format!("[field]\nformula = \"z\"\n[skeleton]\ncombine = \"union\"\n{seg}"))
+            .unwrap();
+        assert!(s.field.eval(DVec3::new(0.0, 0.5, -0.5)) < 0.0, "inside the half-space");
+        assert!(s.field.eval(DVec3::new(0.0, 0.0, 0.05)) < 0.0, "inside the tube");
+        let mut v = [0.0; 2];
+        s.field.eval_many(&[DVec3::new(0.0, 0.5, -0.5), DVec3::new(0.0, 0.0, 0.05)], &mut v);
+        assert!(v[0] < 0.0 && v[1] < 0.0);
+    }
+
+    #[test]
+    fn the_example_skeleton_scenes_load() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/skeleton");
+        let mut n = 0;
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_some_and(|e| e == "toml") {
+                let scene = Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+                let sk = scene.skeleton.as_ref().expect("a skeleton");
+                assert!(!scene.continuation.seeds.is_empty(), "{}", path.display());
+                for p in sk.seed_points() {
+                    assert!(sk.eval(p) < 0.0, "{}: seed {p} outside", path.display());
+                }
+                n += 1;
+            }
+        }
+        assert!(n >= 8, "found {n} scenes");
+    }
+}
+
+#[cfg(test)]
+mod example_meshes {
+    use crate::Scene;
+    use skelform_mesh::check::check;
+    use skelform_polygonize::grid::{Options, polygonize};
+
+    /// Every example skeleton scene polygonizes (with the grid method, at the scene's
+    /// resolution) into closed, manifold, consistently oriented pieces, as many as its
+    /// comment says.
+    #[test]
+    fn example_skeleton_scenes_make_closed_manifold_meshes() {
+        let expected = [
+            ("segment-vs-points.toml", 3),
+            ("tee.toml", 1),
+            ("starfish.toml", 1),
+            ("fingers.toml", 1),
+            ("curve.toml", 1),
+            ("blade.toml", 1),
+            ("elliptic.toml", 1),
+            ("combination.toml", 1),
+            ("skeleton-and-formula.toml", 1),
+        ];
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/skeleton");
+        for (file, pieces) in expected {
+            let scene = Scene::load(&dir.join(file)).unwrap_or_else(|e| panic!("{e}"));
+            let opts = Options {
+                domain: scene.domain,
+                resolution: scene.resolution,
+                ..Default::default()
+            };
+            let (mesh, _) =
+                polygonize(&*scene.field, &opts).unwrap_or_else(|e| panic!("{file}: {e}"));
+            let r = check(&mesh);
+            println!("{file}: {} triangles, {} components", r.faces, r.components.len());
+            assert_eq!(r.components.len(), pieces, "{file}");
+            assert!(
+                r.components.iter().all(|c| c.is_closed_manifold() && c.consistently_oriented),
+                "{file}"
+            );
+            assert_eq!(r.outward, Some(true), "{file}");
+        }
+    }
+}

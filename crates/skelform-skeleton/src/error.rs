@@ -1,0 +1,43 @@
+//! What can be wrong with a skeleton.
+
+/// A skeleton, element or setting that cannot be used, and why. Messages name the value so
+/// that a scene loader can add the file position and pass them on unchanged.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SkeletonError {
+    #[error("coordinates must be finite numbers")]
+    NonFinite,
+    #[error("radius must be a positive length (got {0})")]
+    BadRadius(f64),
+    #[error("strength must be a finite number (got {0})")]
+    BadStrength(f64),
+    #[error("segment has zero length: both ends are at {0:?} (use a point for a point source)")]
+    ZeroLengthSegment([f64; 3]),
+    #[error("a polyline needs at least 2 points (got {0})")]
+    ShortPolyline(usize),
+    #[error("polyline point {index} repeats the point before it ({point:?}): zero-length segment")]
+    RepeatedPolylinePoint { index: usize, point: [f64; 3] },
+    #[error("a polygon needs at least 3 vertices (got {0})")]
+    TooFewVertices(usize),
+    #[error("polygon edge {0} has zero length (vertex {0} repeats the next one)")]
+    ZeroLengthEdge(usize),
+    #[error("polygon is degenerate: its vertices are (nearly) collinear, area {area:.3e}")]
+    DegeneratePolygon { area: f64 },
+    #[error("polygon is not planar: vertex {vertex} is {distance:.3e} off the polygon's plane")]
+    NotPlanar { vertex: usize, distance: f64 },
+    #[error("polygon edges {0} and {1} cross: a polygon must be simple")]
+    SelfIntersecting(usize, usize),
+    #[error("unknown group '{0}'")]
+    UnknownGroup(String),
+    #[error("group '{0}' is defined twice")]
+    DuplicateGroup(String),
+    #[error("{name} must be {expected} (got {value})")]
+    BadParameter { name: &'static str, value: f64, expected: &'static str },
+    #[error("unknown joint '{0}'")]
+    UnknownJoint(String),
+    #[error("joint '{0}' is defined twice")]
+    DuplicateJoint(String),
+    #[error("the skeleton has no elements")]
+    Empty,
+    #[error("iso applies to density blends (convolution, sum, combination), not to {0}")]
+    IsoNotApplicable(&'static str),
+}

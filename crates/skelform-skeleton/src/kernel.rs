@@ -1,0 +1,458 @@
+//! Convolution kernels and their closed-form integrals.
+//!
+//! Every kernel is radial, `k(s)` with `s` the distance **in units of the element's radius**,
+//! and scaled as in the dissertation's figure 5.54 so that `k(0) = 1` and `k(1) = ½`: a lone
+//! point source of radius `r` then has its iso-½ surface at distance `r` whatever the kernel.
+//!
+//! | kernel | `k(s)` | support | source |
+//! |---|---|---|---|
+//! | [`Kernel::Gaussian`] | `e^{−ω s²}`, `ω = ln 2` | none (cut at `s = √40`, where `k = 2⁻⁴⁰`) | DIS eq. 5.26, 5.32 |
+//! | [`Kernel::Wyvill`] | `W(s/2)`, `W(x) = (9 − 22x² + 17x⁴ − 4x⁶)/9` | `s ≤ 2` | DIS eq. 5.34 (Wyvill's soft objects) |
+//! | [`Kernel::Triweight`] | `(1 − s²/R²)³`, `R = 1/√(1 − 2^{−1/3})` | `s ≤ R ≈ 2.20` | the `(1 − x²)³` kernel the chapter also tried \[Wyvill 94\] |
+//! | [`Kernel::BSpline`] | `1.5·B(β s)`, `B` the uniform cubic B-spline, `β ≈ 0.72235` | `s ≤ 2/β ≈ 2.77` | DIS eq. 5.31, scaled per fig. 5.54 |
+//!
+//! The dissertation convolves segments with the non-Gaussian kernels as if they were
+//! separable (an integration filter along the segment times a distance filter), which is
+//! only an approximation. skelform computes the true line integral `∫ k(|p − u|) du`
+//! instead: the Wyvill and triweight kernels are polynomials in `s²` and the B-spline is a
+//! polynomial in `s`, so `∫ k(√(d² + t²)) dt` has a closed form (polynomials, `t·s` and
+//! `ln(t + s)` terms). The Gaussian's is the dissertation's: `e^{−ω d²}` times an `erf`
+//! difference.
+
+use std::f64::consts::PI;
+use std::str::FromStr;
+
+/// `ω = ln 2`: with it a long Gaussian segment's iso-½ surface lies at exactly one radius
+/// (DIS eq. 5.32: `½ − e^{−ω} = 0`).
+pub const OMEGA: f64 = std::f64::consts::LN_2;
+
+/// Where the Gaussian is cut off, in radii: `k(√40) = 2⁻⁴⁰ ≈ 9·10⁻¹³`. An element contributes
+/// nothing beyond this distance, which is what makes bounding-box culling possible; the
+/// jump this leaves in the field is below 10⁻¹² of an element's peak value.
+pub const GAUSSIAN_CUTOFF: f64 = 6.324_555_320_336_759;
+
+/// The root in (0, 1) of `3x³ − 6x² + 2 = 0`, where the cubic B-spline is a third of its
+/// peak (so `1.5·B(β) = ½`); the dissertation prints it rounded, `.72235`.
+const BETA: f64 = 0.722_351_724_464_376_3;
+
+/// `R⁻²` of the triweight kernel: `(1 − s²/R²)³ = ½` at `s = 1`.
+const TRI_A: f64 = 0.206_299_474_015_900_2;
+
+/// A radial convolution kernel, scaled to `k(0) = 1`, `k(1) = ½` (distance in radii).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
+pub enum Kernel {
+    /// `e^{−ln2·s²}`: separable and spherically symmetric, so segment and polygon integrals
+    /// are exact products (DIS §5.6). The default.
+    #[default]
+    Gaussian,
+    /// Wyvill's soft-object polynomial (DIS eq. 5.34): finite support, near-circular cross
+    /// sections; the dissertation recommends it for polygons.
+    Wyvill,
+    /// `(1 − x²)³`, scaled; finite support, cheap.
+    Triweight,
+    /// The uniform cubic B-spline (DIS eq. 5.31), scaled per fig. 5.54.
+    BSpline,
+}
+
+/// One polynomial piece of a kernel: `k(s) = Σ c[n]·sⁿ` for `lo ≤ s ≤ hi`.
+#[derive(Clone, Copy, Debug)]
+struct Piece {
+    lo: f64,
+    hi: f64,
+    c: [f64; 7],
+}
+
+const WYVILL: [Piece; 1] = [Piece {
+    lo: 0.0,
+    hi: 2.0,
+    // W(s/2) = 1 − 22/9·(s²/4) + 17/9·(s⁴/16) − 4/9·(s⁶/64)
+    c: [1.0, 0.0, -22.0 / 36.0, 0.0, 17.0 / 144.0, 0.0, -4.0 / 576.0],
+}];
+
+const TRIWEIGHT: [Piece; 1] = [Piece {
+    lo: 0.0,
+    hi: 2.201_663_485_154_594,
+    c: [1.0, 0.0, -3.0 * TRI_A, 0.0, 3.0 * TRI_A * TRI_A, 0.0, -TRI_A * TRI_A * TRI_A],
+}];
+
+const BSPLINE: [Piece; 2] = [
+    // 1.5·(3x³ − 6x² + 4)/6 with x = βs
+    Piece {
+        lo: 0.0,
+        hi: 1.0 / BETA,
+        c: [1.0, 0.0, -1.5 * BETA * BETA, 0.75 * BETA * BETA * BETA, 0.0, 0.0, 0.0],
+    },
+    // 1.5·(2 − x)³/6 = (8 − 12x + 6x² − x³)/4
+    Piece {
+        lo: 1.0 / BETA,
+        hi: 2.0 / BETA,
+        c: [2.0, -3.0 * BETA, 1.5 * BETA * BETA, -0.25 * BETA * BETA * BETA, 0.0, 0.0, 0.0],
+    },
+];
+
+/// A kernel name that is not one of [`Kernel::ALL`].
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("unknown kernel '{0}'; expected one of: gaussian, wyvill, triweight, bspline")]
+pub struct ParseKernelError(pub String);
+
+impl FromStr for Kernel {
+    type Err = ParseKernelError;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Kernel::ALL
+            .iter()
+            .find(|(n, _)| *n == s)
+            .map(|(_, k)| *k)
+            .ok_or_else(|| ParseKernelError(s.to_string()))
+    }
+}
+
+impl Kernel {
+    /// Every kernel with its scene-file name.
+    pub const ALL: &'static [(&'static str, Kernel)] = &[
+        ("gaussian", Kernel::Gaussian),
+        ("wyvill", Kernel::Wyvill),
+        ("triweight", Kernel::Triweight),
+        ("bspline", Kernel::BSpline),
+    ];
+
+    /// The scene-file name.
+    pub fn name(self) -> &'static str {
+        Kernel::ALL.iter().find(|(_, k)| *k == self).map_or("?", |(n, _)| n)
+    }
+
+    fn pieces(self) -> &'static [Piece] {
+        match self {
+            Kernel::Gaussian => &[],
+            Kernel::Wyvill => &WYVILL,
+            Kernel::Triweight => &TRIWEIGHT,
+            Kernel::BSpline => &BSPLINE,
+        }
+    }
+
+    /// Distance (in radii) beyond which the kernel is zero: exact for the polynomial
+    /// kernels, [`GAUSSIAN_CUTOFF`] for the Gaussian.
+    pub fn support(self) -> f64 {
+        match self {
+            Kernel::Gaussian => GAUSSIAN_CUTOFF,
+            k => k.pieces().last().map_or(0.0, |p| p.hi),
+        }
+    }
+
+    /// `k(s)` from `s²`.
+    pub fn value(self, s2: f64) -> f64 {
+        self.value_d(s2).0
+    }
+
+    /// `k` and `dk/d(s²)` from `s²`; both zero outside the support. Evaluated in factored
+    /// form (powers of the distance to the support), so values near the support's edge keep
+    /// their relative precision.
+    pub fn value_d(self, s2: f64) -> (f64, f64) {
+        let s2 = s2.max(0.0);
+        match self {
+            Kernel::Gaussian => {
+                if s2 >= GAUSSIAN_CUTOFF * GAUSSIAN_CUTOFF {
+                    return (0.0, 0.0);
+                }
+                let k = (-OMEGA * s2).exp();
+                (k, -OMEGA * k)
+            }
+            Kernel::Wyvill => {
+                // (1 − u)²(9 − 4u)/9 with u = s²/4.
+                let u = 0.25 * s2;
+                if u >= 1.0 {
+                    return (0.0, 0.0);
+                }
+                let w = 1.0 - u;
+                let k = w * w * (9.0 - 4.0 * u) / 9.0;
+                // dk/du = (−2w(9 − 4u) − 4w²)/9; du/d(s²) = ¼.
+                (k, 0.25 * (-2.0 * w * (9.0 - 4.0 * u) - 4.0 * w * w) / 9.0)
+            }
+            Kernel::Triweight => {
+                let w = 1.0 - TRI_A * s2;
+                if w <= 0.0 {
+                    return (0.0, 0.0);
+                }
+                (w * w * w, -3.0 * TRI_A * w * w)
+            }
+            Kernel::BSpline => {
+                let s = s2.sqrt();
+                let x = BETA * s;
+                if x >= 2.0 {
+                    (0.0, 0.0)
+                } else if x >= 1.0 {
+                    // (2 − x)³/4; dk/d(s²) = dk/ds/(2s) = −3β(2 − x)²/(8s).
+                    let y = 2.0 - x;
+                    (0.25 * y * y * y, -3.0 * BETA * y * y / (8.0 * s))
+                } else {
+                    // (3x³ − 6x² + 4)/4; dk/d(s²) = β²(9x − 12)/8.
+                    (
+                        (3.0 * x * x * x - 6.0 * x * x + 4.0) * 0.25,
+                        BETA * BETA * (9.0 * x - 12.0) / 8.0,
+                    )
+                }
+            }
+        }
+    }
+
+    /// The line integral `∫_{t1}^{t2} k(√(d² + t²)) dt` and its derivative with respect to
+    /// `d²`, `∫ k′(√(d² + t²)) dt` with `k′ = dk/d(s²)`. All lengths in radii; `t1 ≤ t2`
+    /// (either may be infinite).
+    pub fn line_integral(self, d2: f64, t1: f64, t2: f64) -> (f64, f64) {
+        if t2 <= t1 {
+            return (0.0, 0.0);
+        }
+        if self == Kernel::Gaussian {
+            let v = (-OMEGA * d2).exp() * gauss_1d(t1, t2);
+            return (v, -OMEGA * v);
+        }
+        let mut v = 0.0;
+        let mut dv = 0.0;
+        let d2 = d2.max(0.0);
+        // The integrand is even in t: integrate over non-negative t only, reflecting the
+        // negative part, so that every log term is ln(t + s) with t ≥ 0 (no cancellation).
+        let mut add = |u1: f64, u2: f64| {
+            for p in self.pieces() {
+                if d2 >= p.hi * p.hi {
+                    continue;
+                }
+                let tau_lo = (p.lo * p.lo - d2).max(0.0).sqrt();
+                let tau_hi = (p.hi * p.hi - d2).sqrt();
+                let a = u1.max(tau_lo);
+                let b = u2.min(tau_hi);
+                if b > a {
+                    let (pv, pdv) = piece_integral(&p.c, d2, a, b);
+                    v += pv;
+                    dv += pdv;
+                }
+            }
+        };
+        if t2 > 0.0 {
+            add(t1.max(0.0), t2);
+        }
+        if t1 < 0.0 {
+            add((-t2).max(0.0), -t1);
+        }
+        (v, dv)
+    }
+
+    /// The radial tail `T(σ) = ∫_σ^∞ k(x)·x dx`, which turns area integrals over a polygon
+    /// into one-dimensional integrals over its edges (see [`crate::convolution`]). Closed
+    /// forms in powers of the distance to the support, so the tail keeps its relative
+    /// precision all the way to zero.
+    pub fn tail(self, sigma: f64) -> f64 {
+        let sigma = sigma.max(0.0);
+        match self {
+            Kernel::Gaussian => {
+                if sigma >= GAUSSIAN_CUTOFF {
+                    return 0.0;
+                }
+                (-OMEGA * sigma * sigma).exp() / (2.0 * OMEGA)
+            }
+            Kernel::Wyvill => {
+                // x dx = 2 du, u = x²/4, w = 1 − u: 2/9 ∫_0^{w0} w²(5 + 4w) dw.
+                let w0 = (1.0 - 0.25 * sigma * sigma).max(0.0);
+                2.0 / 9.0 * (5.0 / 3.0 * w0 * w0 * w0 + w0 * w0 * w0 * w0)
+            }
+            Kernel::Triweight => {
+                let w0 = (1.0 - TRI_A * sigma * sigma).max(0.0);
+                w0 * w0 * w0 * w0 / (8.0 * TRI_A)
+            }
+            Kernel::BSpline => {
+                // Outer piece with y = 2 − βx: ∫ y³/4·(2 − y)/β² dy = (y⁴/2 − y⁵/5)/(4β²).
+                let outer = |y: f64| (0.5 * y.powi(4) - 0.2 * y.powi(5)) / (4.0 * BETA * BETA);
+                let y0 = 2.0 - BETA * sigma;
+                if y0 <= 0.0 {
+                    0.0
+                } else if y0 <= 1.0 {
+                    outer(y0)
+                } else {
+                    let p = &BSPLINE[0];
+                    let inner: f64 =
+                        p.c.iter()
+                            .enumerate()
+                            .map(|(n, c)| {
+                                let e = n as i32 + 2;
+                                c * (p.hi.powi(e) - sigma.powi(e)) / e as f64
+                            })
+                            .sum();
+                    outer(1.0) + inner
+                }
+            }
+        }
+    }
+
+    /// For kernels that are polynomials in `w = 1 − α·s²` on their support (Wyvill,
+    /// triweight): `α`, and the coefficients (in powers of `w`) of the tail `T` and of the
+    /// kernel `k`. With them a polygon edge's angle integral has a closed form (see
+    /// [`crate::convolution`]).
+    pub(crate) fn w_polynomial(self) -> Option<(f64, [f64; 5], [f64; 5])> {
+        match self {
+            // T = 2/9·(5/3·w³ + w⁴); k = w²(5 + 4w)/9.
+            Kernel::Wyvill => Some((
+                0.25,
+                [0.0, 0.0, 0.0, 10.0 / 27.0, 2.0 / 9.0],
+                [0.0, 0.0, 5.0 / 9.0, 4.0 / 9.0, 0.0],
+            )),
+            // T = w⁴/(8a); k = w³.
+            Kernel::Triweight => {
+                Some((TRI_A, [0.0, 0.0, 0.0, 0.0, 1.0 / (8.0 * TRI_A)], [0.0, 0.0, 0.0, 1.0, 0.0]))
+            }
+            Kernel::Gaussian | Kernel::BSpline => None,
+        }
+    }
+
+    /// Breakpoints of the kernel's pieces in `(0, support]`: where a polygon's edge integrand
+    /// stops being smooth.
+    pub(crate) fn breakpoints(self) -> impl Iterator<Item = f64> {
+        self.pieces().iter().map(|p| p.hi)
+    }
+
+    /// `∫_{−∞}^{∞} k(√(1 + t²)) dt`·2: divides a segment's line integral so that a long
+    /// segment of radius `r` has its iso-½ surface at distance `r`. For the Gaussian it is
+    /// `√(π/ω)`, the dissertation's normalisation of the integration filter.
+    pub fn line_norm(self) -> f64 {
+        match self {
+            Kernel::Gaussian => (PI / OMEGA).sqrt(),
+            k => 2.0 * k.line_integral(1.0, f64::NEG_INFINITY, f64::INFINITY).0,
+        }
+    }
+
+    /// `∫_{ℝ²} k(√(1 + |u|²)) du`·2 `= 4π·T(1)`: divides a polygon's area integral so that a
+    /// large polygon of radius `r` has its iso-½ surfaces at distance `r` on either side. For
+    /// the Gaussian it is `π/ω`, the unit-area 2-D filter of DIS eq. 6.1.
+    pub fn area_norm(self) -> f64 {
+        match self {
+            Kernel::Gaussian => PI / OMEGA,
+            k => 4.0 * PI * k.tail(1.0),
+        }
+    }
+}
+
+/// `∫_{t1}^{t2} e^{−ω t²} dt` through `erf`, choosing `erfc` differences in the tails so
+/// that nothing cancels: `√(π/ω)/2·(erf(√ω t2) − erf(√ω t1))`.
+pub(crate) fn gauss_1d(t1: f64, t2: f64) -> f64 {
+    let sw = OMEGA.sqrt();
+    let (x1, x2) = (sw * t1, sw * t2);
+    let diff = if x1 >= 0.0 {
+        libm::erfc(x1) - libm::erfc(x2)
+    } else if x2 <= 0.0 {
+        libm::erfc(-x2) - libm::erfc(-x1)
+    } else {
+        libm::erf(x2) - libm::erf(x1)
+    };
+    0.5 * (PI / OMEGA).sqrt() * diff
+}
+
+/// `∫_a^b Σ c_n sⁿ dt` and `∫_a^b Σ c_n (n/2) s^{n−2} dt` with `s = √(d² + t²)`,
+/// `0 ≤ a < b`.
+fn piece_integral(c: &[f64; 7], d2: f64, a: f64, b: f64) -> (f64, f64) {
+    let sa = (d2 + a * a).sqrt();
+    let sb = (d2 + b * b).sqrt();
+    // ln((b + sb)/(a + sa)); only ever multiplied by a power of d² except for the s⁻¹ term,
+    // which occurs only in pieces away from s = 0 (so a + sa > 0 there).
+    let lg = if a + sa > 0.0 { ((b + sb) / (a + sa)).ln() } else { 0.0 };
+    let h = b - a;
+    // bⁿ − aⁿ without cancellation, as (b − a)·Σ b^i a^{n−1−i}.
+    let p3 = h * (b * b + a * b + a * a);
+    let p5 = h * (b.powi(4) + b.powi(3) * a + b * b * a * a + b * a.powi(3) + a.powi(4));
+    let p7 = h * (0..7).map(|i| b.powi(i) * a.powi(6 - i)).sum::<f64>();
+    let dlg = |m: f64| if d2 > 0.0 { m * lg } else { 0.0 };
+    let j = |n: i32| -> f64 {
+        match n {
+            -1 => lg,
+            0 => h,
+            1 => 0.5 * (b * sb - a * sa + dlg(d2)),
+            2 => d2 * h + p3 / 3.0,
+            3 => {
+                (b * sb * (2.0 * b * b + 5.0 * d2) - a * sa * (2.0 * a * a + 5.0 * d2)) / 8.0
+                    + dlg(0.375 * d2 * d2)
+            }
+            4 => d2 * d2 * h + 2.0 / 3.0 * d2 * p3 + p5 / 5.0,
+            6 => d2 * d2 * d2 * h + d2 * d2 * p3 + 0.6 * d2 * p5 + p7 / 7.0,
+            _ => unreachable!("kernels have no s^{n} term"),
+        }
+    };
+    let mut v = 0.0;
+    let mut dv = 0.0;
+    for (n, &cn) in c.iter().enumerate() {
+        if cn == 0.0 {
+            continue;
+        }
+        let n = n as i32;
+        v += cn * j(n);
+        if n >= 1 {
+            dv += cn * 0.5 * n as f64 * j(n - 2);
+        }
+    }
+    (v, dv)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_kernel_is_one_at_zero_and_half_at_one() {
+        for (name, k) in Kernel::ALL {
+            assert!((k.value(0.0) - 1.0).abs() < 1e-15, "{name}");
+            assert!((k.value(1.0) - 0.5).abs() < 1e-15, "{name}: {}", k.value(1.0));
+            let s = k.support();
+            assert!(k.value(s * s * 1.0001) == 0.0, "{name}");
+        }
+    }
+
+    #[test]
+    fn kernels_are_continuous_at_breakpoints_and_vanish_at_support() {
+        for (name, k) in Kernel::ALL.iter().skip(1) {
+            for b in k.breakpoints() {
+                let lo = k.value_d((b * (1.0 - 1e-9)).powi(2));
+                let hi = k.value_d((b * (1.0 + 1e-9)).powi(2));
+                assert!((lo.0 - hi.0).abs() < 1e-8, "{name} at {b}: {lo:?} {hi:?}");
+                assert!((lo.1 - hi.1).abs() < 1e-6, "{name} at {b}: {lo:?} {hi:?}");
+            }
+            assert!(k.value(k.support().powi(2) * (1.0 - 1e-12)).abs() < 1e-10, "{name}");
+        }
+    }
+
+    #[test]
+    fn derivative_matches_finite_difference() {
+        for (name, k) in Kernel::ALL {
+            for s2 in [0.01, 0.3, 1.0, 1.7, 2.5, 3.9, 6.0] {
+                let h = 1e-6;
+                let fd = (k.value(s2 + h) - k.value(s2 - h)) / (2.0 * h);
+                let (_, d) = k.value_d(s2);
+                assert!((fd - d).abs() < 1e-7, "{name} at s²={s2}: {fd} vs {d}");
+            }
+        }
+    }
+
+    #[test]
+    fn tail_derivative_is_minus_k_times_sigma() {
+        for (name, k) in Kernel::ALL {
+            for s in [0.05, 0.2, 0.9, 1.3, 1.9, 2.5] {
+                let h = 1e-6;
+                let fd = (k.tail(s + h) - k.tail(s - h)) / (2.0 * h);
+                assert!((fd + k.value(s * s) * s).abs() < 1e-7, "{name} at {s}");
+            }
+        }
+    }
+
+    #[test]
+    fn gaussian_norms_are_the_dissertations() {
+        let k = Kernel::Gaussian;
+        // A long segment: field e^{−ω d²} at distance d, ½ at d = 1.
+        let v = k.line_integral(1.0, -50.0, 50.0).0 / k.line_norm();
+        assert!((v - 0.5).abs() < 1e-15, "{v}");
+        // A large polygon: ½ at one radius above it.
+        let a = 2.0 * PI * k.tail(1.0) / k.area_norm();
+        assert!((a - 0.5).abs() < 1e-15, "{a}");
+    }
+
+    #[test]
+    fn line_norm_puts_a_long_segment_surface_at_one_radius() {
+        for (name, k) in Kernel::ALL {
+            let v = 2.0 * k.line_integral(1.0, -100.0, 100.0).0 / k.line_norm();
+            assert!((v - 1.0).abs() < 1e-12, "{name}: {v}");
+        }
+    }
+}

@@ -1,0 +1,377 @@
+//! The skeleton: elements (shape, radius, strength) in named blend groups.
+
+use std::collections::BTreeSet;
+use std::ops::Range;
+
+use glam::DVec3;
+
+use crate::SkeletonError;
+use crate::curve::CubicCurve;
+use crate::geometry::{Polygon, Segment, Shape};
+
+/// A blend group, by index into [`Skeleton::groups`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct GroupId(pub(crate) usize);
+
+impl GroupId {
+    /// The group every element is in unless put elsewhere.
+    pub const DEFAULT: GroupId = GroupId(0);
+
+    pub fn index(self) -> usize {
+        self.0
+    }
+}
+
+/// A named set of elements that blend with each other, and the other groups they blend
+/// with.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Group {
+    pub name: String,
+    blends_with: BTreeSet<GroupId>,
+}
+
+impl Group {
+    /// Other groups this one blends with (symmetric; never itself).
+    pub fn blends_with(&self) -> impl Iterator<Item = GroupId> + '_ {
+        self.blends_with.iter().copied()
+    }
+}
+
+/// One skeletal element: a shape with a radius (the distance from the skeleton at which a
+/// lone element's surface lies) and a strength (a weight on its density; negative
+/// strengths carve).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Element {
+    pub shape: Shape,
+    radius: f64,
+    strength: f64,
+    group: GroupId,
+}
+
+impl Element {
+    /// An element of strength 1 in the default group. The radius must be positive and
+    /// finite.
+    pub fn new(shape: Shape, radius: f64) -> Result<Element, SkeletonError> {
+        if !(radius.is_finite() && radius > 0.0) {
+            return Err(SkeletonError::BadRadius(radius));
+        }
+        Ok(Element { shape, radius, strength: 1.0, group: GroupId::DEFAULT })
+    }
+
+    /// The same element with another strength (any finite number).
+    pub fn with_strength(mut self, strength: f64) -> Result<Element, SkeletonError> {
+        if !strength.is_finite() {
+            return Err(SkeletonError::BadStrength(strength));
+        }
+        self.strength = strength;
+        Ok(self)
+    }
+
+    /// The same element in another group.
+    pub fn in_group(mut self, group: GroupId) -> Element {
+        self.group = group;
+        self
+    }
+
+    pub fn radius(&self) -> f64 {
+        self.radius
+    }
+
+    pub fn strength(&self) -> f64 {
+        self.strength
+    }
+
+    pub fn group(&self) -> GroupId {
+        self.group
+    }
+}
+
+/// A skeleton under construction: elements and groups. Build a
+/// [`SkeletonField`](crate::SkeletonField) from it to evaluate.
+///
+/// Groups: every element belongs to one; elements of a group blend with each other, and with
+/// elements of the groups linked to it by [`Skeleton::blend_groups`]. Elements of groups that
+/// are not linked never blend — their surfaces meet in a sharp union (see
+/// [`crate::field`] for how and why).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Skeleton {
+    elements: Vec<Element>,
+    groups: Vec<Group>,
+}
+
+impl Default for Skeleton {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Skeleton {
+    /// An empty skeleton with one group, `"default"`.
+    pub fn new() -> Skeleton {
+        Skeleton {
+            elements: Vec::new(),
+            groups: vec![Group { name: "default".into(), blends_with: BTreeSet::new() }],
+        }
+    }
+
+    /// Adds a group. Names are unique.
+    pub fn add_group(&mut self, name: &str) -> Result<GroupId, SkeletonError> {
+        if self.group_named(name).is_some() {
+            return Err(SkeletonError::DuplicateGroup(name.to_string()));
+        }
+        self.groups.push(Group { name: name.to_string(), blends_with: BTreeSet::new() });
+        Ok(GroupId(self.groups.len() - 1))
+    }
+
+    pub fn group_named(&self, name: &str) -> Option<GroupId> {
+        self.groups.iter().position(|g| g.name == name).map(GroupId)
+    }
+
+    pub fn groups(&self) -> &[Group] {
+        &self.groups
+    }
+
+    pub fn group(&self, id: GroupId) -> &Group {
+        &self.groups[id.0]
+    }
+
+    /// Lets groups `a` and `b` blend with each other (not transitively: with `a–b` and
+    /// `b–c`, `a` and `c` still do not blend).
+    pub fn blend_groups(&mut self, a: GroupId, b: GroupId) -> Result<(), SkeletonError> {
+        for g in [a, b] {
+            if g.0 >= self.groups.len() {
+                return Err(SkeletonError::UnknownGroup(format!("#{}", g.0)));
+            }
+        }
+        if a != b {
+            self.groups[a.0].blends_with.insert(b);
+            self.groups[b.0].blends_with.insert(a);
+        }
+        Ok(())
+    }
+
+    pub fn elements(&self) -> &[Element] {
+        &self.elements
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.elements.is_empty()
+    }
+
+    pub fn len(&self) -> usize {
+        self.elements.len()
+    }
+
+    /// Adds an element; returns its index.
+    pub fn push(&mut self, element: Element) -> Result<usize, SkeletonError> {
+        if element.group.0 >= self.groups.len() {
+            return Err(SkeletonError::UnknownGroup(format!("#{}", element.group.0)));
+        }
+        self.elements.push(element);
+        Ok(self.elements.len() - 1)
+    }
+
+    /// Changes the strength of element `index` (e.g. of every segment of a polyline).
+    pub fn set_strength(&mut self, index: usize, strength: f64) -> Result<(), SkeletonError> {
+        if !strength.is_finite() {
+            return Err(SkeletonError::BadStrength(strength));
+        }
+        if let Some(e) = self.elements.get_mut(index) {
+            e.strength = strength;
+        }
+        Ok(())
+    }
+
+    /// Replaces every element's shape by `f(index, element)` (radius, strength and group
+    /// kept): how a pose moves a skeleton.
+    pub fn transform_elements(
+        &mut self,
+        mut f: impl FnMut(usize, &Element) -> Result<Shape, SkeletonError>,
+    ) -> Result<(), SkeletonError> {
+        for i in 0..self.elements.len() {
+            let shape = f(i, &self.elements[i])?;
+            self.elements[i].shape = shape;
+        }
+        Ok(())
+    }
+
+    /// A point source.
+    pub fn add_point(
+        &mut self,
+        c: DVec3,
+        radius: f64,
+        group: GroupId,
+    ) -> Result<usize, SkeletonError> {
+        if !c.is_finite() {
+            return Err(SkeletonError::NonFinite);
+        }
+        self.push(Element::new(Shape::Point(c), radius)?.in_group(group))
+    }
+
+    /// A segment from `a` to `b`.
+    pub fn add_segment(
+        &mut self,
+        a: DVec3,
+        b: DVec3,
+        radius: f64,
+        group: GroupId,
+    ) -> Result<usize, SkeletonError> {
+        self.push(Element::new(Shape::Segment(Segment::new(a, b)?), radius)?.in_group(group))
+    }
+
+    /// A chain of segments through `points`; returns the range of their indices. With
+    /// convolution, the chain's field is exactly the sum of its segments' (superposition),
+    /// so collinear pieces join without a bulge.
+    pub fn add_polyline(
+        &mut self,
+        points: &[DVec3],
+        radius: f64,
+        group: GroupId,
+    ) -> Result<Range<usize>, SkeletonError> {
+        if points.len() < 2 {
+            return Err(SkeletonError::ShortPolyline(points.len()));
+        }
+        let mut segments = Vec::with_capacity(points.len() - 1);
+        for (i, w) in points.windows(2).enumerate() {
+            let s = Segment::new(w[0], w[1]).map_err(|e| match e {
+                SkeletonError::ZeroLengthSegment(p) => {
+                    SkeletonError::RepeatedPolylinePoint { index: i + 1, point: p }
+                }
+                e => e,
+            })?;
+            segments.push(Element::new(Shape::Segment(s), radius)?.in_group(group));
+        }
+        let start = self.elements.len();
+        for s in segments {
+            self.push(s)?;
+        }
+        Ok(start..self.elements.len())
+    }
+
+    /// A planar polygon (a triangle when given three vertices).
+    pub fn add_polygon(
+        &mut self,
+        vertices: Vec<DVec3>,
+        radius: f64,
+        group: GroupId,
+    ) -> Result<usize, SkeletonError> {
+        self.push(Element::new(Shape::Polygon(Polygon::new(vertices)?), radius)?.in_group(group))
+    }
+
+    /// A cubic curve, as the segments [`CubicCurve::split`] gives for `tolerance`.
+    pub fn add_curve(
+        &mut self,
+        curve: &CubicCurve,
+        tolerance: f64,
+        radius: f64,
+        group: GroupId,
+    ) -> Result<Range<usize>, SkeletonError> {
+        let points = curve.to_polyline(tolerance, 1024)?;
+        self.add_polyline(&points, radius, group)
+    }
+
+    /// One point on each element (a point, a segment's midpoint, a point inside a polygon):
+    /// where the continuation polygonizer starts looking for the surface.
+    pub fn seed_points(&self) -> Vec<DVec3> {
+        self.elements.iter().map(|e| e.shape.seed_point()).collect()
+    }
+
+    /// The groups that blend together, as the maximal cliques of the blend relation (each
+    /// group with itself): every pair within a clique blends, and no clique is inside
+    /// another. A group linked to nothing is a clique of its own. Sorted, deterministic.
+    pub fn blend_cliques(&self) -> Vec<Vec<GroupId>> {
+        let n = self.groups.len();
+        let adj: Vec<BTreeSet<usize>> =
+            self.groups.iter().map(|g| g.blends_with.iter().map(|x| x.0).collect()).collect();
+        let mut out = Vec::new();
+        bron_kerbosch(&adj, Vec::new(), (0..n).collect(), BTreeSet::new(), &mut out);
+        let mut cliques: Vec<Vec<GroupId>> = out
+            .into_iter()
+            .map(|mut c| {
+                c.sort_unstable();
+                c.into_iter().map(GroupId).collect()
+            })
+            .collect();
+        cliques.sort();
+        cliques
+    }
+}
+
+/// Maximal cliques (Bron–Kerbosch with pivoting); groups are few, so plain sets do.
+fn bron_kerbosch(
+    adj: &[BTreeSet<usize>],
+    r: Vec<usize>,
+    mut p: BTreeSet<usize>,
+    mut x: BTreeSet<usize>,
+    out: &mut Vec<Vec<usize>>,
+) {
+    if p.is_empty() && x.is_empty() {
+        out.push(r);
+        return;
+    }
+    let pivot = p.iter().chain(x.iter()).copied().max_by_key(|u| adj[*u].len());
+    let candidates: Vec<usize> = match pivot {
+        Some(u) => p.iter().copied().filter(|v| !adj[u].contains(v)).collect(),
+        None => p.iter().copied().collect(),
+    };
+    for v in candidates {
+        let mut r2 = r.clone();
+        r2.push(v);
+        let p2 = p.iter().copied().filter(|w| adj[v].contains(w)).collect();
+        let x2 = x.iter().copied().filter(|w| adj[v].contains(w)).collect();
+        bron_kerbosch(adj, r2, p2, x2, out);
+        p.remove(&v);
+        x.insert(v);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cliques_of_the_dissertations_blend_graph() {
+        // Fig. 6.18: a↔b,e; b↔a,c,e; c↔b; d↔e; e↔a,b,d.
+        let mut s = Skeleton::new();
+        let [a, b, c, d, e] = ["a", "b", "c", "d", "e"].map(|n| s.add_group(n).unwrap());
+        for (x, y) in [(a, b), (a, e), (b, c), (b, e), (d, e)] {
+            s.blend_groups(x, y).unwrap();
+        }
+        let names: Vec<Vec<&str>> = s
+            .blend_cliques()
+            .iter()
+            .map(|c| c.iter().map(|g| s.group(*g).name.as_str()).collect())
+            .collect();
+        assert_eq!(
+            names,
+            vec![vec!["default"], vec!["a", "b", "e"], vec!["b", "c"], vec!["d", "e"]]
+        );
+    }
+
+    #[test]
+    fn fingers_blend_with_the_palm_but_not_with_each_other() {
+        let mut s = Skeleton::new();
+        let palm = s.add_group("palm").unwrap();
+        let f1 = s.add_group("f1").unwrap();
+        let f2 = s.add_group("f2").unwrap();
+        s.blend_groups(palm, f1).unwrap();
+        s.blend_groups(palm, f2).unwrap();
+        let cl = s.blend_cliques();
+        assert!(cl.contains(&vec![palm, f1]));
+        assert!(cl.contains(&vec![palm, f2]));
+        assert!(!cl.iter().any(|c| c.contains(&f1) && c.contains(&f2)));
+        assert!(matches!(s.add_group("f1"), Err(SkeletonError::DuplicateGroup(_))));
+    }
+
+    #[test]
+    fn polyline_reports_the_repeated_point() {
+        let mut s = Skeleton::new();
+        let r = s.add_polyline(&[DVec3::ZERO, DVec3::X, DVec3::X], 0.1, GroupId::DEFAULT);
+        assert!(matches!(r, Err(SkeletonError::RepeatedPolylinePoint { index: 2, .. })));
+        assert!(s.is_empty(), "a failed polyline adds nothing");
+        assert!(matches!(
+            s.add_point(DVec3::ZERO, -1.0, GroupId::DEFAULT),
+            Err(SkeletonError::BadRadius(_))
+        ));
+    }
+}
