@@ -3,8 +3,7 @@
 
 use std::fs;
 use std::io::{self, Write};
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::path::Path;
 
 use crate::RenderError;
 
@@ -116,7 +115,7 @@ pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), RenderError>
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };
-    let (tmp, mut file) = create_temp(dir, file_name).map_err(fail)?;
+    let (tmp, mut file) = skelform_mesh::io::create_temp(dir, file_name).map_err(fail)?;
     let result = file.write_all(bytes).and_then(|()| file.sync_all()).and_then(|()| {
         drop(file);
         fs::rename(&tmp, path)
@@ -128,25 +127,6 @@ pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), RenderError>
     Ok(())
 }
 
-/// A new file `DIR/.NAME.tmp-PID-N` that did not exist before.
-fn create_temp(dir: &Path, file_name: &std::ffi::OsStr) -> io::Result<(PathBuf, fs::File)> {
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let pid = std::process::id();
-    let mut attempts = 0;
-    loop {
-        attempts += 1;
-        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-        let mut name = std::ffi::OsString::from(".");
-        name.push(file_name);
-        name.push(format!(".tmp-{pid}-{n}"));
-        let tmp = dir.join(name);
-        match fs::OpenOptions::new().write(true).create_new(true).open(&tmp) {
-            Ok(f) => return Ok((tmp, f)),
-            Err(e) if e.kind() == io::ErrorKind::AlreadyExists && attempts < 100 => continue,
-            Err(e) => return Err(e),
-        }
-    }
-}
 
 /// Linear light to an sRGB byte.
 pub(crate) fn to_srgb(c: f32) -> u8 {

@@ -269,8 +269,9 @@ pub fn write_mesh(
     }
 }
 
-/// Creates a new temporary file `DIR/.NAME.tmp-PID-N` that did not exist before.
-fn create_temp(dir: &Path, file_name: &std::ffi::OsStr) -> io::Result<(PathBuf, fs::File)> {
+/// Creates a new temporary file `DIR/.NAME.tmp-PID-N` that did not exist before: the first
+/// step of every atomic write in skelform (meshes here, pictures in `skelform-render`).
+pub fn create_temp(dir: &Path, file_name: &std::ffi::OsStr) -> io::Result<(PathBuf, fs::File)> {
     static COUNTER: AtomicU64 = AtomicU64::new(0);
     let pid = std::process::id();
     let mut attempts = 0;
