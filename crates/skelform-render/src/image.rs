@@ -127,7 +127,6 @@ pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), RenderError>
     Ok(())
 }
 
-
 /// Linear light to an sRGB byte.
 pub(crate) fn to_srgb(c: f32) -> u8 {
     let c = c.clamp(0.0, 1.0);
