@@ -8,6 +8,7 @@ use serde_json::json;
 use skelform_polygonize::continuation::{self, SeedNote, Stop};
 use skelform_polygonize::grid;
 use skelform_polygonize::healed::{self, PointKind};
+use skelform_polygonize::nonmanifold;
 use skelform_scene::{Method, Scene};
 
 /// The statistics of whichever polygonizer ran.
@@ -15,6 +16,7 @@ pub enum Run {
     Grid(grid::Stats),
     Continuation(continuation::Stats),
     Healed(Box<healed::Stats>),
+    NonManifold(Box<nonmanifold::Stats>),
 }
 
 impl Run {
@@ -24,6 +26,7 @@ impl Run {
             Run::Grid(s) => s.evaluations(),
             Run::Continuation(s) => s.evaluations(),
             Run::Healed(s) => s.evaluations(),
+            Run::NonManifold(s) => s.region_evaluations,
         }
     }
 }
@@ -57,6 +60,10 @@ pub fn no_surface(scene: &Scene, run: &Run) -> anyhow::Error {
             )
         }
         Run::Healed(s) => healed_no_surface(scene, s),
+        Run::NonManifold(_) => anyhow!(
+            "{}: the regions of interest make no triangles; check [regions], its interest pairs and the seeds",
+            scene.origin
+        ),
     }
 }
 
@@ -93,6 +100,23 @@ pub fn warnings(run: &Run) -> Vec<String> {
             }
         }
         Run::Healed(s) => healed_warnings(s, &mut w),
+        Run::NonManifold(s) => {
+            if s.reached_domain {
+                w.push("surfaces reach the domain box; the mesh is open there".into());
+            }
+            if s.reached_budget {
+                w.push(
+                    "propagation ran out of cells (--max-cells); the mesh is open where it stopped"
+                        .into(),
+                );
+            }
+            if s.face_vertex_fallbacks > 0 {
+                w.push(format!(
+                    "{} of {} face vertices were not reached by the contour follower (placed at the mean of the face's crossings)",
+                    s.face_vertex_fallbacks, s.face_vertices
+                ));
+            }
+        }
     }
     w
 }
@@ -173,6 +197,35 @@ pub fn print(run: &Run, writing: Duration, total: Duration) {
             );
         }
         Run::Healed(s) => healed_print(s, writing, total),
+        Run::NonManifold(s) => {
+            println!("cell          {:.6} (ε {:.3e})", s.cell, s.epsilon);
+            println!(
+                "evaluations   {} of the region function (a conventional polygonizer: about {})",
+                s.region_evaluations, s.conventional_evaluations
+            );
+            println!("cells         {} visited", s.cells_visited);
+            println!(
+                "vertices      {} ({} on edges, {} on faces, {} inside tetrahedra; {} merged)",
+                s.vertices,
+                s.edge_vertices,
+                s.face_vertices,
+                s.internal_vertices,
+                s.merged_vertices
+            );
+            println!("triangles     {}", s.triangles);
+            for (p, n) in &s.triangles_per_pair {
+                println!("  surface {}_{}  {n} triangles", p.0, p.1);
+            }
+            for (t, l) in &s.curve_length_per_triple {
+                println!("  curve {t}  length {l:.4}");
+            }
+            println!(
+                "time          {:.3}s, writing {:.3}s, total {:.3}s",
+                s.time.as_secs_f64(),
+                secs(writing),
+                secs(total)
+            );
+        }
     }
 }
 
@@ -232,6 +285,18 @@ pub fn json(
             },
         }),
         Run::Healed(s) => healed_json(s),
+        Run::NonManifold(s) => json!({
+            "cell": s.cell,
+            "epsilon": s.epsilon,
+            "evaluations": { "total": s.region_evaluations, "conventional": s.conventional_evaluations },
+            "cells_visited": s.cells_visited,
+            "vertices": s.vertices,
+            "triangles": s.triangles,
+            "surfaces": s.triangles_per_pair.iter().map(|(p, n)| json!({ "pair": [p.0, p.1], "triangles": n })).collect::<Vec<_>>(),
+            "curves": s.curve_length_per_triple.iter().map(|(t, l)| json!({ "regions": t.0, "length": l })).collect::<Vec<_>>(),
+            "face_vertex_fallbacks": s.face_vertex_fallbacks,
+            "seconds": { "polygonize": s.time.as_secs_f64() },
+        }),
     };
     j["scene"] = json!(scene.origin);
     j["output"] = json!(out.display().to_string());

@@ -8,7 +8,7 @@ use clap::Args;
 use skelform_field::DVec3;
 use skelform_mesh::Mesh;
 use skelform_polygonize::grid::{self, Resolution};
-use skelform_polygonize::{continuation, healed, refine::RootMethod};
+use skelform_polygonize::{continuation, healed, nonmanifold, refine::RootMethod};
 use skelform_scene::{Method, Scene};
 
 use crate::{Failure, input, progress, report, runtime};
@@ -92,6 +92,12 @@ pub fn run_scene(scene: &Scene, a: &RunArgs) -> Result<(Mesh, report::Run, Metho
     };
     let normals = scene.output.normals && !a.no_normals;
     let field = scene.field.as_ref();
+    if scene.regions_only && method != Method::NonManifold {
+        return Err(input(anyhow!(
+            "{}: the scene has [regions] and no [field]: mesh it with method = \"nonmanifold\"",
+            scene.origin
+        )));
+    }
     let result = match method {
         Method::Grid => {
             let options = grid::Options {
@@ -105,6 +111,43 @@ pub fn run_scene(scene: &Scene, a: &RunArgs) -> Result<(Mesh, report::Run, Metho
             };
             pool.install(|| grid::polygonize(field, &options))
                 .map(|(m, s)| (m, report::Run::Grid(s)))
+        }
+        Method::NonManifold => {
+            let Some(regions) = &scene.regions else {
+                return Err(input(anyhow!(
+                    "{}: --method nonmanifold needs [regions] in the scene",
+                    scene.origin
+                )));
+            };
+            let cell = grid::grid_for(&grid::Options {
+                domain: scene.domain,
+                resolution,
+                ..Default::default()
+            })
+            .map_err(|e| input(anyhow!("{}: {e}", scene.origin)))?
+            .cell;
+            let defaults = nonmanifold::Options::default();
+            let options = nonmanifold::Options {
+                domain: scene.domain,
+                cell,
+                seeds: if a.seed.is_empty() {
+                    scene.continuation.seeds.clone()
+                } else {
+                    a.seed.iter().map(|p| DVec3::from_array(*p)).collect()
+                },
+                search_stride: scene.continuation.search_stride.unwrap_or(defaults.search_stride),
+                full_grid: regions.full_grid,
+                interest: regions.interest.clone(),
+                max_cells: a
+                    .max_cells
+                    .or(scene.continuation.max_cells)
+                    .unwrap_or(defaults.max_cells),
+                control,
+                ..defaults
+            };
+            let field = regions.field.clone();
+            pool.install(|| nonmanifold::polygonize(field.as_ref(), &options))
+                .map(|(m, s)| (m, report::Run::NonManifold(Box::new(s))))
         }
         Method::Continuation | Method::Tetra => {
             let cell = grid::grid_for(&grid::Options {

@@ -24,6 +24,7 @@
 //!
 //! The format is documented with examples in `docs/SCENES.md`.
 
+mod regions;
 mod schema;
 mod skeleton;
 
@@ -35,6 +36,7 @@ use skelform_field::{Aabb, Field, Iso};
 use skelform_mesh::io::Format;
 use skelform_polygonize::grid::Resolution;
 
+pub use regions::Regions;
 pub use schema::{Method, ParseMethodError};
 pub use skeleton::Combine;
 
@@ -58,6 +60,11 @@ pub struct Scene {
     pub continuation: Continuation,
     /// Settings of the healed method.
     pub healed: Healed,
+    /// Regions of space for the non-manifold method, when the scene has `[regions]`.
+    pub regions: Option<Regions>,
+    /// True when the scene has `[regions]` and neither a formula nor a skeleton: only the
+    /// non-manifold method can mesh it.
+    pub regions_only: bool,
     /// The field with the iso value already subtracted: its zero set is the surface.
     pub field: Arc<dyn Field>,
     /// The skeletal field when the scene has a `[skeleton]` (already in `field`, alone or

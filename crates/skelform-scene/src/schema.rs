@@ -28,6 +28,8 @@ pub enum Method {
     /// Marching cubes healed along self-intersections (Nguyen 2016): the sheets of a surface
     /// that crosses itself meet along curves instead of being joined wrongly.
     Healed,
+    /// Several regions of space at once: labelled surfaces meeting along curves (ch. 4).
+    NonManifold,
 }
 
 impl Method {
@@ -36,6 +38,7 @@ impl Method {
         ("continuation", Method::Continuation),
         ("tetra", Method::Tetra),
         ("healed", Method::Healed),
+        ("nonmanifold", Method::NonManifold),
     ];
 
     pub fn name(self) -> &'static str {
@@ -72,6 +75,8 @@ struct File {
     field: Option<Spanned<FieldSection>>,
     /// Skeletal elements and their blend (see `crate::skeleton`).
     skeleton: Option<Spanned<crate::skeleton::SkeletonSection>>,
+    /// Regions of space for the non-manifold polygonizer (see `crate::regions`).
+    regions: Option<Spanned<crate::regions::RegionsSection>>,
     output: Option<OutputSection>,
 }
 
@@ -239,6 +244,14 @@ pub(crate) fn build(text: &str, origin: &str) -> Result<Scene, SceneError> {
         Some(s) => Some(crate::skeleton::build(s, &|o, m| cx.at(o, m))?),
         None => None,
     };
+    let regions = match &file.regions {
+        Some(r) => Some(crate::regions::build(
+            r.get_ref(),
+            &|o, m| cx.at(o, m),
+            &|src, params, params_at| compile_formula(&cx, src, params, params_at),
+        )?),
+        None => None,
+    };
     let (formula, iso, formula_field) = match &file.field {
         Some(field) => {
             let f = field.get_ref();
@@ -264,12 +277,20 @@ pub(crate) fn build(text: &str, origin: &str) -> Result<Scene, SceneError> {
             (formula, iso, Some(field))
         }
         None => {
-            let Some(sk) = &skeleton else {
-                return Err(cx.at(0, "a scene needs a [field] formula or a [skeleton]"));
-            };
-            // No formula: a constant stands in for `skelform info`.
-            let placeholder = Formula::parse("1").map_err(|e| cx.at(0, e.message()))?;
-            (Arc::new(placeholder), sk.field.iso().unwrap_or(0.0), None)
+            let placeholder = Arc::new(Formula::parse("1").map_err(|e| cx.at(0, e.message()))?);
+            match (&skeleton, &regions) {
+                // No formula: a constant stands in for `skelform info`.
+                (Some(sk), _) => (placeholder, sk.field.iso().unwrap_or(0.0), None),
+                // Regions alone: the constant is the (unused) field.
+                (None, Some(_)) => {
+                    (placeholder.clone(), 0.0, Some(placeholder as Arc<dyn skelform_field::Field>))
+                }
+                (None, None) => {
+                    return Err(
+                        cx.at(0, "a scene needs a [field] formula, a [skeleton] or [regions]")
+                    );
+                }
+            }
         }
     };
     let field: Arc<dyn skelform_field::Field> = match (&skeleton, formula_field) {
@@ -294,7 +315,9 @@ pub(crate) fn build(text: &str, origin: &str) -> Result<Scene, SceneError> {
                 ));
             }
         },
-        (None, None) => return Err(cx.at(0, "a scene needs a [field] formula or a [skeleton]")),
+        (None, None) => {
+            return Err(cx.at(0, "a scene needs a [field] formula, a [skeleton] or [regions]"));
+        }
     };
     if let Some(sk) = &skeleton
         && continuation.seeds.is_empty()
@@ -332,6 +355,8 @@ pub(crate) fn build(text: &str, origin: &str) -> Result<Scene, SceneError> {
         tolerance,
         continuation,
         healed,
+        regions_only: regions.is_some() && file.field.is_none() && skeleton.is_none(),
+        regions,
         field,
         skeleton: skeleton.map(|s| s.field),
         formula,

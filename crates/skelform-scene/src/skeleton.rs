@@ -659,7 +659,7 @@ radius = 0.05
         assert!(m.contains("no elements"), "{m}");
         // Neither field nor skeleton.
         let (_, _, m) = error("");
-        assert!(m.contains("[field] formula or a [skeleton]"), "{m}");
+        assert!(m.contains("a [field] formula, a [skeleton] or [regions]"), "{m}");
         // Both, without saying how to combine.
         let (_, _, m) =
             error(&format!("[field]\nformula = \"z\"\n[skeleton]\nradius = 0.1\n{seg}"));

@@ -1,0 +1,146 @@
+//! `[regions]`: space divided into numbered regions for the non-manifold polygonizer.
+//!
+//! ```toml
+//! [regions]
+//! default = 3                      # a point in no listed region is in this one
+//! interest = [[1, 2], [1, 3], [2, 3]]   # the surfaces to make (default: every pair)
+//! parameters = { s = 1.0 }         # numbers every region formula may use
+//! full_grid = false                # true: visit every cube instead of propagating
+//! [[regions.region]]               # in order: a point is in the first region whose
+//! id = 0                           # formula is negative there
+//! formula = "max(abs(x), abs(y), abs(z)) > s"   # (any formula; negative = inside)
+//! ```
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+use serde::Deserialize;
+use skelform_field::region::OrderedRegions;
+use skelform_mesh::RegionPair;
+use toml::Spanned;
+
+use crate::SceneError;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RegionsSection {
+    default: Spanned<i64>,
+    interest: Option<Spanned<Vec<[i64; 2]>>>,
+    parameters: Option<Spanned<BTreeMap<String, f64>>>,
+    full_grid: Option<bool>,
+    region: Vec<RegionEntry>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RegionEntry {
+    id: Spanned<i64>,
+    formula: Spanned<String>,
+}
+
+/// A scene's regions, ready for the non-manifold polygonizer.
+#[derive(Clone)]
+pub struct Regions {
+    pub field: Arc<OrderedRegions>,
+    /// The region pairs to polygonize; empty means every pair that occurs.
+    pub interest: Vec<RegionPair>,
+    pub full_grid: bool,
+}
+
+impl std::fmt::Debug for Regions {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Regions")
+            .field("regions", &self.field.regions.iter().map(|(id, _)| *id).collect::<Vec<_>>())
+            .field("default", &self.field.default)
+            .field("interest", &self.interest)
+            .finish()
+    }
+}
+
+/// Compiles one region formula with the shared parameters (and where they are written).
+pub(crate) type Compile<'a> = dyn Fn(
+        &Spanned<String>,
+        &[(String, f64)],
+        Option<usize>,
+    ) -> Result<skelform_field::formula::Formula, SceneError>
+    + 'a;
+
+/// Checks the section and compiles its formulas; `at(offset, message)` makes a positioned
+/// error, `compile` compiles one formula with the parameters.
+pub(crate) fn build(
+    sec: &RegionsSection,
+    at: &dyn Fn(usize, String) -> SceneError,
+    compile: &Compile<'_>,
+) -> Result<Regions, SceneError> {
+    let id = |v: &Spanned<i64>, what: &str| -> Result<u32, SceneError> {
+        u32::try_from(*v.get_ref()).map_err(|_| {
+            at(
+                v.span().start,
+                format!(
+                    "{what} must be a whole number from 0 to {} (got {})",
+                    u32::MAX,
+                    v.get_ref()
+                ),
+            )
+        })
+    };
+    let default = id(&sec.default, "the default region")?;
+    if sec.region.is_empty() {
+        return Err(at(
+            sec.default.span().start,
+            "[regions] lists no [[regions.region]]: a scene with one region has no surface".into(),
+        ));
+    }
+    let params: Vec<(String, f64)> = match &sec.parameters {
+        Some(p) => p.get_ref().iter().map(|(k, v)| (k.clone(), *v)).collect(),
+        None => Vec::new(),
+    };
+    let mut ids = vec![default];
+    let mut regions = Vec::with_capacity(sec.region.len());
+    for r in &sec.region {
+        let rid = id(&r.id, "a region id")?;
+        if ids.contains(&rid) {
+            return Err(at(
+                r.id.span().start,
+                format!("region {rid} is given twice (or is the default region)"),
+            ));
+        }
+        ids.push(rid);
+        let formula =
+            compile(&r.formula, &params, sec.parameters.as_ref().map(|p| p.span().start))?;
+        regions.push((rid, Box::new(formula) as Box<dyn skelform_field::Field>));
+    }
+    let mut interest = Vec::new();
+    if let Some(list) = &sec.interest {
+        for [a, b] in list.get_ref() {
+            let (a, b) = (*a, *b);
+            let known = |r: i64| u32::try_from(r).ok().filter(|r| ids.contains(r));
+            match (known(a), known(b)) {
+                (Some(x), Some(y)) if x != y => interest.push(RegionPair::new(x, y)),
+                (Some(_), Some(_)) => {
+                    return Err(at(
+                        list.span().start,
+                        format!("the pair [{a}, {b}] names one region twice"),
+                    ));
+                }
+                _ => {
+                    let missing = if known(a).is_none() { a } else { b };
+                    ids.sort_unstable();
+                    return Err(at(
+                        list.span().start,
+                        format!(
+                            "the pair [{a}, {b}] names region {missing}, which is not declared (regions: {ids:?})"
+                        ),
+                    ));
+                }
+            }
+        }
+    }
+    interest.sort_unstable();
+    interest.dedup();
+    Ok(Regions {
+        field: Arc::new(OrderedRegions { regions, default }),
+        interest,
+        full_grid: sec.full_grid.unwrap_or(false),
+    })
+}
