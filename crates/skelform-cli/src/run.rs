@@ -58,6 +58,21 @@ pub struct RunArgs {
     pub quiet: bool,
 }
 
+/// The cell side the scene's domain and resolution give.
+fn cell_for(scene: &Scene, resolution: Resolution) -> Result<f64, Failure> {
+    let opts = grid::Options { domain: scene.domain, resolution, ..Default::default() };
+    grid::grid_for(&opts).map(|g| g.cell).map_err(|e| input(anyhow!("{}: {e}", scene.origin)))
+}
+
+/// Start points: the command line's `--seed`s, else the scene's seeds.
+fn seeds(scene: &Scene, a: &RunArgs) -> Vec<DVec3> {
+    if a.seed.is_empty() {
+        scene.continuation.seeds.clone()
+    } else {
+        a.seed.iter().map(|p| DVec3::from_array(*p)).collect()
+    }
+}
+
 /// Polygonizes the scene as the arguments say; returns the mesh, the run's statistics and
 /// the method used.
 pub fn run_scene(scene: &Scene, a: &RunArgs) -> Result<(Mesh, report::Run, Method), Failure> {
@@ -119,22 +134,12 @@ pub fn run_scene(scene: &Scene, a: &RunArgs) -> Result<(Mesh, report::Run, Metho
                     scene.origin
                 )));
             };
-            let cell = grid::grid_for(&grid::Options {
-                domain: scene.domain,
-                resolution,
-                ..Default::default()
-            })
-            .map_err(|e| input(anyhow!("{}: {e}", scene.origin)))?
-            .cell;
+            let cell = cell_for(scene, resolution)?;
             let defaults = nonmanifold::Options::default();
             let options = nonmanifold::Options {
                 domain: scene.domain,
                 cell,
-                seeds: if a.seed.is_empty() {
-                    scene.continuation.seeds.clone()
-                } else {
-                    a.seed.iter().map(|p| DVec3::from_array(*p)).collect()
-                },
+                seeds: seeds(scene, a),
                 search_stride: scene.continuation.search_stride.unwrap_or(defaults.search_stride),
                 full_grid: regions.full_grid,
                 interest: regions.interest.clone(),
@@ -150,13 +155,7 @@ pub fn run_scene(scene: &Scene, a: &RunArgs) -> Result<(Mesh, report::Run, Metho
                 .map(|(m, s)| (m, report::Run::NonManifold(Box::new(s))))
         }
         Method::Continuation | Method::Tetra => {
-            let cell = grid::grid_for(&grid::Options {
-                domain: scene.domain,
-                resolution,
-                ..Default::default()
-            })
-            .map_err(|e| input(anyhow!("{}: {e}", scene.origin)))?
-            .cell;
+            let cell = cell_for(scene, resolution)?;
             let c = &scene.continuation;
             let defaults = continuation::Options::default();
             let root = match a.root.as_deref() {
@@ -172,11 +171,7 @@ pub fn run_scene(scene: &Scene, a: &RunArgs) -> Result<(Mesh, report::Run, Metho
             let options = continuation::Options {
                 domain: scene.domain,
                 cell,
-                seeds: if a.seed.is_empty() {
-                    c.seeds.clone()
-                } else {
-                    a.seed.iter().map(|p| DVec3::from_array(*p)).collect()
-                },
+                seeds: seeds(scene, a),
                 search_stride: c.search_stride.unwrap_or(defaults.search_stride),
                 cells: if method == Method::Tetra {
                     continuation::Cells::Tetrahedra
