@@ -182,11 +182,15 @@ def machine():
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--worker", nargs=4, metavar=("TOOL", "FIELD", "N", "MODE"), help=argparse.SUPPRESS)
+    ap.add_argument("--generate", nargs=2, metavar=("FIELD", "N"), help=argparse.SUPPRESS)
     ap.add_argument("--sizes", default="128,256,384")
     ap.add_argument("--fields", default="sphere,torus,gyroid,blobs")
     ap.add_argument("--runs", type=int, default=5)
     ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "latest.md"))
     a = ap.parse_args()
+    if a.generate:
+        volume_file(a.generate[0], int(a.generate[1]))
+        return
     if a.worker:
         tool, field, n, mode = a.worker
         print(json.dumps(worker(tool, field, int(n), mode)))
@@ -198,9 +202,11 @@ def main():
              f"Medians of {a.runs} runs, each in a fresh process; ratio = peer time / skelform single-threaded time",
              "(above 1: skelform is faster). Peak memory is the process's maximum resident set.", ""]
     started = time.time()
+    # Volumes are made in a child process: a worker's peak memory would otherwise include
+    # this process's, inherited when it starts the worker.
     for field in fields:
         for n in sizes:
-            volume_file(field, n)
+            subprocess.run([sys.executable, __file__, "--generate", field, str(n)], check=True)
     for mode, title in [("extract", "Extraction only, from the same float32 volume"),
                         ("both", "Sampling plus extraction, each tool evaluating the field its fastest way")]:
         lines += [f"## {title}", "",
