@@ -143,6 +143,13 @@ impl Volume {
         self.values[self.grid.index(i, j, k)]
     }
 
+    /// The smallest and largest sample: a surface needs one of each sign.
+    pub fn value_range(&self) -> (f32, f32) {
+        self.values
+            .iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)))
+    }
+
     /// Bytes a volume of this grid takes.
     pub fn bytes_for(grid: &Grid) -> u64 {
         grid.sample_count() * std::mem::size_of::<f32>() as u64

@@ -140,10 +140,7 @@ pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats),
     stats.sampling = t.elapsed();
     stats.samples = grid.sample_count();
     stats.non_finite_samples = volume.non_finite;
-    let (lo, hi) = volume
-        .values
-        .iter()
-        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+    let (lo, hi) = volume.value_range();
     stats.min_sample = lo;
     stats.max_sample = hi;
 
@@ -154,21 +151,8 @@ pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats),
     stats.tunnels = ex.tunnels;
 
     let t = Instant::now();
-    let how = Placement {
-        refine: options.refine,
-        roots: RootOptions {
-            tolerance: options.tolerance,
-            t_min: cell::T_MIN,
-            ..RootOptions::default()
-        },
-        tolerance: options.tolerance,
-    };
-    let value = |p: [u32; 3]| volume.get(p[0] as usize, p[1] as usize, p[2] as usize) as f64;
-    let ends = |i: usize| {
-        let v = &ex.vertices[i];
-        [value(v.base), v.tip().map_or(0.0, value)]
-    };
-    let (positions, evals) = place_vertices(field, &grid, &ex.vertices, ends, &how);
+    let (positions, evals) =
+        place_extracted(field, &volume, &ex, options.refine, options.tolerance);
     stats.refine_evaluations = evals;
     stats.refinement = t.elapsed();
     if options.control.is_cancelled() {
@@ -251,6 +235,29 @@ pub(crate) fn place_vertices(
         }
     }
     (positions, evals)
+}
+
+/// Positions of an extraction's vertices: interpolated, then refined on the field if asked
+/// (root finding to `tolerance` cells, end values read from the volume). Returns the
+/// positions and the field evaluations made.
+pub(crate) fn place_extracted(
+    field: &dyn Field,
+    volume: &Volume,
+    ex: &Extraction,
+    refine: bool,
+    tolerance: f64,
+) -> (Vec<DVec3>, u64) {
+    let how = Placement {
+        refine,
+        roots: RootOptions { tolerance, t_min: cell::T_MIN, ..RootOptions::default() },
+        tolerance,
+    };
+    let value = |p: [u32; 3]| volume.get(p[0] as usize, p[1] as usize, p[2] as usize) as f64;
+    let ends = |i: usize| {
+        let v = &ex.vertices[i];
+        [value(v.base), v.tip().map_or(0.0, value)]
+    };
+    place_vertices(field, &volume.grid, &ex.vertices, ends, &how)
 }
 
 /// Marching cubes on a volume sampled elsewhere, with vertices interpolated linearly and no

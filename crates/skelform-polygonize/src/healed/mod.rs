@@ -102,11 +102,11 @@ use skelform_field::grid::{Grid, Volume, sample};
 use skelform_mesh::{CurveEdge, Mesh, RegionTriple};
 
 use crate::Error;
-use crate::grid::cell::{T_MIN, case_of};
+use crate::grid::cell::case_of;
 use crate::grid::cube::{EDGES, FACES, edge_between, other_axes};
 use crate::grid::table::table;
-use crate::grid::{self, GridVertex, Place, Placement, Resolution, extract, place_vertices};
-use crate::refine::{RootOptions, face_normals};
+use crate::grid::{self, GridVertex, Place, Resolution, extract};
+use crate::refine::face_normals;
 use config::ThesisClass;
 use local::{Probe, sym_eigen};
 use trace::{TraceOptions, Tracer};
@@ -313,10 +313,7 @@ pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats),
     stats.sampling = t.elapsed();
     stats.samples = grid.sample_count();
     stats.non_finite_samples = volume.non_finite;
-    let (lo, hi) = volume
-        .values
-        .iter()
-        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+    let (lo, hi) = volume.value_range();
     stats.min_sample = lo;
     stats.max_sample = hi;
     let t = Instant::now();
@@ -325,17 +322,8 @@ pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats),
     stats.mc_triangles = ex.triangles.len();
 
     let t = Instant::now();
-    let how = Placement {
-        refine: options.refine,
-        roots: RootOptions { tolerance: options.tolerance, t_min: T_MIN, ..RootOptions::default() },
-        tolerance: options.tolerance,
-    };
-    let value = |p: [u32; 3]| volume.get(p[0] as usize, p[1] as usize, p[2] as usize) as f64;
-    let ends = |i: usize| {
-        let v = &ex.vertices[i];
-        [value(v.base), v.tip().map_or(0.0, value)]
-    };
-    let (positions, evals) = place_vertices(field, &grid, &ex.vertices, ends, &how);
+    let (positions, evals) =
+        grid::place_extracted(field, &volume, &ex, options.refine, options.tolerance);
     stats.refine_evaluations = evals;
     stats.refinement = t.elapsed();
     if control.is_cancelled() {
