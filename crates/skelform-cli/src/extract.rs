@@ -12,9 +12,12 @@ use anyhow::anyhow;
 use clap::Args;
 use skelform_field::DVec3;
 use skelform_field::control::Control;
-use skelform_field::grid::{Grid, Volume};
+use skelform_field::grid::{Grid, Volume, sanitize};
+use skelform_mesh::Mesh;
 use skelform_mesh::io::{WriteOptions, write_mesh};
-use skelform_polygonize::grid::extract_mesh;
+use skelform_polygonize::grid::{
+    LayerSource, StreamError, Streamed, extract_mesh, extract_streamed,
+};
 
 use crate::{Failure, input, output_format, run::parse_bytes, run::parse_point, runtime};
 
@@ -53,6 +56,34 @@ pub struct ExtractArgs {
     /// No summary line.
     #[arg(short, long)]
     quiet: bool,
+    /// Read the file slab by slab as it is extracted instead of loading it whole: memory
+    /// follows the thread count, not the volume (the time then includes reading).
+    #[arg(long)]
+    stream: bool,
+}
+
+/// A raw float32 file read one z layer at a time, for `--stream`.
+struct RawLayers {
+    file: std::sync::Mutex<std::fs::File>,
+    layer: usize,
+    iso: f32,
+}
+
+impl LayerSource for RawLayers {
+    type Error = std::io::Error;
+    fn layer(&self, k: usize, out: &mut [f32]) -> Result<u64, Self::Error> {
+        use std::io::{Read, Seek, SeekFrom};
+        let mut bytes = vec![0u8; self.layer * 4];
+        {
+            let mut f = self.file.lock().unwrap_or_else(|e| e.into_inner());
+            f.seek(SeekFrom::Start((k * self.layer * 4) as u64))?;
+            f.read_exact(&mut bytes)?;
+        }
+        for (o, b) in out.iter_mut().zip(bytes.chunks_exact(4)) {
+            *o = f32::from_le_bytes([b[0], b[1], b[2], b[3]]) - self.iso;
+        }
+        Ok(sanitize(out))
+    }
 }
 
 fn parse_dims(s: &str) -> Result<[usize; 3], String> {
@@ -70,8 +101,9 @@ pub fn extract(a: ExtractArgs) -> Result<(), Failure> {
     }
     let count: u64 = a.dims.iter().map(|&d| d as u64).product();
     let bytes = count * 4;
-    // The samples as f32, plus about as much again for the extraction's bookkeeping.
-    if 2 * bytes > a.max_memory {
+    // The samples as f32, plus about as much again for the extraction's bookkeeping (the
+    // mesh); streamed, the samples are a few slabs.
+    if (if a.stream { bytes } else { 2 * bytes }) > a.max_memory {
         return Err(input(anyhow!(
             "{}: a {}×{}×{} volume needs about {:.2} GiB, over the limit of {:.2} GiB (--max-memory)",
             a.volume.display(),
@@ -94,14 +126,8 @@ pub fn extract(a: ExtractArgs) -> Result<(), Failure> {
             a.dims[2]
         )));
     }
-    let raw =
-        std::fs::read(&a.volume).map_err(|e| input(anyhow!("{}: {e}", a.volume.display())))?;
     let iso = a.iso as f32;
-    let values: Vec<f32> =
-        raw.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]) - iso).collect();
-    drop(raw);
     let grid = Grid { origin: DVec3::from_array(a.origin), cell: a.spacing, dims: a.dims };
-    let volume = Volume::from_values(grid, values);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(a.threads.unwrap_or(0))
         .build()
@@ -110,9 +136,33 @@ pub fn extract(a: ExtractArgs) -> Result<(), Failure> {
     // clock starts so that the reported time is the extraction's, comparable with tools whose
     // tables are compiled in.
     skelform_polygonize::grid::table::table();
-    let t = Instant::now();
-    let mesh = pool.install(|| extract_mesh(&volume, &Control::default())).map_err(runtime)?;
-    let extraction = t.elapsed();
+    let (mesh, extraction, non_finite) = if a.stream {
+        let file = std::fs::File::open(&a.volume)
+            .map_err(|e| input(anyhow!("{}: {e}", a.volume.display())))?;
+        let source =
+            RawLayers { file: std::sync::Mutex::new(file), layer: a.dims[0] * a.dims[1], iso };
+        let t = Instant::now();
+        let Streamed { vertices: positions, triangles, stats } = pool
+            .install(|| extract_streamed::<[f32; 3], _>(&source, &grid, &Control::default()))
+            .map_err(|e| match e {
+                StreamError::Source(e) => runtime(anyhow!("{}: {e}", a.volume.display())),
+                StreamError::Cancelled => runtime(anyhow!("cancelled")),
+            })?;
+        let mesh = Mesh { positions, triangles, ..Mesh::default() };
+        (mesh, t.elapsed(), stats.non_finite)
+    } else {
+        let raw =
+            std::fs::read(&a.volume).map_err(|e| input(anyhow!("{}: {e}", a.volume.display())))?;
+        let values: Vec<f32> = raw
+            .chunks_exact(4)
+            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]) - iso)
+            .collect();
+        drop(raw);
+        let volume = Volume::from_values(grid, values);
+        let t = Instant::now();
+        let mesh = pool.install(|| extract_mesh(&volume, &Control::default())).map_err(runtime)?;
+        (mesh, t.elapsed(), volume.non_finite)
+    };
     if mesh.is_empty() {
         return Err(runtime(anyhow!(
             "{}: no surface: no sample pair straddles the iso value {}",
@@ -131,7 +181,8 @@ pub fn extract(a: ExtractArgs) -> Result<(), Failure> {
                 "volume": a.volume.display().to_string(),
                 "dims": a.dims,
                 "threads": pool.current_num_threads(),
-                "non_finite_samples": volume.non_finite,
+                "non_finite_samples": non_finite,
+                "streamed": a.stream,
                 "vertices": mesh.vertex_count(),
                 "triangles": mesh.triangle_count(),
                 "seconds": { "extraction": extraction.as_secs_f64(), "writing": writing.as_secs_f64() },

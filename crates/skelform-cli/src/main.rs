@@ -209,9 +209,11 @@ fn info(a: InfoArgs) -> Result<(), Failure> {
         Ok(g) => {
             let [nx, ny, nz] = g.dims;
             println!("grid        {nx} × {ny} × {nz} samples, cell {:.6}", g.cell);
+            let streamed = opts.streaming.streams(&g);
             println!(
-                "memory      {:.1} MiB before triangles",
-                grid::memory_needed(&g) as f64 / (1 << 20) as f64
+                "memory      {:.1} MiB before triangles{}",
+                grid::memory_needed(&g, streamed) as f64 / (1 << 20) as f64,
+                if streamed { " (volume streamed in slabs)" } else { "" }
             );
         }
         Err(e) => println!("grid        invalid: {e}"),

@@ -127,7 +127,14 @@ pub fn print(run: &Run, writing: Duration, total: Duration) {
         Run::Grid(s) => {
             let [nx, ny, nz] = s.grid_dims;
             println!("grid          {nx} × {ny} × {nz} samples, cell {:.6}", s.cell);
-            println!("samples       {}", s.samples);
+            if s.streamed {
+                println!(
+                    "samples       {} (streamed in slabs: the layer between two slabs is sampled twice)",
+                    s.samples
+                );
+            } else {
+                println!("samples       {}", s.samples);
+            }
             println!(
                 "evaluations   {} (samples {}, root finding {}, normals {})",
                 s.evaluations(),
@@ -241,6 +248,7 @@ pub fn json(
     let mut j = match run {
         Run::Grid(s) => json!({
             "grid": { "dims": s.grid_dims, "cell": s.cell },
+            "streamed": s.streamed,
             "samples": s.samples,
             "non_finite_samples": s.non_finite_samples,
             "evaluations": {

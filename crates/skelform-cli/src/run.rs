@@ -13,6 +13,24 @@ use skelform_scene::{Method, Scene};
 
 use crate::{Failure, input, progress, report, runtime};
 
+/// `--stream`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StreamArg {
+    Auto,
+    Always,
+    Never,
+}
+
+impl From<StreamArg> for grid::Streaming {
+    fn from(s: StreamArg) -> Self {
+        match s {
+            StreamArg::Auto => grid::Streaming::Auto,
+            StreamArg::Always => grid::Streaming::Always,
+            StreamArg::Never => grid::Streaming::Never,
+        }
+    }
+}
+
 /// How to polygonize a scene; every option overrides the scene's own setting.
 #[derive(Args, Clone, Debug)]
 pub struct RunArgs {
@@ -53,6 +71,10 @@ pub struct RunArgs {
     /// Refuse grids that would need more memory than this, e.g. 512M, 4G (default 4G).
     #[arg(long, value_parser = parse_bytes, default_value = "4G")]
     pub max_memory: u64,
+    /// grid: sample the volume slab by slab as it is extracted instead of holding it whole
+    /// (auto: for volumes over 256 MiB). The mesh is the same either way.
+    #[arg(long, value_enum, default_value_t = StreamArg::Auto)]
+    pub stream: StreamArg,
     /// No progress bar.
     #[arg(short, long)]
     pub quiet: bool,
@@ -122,6 +144,7 @@ pub fn run_scene(scene: &Scene, a: &RunArgs) -> Result<(Mesh, report::Run, Metho
                 tolerance,
                 normals,
                 max_memory: a.max_memory,
+                streaming: a.stream.into(),
                 control,
             };
             pool.install(|| grid::polygonize(field, &options))

@@ -63,6 +63,28 @@ fn extracts_a_closed_surface_from_a_raw_volume() {
 }
 
 #[test]
+fn streaming_the_file_gives_the_same_mesh() {
+    let dir = tempfile::tempdir().unwrap();
+    let vol = dir.path().join("s.raw");
+    std::fs::write(&vol, sphere(37, 0.6)).unwrap();
+    let run = |out: &str, extra: &[&str]| {
+        let out = dir.path().join(out);
+        let mut args = vec!["extract", vol.to_str().unwrap(), "--dims", "37,37,37", "--json"];
+        args.extend_from_slice(&["-o", out.to_str().unwrap()]);
+        args.extend_from_slice(extra);
+        let o = skelform(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        (std::fs::read(out).unwrap(), j)
+    };
+    let (whole, jw) = run("whole.ply", &[]);
+    let (streamed, js) = run("streamed.ply", &["--stream", "--threads", "3"]);
+    assert_eq!(js["streamed"], true);
+    assert_eq!(jw["triangles"], js["triangles"]);
+    assert!(whole == streamed, "the streamed mesh differs");
+}
+
+#[test]
 fn bad_volumes_are_refused_clearly() {
     let dir = tempfile::tempdir().unwrap();
     let vol = dir.path().join("s.raw");

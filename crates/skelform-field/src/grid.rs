@@ -156,7 +156,10 @@ impl Volume {
     }
 }
 
-fn sanitize(values: &mut [f32]) -> u64 {
+/// Replaces non-finite samples so that extraction can compare them: NaN and +∞ become the
+/// largest finite value (far outside), −∞ the most negative (far inside). Returns how many
+/// were replaced.
+pub fn sanitize(values: &mut [f32]) -> u64 {
     let mut bad = 0;
     for v in values {
         if !v.is_finite() {
@@ -172,6 +175,22 @@ fn to_f32(v: f64) -> f32 {
     if v.is_nan() { f32::NAN } else { v.clamp(-f32::MAX as f64, f32::MAX as f64) as f32 }
 }
 
+/// Samples `field` on lattice layer `k` into `out` (`nx·ny` values, x fastest), exactly as
+/// [`sample`] does, without sanitizing. For callers that stream a volume layer by layer.
+pub fn sample_layer(field: &dyn Field, grid: &Grid, k: usize, out: &mut [f32]) {
+    let [nx, ny, _] = grid.dims;
+    let mut points = Vec::with_capacity(nx);
+    let mut row = vec![0f64; nx];
+    for j in 0..ny {
+        points.clear();
+        points.extend((0..nx).map(|i| grid.point(i, j, k)));
+        field.eval_many(&points, &mut row);
+        for (o, &v) in out[j * nx..(j + 1) * nx].iter_mut().zip(&row) {
+            *o = to_f32(v);
+        }
+    }
+}
+
 /// Samples `field` at every lattice point, in parallel over z-layers.
 ///
 /// The result does not depend on the number of threads: each sample is computed on its own.
@@ -181,16 +200,7 @@ pub fn sample(field: &dyn Field, grid: &Grid, control: &Control) -> Result<Volum
     let mut values = vec![0f32; layer * nz];
     let done = AtomicU64::new(0);
     values.par_chunks_mut(layer).enumerate().try_for_each(|(k, out)| {
-        let mut points = Vec::with_capacity(nx);
-        let mut row = vec![0f64; nx];
-        for j in 0..ny {
-            points.clear();
-            points.extend((0..nx).map(|i| grid.point(i, j, k)));
-            field.eval_many(&points, &mut row);
-            for (o, &v) in out[j * nx..(j + 1) * nx].iter_mut().zip(&row) {
-                *o = to_f32(v);
-            }
-        }
+        sample_layer(field, grid, k, out);
         let d = done.fetch_add(1, Ordering::Relaxed) + 1;
         match control.report(Progress { phase: "sampling", done: d, total: Some(nz as u64) }) {
             ControlFlow::Continue(()) => Ok(()),

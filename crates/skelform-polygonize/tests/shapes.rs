@@ -146,6 +146,40 @@ fn same_mesh_on_any_thread_count() {
 }
 
 #[test]
+fn streamed_volume_gives_the_same_mesh_and_counts() {
+    use skelform_polygonize::grid::Streaming;
+    // A gyroid with a band of NaN samples (treated as far outside) through several slabs.
+    let f = FnField(|p: DVec3| {
+        if p.y.abs() < 0.05 {
+            f64::NAN
+        } else {
+            (3.0 * p.x).sin() * (3.0 * p.y).cos()
+                + (3.0 * p.y).sin() * (3.0 * p.z).cos()
+                + (3.0 * p.z).sin() * (3.0 * p.x).cos()
+                - 0.2
+        }
+    });
+    let run = |streaming, threads| {
+        let opts = Options { resolution: Resolution::Samples(43), streaming, ..Options::default() };
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| polygonize(&f, &opts).unwrap())
+    };
+    let (whole, ws) = run(Streaming::Never, 2);
+    assert!(!ws.streamed && whole.triangle_count() > 1000);
+    for threads in [1, 3] {
+        let (streamed, ss) = run(Streaming::Always, threads);
+        assert!(ss.streamed);
+        assert!(streamed == whole, "streamed mesh differs on {threads} threads");
+        assert_eq!(ss.non_finite_samples, ws.non_finite_samples);
+        assert!(ws.non_finite_samples > 0);
+        assert_eq!((ss.min_sample, ss.max_sample), (ws.min_sample, ws.max_sample));
+        assert_eq!((ss.ambiguous_faces, ss.tunnels), (ws.ambiguous_faces, ws.tunnels));
+        // 42 cube layers in slabs of 8: the 5 inner slab boundaries are sampled twice.
+        assert_eq!(ss.samples, ws.samples + 5 * 43 * 43);
+    }
+}
+
+#[test]
 fn sample_values_exactly_zero_keep_the_mesh_closed() {
     // Planes through lattice points: x = 0 and friends are sampled exactly at zero.
     let f = FnField(|p: DVec3| p.x.abs().max(p.y.abs()).max(p.z.abs()) - 0.5);

@@ -27,7 +27,7 @@ use skelform_field::{Aabb, Field};
 use skelform_mesh::Mesh;
 
 use crate::Error;
-use crate::grid::cell::{CubeSink, case_of, polygonize_cube};
+use crate::grid::cell::{CubeSink, case_of, crossing, polygonize_cube};
 use crate::grid::cube::{CORNERS, EDGES, FACES};
 use crate::grid::{GridVertex, Place, Placement, place_vertices};
 use crate::refine::{RootMethod, RootOptions, gradient_normals};
@@ -470,9 +470,9 @@ impl RunSink<'_, '_> {
 }
 
 impl CubeSink for RunSink<'_, '_> {
-    fn edge_vertex(&mut self, e: usize, t: f64) -> u32 {
+    fn edge_vertex(&mut self, e: usize, ends: [f32; 2]) -> u32 {
         let [c0, c1] = EDGES[e];
-        self.segment(c0, c1, t, [self.v[c0], self.v[c1]])
+        self.segment(c0, c1, crossing(ends[0], ends[1]), ends)
     }
 
     fn cell_vertex(&mut self, offset: [f64; 3]) -> u32 {

@@ -16,9 +16,11 @@ pub const T_MIN: f64 = 1e-4;
 
 /// Receives one cube's vertices and triangles.
 pub trait CubeSink {
-    /// The vertex on cube edge `e` at fraction `t` from the edge's lower corner; the sink
-    /// returns the one it already has for that lattice edge, or makes it.
-    fn edge_vertex(&mut self, e: usize, t: f64) -> u32;
+    /// The vertex on cube edge `e`, whose corner values are `ends` (lower corner first); the
+    /// sink returns the one it already has for that lattice edge, or makes it at
+    /// [`crossing`]`(ends[0], ends[1])` (computed only then: most edges are shared by four
+    /// cubes).
+    fn edge_vertex(&mut self, e: usize, ends: [f32; 2]) -> u32;
     /// A new vertex inside the cube, at `offset` (cell units from the lowest corner).
     fn cell_vertex(&mut self, offset: [f64; 3]) -> u32;
     fn triangle(&mut self, t: [u32; 3]);
@@ -83,8 +85,15 @@ fn centroid(points: impl ExactSizeIterator<Item = [f64; 3]>) -> [f64; 3] {
 }
 
 /// Triangulates one cube with corner values `v` (inside negative) into `sink`.
+#[inline]
 pub fn polygonize_cube(v: &[f32; 8], sink: &mut impl CubeSink) -> CubeOutcome {
-    let case = case_of(v);
+    polygonize_case(case_of(v), v, sink)
+}
+
+/// [`polygonize_cube`] for a caller that already has the sign configuration
+/// ([`case_of`]`(v)`, e.g. from sign bits kept per row).
+pub fn polygonize_case(case: usize, v: &[f32; 8], sink: &mut impl CubeSink) -> CubeOutcome {
+    debug_assert_eq!(case, case_of(v));
     if case == 0 || case == 255 {
         return CubeOutcome::default();
     }
@@ -98,7 +107,7 @@ pub fn polygonize_cube(v: &[f32; 8], sink: &mut impl CubeSink) -> CubeOutcome {
     for l in 0..entry.loop_count as usize {
         for &e in t.loop_edges(entry, l) {
             let [c0, c1] = EDGES[e as usize];
-            local[e as usize] = sink.edge_vertex(e as usize, crossing(v[c0], v[c1]));
+            local[e as usize] = sink.edge_vertex(e as usize, [v[c0], v[c1]]);
         }
     }
     let tube = if entry.loop_count == 2 { tunnel(v, entry.caps_inside) } else { None };

@@ -27,7 +27,10 @@ use skelform_mesh::Mesh;
 
 use crate::Error;
 use crate::refine::{Bracket, RootOptions, gradient_normals, project_to_surface, refine_roots};
-pub use extract::{Extraction, GridVertex, Place, dir_vector, extract};
+pub use extract::{
+    Extraction, GridVertex, LayerSource, Place, SampledVertex, StreamError, StreamStats, Streamed,
+    dir_vector, extract, extract_streamed,
+};
 
 /// How fine the lattice is.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -53,7 +56,38 @@ pub struct Options {
     pub normals: bool,
     /// Refuse, before allocating, work that would need more memory than this (bytes).
     pub max_memory: u64,
+    /// Whether the sampled volume is held whole or streamed slab by slab.
+    pub streaming: Streaming,
     pub control: Control,
+}
+
+/// Whether the grid polygonizer keeps the whole sampled volume.
+///
+/// Streaming samples each slab of [`extract::SLAB`] cube layers as it is extracted, so memory
+/// follows the thread count instead of the volume (a 512³ volume is 512 MiB of samples); it
+/// evaluates the layer between two slabs twice (one layer in `SLAB` more). The mesh is the
+/// same either way, bit for bit.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Streaming {
+    /// Stream when the volume would take more than [`STREAM_ABOVE`] bytes.
+    #[default]
+    Auto,
+    Always,
+    Never,
+}
+
+/// Volumes larger than this (bytes) are streamed under [`Streaming::Auto`].
+pub const STREAM_ABOVE: u64 = 256 << 20;
+
+impl Streaming {
+    /// Whether a run on `grid` streams.
+    pub fn streams(self, grid: &Grid) -> bool {
+        match self {
+            Streaming::Auto => Volume::bytes_for(grid) > STREAM_ABOVE,
+            Streaming::Always => true,
+            Streaming::Never => false,
+        }
+    }
 }
 
 impl Default for Options {
@@ -65,6 +99,7 @@ impl Default for Options {
             tolerance: 1e-4,
             normals: true,
             max_memory: 4 << 30,
+            streaming: Streaming::Auto,
             control: Control::default(),
         }
     }
@@ -92,6 +127,9 @@ pub struct Stats {
     pub extraction: Duration,
     pub refinement: Duration,
     pub normals: Duration,
+    /// Whether the volume was streamed (then `sampling` and `extraction` share the wall time
+    /// of the combined phase in proportion to the time the workers spent in each).
+    pub streamed: bool,
 }
 
 impl Stats {
@@ -109,11 +147,31 @@ pub fn grid_for(options: &Options) -> Result<Grid, GridError> {
     }
 }
 
-/// Bytes the run needs before any triangle exists: the sampled volume and per-slab maps.
-pub fn memory_needed(grid: &Grid) -> u64 {
+/// Bytes the run needs before any triangle exists: the sampled volume (or, streamed, each
+/// worker's slab of layers) and per-slab maps.
+pub fn memory_needed(grid: &Grid, streamed: bool) -> u64 {
     let layer = (grid.dims[0] * grid.dims[1]) as u64;
     let threads = rayon::current_num_threads() as u64;
-    Volume::bytes_for(grid) + threads * layer * 4 * 30 + layer * 8 * grid.dims[2] as u64 / 8
+    let samples = if streamed {
+        threads * layer * 4 * (extract::SLAB as u64 + 1)
+    } else {
+        Volume::bytes_for(grid)
+    };
+    samples + threads * layer * 4 * 30 + layer * 8 * grid.dims[2] as u64 / 8
+}
+
+/// Samples of a field, one layer at a time, for streamed extraction.
+struct FieldLayers<'a> {
+    field: &'a dyn Field,
+    grid: &'a Grid,
+}
+
+impl LayerSource for FieldLayers<'_> {
+    type Error = std::convert::Infallible;
+    fn layer(&self, k: usize, out: &mut [f32]) -> Result<u64, Self::Error> {
+        skelform_field::grid::sample_layer(self.field, self.grid, k, out);
+        Ok(skelform_field::grid::sanitize(out))
+    }
 }
 
 /// Polygonizes `field` (zero set, inside negative) on a lattice over the domain.
@@ -129,11 +187,15 @@ pub fn memory_needed(grid: &Grid) -> u64 {
 /// ```
 pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats), Error> {
     let grid = grid_for(options)?;
-    let needed = memory_needed(&grid);
+    let streamed = options.streaming.streams(&grid);
+    let needed = memory_needed(&grid, streamed);
     if needed > options.max_memory {
         return Err(Error::TooMuchMemory { needed, limit: options.max_memory, dims: grid.dims });
     }
-    let mut stats = Stats { grid_dims: grid.dims, cell: grid.cell, ..Stats::default() };
+    let mut stats = Stats { grid_dims: grid.dims, cell: grid.cell, streamed, ..Stats::default() };
+    if streamed {
+        return polygonize_streamed(field, &grid, options, stats);
+    }
 
     let t = Instant::now();
     let volume = sample(field, &grid, &options.control)?;
@@ -159,9 +221,20 @@ pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats),
         return Err(Error::Cancelled);
     }
 
+    finish(field, positions, ex.triangles, options, stats)
+}
+
+/// Normals, and the mesh.
+fn finish(
+    field: &dyn Field,
+    positions: Vec<DVec3>,
+    triangles: Vec<[u32; 3]>,
+    options: &Options,
+    mut stats: Stats,
+) -> Result<(Mesh, Stats), Error> {
     let t = Instant::now();
-    let normals = if options.normals && !ex.triangles.is_empty() {
-        let (n, evals) = gradient_normals(field, &positions, &ex.triangles);
+    let normals = if options.normals && !triangles.is_empty() {
+        let (n, evals) = gradient_normals(field, &positions, &triangles);
         stats.normal_evaluations = evals;
         n
     } else {
@@ -172,12 +245,49 @@ pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats),
     let mesh = Mesh {
         positions: positions.iter().map(|p| p.as_vec3().to_array()).collect(),
         normals,
-        triangles: ex.triangles,
+        triangles,
         ..Mesh::default()
     };
     stats.vertices = mesh.vertex_count();
     stats.triangles = mesh.triangle_count();
     Ok((mesh, stats))
+}
+
+/// [`polygonize`] without holding the volume: each slab is sampled, extracted and dropped.
+fn polygonize_streamed(
+    field: &dyn Field,
+    grid: &Grid,
+    options: &Options,
+    mut stats: Stats,
+) -> Result<(Mesh, Stats), Error> {
+    let t = Instant::now();
+    let source = FieldLayers { field, grid };
+    let extract::Streamed { vertices: sampled, triangles, stats: s } =
+        extract::extract_streamed::<SampledVertex, _>(&source, grid, &options.control)
+            .map_err(|_| Error::Cancelled)?;
+    let wall = t.elapsed();
+    let busy = (s.source_time + s.extract_time).as_secs_f64();
+    let share = if busy > 0.0 { s.source_time.as_secs_f64() / busy } else { 0.5 };
+    stats.sampling = wall.mul_f64(share);
+    stats.extraction = wall - stats.sampling;
+    stats.samples = s.samples_read;
+    stats.non_finite_samples = s.non_finite;
+    stats.min_sample = s.min_sample;
+    stats.max_sample = s.max_sample;
+    stats.ambiguous_faces = s.ambiguous_faces;
+    stats.tunnels = s.tunnels;
+
+    let t = Instant::now();
+    let vertices: Vec<GridVertex> = sampled.iter().map(|v| v.vertex).collect();
+    let how = Placement::for_grid(options.refine, options.tolerance);
+    let ends = |i: usize| sampled[i].ends.map(f64::from);
+    let (positions, evals) = place_vertices(field, grid, &vertices, ends, &how);
+    stats.refine_evaluations = evals;
+    stats.refinement = t.elapsed();
+    if options.control.is_cancelled() {
+        return Err(Error::Cancelled);
+    }
+    finish(field, positions, triangles, options, stats)
 }
 
 /// How vertices are moved onto the surface.
@@ -187,6 +297,14 @@ pub(crate) struct Placement {
     pub roots: RootOptions,
     /// Newton tolerance for interior vertices, as a fraction of the cell.
     pub tolerance: f64,
+}
+
+impl Placement {
+    /// Refinement of vertices made by marching cubes on a grid, to `tolerance` cells.
+    fn for_grid(refine: bool, tolerance: f64) -> Self {
+        let roots = RootOptions { tolerance, t_min: cell::T_MIN, ..RootOptions::default() };
+        Placement { refine, roots, tolerance }
+    }
 }
 
 /// Vertex positions: interpolated, then (if asked) refined on the field, edge vertices by
@@ -247,11 +365,7 @@ pub(crate) fn place_extracted(
     refine: bool,
     tolerance: f64,
 ) -> (Vec<DVec3>, u64) {
-    let how = Placement {
-        refine,
-        roots: RootOptions { tolerance, t_min: cell::T_MIN, ..RootOptions::default() },
-        tolerance,
-    };
+    let how = Placement::for_grid(refine, tolerance);
     let value = |p: [u32; 3]| volume.get(p[0] as usize, p[1] as usize, p[2] as usize) as f64;
     let ends = |i: usize| {
         let v = &ex.vertices[i];
@@ -263,8 +377,7 @@ pub(crate) fn place_extracted(
 /// Marching cubes on a volume sampled elsewhere, with vertices interpolated linearly and no
 /// normals: the extraction-only path (e.g. for a volume read from a raw file).
 pub fn extract_mesh(volume: &Volume, control: &Control) -> Result<Mesh, Error> {
-    let ex = extract(volume, control).map_err(|_| Error::Cancelled)?;
-    let positions =
-        ex.vertices.iter().map(|v| v.position(&volume.grid).as_vec3().to_array()).collect();
-    Ok(Mesh { positions, triangles: ex.triangles, ..Mesh::default() })
+    let (positions, triangles) =
+        extract::extract_positions(volume, control).map_err(|_| Error::Cancelled)?;
+    Ok(Mesh { positions, triangles, ..Mesh::default() })
 }

@@ -300,7 +300,7 @@ pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats),
         ..grid::Options::default()
     };
     let grid = grid::grid_for(&gopts)?;
-    let needed = grid::memory_needed(&grid);
+    let needed = grid::memory_needed(&grid, false);
     if needed > options.max_memory {
         return Err(Error::TooMuchMemory { needed, limit: options.max_memory, dims: grid.dims });
     }
