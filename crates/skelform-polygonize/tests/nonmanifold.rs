@@ -91,13 +91,28 @@ fn saucer_and_square_is_a_closed_non_manifold_complex() {
                 eprintln!("open edge inside the cube at {pa:?}-{pb:?}");
             }
         }
-        assert!(*d <= 3, "edge of degree {d}");
+        assert!(
+            *d <= 3,
+            "edge of degree {d} at {:?} {:?}",
+            a.map(f32::from_bits),
+            b.map(f32::from_bits)
+        );
     }
     assert!(
         hist.get(&3).copied().unwrap_or(0) > 0,
         "the saucer's rim is an intersection curve: {hist:?}"
     );
     assert!(!m.curves.is_empty());
+    // The follower reaches every face vertex (the wall at x, y = ±1 falls half-way between
+    // lattice planes, so the square's border runs through lattice edges' midpoints).
+    assert!(s.face_vertex_fallbacks * 100 <= s.face_vertices, "{s:?}");
+    // The rim is a circle of radius 1/1.4; the square's border is 8 long.
+    let length = |t: [u32; 3]| {
+        s.curve_length_per_triple.iter().find(|(c, _)| c.0 == t).map_or(0.0, |(_, l)| *l)
+    };
+    let rim = 2.0 * std::f64::consts::PI / 1.4;
+    assert!((length([1, 2, 3]) - rim).abs() < 0.03 * rim, "rim {} vs {rim}", length([1, 2, 3]));
+    assert!((length([0, 2, 3]) - 8.0).abs() < 0.03 * 8.0, "border {}", length([0, 2, 3]));
 }
 
 #[test]

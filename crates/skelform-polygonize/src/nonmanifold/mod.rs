@@ -98,6 +98,9 @@ pub struct Stats {
     /// Face vertices the contour follower could not reach (placed at the mean of the
     /// face's crossings instead).
     pub face_vertex_fallbacks: usize,
+    /// Face vertices put on an edge crossing because a third region lies within 2ε of it
+    /// along its edge (the follower's first triangle would already hold it).
+    pub face_vertices_at_crossing: usize,
     pub looped_pairs_ignored: usize,
     pub merged_vertices: usize,
     pub dropped_triangles: usize,
@@ -424,15 +427,37 @@ impl Run<'_> {
     ) -> DVec3 {
         let [a, b, c] = corners.map(|k| self.point(k));
         let n = (b - a).cross(c - a);
-        let inside = |p: DVec3| {
-            let area = n.length_squared();
-            let w0 = (c - b).cross(p - b).dot(n) / area;
-            let w1 = (a - c).cross(p - c).dot(n) / area;
-            let w2 = (b - a).cross(p - a).dot(n) / area;
-            w0 >= -1e-9 && w1 >= -1e-9 && w2 >= -1e-9
+        let area2 = n.length_squared();
+        // Barycentric coordinates within the face's plane.
+        let bary = |p: DVec3| {
+            [
+                (c - b).cross(p - b).dot(n) / area2,
+                (a - c).cross(p - c).dot(n) / area2,
+                (b - a).cross(p - a).dot(n) / area2,
+            ]
         };
-        // Steps of 4ε: the start straddles the crossing by 2ε on each side, more than the ε
-        // within which bisection placed it, so both ends are surely in their regions.
+        // How far outside the face a point is (0 inside): the largest distance beyond one of
+        // its sides (a barycentric coordinate times that side's height).
+        let heights = [(c - b).length(), (a - c).length(), (b - a).length()]
+            .map(|l| area2.sqrt() / l.max(f64::MIN_POSITIVE));
+        let outside = move |p: DVec3| {
+            let w = bary(p);
+            (0..3).map(|i| -w[i] * heights[i]).fold(0.0f64, f64::max)
+        };
+        let inside = |p: DVec3| outside(p) <= 1e-9 * heights[0];
+        // A point of the plane moved into the face, at least 2ε from its sides: a face
+        // vertex on a side would coincide with the one of the face across that side (where a
+        // curve runs along a lattice edge), pinching the sheets there.
+        let inset = heights.map(|h| (2.0 * self.eps / h).min(0.3));
+        let clamp = |p: DVec3| {
+            let mut w = bary(p);
+            for _ in 0..3 {
+                w = std::array::from_fn(|i| w[i].max(inset[i]));
+                let s = w[0] + w[1] + w[2];
+                w = w.map(|x| x / s);
+            }
+            a * w[0] + b * w[1] + c * w[2]
+        };
         let side = 4.0 * self.eps;
         let max_steps = (8.0 * (b - a).length().max((c - a).length()) / side) as usize + 16;
         for s in starts {
@@ -448,23 +473,31 @@ impl Run<'_> {
                 .map_or(DVec3::X, |(_, d)| d);
             let mut px = v - edge_dir * side * 0.5;
             let mut py = v + edge_dir * side * 0.5;
-            let (rx, ry) = (self.region_at(px), self.region_at(py));
-            let (x, y) = (s.from, s.to);
-            if !(rx == x && ry == y) {
-                std::mem::swap(&mut px, &mut py);
-                let (rx2, ry2) = (self.region_at(px), self.region_at(py));
-                if !(rx2 == x && ry2 == y) {
-                    continue;
-                }
-            }
             let mid = (px + py) * 0.5;
             let mut w = n.normalize().cross(py - px).normalize();
             if !inside(mid + w * side) {
                 w = -w;
             }
             let mut apex = mid + w * side * 3f64.sqrt() * 0.5;
+            let (rx, ry) = (self.region_at(px), self.region_at(py));
+            let (x, y) = (s.from, s.to);
+            if ![rx, ry].iter().all(|&r| r == x || r == y) {
+                // The first triangle already has a corner in a third region (the crossing is
+                // within 2ε of it along the edge): it is the final triangle.
+                self.stats.face_vertices_at_crossing += 1;
+                return clamp((px + py + apex) / 3.0);
+            }
+            if !(rx == x && ry == y) {
+                if !(rx == y && ry == x) {
+                    continue;
+                }
+                std::mem::swap(&mut px, &mut py);
+            }
+            // The strip may run up to two triangles beyond the face: where the regions meet
+            // on (or within ε of) the face's own edge, as when a wall falls half-way between
+            // lattice planes, the contour reaches the foreign region only just outside.
             for _ in 0..max_steps {
-                if !inside(apex) {
+                if outside(apex) > 2.0 * side {
                     break;
                 }
                 let r = self.region_at(apex);
@@ -477,7 +510,7 @@ impl Run<'_> {
                     py = apex;
                     apex = px + py - old;
                 } else {
-                    return (px + py + apex) / 3.0;
+                    return clamp((px + py + apex) / 3.0);
                 }
             }
         }
