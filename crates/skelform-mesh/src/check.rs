@@ -25,7 +25,7 @@ use std::fmt;
 
 use serde::Serialize;
 
-use crate::mesh::{Mesh, RegionPair};
+use crate::mesh::{CurveEdge, Mesh, RegionPair, RegionTriple};
 
 /// What [`check`] finds in a mesh. Serializes to JSON for `skelform check --json`; displays
 /// as a compact text report.
@@ -62,6 +62,10 @@ pub struct Report {
     pub labels: Vec<LabelCount>,
     /// Curve segments.
     pub curves: usize,
+    /// Curve segments per label, and whether each label's curves close up.
+    pub curve_labels: Vec<CurveCount>,
+    /// Vertices merged into another by [`weld`] before the analysis (`check --weld`).
+    pub welded_vertices: Option<usize>,
     pub bounds: Option<Bounds>,
     /// Total area of the faces with in-range indices.
     pub area: f64,
@@ -115,6 +119,112 @@ impl Component {
 pub struct LabelCount {
     pub label: RegionPair,
     pub triangles: usize,
+}
+
+/// The curve segments carrying one region triple.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct CurveCount {
+    pub label: RegionTriple,
+    pub segments: usize,
+    /// Vertices where an odd number of this label's segments end: 0 when the curves are
+    /// closed loops (or meet other curves of the label in even numbers).
+    pub open_ends: usize,
+}
+
+/// Identifies vertices closer than `tolerance` (coincident copies: the non-manifold
+/// polygonizer duplicates vertices per region pair, so each sheet has its own normal) and
+/// returns the welded mesh and how many vertices were merged away. Triangles that collapse
+/// are kept (the checker counts them as degenerate); normals are dropped (a welded vertex
+/// has one per sheet). Deterministic: each vertex joins the lowest-numbered vertex within the
+/// tolerance that is not itself joined to another.
+pub fn weld(mesh: &Mesh, tolerance: f32) -> (Mesh, usize) {
+    let tol = f64::from(tolerance.max(0.0));
+    let cell = if tol > 0.0 { tol } else { 1.0 };
+    let key = |p: [f32; 3]| p.map(|x| (f64::from(x) / cell).floor() as i64);
+    let mut buckets: BTreeMap<[i64; 3], Vec<u32>> = BTreeMap::new();
+    let mut rep: Vec<u32> = (0..mesh.positions.len() as u32).collect();
+    let mut merged = 0;
+    for (i, p) in mesh.positions.iter().enumerate() {
+        let k = key(*p);
+        let mut found = None;
+        'search: for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    let Some(list) = buckets.get(&[k[0] + dx, k[1] + dy, k[2] + dz]) else {
+                        continue;
+                    };
+                    for &j in list {
+                        let q = mesh.positions[j as usize];
+                        let d2: f64 =
+                            (0..3).map(|a| (f64::from(p[a]) - f64::from(q[a])).powi(2)).sum();
+                        if d2 <= tol * tol && found.is_none_or(|f| j < f) {
+                            found = Some(j);
+                        }
+                    }
+                    if tol == 0.0 && found.is_some() {
+                        break 'search;
+                    }
+                }
+            }
+        }
+        match found {
+            Some(j) => {
+                rep[i] = j;
+                merged += 1;
+            }
+            None => buckets.entry(k).or_default().push(i as u32),
+        }
+    }
+    // Renumber the kept vertices in order.
+    let mut new_id = vec![u32::MAX; mesh.positions.len()];
+    let mut out = Mesh::default();
+    for (i, p) in mesh.positions.iter().enumerate() {
+        if rep[i] == i as u32 {
+            new_id[i] = out.positions.len() as u32;
+            out.positions.push(*p);
+        }
+    }
+    let map = |v: u32| new_id.get(v as usize).and_then(|_| new_id.get(rep[v as usize] as usize));
+    for (f, t) in mesh.triangles.iter().enumerate() {
+        // Out-of-range indices stay out of range, so the checker still counts them.
+        let t = t.map(|v| map(v).copied().unwrap_or(u32::MAX));
+        out.triangles.push(t);
+        if let Some(l) = mesh.labels.get(f) {
+            out.labels.push(*l);
+        }
+    }
+    for c in &mesh.curves {
+        if let (Some(&a), Some(&b)) = (map(c.v[0]), map(c.v[1])) {
+            out.curves.push(CurveEdge { v: [a, b], label: c.label });
+        }
+    }
+    (out, merged)
+}
+
+/// [`check`] after [`weld`]ing coincident vertices within `tolerance`.
+pub fn check_welded(mesh: &Mesh, tolerance: f32) -> Report {
+    let (welded, merged) = weld(mesh, tolerance);
+    let mut r = check(&welded);
+    r.welded_vertices = Some(merged);
+    r
+}
+
+fn curve_counts(mesh: &Mesh) -> Vec<CurveCount> {
+    let mut per: BTreeMap<RegionTriple, (usize, BTreeMap<u32, usize>)> = BTreeMap::new();
+    for c in &mesh.curves {
+        let e = per.entry(c.label).or_default();
+        e.0 += 1;
+        for v in c.v {
+            *e.1.entry(v).or_default() += 1;
+        }
+    }
+    per.into_iter()
+        .map(|(label, (segments, ends))| CurveCount {
+            label,
+            segments,
+            open_ends: ends.values().filter(|&&n| n % 2 == 1).count(),
+        })
+        .collect()
 }
 
 /// An axis-aligned box.
@@ -513,6 +623,8 @@ pub fn check(mesh: &Mesh) -> Report {
             .map(|(label, triangles)| LabelCount { label, triangles })
             .collect(),
         curves: mesh.curves.len(),
+        curve_labels: curve_counts(mesh),
+        welded_vertices: None,
         bounds: bounds.map(|(min, max)| Bounds { min, max }),
         area,
         volume,
@@ -586,6 +698,9 @@ impl fmt::Display for Report {
             "vertices      {} ({} unreferenced)",
             self.vertices, self.unreferenced_vertices
         )?;
+        if let Some(n) = self.welded_vertices {
+            writeln!(f, "welded        {n} coincident vertices merged before the analysis")?;
+        }
         write!(f, "faces         {}", self.faces)?;
         if self.out_of_range_faces > 0 {
             write!(f, " ({} with out-of-range indices)", self.out_of_range_faces)?;
@@ -645,6 +760,14 @@ impl fmt::Display for Report {
         }
         if self.curves > 0 {
             writeln!(f, "curves        {} segments", self.curves)?;
+            for c in &self.curve_labels {
+                let state = if c.open_ends == 0 {
+                    "closed".to_string()
+                } else {
+                    format!("open ({} ends)", c.open_ends)
+                };
+                writeln!(f, "  curve {}  {} segments, {state}", c.label, c.segments)?;
+            }
         }
         writeln!(f, "normals       {}", if self.has_normals { "yes" } else { "no" })?;
         if let Some(b) = self.bounds {

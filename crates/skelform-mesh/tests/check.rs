@@ -524,3 +524,40 @@ proptest! {
         let _ = serde_json::to_string(&r).unwrap();
     }
 }
+
+/// Three sheets meeting along an edge, with each sheet's vertices duplicated (as the
+/// non-manifold polygonizer writes them): welding shows the edge of degree 3.
+#[test]
+fn welding_joins_duplicated_sheets_along_their_curve() {
+    use skelform_mesh::check::{check, check_welded, weld};
+    use skelform_mesh::{CurveEdge, RegionPair, RegionTriple};
+    let mut m = Mesh::default();
+    let apexes = [[1.0, 0.0, 0.0], [-0.5, 0.8, 0.0], [-0.5, -0.8, 0.0]];
+    for (i, apex) in apexes.into_iter().enumerate() {
+        let base = m.positions.len() as u32;
+        m.positions.extend([[0.0, 0.0, 0.0], [0.0, 0.0, 1.0], apex]);
+        m.triangles.push([base, base + 1, base + 2]);
+        m.labels.push(RegionPair(i as u32, 3));
+    }
+    // The shared edge as a curve, on the first sheet's copies, plus a dangling piece.
+    m.curves.push(CurveEdge { v: [0, 1], label: RegionTriple([0, 1, 2]) });
+    m.curves.push(CurveEdge { v: [1, 2], label: RegionTriple([0, 1, 3]) });
+    let plain = check(&m);
+    assert_eq!(plain.edge_degrees.get(&3), None);
+    assert_eq!(plain.welded_vertices, None);
+    let (w, merged) = weld(&m, 0.0);
+    assert_eq!((w.positions.len(), merged), (5, 4));
+    let r = check_welded(&m, 1e-6);
+    assert_eq!(r.welded_vertices, Some(4));
+    assert_eq!(r.edge_degrees.get(&3), Some(&1));
+    assert_eq!(r.edge_degrees.get(&1), Some(&6));
+    assert_eq!(r.labels.len(), 3);
+    assert_eq!(r.curve_labels.len(), 2);
+    assert_eq!(r.curve_labels[0].open_ends, 2, "one segment has two ends");
+    assert!(r.to_string().contains("welded        4"));
+    // A tolerance joins near but not equal points too.
+    let mut near = m.clone();
+    near.positions[3][0] += 1e-4;
+    assert_eq!(weld(&near, 0.0).1, 3);
+    assert_eq!(weld(&near, 1e-3).1, 4);
+}
