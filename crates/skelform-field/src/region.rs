@@ -27,14 +27,28 @@ pub trait RegionField: Send + Sync {
     fn region_ids(&self) -> Option<Vec<u32>> {
         None
     }
+
+    /// The chapter's `Gradient(p, pair)`: the gradient at `p` of a real function that is
+    /// continuous near the surface between regions `pair.0 < pair.1` and zero on it (or
+    /// any function whose gradient is normal to that surface), for vertex normals. `None`
+    /// when this region function has none for the pair; the polygonizer then averages
+    /// triangle normals. Only the direction matters: the polygonizer turns it to agree with
+    /// the triangles' winding.
+    fn gradient(&self, p: DVec3, pair: (u32, u32)) -> Option<DVec3> {
+        let _ = (p, pair);
+        None
+    }
 }
 
 /// Regions given in order, each by a field: a point belongs to the first region whose field
 /// is negative there, and otherwise to `default` (DESIGN.md, "Regions"). A field that is NaN
-/// at a point does not claim it.
+/// at a point does not claim it. `gradients` gives, per region pair `(a, b)` with `a < b`,
+/// a field whose gradient is normal to the surface between them (see
+/// [`RegionField::gradient`]).
 pub struct OrderedRegions {
     pub regions: Vec<(u32, Box<dyn Field>)>,
     pub default: u32,
+    pub gradients: Vec<((u32, u32), Box<dyn Field>)>,
 }
 
 impl RegionField for OrderedRegions {
@@ -77,6 +91,11 @@ impl RegionField for OrderedRegions {
         ids.sort_unstable();
         ids.dedup();
         Some(ids)
+    }
+
+    fn gradient(&self, p: DVec3, pair: (u32, u32)) -> Option<DVec3> {
+        let g = self.gradients.iter().find(|(q, _)| *q == pair)?.1.gradient(p);
+        g.is_finite().then_some(g)
     }
 }
 
@@ -125,6 +144,7 @@ mod tests {
                 (2, Box::new(FnField(|p: DVec3| -p.z))),
             ],
             default: 3,
+            gradients: vec![((1, 2), Box::new(FnField(|p: DVec3| p.z - p.length())))],
         };
         let pts: Vec<DVec3> = (0..1000)
             .map(|i| {
@@ -144,5 +164,8 @@ mod tests {
         assert_eq!(r.region(DVec3::new(0.0, 0.0, 0.9)), 2);
         assert_eq!(r.region(DVec3::new(0.0, 0.0, -0.9)), 3);
         assert_eq!(r.region_ids(), Some(vec![1, 2, 3]));
+        let g = r.gradient(DVec3::new(0.0, 0.6, 0.0), (1, 2)).unwrap();
+        assert!((g - DVec3::new(0.0, -1.0, 1.0)).length() < 1e-6, "{g}");
+        assert_eq!(r.gradient(DVec3::ZERO, (1, 3)), None);
     }
 }

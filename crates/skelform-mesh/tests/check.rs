@@ -561,3 +561,33 @@ fn welding_joins_duplicated_sheets_along_their_curve() {
     assert_eq!(weld(&near, 0.0).1, 3);
     assert_eq!(weld(&near, 1e-3).1, 4);
 }
+
+#[test]
+fn crossing_triangles_are_found_and_neighbours_are_not() {
+    use skelform_mesh::check::crossings;
+    // Two closed tetrahedra apart, sharing nothing: no crossings; the closed mesh's own
+    // neighbours (sharing edges and vertices) never count.
+    let t = tetrahedron();
+    assert!(crossings(&t, 1e-9).is_empty());
+    // A triangle piercing a face of the tetrahedron.
+    let mut m = t.clone();
+    let n = m.positions.len() as u32;
+    m.positions.extend([[0.2, 0.2, -0.5], [0.3, 0.2, 0.5], [0.2, 0.3, 0.5]]);
+    m.triangles.push([n, n + 1, n + 2]);
+    let c = crossings(&m, 1e-9);
+    assert!(c.contains(&(0, 4)), "{c:?}");
+    // Touching within the tolerance is not crossing: a triangle lying on the face z = 0.
+    let mut m = t.clone();
+    m.positions.extend([[0.1, 0.1, 0.0], [0.3, 0.1, 0.0], [0.1, 0.3, 0.0]]);
+    m.triangles.push([n, n + 1, n + 2]);
+    assert!(crossings(&m, 1e-9).is_empty());
+    // Sharing one vertex (as a duplicated copy at the same position) and folding through.
+    let mut m = mesh(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], &[[0, 1, 2]]);
+    m.positions.extend([[0.0, 0.0, 0.0], [0.4, 0.4, 1.0], [0.4, 0.4, -1.0]]);
+    m.triangles.push([3, 4, 5]);
+    assert_eq!(crossings(&m, 1e-9), vec![(0, 1)]);
+    // The same fold moved off the first triangle does not cross.
+    m.positions[4] = [-0.4, -0.4, 1.0];
+    m.positions[5] = [-0.4, -0.4, -1.0];
+    assert!(crossings(&m, 1e-9).is_empty());
+}

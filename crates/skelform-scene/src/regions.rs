@@ -8,7 +8,10 @@
 //! full_grid = false                # true: visit every cube instead of propagating
 //! [[regions.region]]               # in order: a point is in the first region whose
 //! id = 0                           # formula is negative there
-//! formula = "max(abs(x), abs(y), abs(z)) > s"   # (any formula; negative = inside)
+//! formula = "s - max(abs(x), abs(y), abs(z))"   # (any formula; negative = inside)
+//! [[regions.gradient]]             # optional, per pair: a function whose gradient is
+//! pair = [2, 3]                    # normal to that surface, for vertex normals
+//! formula = "z"
 //! ```
 
 use std::collections::BTreeMap;
@@ -29,6 +32,14 @@ pub(crate) struct RegionsSection {
     parameters: Option<Spanned<BTreeMap<String, f64>>>,
     full_grid: Option<bool>,
     region: Vec<RegionEntry>,
+    gradient: Option<Vec<GradientEntry>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GradientEntry {
+    pair: Spanned<[i64; 2]>,
+    formula: Spanned<String>,
 }
 
 #[derive(Deserialize)]
@@ -110,36 +121,48 @@ pub(crate) fn build(
             compile(&r.formula, &params, sec.parameters.as_ref().map(|p| p.span().start))?;
         regions.push((rid, Box::new(formula) as Box<dyn skelform_field::Field>));
     }
-    let mut interest = Vec::new();
-    if let Some(list) = &sec.interest {
-        for [a, b] in list.get_ref() {
-            let (a, b) = (*a, *b);
-            let known = |r: i64| u32::try_from(r).ok().filter(|r| ids.contains(r));
-            match (known(a), known(b)) {
-                (Some(x), Some(y)) if x != y => interest.push(RegionPair::new(x, y)),
-                (Some(_), Some(_)) => {
-                    return Err(at(
-                        list.span().start,
-                        format!("the pair [{a}, {b}] names one region twice"),
-                    ));
-                }
-                _ => {
-                    let missing = if known(a).is_none() { a } else { b };
-                    ids.sort_unstable();
-                    return Err(at(
-                        list.span().start,
-                        format!(
-                            "the pair [{a}, {b}] names region {missing}, which is not declared (regions: {ids:?})"
-                        ),
-                    ));
-                }
+    ids.sort_unstable();
+    let pair = |[a, b]: [i64; 2], offset: usize| -> Result<RegionPair, SceneError> {
+        let known = |r: i64| u32::try_from(r).ok().filter(|r| ids.contains(r));
+        match (known(a), known(b)) {
+            (Some(x), Some(y)) if x != y => Ok(RegionPair::new(x, y)),
+            (Some(_), Some(_)) => {
+                Err(at(offset, format!("the pair [{a}, {b}] names one region twice")))
+            }
+            _ => {
+                let missing = if known(a).is_none() { a } else { b };
+                Err(at(
+                    offset,
+                    format!(
+                        "the pair [{a}, {b}] names region {missing}, which is not declared (regions: {ids:?})"
+                    ),
+                ))
             }
         }
+    };
+    let mut interest = Vec::new();
+    if let Some(list) = &sec.interest {
+        for p in list.get_ref() {
+            interest.push(pair(*p, list.span().start)?);
+        }
+    }
+    let mut gradients: Vec<((u32, u32), Box<dyn skelform_field::Field>)> = Vec::new();
+    for g in sec.gradient.iter().flatten() {
+        let p = pair(*g.pair.get_ref(), g.pair.span().start)?;
+        if gradients.iter().any(|(q, _)| *q == (p.0, p.1)) {
+            return Err(at(
+                g.pair.span().start,
+                format!("the pair [{}, {}] has a gradient already", p.0, p.1),
+            ));
+        }
+        let formula =
+            compile(&g.formula, &params, sec.parameters.as_ref().map(|p| p.span().start))?;
+        gradients.push(((p.0, p.1), Box::new(formula)));
     }
     interest.sort_unstable();
     interest.dedup();
     Ok(Regions {
-        field: Arc::new(OrderedRegions { regions, default }),
+        field: Arc::new(OrderedRegions { regions, default, gradients }),
         interest,
         full_grid: sec.full_grid.unwrap_or(false),
     })

@@ -104,6 +104,9 @@ pub struct Stats {
     pub looped_pairs_ignored: usize,
     pub merged_vertices: usize,
     pub dropped_triangles: usize,
+    /// Vertex normals taken from the region function's per-pair gradient (the rest are
+    /// area-weighted triangle normals).
+    pub gradient_normals: usize,
     /// Triangles whose side regions could not be told apart by a probe (kept as wound).
     pub unoriented_triangles: usize,
     pub triangles_per_pair: Vec<(RegionPair, usize)>,
@@ -854,6 +857,7 @@ impl Run<'_> {
         }
         // Duplicate per (merged vertex, pair); keep first-use order, so output is stable.
         let mut copy: FxHashMap<(u32, RegionPair), u32> = FxHashMap::default();
+        let mut copy_of: Vec<(DVec3, RegionPair)> = Vec::new();
         let mut first_copy: FxHashMap<u32, u32> = FxHashMap::default();
         let mut mesh = Mesh::default();
         let mut counts: FxHashMap<RegionPair, usize> = FxHashMap::default();
@@ -867,6 +871,7 @@ impl Run<'_> {
                 *copy.entry((v, pair)).or_insert_with(|| {
                     let (s, c) = sum[&v];
                     mesh.positions.push((s / c).as_vec3().to_array());
+                    copy_of.push((s / c, pair));
                     let id = mesh.positions.len() as u32 - 1;
                     first_copy.entry(v).or_insert(id);
                     id
@@ -883,6 +888,16 @@ impl Run<'_> {
             let nrm = (b - a).cross(c - a);
             for &i in t {
                 acc[i as usize] += nrm;
+            }
+        }
+        // Where the region function has a gradient for the pair (the chapter's
+        // `Gradient(p, pair)`), it gives the normal, turned to agree with the winding.
+        for (n, &(p, pair)) in acc.iter_mut().zip(&copy_of) {
+            let Some(g) = self.regions.gradient(p, (pair.0, pair.1)) else { continue };
+            let g = g.normalize_or_zero();
+            if g != DVec3::ZERO {
+                *n = if g.dot(*n) < 0.0 { -g } else { g };
+                self.stats.gradient_normals += 1;
             }
         }
         mesh.normals = acc.iter().map(|n| n.normalize_or_zero().as_vec3().to_array()).collect();
