@@ -19,7 +19,7 @@ use std::sync::Arc;
 
 use serde::Deserialize;
 use skelform_field::region::OrderedRegions;
-use skelform_mesh::RegionPair;
+use skelform_mesh::{RegionPair, RegionTriple};
 use toml::Spanned;
 
 use crate::SceneError;
@@ -29,6 +29,7 @@ use crate::SceneError;
 pub(crate) struct RegionsSection {
     default: Spanned<i64>,
     interest: Option<Spanned<Vec<[i64; 2]>>>,
+    curves: Option<Spanned<Vec<[i64; 3]>>>,
     parameters: Option<Spanned<BTreeMap<String, f64>>>,
     full_grid: Option<bool>,
     region: Vec<RegionEntry>,
@@ -55,6 +56,8 @@ pub struct Regions {
     pub field: Arc<OrderedRegions>,
     /// The region pairs to polygonize; empty means every pair that occurs.
     pub interest: Vec<RegionPair>,
+    /// The intersection curves to output; empty means every one that occurs.
+    pub curves: Vec<RegionTriple>,
     pub full_grid: bool,
 }
 
@@ -146,6 +149,24 @@ pub(crate) fn build(
             interest.push(pair(*p, list.span().start)?);
         }
     }
+    let mut curves = Vec::new();
+    if let Some(list) = &sec.curves {
+        let offset = list.span().start;
+        for &[a, b, c] in list.get_ref() {
+            if a == b || b == c || a == c {
+                return Err(at(
+                    offset,
+                    format!("the curve [{a}, {b}, {c}] names one region twice"),
+                ));
+            }
+            // Each region declared (the pairs' checks say which is not).
+            pair([a, b], offset)?;
+            pair([b, c], offset)?;
+            curves.push(RegionTriple::new([a, b, c].map(|r| r as u32)));
+        }
+    }
+    curves.sort_unstable();
+    curves.dedup();
     let mut gradients: Vec<((u32, u32), Box<dyn skelform_field::Field>)> = Vec::new();
     for g in sec.gradient.iter().flatten() {
         let p = pair(*g.pair.get_ref(), g.pair.span().start)?;
@@ -164,6 +185,7 @@ pub(crate) fn build(
     Ok(Regions {
         field: Arc::new(OrderedRegions { regions, default, gradients }),
         interest,
+        curves,
         full_grid: sec.full_grid.unwrap_or(false),
     })
 }

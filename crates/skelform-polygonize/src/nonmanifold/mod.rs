@@ -24,6 +24,7 @@
 //! tetrahedron, so features finer than a cell can be lost; looped intersections are cut off.
 
 pub mod tets;
+pub mod verify;
 
 use std::time::{Duration, Instant};
 
@@ -50,6 +51,9 @@ pub struct Options {
     pub full_grid: bool,
     /// The surfaces to polygonize; empty means every pair that occurs.
     pub interest: Vec<RegionPair>,
+    /// The intersection curves to output (the chapter's curves of interest); empty means
+    /// every curve of the surfaces of interest.
+    pub curves: Vec<RegionTriple>,
     /// Edge sections (the chapter's n = 16).
     pub sections: u32,
     /// Least bisections per section (the chapter's m = 4).
@@ -71,6 +75,7 @@ impl Default for Options {
             search_stride: 4,
             full_grid: false,
             interest: Vec::new(),
+            curves: Vec::new(),
             sections: 16,
             refinements: 4,
             epsilon: None,
@@ -553,7 +558,9 @@ impl Run<'_> {
                         && f.regions.len() >= 3
                     {
                         let tri = RegionTriple::new([f.regions[0], f.regions[1], f.regions[2]]);
-                        self.curves.push(CurveEdge { v: [fv, centre], label: tri });
+                        if self.opts.curves.is_empty() || self.opts.curves.contains(&tri) {
+                            self.curves.push(CurveEdge { v: [fv, centre], label: tri });
+                        }
                     }
                 }
                 for (u, v, pair) in lines {
@@ -891,12 +898,25 @@ impl Run<'_> {
             }
         }
         // Where the region function has a gradient for the pair (the chapter's
-        // `Gradient(p, pair)`), it gives the normal, turned to agree with the winding.
-        for (n, &(p, pair)) in acc.iter_mut().zip(&copy_of) {
-            let Some(g) = self.regions.gradient(p, (pair.0, pair.1)) else { continue };
-            let g = g.normalize_or_zero();
-            if g != DVec3::ZERO {
-                *n = if g.dot(*n) < 0.0 { -g } else { g };
+        // `Gradient(p, pair)`), it gives the normal. Its sign is the function's own, so it is
+        // turned, once per pair, to agree with most of the pair's triangles (weighted by
+        // area): per vertex, a few tiny triangles at the curves could turn it the wrong way.
+        let grads: Vec<Option<DVec3>> = copy_of
+            .iter()
+            .map(|&(p, pair)| {
+                let g = self.regions.gradient(p, (pair.0, pair.1))?.normalize_or_zero();
+                (g != DVec3::ZERO).then_some(g)
+            })
+            .collect();
+        let mut agree: FxHashMap<RegionPair, f64> = FxHashMap::default();
+        for ((g, n), &(_, pair)) in grads.iter().zip(&acc).zip(&copy_of) {
+            if let Some(g) = g {
+                *agree.entry(pair).or_default() += g.dot(*n);
+            }
+        }
+        for ((g, n), &(_, pair)) in grads.iter().zip(acc.iter_mut()).zip(&copy_of) {
+            if let Some(g) = g {
+                *n = if agree[&pair] < 0.0 { -*g } else { *g };
                 self.stats.gradient_normals += 1;
             }
         }
