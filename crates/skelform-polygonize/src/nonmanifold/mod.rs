@@ -108,6 +108,8 @@ pub struct Stats {
     pub face_vertices_at_crossing: usize,
     pub looped_pairs_ignored: usize,
     pub merged_vertices: usize,
+    /// Vertices of thin triangles moved onto the midpoint of the opposite side.
+    pub snapped_to_edges: usize,
     pub dropped_triangles: usize,
     /// Vertex normals taken from the region function's per-pair gradient (the rest are
     /// area-weighted triangle normals).
@@ -831,6 +833,91 @@ impl Run<'_> {
         }
     }
 
+    /// The chapter's second post-process: a vertex closer than `limit` to the opposite side
+    /// of one of its triangles (a thin triangle) moves onto that side (to its nearest point
+    /// there, not the chapter's midpoint, which can be half a side away); the thin
+    /// triangle, now flat, is dropped, and every other triangle on that side is split at the
+    /// vertex (so no crack opens: on an intersection curve that is each sheet's triangle),
+    /// as is a curve segment along it. One move per vertex and per side, in triangle order.
+    fn snap_to_edges(
+        &mut self,
+        pos: &mut [DVec3],
+        tris: &mut Vec<([u32; 3], RegionPair)>,
+        curves: &mut Vec<CurveEdge>,
+        limit: f64,
+    ) {
+        let key = |a: u32, b: u32| (a.min(b), a.max(b));
+        let mut touched: FxHashSet<u32> = FxHashSet::default();
+        let mut splits: FxHashMap<(u32, u32), u32> = FxHashMap::default();
+        let mut neighbours: FxHashMap<u32, Vec<u32>> = FxHashMap::default();
+        for (t, _) in tris.iter() {
+            for k in 0..3 {
+                neighbours.entry(t[k]).or_default().extend([t[(k + 1) % 3], t[(k + 2) % 3]]);
+            }
+        }
+        for (t, _) in tris.iter() {
+            for k in 0..3 {
+                let (v, a, b) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+                if touched.contains(&v) || touched.contains(&a) || touched.contains(&b) {
+                    continue;
+                }
+                let (pv, pa, pb) = (pos[v as usize], pos[a as usize], pos[b as usize]);
+                let ab = pb - pa;
+                let len2 = ab.length_squared();
+                if len2 == 0.0 {
+                    continue;
+                }
+                let s = (pv - pa).dot(ab) / len2;
+                // Near an end it is a short side, the merge's business.
+                if !(0.0..=1.0).contains(&s) || (pa + ab * s).distance(pv) >= limit {
+                    continue;
+                }
+                // Nor may the move bring it within `limit` of a neighbour (a short side whose
+                // triangles would have no reliable normal).
+                let q = pa + ab * s;
+                if neighbours[&v].iter().any(|&w| pos[w as usize].distance(q) < limit) {
+                    continue;
+                }
+                pos[v as usize] = q;
+                touched.extend([v, a, b]);
+                splits.insert(key(a, b), v);
+                self.stats.snapped_to_edges += 1;
+            }
+        }
+        if splits.is_empty() {
+            return;
+        }
+        let mut out = Vec::with_capacity(tris.len() + splits.len());
+        for &(t, pair) in tris.iter() {
+            let side = (0..3).find_map(|k| {
+                let (a, b) = (t[k], t[(k + 1) % 3]);
+                splits.get(&key(a, b)).map(|&v| (k, v))
+            });
+            match side {
+                None => out.push((t, pair)),
+                // The thin triangle itself.
+                Some((_, v)) if t.contains(&v) => self.stats.dropped_triangles += 1,
+                Some((k, v)) => {
+                    let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+                    out.push(([a, v, c], pair));
+                    out.push(([v, b, c], pair));
+                }
+            }
+        }
+        *tris = out;
+        let mut split_curves = Vec::with_capacity(curves.len());
+        for c in curves.iter() {
+            match splits.get(&key(c.v[0], c.v[1])) {
+                Some(&v) => {
+                    split_curves.push(CurveEdge { v: [c.v[0], v], label: c.label });
+                    split_curves.push(CurveEdge { v: [v, c.v[1]], label: c.label });
+                }
+                None => split_curves.push(*c),
+            }
+        }
+        *curves = split_curves;
+    }
+
     /// Merges close vertices, drops degenerate triangles, duplicates vertices per pair.
     fn finish(&mut self) -> Mesh {
         let n = self.positions.len();
@@ -862,23 +949,39 @@ impl Run<'_> {
             e.0 += self.positions[v as usize];
             e.1 += 1.0;
         }
-        // Duplicate per (merged vertex, pair); keep first-use order, so output is stable.
-        let mut copy: FxHashMap<(u32, RegionPair), u32> = FxHashMap::default();
-        let mut copy_of: Vec<(DVec3, RegionPair)> = Vec::new();
-        let mut first_copy: FxHashMap<u32, u32> = FxHashMap::default();
-        let mut mesh = Mesh::default();
-        let mut counts: FxHashMap<RegionPair, usize> = FxHashMap::default();
+        let mut pos = self.positions.clone();
+        for (&r, &(s, c)) in &sum {
+            pos[r as usize] = s / c;
+        }
+        let mut tris: Vec<([u32; 3], RegionPair)> = Vec::with_capacity(self.triangles.len());
         for (t, &pair) in self.triangles.iter().zip(&self.labels) {
             let r = t.map(|v| root(&mut parent, v));
             if r[0] == r[1] || r[1] == r[2] || r[0] == r[2] {
                 self.stats.dropped_triangles += 1;
                 continue;
             }
+            tris.push((r, pair));
+        }
+        let mut curves: Vec<CurveEdge> = Vec::with_capacity(self.curves.len());
+        for c in &self.curves {
+            let v = c.v.map(|v| root(&mut parent, v));
+            if v[0] != v[1] {
+                curves.push(CurveEdge { v, label: c.label });
+            }
+        }
+        self.snap_to_edges(&mut pos, &mut tris, &mut curves, limit);
+        // Duplicate per (merged vertex, pair); keep first-use order, so output is stable.
+        let mut copy: FxHashMap<(u32, RegionPair), u32> = FxHashMap::default();
+        let mut copy_of: Vec<(DVec3, RegionPair)> = Vec::new();
+        let mut first_copy: FxHashMap<u32, u32> = FxHashMap::default();
+        let mut mesh = Mesh::default();
+        let mut counts: FxHashMap<RegionPair, usize> = FxHashMap::default();
+        for &(r, pair) in &tris {
             let tri = r.map(|v| {
                 *copy.entry((v, pair)).or_insert_with(|| {
-                    let (s, c) = sum[&v];
-                    mesh.positions.push((s / c).as_vec3().to_array());
-                    copy_of.push((s / c, pair));
+                    let p = pos[v as usize];
+                    mesh.positions.push(p.as_vec3().to_array());
+                    copy_of.push((p, pair));
                     let id = mesh.positions.len() as u32 - 1;
                     first_copy.entry(v).or_insert(id);
                     id
@@ -922,11 +1025,8 @@ impl Run<'_> {
         }
         mesh.normals = acc.iter().map(|n| n.normalize_or_zero().as_vec3().to_array()).collect();
         let mut lengths: FxHashMap<RegionTriple, f64> = FxHashMap::default();
-        for c in &self.curves {
-            let r = c.v.map(|v| root(&mut parent, v));
-            if r[0] == r[1] {
-                continue;
-            }
+        for c in &curves {
+            let r = c.v;
             let (Some(&a), Some(&b)) = (first_copy.get(&r[0]), first_copy.get(&r[1])) else {
                 continue;
             };
