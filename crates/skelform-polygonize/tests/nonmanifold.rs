@@ -334,7 +334,8 @@ fn blend_to_a_patch_meets_it_along_the_bumps_rim() {
         // The patch's border (x, y = ±1) falls half-way between lattice planes.
         domain: Aabb::cube(1.23),
         cell: 0.1,
-        seeds: vec![regions.centre + DVec3::new(0.0, 0.0, 0.35)],
+        // The bump's top (where 0.35 Sigmoid(1.4 h) = h).
+        seeds: vec![regions.centre + DVec3::new(0.0, 0.0, 0.24)],
         interest: vec![RegionPair(1, 2), RegionPair(1, 3), RegionPair(2, 3)],
         ..Options::default()
     };
