@@ -85,6 +85,34 @@ fn region_scene_mistakes_are_clear() {
     let r = skelform(&["mesh", &p, "-o", o]);
     assert_eq!(r.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&r.stderr).contains("nonmanifold"));
+    // Gradients and curves name declared regions, once.
+    let body = "[regions]\ndefault = 0\n[[regions.region]]\nid = 1\nformula = \"x\"\n";
+    for (name, extra, line, says) in [
+        ("gradient.toml", "[[regions.gradient]]\npair = [1, 9]\nformula = \"x\"\n", 10, "region 9"),
+        (
+            "twice.toml",
+            "[[regions.gradient]]\npair = [0, 1]\nformula = \"x\"\n[[regions.gradient]]\npair = [1, 0]\nformula = \"x\"\n",
+            13,
+            "has a gradient already",
+        ),
+        ("gradformula.toml", "[[regions.gradient]]\npair = [0, 1]\nformula = \"x *\"\n", 11, ""),
+    ] {
+        let p = scene(name, format!("{head}{body}{extra}"));
+        let r = skelform(&["mesh", &p, "-o", o, "--method", "nonmanifold"]);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), Some(2), "{err}");
+        assert!(err.contains(&format!("{name}:{line}:")) && err.contains(says), "{err}");
+    }
+    let p = scene(
+        "curve.toml",
+        format!(
+            "{head}[regions]\ndefault = 0\ncurves = [[0, 1, 1]]\n[[regions.region]]\nid = 1\nformula = \"x\"\n"
+        ),
+    );
+    let r = skelform(&["mesh", &p, "-o", o, "--method", "nonmanifold"]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(2));
+    assert!(err.contains("curve.toml:6:") && err.contains("names one region twice"), "{err}");
     assert!(!out.exists());
 }
 

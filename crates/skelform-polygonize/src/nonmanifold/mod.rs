@@ -15,8 +15,12 @@
 //! from vertex to partner across its faces; one with them gets an internal vertex at their
 //! mean and a triangle to each face line of interest. Triangles are wound counter-clockwise
 //! seen from the lesser region of their pair. Afterwards vertices closer than
-//! `close_factor · ε` along a triangle edge are merged, degenerate triangles dropped, and
-//! vertices duplicated per region pair so each sheet has its own normal.
+//! `close_factor · ε` along a triangle edge are merged, a vertex closer than that to the
+//! opposite side of its triangle is moved onto it (the side split there), degenerate
+//! triangles dropped, and vertices duplicated per region pair so each sheet has its own
+//! normal: the region function's gradient for the pair where it has one (the chapter's
+//! `Gradient(p, pair)`), else the pair's area-weighted triangle normals.
+//! [`verify`] checks a result against its region function.
 //!
 //! Guarantees: deterministic output on any thread count; every triangle labelled with a
 //! pair of interest; intersection curves output as labelled polylines. Not guaranteed
@@ -198,6 +202,13 @@ pub fn polygonize(regions: &dyn RegionField, options: &Options) -> Result<(Mesh,
         ));
     }
     if let Some(ids) = regions.region_ids() {
+        for t in &options.curves {
+            if let Some(r) = t.0.iter().find(|r| !ids.contains(r)) {
+                return Err(Error::BadOption(format!(
+                    "the curve {t} names region {r}, which the region function does not have (it has {ids:?})"
+                )));
+            }
+        }
         for p in &options.interest {
             for r in [p.0, p.1] {
                 if !ids.contains(&r) {
@@ -428,7 +439,15 @@ impl Run<'_> {
     }
 
     /// Where the contours of a face meet: follow the contour from a crossing of interest in
-    /// small equilateral steps to the first region foreign to it.
+    /// small equilateral steps to the first region foreign to it (the chapter's follower),
+    /// and put the vertex at the centre of that last triangle, moved at least 2ε into the
+    /// face. Two cases the plain follower misses are handled: a third region already at a
+    /// corner of the first triangle (the crossing is within 2ε of the meeting point, as at
+    /// the saucer's rim, thinner than ε) ends the walk at once; and the walk may run up to
+    /// two triangles beyond the face, for regions that meet on the face's own side (a wall
+    /// half-way between lattice planes puts the square's border through the midpoints of
+    /// face diagonals). Otherwise the next start is tried, and only when none succeeds is
+    /// the vertex put at the mean of the face's crossings (`face_vertex_fallbacks`).
     fn face_vertex(
         &mut self,
         corners: [Key; 3],
