@@ -852,91 +852,6 @@ impl Run<'_> {
         }
     }
 
-    /// The chapter's second post-process: a vertex closer than `limit` to the opposite side
-    /// of one of its triangles (a thin triangle) moves onto that side (to its nearest point
-    /// there, not the chapter's midpoint, which can be half a side away); the thin
-    /// triangle, now flat, is dropped, and every other triangle on that side is split at the
-    /// vertex (so no crack opens: on an intersection curve that is each sheet's triangle),
-    /// as is a curve segment along it. One move per vertex and per side, in triangle order.
-    fn snap_to_edges(
-        &mut self,
-        pos: &mut [DVec3],
-        tris: &mut Vec<([u32; 3], RegionPair)>,
-        curves: &mut Vec<CurveEdge>,
-        limit: f64,
-    ) {
-        let key = |a: u32, b: u32| (a.min(b), a.max(b));
-        let mut touched: FxHashSet<u32> = FxHashSet::default();
-        let mut splits: FxHashMap<(u32, u32), u32> = FxHashMap::default();
-        let mut neighbours: FxHashMap<u32, Vec<u32>> = FxHashMap::default();
-        for (t, _) in tris.iter() {
-            for k in 0..3 {
-                neighbours.entry(t[k]).or_default().extend([t[(k + 1) % 3], t[(k + 2) % 3]]);
-            }
-        }
-        for (t, _) in tris.iter() {
-            for k in 0..3 {
-                let (v, a, b) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
-                if touched.contains(&v) || touched.contains(&a) || touched.contains(&b) {
-                    continue;
-                }
-                let (pv, pa, pb) = (pos[v as usize], pos[a as usize], pos[b as usize]);
-                let ab = pb - pa;
-                let len2 = ab.length_squared();
-                if len2 == 0.0 {
-                    continue;
-                }
-                let s = (pv - pa).dot(ab) / len2;
-                // Near an end it is a short side, the merge's business.
-                if !(0.0..=1.0).contains(&s) || (pa + ab * s).distance(pv) >= limit {
-                    continue;
-                }
-                // Nor may the move bring it within `limit` of a neighbour (a short side whose
-                // triangles would have no reliable normal).
-                let q = pa + ab * s;
-                if neighbours[&v].iter().any(|&w| pos[w as usize].distance(q) < limit) {
-                    continue;
-                }
-                pos[v as usize] = q;
-                touched.extend([v, a, b]);
-                splits.insert(key(a, b), v);
-                self.stats.snapped_to_edges += 1;
-            }
-        }
-        if splits.is_empty() {
-            return;
-        }
-        let mut out = Vec::with_capacity(tris.len() + splits.len());
-        for &(t, pair) in tris.iter() {
-            let side = (0..3).find_map(|k| {
-                let (a, b) = (t[k], t[(k + 1) % 3]);
-                splits.get(&key(a, b)).map(|&v| (k, v))
-            });
-            match side {
-                None => out.push((t, pair)),
-                // The thin triangle itself.
-                Some((_, v)) if t.contains(&v) => self.stats.dropped_triangles += 1,
-                Some((k, v)) => {
-                    let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
-                    out.push(([a, v, c], pair));
-                    out.push(([v, b, c], pair));
-                }
-            }
-        }
-        *tris = out;
-        let mut split_curves = Vec::with_capacity(curves.len());
-        for c in curves.iter() {
-            match splits.get(&key(c.v[0], c.v[1])) {
-                Some(&v) => {
-                    split_curves.push(CurveEdge { v: [c.v[0], v], label: c.label });
-                    split_curves.push(CurveEdge { v: [v, c.v[1]], label: c.label });
-                }
-                None => split_curves.push(*c),
-            }
-        }
-        *curves = split_curves;
-    }
-
     /// Merges close vertices, drops degenerate triangles, duplicates vertices per pair.
     fn finish(&mut self) -> Mesh {
         let n = self.positions.len();
@@ -988,7 +903,9 @@ impl Run<'_> {
                 curves.push(CurveEdge { v, label: c.label });
             }
         }
-        self.snap_to_edges(&mut pos, &mut tris, &mut curves, limit);
+        let (snapped, dropped) = snap_to_edges(&mut pos, &mut tris, &mut curves, limit);
+        self.stats.snapped_to_edges += snapped;
+        self.stats.dropped_triangles += dropped;
         // Duplicate per (merged vertex, pair); keep first-use order, so output is stable.
         let mut copy: FxHashMap<(u32, RegionPair), u32> = FxHashMap::default();
         let mut copy_of: Vec<(DVec3, RegionPair)> = Vec::new();
@@ -1066,6 +983,92 @@ impl Run<'_> {
     }
 }
 
+/// The chapter's second post-process: a vertex closer than `limit` to the opposite side
+/// of one of its triangles (a thin triangle) moves onto that side (to its nearest point
+/// there, not the chapter's midpoint, which can be half a side away); the thin
+/// triangle, now flat, is dropped, and every other triangle on that side is split at the
+/// vertex (so no crack opens: on an intersection curve that is each sheet's triangle),
+/// as is a curve segment along it. One move per vertex and per side, in triangle order.
+fn snap_to_edges(
+    pos: &mut [DVec3],
+    tris: &mut Vec<([u32; 3], RegionPair)>,
+    curves: &mut Vec<CurveEdge>,
+    limit: f64,
+) -> (usize, usize) {
+    let key = |a: u32, b: u32| (a.min(b), a.max(b));
+    let (mut snapped, mut dropped) = (0, 0);
+    let mut touched: FxHashSet<u32> = FxHashSet::default();
+    let mut splits: FxHashMap<(u32, u32), u32> = FxHashMap::default();
+    let mut neighbours: FxHashMap<u32, Vec<u32>> = FxHashMap::default();
+    for (t, _) in tris.iter() {
+        for k in 0..3 {
+            neighbours.entry(t[k]).or_default().extend([t[(k + 1) % 3], t[(k + 2) % 3]]);
+        }
+    }
+    for (t, _) in tris.iter() {
+        for k in 0..3 {
+            let (v, a, b) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+            if touched.contains(&v) || touched.contains(&a) || touched.contains(&b) {
+                continue;
+            }
+            let (pv, pa, pb) = (pos[v as usize], pos[a as usize], pos[b as usize]);
+            let ab = pb - pa;
+            let len2 = ab.length_squared();
+            if len2 == 0.0 {
+                continue;
+            }
+            let s = (pv - pa).dot(ab) / len2;
+            // Near an end it is a short side, the merge's business.
+            if !(0.0..=1.0).contains(&s) || (pa + ab * s).distance(pv) >= limit {
+                continue;
+            }
+            // Nor may the move bring it within `limit` of a neighbour (a short side whose
+            // triangles would have no reliable normal).
+            let q = pa + ab * s;
+            if neighbours[&v].iter().any(|&w| pos[w as usize].distance(q) < limit) {
+                continue;
+            }
+            pos[v as usize] = q;
+            touched.extend([v, a, b]);
+            splits.insert(key(a, b), v);
+            snapped += 1;
+        }
+    }
+    if splits.is_empty() {
+        return (0, 0);
+    }
+    let mut out = Vec::with_capacity(tris.len() + splits.len());
+    for &(t, pair) in tris.iter() {
+        let side = (0..3).find_map(|k| {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            splits.get(&key(a, b)).map(|&v| (k, v))
+        });
+        match side {
+            None => out.push((t, pair)),
+            // The thin triangle itself.
+            Some((_, v)) if t.contains(&v) => dropped += 1,
+            Some((k, v)) => {
+                let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+                out.push(([a, v, c], pair));
+                out.push(([v, b, c], pair));
+            }
+        }
+    }
+    *tris = out;
+    let mut split_curves = Vec::with_capacity(curves.len());
+    for c in curves.iter() {
+        match splits.get(&key(c.v[0], c.v[1])) {
+            Some(&v) => {
+                split_curves.push(CurveEdge { v: [c.v[0], v], label: c.label });
+                split_curves.push(CurveEdge { v: [v, c.v[1]], label: c.label });
+            }
+            None => split_curves.push(*c),
+        }
+    }
+    *curves = split_curves;
+    (snapped, dropped)
+}
+
 /// Pairs off crossings around a face boundary like brackets: (x→y) with a later (y→x) with
 /// everything between them paired too. Paired crossings become disjoint lines; the rest
 /// meet at the face vertex.
@@ -1098,6 +1101,32 @@ mod tests {
 
     fn w(vertex: u32, from: u32, to: u32) -> Walked {
         Walked { vertex, from, to }
+    }
+
+    #[test]
+    fn a_thin_triangles_vertex_moves_onto_the_side_which_is_split() {
+        // A thin triangle (a, b, v), v 0.1 from the middle of a-b, and two sheets beyond a-b
+        // (a non-manifold edge, as on a curve): v moves onto a-b, the thin triangle goes, and
+        // each other triangle on a-b is split at v, so every edge keeps its triangles.
+        let mut pos = vec![
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(10.0, 0.0, 0.0),
+            DVec3::new(4.0, 0.1, 0.0),
+            DVec3::new(5.0, -5.0, 0.0),
+            DVec3::new(5.0, 0.0, 5.0),
+        ];
+        let (p, q) = (RegionPair(1, 2), RegionPair(1, 3));
+        let mut tris = vec![([0, 1, 2], p), ([1, 0, 3], p), ([1, 0, 4], q)];
+        let mut curves = vec![CurveEdge { v: [0, 1], label: RegionTriple([1, 2, 3]) }];
+        let (snapped, dropped) = snap_to_edges(&mut pos, &mut tris, &mut curves, 0.5);
+        assert_eq!((snapped, dropped), (1, 1));
+        assert_eq!(pos[2], DVec3::new(4.0, 0.0, 0.0));
+        assert_eq!(tris, vec![([1, 2, 3], p), ([2, 0, 3], p), ([1, 2, 4], q), ([2, 0, 4], q)]);
+        assert_eq!(curves.iter().map(|c| c.v).collect::<Vec<_>>(), vec![[0, 2], [2, 1]]);
+        // Farther than the limit: nothing moves.
+        let mut tris = vec![([0, 1, 2], p)];
+        pos[2].y = 0.6;
+        assert_eq!(snap_to_edges(&mut pos, &mut tris, &mut Vec::new(), 0.5), (0, 0));
     }
 
     #[test]
