@@ -389,3 +389,50 @@ fn blend_to_a_patch_meets_it_along_the_bumps_rim() {
     assert_eq!(s.gradient_normals, s.vertices);
     assert!(s.face_vertex_fallbacks * 100 <= s.face_vertices);
 }
+
+/// Beyond the chapter: a small ball (radius 0.3 cells) across a lattice edge crosses it
+/// twice and no other edge. The chapter ignores such looped crossings, so the ball is lost;
+/// with `loops` it is made: a closed sphere-like surface around the edge, its vertices on the
+/// ball (within the follower's accuracy).
+#[test]
+fn a_surface_poking_through_one_edge_is_kept_with_loops() {
+    // The lattice has points at -1.25 + 0.1 k; the edge from (0.05, 0.05, 0.05) along x.
+    let centre = DVec3::new(0.1, 0.05, 0.05);
+    let radius = 0.03;
+    let ball = InsideOutside(FnField(move |p: DVec3| (p - centre).length() - radius));
+    let base =
+        Options { domain: Aabb::cube(1.25), cell: 0.1, seeds: vec![centre], ..Options::default() };
+    let (m, s) = polygonize(&ball, &base).unwrap();
+    assert_eq!(m.triangle_count(), 0, "the chapter truncates the loop: {s:?}");
+    assert!(s.looped_pairs_ignored >= 1);
+    let (m, s) = polygonize(&ball, &Options { loops: true, ..base }).unwrap();
+    eprintln!("{s:?}");
+    let r = check(&m);
+    assert!(r.is_closed_manifold(), "{r}");
+    assert_eq!(r.components.len(), 1);
+    assert_eq!(r.components[0].genus, Some(0));
+    assert!(s.looped_pairs_kept >= 1 && s.loop_vertices >= 4, "{s:?}");
+    let worst = m
+        .positions
+        .iter()
+        .map(|p| ((DVec3::from_array(p.map(f64::from)) - centre).length() - radius).abs())
+        .fold(0.0, f64::max);
+    assert!(worst < 4.0 * s.epsilon, "vertices {worst} off the ball");
+    let v = skelform_polygonize::nonmanifold::verify::verify(&m, &ball, 2.0 * s.epsilon);
+    assert_eq!(v.triangles_reversed, 0, "{v:?}");
+}
+
+/// Keeping loops does not disturb the saucer's complex: the same surfaces, edge degrees at
+/// most 3, and no crossing triangles.
+#[test]
+fn loops_keep_the_saucer_a_non_manifold_complex() {
+    let regions = saucer_and_square();
+    let (m, s) = polygonize(&regions, &Options { loops: true, ..saucer_options() }).unwrap();
+    eprintln!("{s:?}");
+    assert_eq!(s.triangles_per_pair.len(), 3);
+    let deg = edge_degrees(&m);
+    assert!(deg.values().all(|&d| d <= 3), "{:?}", deg.values().max());
+    assert!(skelform_mesh::check::crossings(&m, 1e-3 * s.epsilon).is_empty());
+    let v = skelform_polygonize::nonmanifold::verify::verify(&m, &regions, 2.0 * s.epsilon);
+    assert_eq!((v.vertices_reversed, v.triangles_reversed), (0, 0), "{v:?}");
+}

@@ -6,6 +6,7 @@
 //! interest = [[1, 2], [1, 3], [2, 3]]   # the surfaces to make (default: every pair)
 //! parameters = { s = 1.0 }         # numbers every region formula may use
 //! full_grid = false                # true: visit every cube instead of propagating
+//! loops = false                    # true: keep looped crossings (beyond the chapter)
 //! [[regions.region]]               # in order: a point is in the first region whose
 //! id = 0                           # formula is negative there
 //! formula = "s - max(abs(x), abs(y), abs(z))"   # (any formula; negative = inside)
@@ -32,6 +33,7 @@ pub(crate) struct RegionsSection {
     curves: Option<Spanned<Vec<[i64; 3]>>>,
     parameters: Option<Spanned<BTreeMap<String, f64>>>,
     full_grid: Option<bool>,
+    loops: Option<bool>,
     region: Vec<RegionEntry>,
     gradient: Option<Vec<GradientEntry>>,
 }
@@ -59,6 +61,9 @@ pub struct Regions {
     /// The intersection curves to output; empty means every one that occurs.
     pub curves: Vec<RegionTriple>,
     pub full_grid: bool,
+    /// Keep looped crossings instead of the chapter's truncation (see
+    /// `skelform_polygonize::nonmanifold::Options::loops`).
+    pub loops: bool,
 }
 
 impl std::fmt::Debug for Regions {
@@ -187,5 +192,6 @@ pub(crate) fn build(
         interest,
         curves,
         full_grid: sec.full_grid.unwrap_or(false),
+        loops: sec.loops.unwrap_or(false),
     })
 }

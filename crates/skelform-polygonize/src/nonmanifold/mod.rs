@@ -25,7 +25,9 @@
 //! Guarantees: deterministic output on any thread count; every triangle labelled with a
 //! pair of interest; intersection curves output as labelled polylines. Not guaranteed
 //! (the chapter's stated limits): one face vertex per face and one internal vertex per
-//! tetrahedron, so features finer than a cell can be lost; looped intersections are cut off.
+//! tetrahedron, so features finer than a cell can be lost; looped intersections are cut off
+//! unless `Options::loops` (beyond the chapter) keeps them, and one entering and leaving
+//! within one section of an edge is never seen.
 
 pub mod tets;
 pub mod verify;
@@ -66,6 +68,11 @@ pub struct Options {
     pub epsilon: Option<f64>,
     /// Vertices closer than `close_factor · ε` along a triangle edge are merged.
     pub close_factor: f64,
+    /// Beyond the chapter: keep looped crossings ((a,b) then (b,a) on one edge, a surface
+    /// poking through the edge) instead of ignoring them; in each face around the edge the
+    /// contour between them is followed and a vertex put where it is farthest from the
+    /// edge, so the poke is made rather than cut off. Off: the chapter's truncation.
+    pub loops: bool,
     pub max_cells: u64,
     pub control: Control,
 }
@@ -84,6 +91,7 @@ impl Default for Options {
             refinements: 4,
             epsilon: None,
             close_factor: 1.0,
+            loops: false,
             max_cells: 5_000_000,
             control: Control::default(),
         }
@@ -111,6 +119,11 @@ pub struct Stats {
     /// along its edge (the follower's first triangle would already hold it).
     pub face_vertices_at_crossing: usize,
     pub looped_pairs_ignored: usize,
+    /// Looped pairs kept (`Options::loops`), and their face vertices placed by following
+    /// the contour (the rest by a fallback half a crossing gap into the face).
+    pub looped_pairs_kept: usize,
+    pub loop_vertices: usize,
+    pub loop_vertex_fallbacks: usize,
     pub merged_vertices: usize,
     /// Vertices of thin triangles moved onto the midpoint of the opposite side.
     pub snapped_to_edges: usize,
@@ -169,6 +182,8 @@ struct Run<'a> {
     edges: FxHashMap<(Key, Key), Vec<Crossing>>,
     faces: FxHashMap<[Key; 3], FaceInfo>,
     positions: Vec<DVec3>,
+    /// The lattice segment of each edge vertex.
+    on_edge: FxHashMap<u32, (Key, Key)>,
     /// For edge vertices: the segment's direction and the regions before and after the
     /// crossing along it, which say on which side of the surface each region lies.
     crossing: Vec<Option<(DVec3, u32, u32)>>,
@@ -232,6 +247,7 @@ pub fn polygonize(regions: &dyn RegionField, options: &Options) -> Result<(Mesh,
         edges: FxHashMap::default(),
         faces: FxHashMap::default(),
         positions: Vec::new(),
+        on_edge: FxHashMap::default(),
         crossing: Vec::new(),
         triangles: Vec::new(),
         labels: Vec::new(),
@@ -349,7 +365,8 @@ impl Run<'_> {
         // Looped pairs: a crossing (x, y) followed by (y, x) enters and leaves along this edge.
         let mut kept: Vec<(f64, u32, u32)> = Vec::new();
         for c in found {
-            if let Some(&(_, f, t)) = kept.last()
+            if !self.opts.loops
+                && let Some(&(_, f, t)) = kept.last()
                 && f == c.2
                 && t == c.1
             {
@@ -359,8 +376,13 @@ impl Run<'_> {
             }
             kept.push(c);
         }
+        if self.opts.loops {
+            self.stats.looped_pairs_kept +=
+                kept.windows(2).filter(|w| w[0].1 == w[1].2 && w[0].2 == w[1].1).count();
+        }
         kept.into_iter()
             .map(|(t, from, to)| {
+                self.on_edge.insert(self.positions.len() as u32, (lo, hi));
                 self.positions.push(pa.lerp(pb, t));
                 self.crossing.push(Some((pb - pa, from, to)));
                 self.stats.edge_vertices += 1;
@@ -414,6 +436,22 @@ impl Run<'_> {
         }
         let mut info = FaceInfo::default();
         let unmatched = pair_off(&ring, &mut info.lines);
+        if self.opts.loops {
+            // A line between two crossings on one lattice segment is a loop: replace it by
+            // two lines through a vertex on the contour inside the face.
+            let mut lines = Vec::with_capacity(info.lines.len());
+            for (u, v, pair) in std::mem::take(&mut info.lines) {
+                match (self.on_edge.get(&u), self.on_edge.get(&v)) {
+                    (Some(eu), Some(ev)) if eu == ev => {
+                        let l = self.loop_vertex(sorted, u, v);
+                        lines.push((u, l, pair));
+                        lines.push((l, v, pair));
+                    }
+                    _ => lines.push((u, v, pair)),
+                }
+            }
+            info.lines = lines;
+        }
         if !unmatched.is_empty() {
             let mut regions: Vec<u32> = unmatched.iter().flat_map(|w| [w.from, w.to]).collect();
             regions.sort_unstable();
@@ -436,6 +474,81 @@ impl Run<'_> {
         }
         self.faces.insert(sorted, info.clone());
         info
+    }
+
+    /// The vertex of a loop on a face: the contour leaves the face's side at crossing `u`
+    /// and comes back at `v`; follow it from `u` in small triangles (as for face vertices)
+    /// until it returns to that side, and take the triangle centre farthest from the side.
+    /// If the walk does not come back (the loop is thinner than the triangles), the vertex
+    /// goes half the gap between the crossings into the face from their midpoint.
+    fn loop_vertex(&mut self, corners: [Key; 3], u: u32, v: u32) -> u32 {
+        let [a, b, c] = corners.map(|k| self.point(k));
+        let n = (b - a).cross(c - a).normalize();
+        let (pu, pv) = (self.positions[u as usize], self.positions[v as usize]);
+        let dir = (pv - pu).normalize_or_zero();
+        // Into the face, perpendicular to the side: towards the corner off the side.
+        let third = [a, b, c]
+            .into_iter()
+            .max_by(|x, y| (*x - pu).cross(dir).length().total_cmp(&(*y - pu).cross(dir).length()))
+            .unwrap_or(c);
+        let mut inward = n.cross(dir);
+        if inward.dot(third - pu) < 0.0 {
+            inward = -inward;
+        }
+        let Some((x, y)) = self.crossing[u as usize].map(|(_, from, to)| (from, to)) else {
+            return u;
+        };
+        let side = 4.0 * self.eps;
+        let gap = pu.distance(pv);
+        let max_steps = (16.0 * (b - a).length().max((c - a).length()) / side) as usize + 16;
+        // Straddle u along the side: x before it, y after it, walking from u towards v.
+        let (mut px, mut py) = (pu - dir * side * 0.5, pu + dir * side * 0.5);
+        let (rx, ry) = (self.region_at(px), self.region_at(py));
+        let mut found = None;
+        if rx == x && ry == y {
+            let mid = (px + py) * 0.5;
+            let mut apex = mid + inward * side * 3f64.sqrt() * 0.5;
+            let (mut best, mut far) = (None, 0.0);
+            for _ in 0..max_steps {
+                let centre = (px + py + apex) / 3.0;
+                let depth = (centre - pu).dot(inward);
+                if depth > far {
+                    (best, far) = (Some(centre), depth);
+                }
+                // Back at the side: the loop is closed.
+                if (apex - pu).dot(inward) < 0.0 {
+                    found = best;
+                    break;
+                }
+                let r = self.region_at(apex);
+                if r == x {
+                    let old = px;
+                    px = apex;
+                    apex = px + py - old;
+                } else if r == y {
+                    let old = py;
+                    py = apex;
+                    apex = px + py - old;
+                } else {
+                    // A third region inside the loop: stop there.
+                    found = Some(centre);
+                    break;
+                }
+            }
+        }
+        let p = match found {
+            Some(p) if (p - pu).dot(inward) > self.eps => {
+                self.stats.loop_vertices += 1;
+                p
+            }
+            _ => {
+                self.stats.loop_vertex_fallbacks += 1;
+                (pu + pv) * 0.5 + inward * (0.5 * gap).max(2.0 * self.eps)
+            }
+        };
+        self.positions.push(p);
+        self.crossing.push(None);
+        self.positions.len() as u32 - 1
     }
 
     /// Where the contours of a face meet: follow the contour from a crossing of interest in
@@ -593,21 +706,20 @@ impl Run<'_> {
             }
             return;
         }
-        // Disjoint surfaces: walk vertex → partner in a face → the other face on its edge.
-        let mut partner: FxHashMap<(u32, usize), u32> = FxHashMap::default();
+        // Disjoint surfaces: walk vertex → partner in a face → the other face on its edge
+        // (or, from a loop vertex inside a face, on to its other partner in that face).
+        let mut links: FxHashMap<u32, Vec<(usize, u32)>> = FxHashMap::default();
         let mut pair_of: FxHashMap<u32, RegionPair> = FxHashMap::default();
-        let mut faces_of: FxHashMap<u32, Vec<usize>> = FxHashMap::default();
         for (fi, f) in faces.iter().enumerate() {
             for &(u, v, p) in &f.lines {
-                partner.insert((u, fi), v);
-                partner.insert((v, fi), u);
+                links.entry(u).or_default().push((fi, v));
+                links.entry(v).or_default().push((fi, u));
                 pair_of.insert(u, p);
                 pair_of.insert(v, p);
-                faces_of.entry(u).or_default().push(fi);
-                faces_of.entry(v).or_default().push(fi);
             }
         }
-        let mut starts: Vec<u32> = pair_of.keys().copied().collect();
+        let mut starts: Vec<u32> =
+            pair_of.keys().copied().filter(|&v| self.crossing[v as usize].is_some()).collect();
         starts.sort_unstable();
         let mut used: FxHashSet<u32> = FxHashSet::default();
         for s in starts {
@@ -616,21 +728,30 @@ impl Run<'_> {
                 continue;
             }
             let mut poly = vec![s];
-            let (mut v, mut f) = (s, faces_of[&s][0]);
-            loop {
-                used.insert(v);
-                let Some(&w) = partner.get(&(v, f)) else { break };
-                used.insert(w);
-                if w == s {
+            used.insert(s);
+            let (mut prev, (mut f, mut cur)) = (s, links[&s][0]);
+            let mut closed = false;
+            while poly.len() <= 12 {
+                if cur == s {
+                    closed = true;
                     break;
                 }
-                poly.push(w);
-                let Some(&next) = faces_of[&w].iter().find(|&&g| g != f) else { break };
-                v = w;
-                f = next;
-                if poly.len() > 12 {
+                poly.push(cur);
+                used.insert(cur);
+                let Some(&(g, next)) = links[&cur].iter().find(|&&(g, o)| !(g == f && o == prev))
+                else {
                     break;
-                }
+                };
+                (prev, f, cur) = (cur, g, next);
+            }
+            if !closed && self.opts.loops {
+                continue;
+            }
+            // Fan from a loop vertex where there is one: a fan from an edge vertex could
+            // draw a diagonal along the lattice segment the loop crosses, which every
+            // tetrahedron around it would share.
+            if let Some(i) = poly.iter().position(|&v| self.crossing[v as usize].is_none()) {
+                poly.rotate_left(i);
             }
             if poly.len() >= 3 {
                 for k in 1..poly.len() - 1 {
