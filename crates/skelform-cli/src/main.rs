@@ -73,6 +73,10 @@ struct CheckArgs {
     /// Print the report as JSON.
     #[arg(long)]
     json: bool,
+    /// Weld vertices within TOL (default 0: coincident) before the analysis, e.g. to see a
+    /// non-manifold mesh, whose vertices are duplicated per region pair, as one complex.
+    #[arg(long, value_name = "TOL", num_args = 0..=1, default_missing_value = "0")]
+    weld: Option<f32>,
 }
 
 #[derive(Args)]
@@ -179,7 +183,13 @@ fn mesh(a: MeshArgs) -> Result<(), Failure> {
 
 fn check(a: CheckArgs) -> Result<(), Failure> {
     let mesh = read_mesh(&a.mesh).map_err(input)?;
-    let report = skelform_mesh::check::check(&mesh);
+    let report = match a.weld {
+        Some(t) if !(t.is_finite() && t >= 0.0) => {
+            return Err(input(anyhow!("--weld takes a tolerance of 0 or more")));
+        }
+        Some(t) => skelform_mesh::check::check_welded(&mesh, t),
+        None => skelform_mesh::check::check(&mesh),
+    };
     if a.json {
         let json = serde_json::to_string_pretty(&report)
             .map_err(|e| runtime(anyhow!("cannot serialise the report: {e}")))?;

@@ -219,6 +219,17 @@ pub fn print(run: &Run, writing: Duration, total: Duration) {
                 s.internal_vertices,
                 s.merged_vertices
             );
+            println!(
+                "post-process  {} merged, {} snapped onto edges, {} triangles dropped",
+                s.merged_vertices, s.snapped_to_edges, s.dropped_triangles
+            );
+            println!(
+                "face vertices {} by the contour follower, {} at a crossing, {} fallbacks; {} normals from gradients",
+                s.face_vertices - s.face_vertices_at_crossing - s.face_vertex_fallbacks,
+                s.face_vertices_at_crossing,
+                s.face_vertex_fallbacks,
+                s.gradient_normals
+            );
             println!("triangles     {}", s.triangles);
             for (p, n) in &s.triangles_per_pair {
                 println!("  surface {}_{}  {n} triangles", p.0, p.1);
@@ -303,6 +314,11 @@ pub fn json(
             "surfaces": s.triangles_per_pair.iter().map(|(p, n)| json!({ "pair": [p.0, p.1], "triangles": n })).collect::<Vec<_>>(),
             "curves": s.curve_length_per_triple.iter().map(|(t, l)| json!({ "regions": t.0, "length": l })).collect::<Vec<_>>(),
             "face_vertex_fallbacks": s.face_vertex_fallbacks,
+            "face_vertices_at_crossing": s.face_vertices_at_crossing,
+            "merged_vertices": s.merged_vertices,
+            "snapped_to_edges": s.snapped_to_edges,
+            "dropped_triangles": s.dropped_triangles,
+            "gradient_normals": s.gradient_normals,
             "seconds": { "polygonize": s.time.as_secs_f64() },
         }),
     };

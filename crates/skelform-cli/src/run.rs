@@ -165,7 +165,9 @@ pub fn run_scene(scene: &Scene, a: &RunArgs) -> Result<(Mesh, report::Run, Metho
                 seeds: seeds(scene, a),
                 search_stride: scene.continuation.search_stride.unwrap_or(defaults.search_stride),
                 full_grid: regions.full_grid,
+                loops: regions.loops,
                 interest: regions.interest.clone(),
+                curves: regions.curves.clone(),
                 max_cells: a
                     .max_cells
                     .or(scene.continuation.max_cells)

@@ -85,5 +85,249 @@ fn region_scene_mistakes_are_clear() {
     let r = skelform(&["mesh", &p, "-o", o]);
     assert_eq!(r.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&r.stderr).contains("nonmanifold"));
+    // Gradients and curves name declared regions, once.
+    let body = "[regions]\ndefault = 0\n[[regions.region]]\nid = 1\nformula = \"x\"\n";
+    for (name, extra, line, says) in [
+        ("gradient.toml", "[[regions.gradient]]\npair = [1, 9]\nformula = \"x\"\n", 10, "region 9"),
+        (
+            "twice.toml",
+            "[[regions.gradient]]\npair = [0, 1]\nformula = \"x\"\n[[regions.gradient]]\npair = [1, 0]\nformula = \"x\"\n",
+            13,
+            "has a gradient already",
+        ),
+        ("gradformula.toml", "[[regions.gradient]]\npair = [0, 1]\nformula = \"x *\"\n", 11, ""),
+    ] {
+        let p = scene(name, format!("{head}{body}{extra}"));
+        let r = skelform(&["mesh", &p, "-o", o, "--method", "nonmanifold"]);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), Some(2), "{err}");
+        assert!(err.contains(&format!("{name}:{line}:")) && err.contains(says), "{err}");
+    }
+    let p = scene(
+        "curve.toml",
+        format!(
+            "{head}[regions]\ndefault = 0\ncurves = [[0, 1, 1]]\n[[regions.region]]\nid = 1\nformula = \"x\"\n"
+        ),
+    );
+    let r = skelform(&["mesh", &p, "-o", o, "--method", "nonmanifold"]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(2));
+    assert!(err.contains("curve.toml:6:") && err.contains("names one region twice"), "{err}");
     assert!(!out.exists());
+}
+
+/// What an example scene must produce.
+struct Expect {
+    name: &'static str,
+    pairs: &'static [[u32; 2]],
+    /// Curves that must be present and closed loops.
+    closed_curves: &'static [[u32; 3]],
+    /// Curves that must be present (open: they end where other curves meet them).
+    open_curves: &'static [[u32; 3]],
+    /// Edge degrees (after welding the per-pair copies) that must occur; no other may.
+    degrees: &'static [usize],
+}
+
+/// Meshes an example scene as `skelform mesh` does, through the library.
+fn mesh_example(name: &str) -> (skelform_scene::Scene, skelform_mesh::Mesh, nonmanifold::Stats) {
+    let scene = skelform_scene::Scene::load(Path::new(&example(name))).unwrap();
+    let regions = scene.regions.clone().expect("a [regions] scene");
+    let grid = skelform_polygonize::grid::grid_for(&skelform_polygonize::grid::Options {
+        domain: scene.domain,
+        resolution: scene.resolution,
+        ..Default::default()
+    })
+    .unwrap();
+    let opts = nonmanifold::Options {
+        domain: scene.domain,
+        cell: grid.cell,
+        seeds: scene.continuation.seeds.clone(),
+        full_grid: regions.full_grid,
+        interest: regions.interest.clone(),
+        curves: regions.curves.clone(),
+        ..Default::default()
+    };
+    let (m, s) = nonmanifold::polygonize(regions.field.as_ref(), &opts).unwrap();
+    (scene, m, s)
+}
+
+use skelform_polygonize::nonmanifold;
+
+/// Every example of the chapter: the surfaces and curves it describes, vertices between
+/// their regions, triangles facing their lesser region, the expected edge degrees once the
+/// per-pair copies are welded, closed curves, and no triangle crossing another.
+#[test]
+fn the_chapter_examples_are_what_the_chapter_describes() {
+    let cases = [
+        Expect {
+            name: "nonmanifold/saucer-and-square.toml",
+            pairs: &[[1, 2], [1, 3], [2, 3]],
+            closed_curves: &[[1, 2, 3], [0, 2, 3]],
+            open_curves: &[],
+            degrees: &[1, 2, 3],
+        },
+        Expect {
+            name: "nonmanifold/sphere-and-square.toml",
+            pairs: &[[1, 3], [1, 4], [3, 4]],
+            closed_curves: &[[1, 3, 4], [2, 3, 4]],
+            open_curves: &[],
+            degrees: &[1, 2, 3],
+        },
+        Expect {
+            name: "nonmanifold/sphere-with-hole.toml",
+            pairs: &[[0, 2]],
+            closed_curves: &[[0, 1, 2]],
+            open_curves: &[],
+            degrees: &[1, 2],
+        },
+        Expect {
+            name: "nonmanifold/sphere-with-hole-scoop.toml",
+            pairs: &[[0, 2], [1, 2]],
+            closed_curves: &[[0, 1, 2]],
+            open_curves: &[],
+            degrees: &[2],
+        },
+        Expect {
+            name: "nonmanifold/sphere-plane-hole.toml",
+            pairs: &[[0, 2], [0, 3], [2, 3]],
+            closed_curves: &[[2, 3, 4]],
+            open_curves: &[[0, 1, 2], [0, 1, 3], [1, 2, 3], [0, 2, 3]],
+            degrees: &[1, 2, 3],
+        },
+    ];
+    for e in cases {
+        let (scene, m, s) = mesh_example(e.name);
+        let regions = scene.regions.as_ref().unwrap();
+        let pairs: Vec<[u32; 2]> = s.triangles_per_pair.iter().map(|(p, _)| [p.0, p.1]).collect();
+        assert_eq!(pairs, e.pairs, "{}", e.name);
+        let v = nonmanifold::verify::verify(&m, regions.field.as_ref(), 2.0 * s.epsilon);
+        let r = skelform_mesh::check::check_welded(&m, 0.0);
+        let crossing = skelform_mesh::check::crossings(&m, 1e-3 * s.epsilon);
+        eprintln!(
+            "{}: {v:?}\n  degrees {:?} curves {:?}\n  fallbacks {} of {} face vertices, {} crossing pairs, {} gradient normals of {}",
+            e.name,
+            r.edge_degrees,
+            r.curve_labels,
+            s.face_vertex_fallbacks,
+            s.face_vertices,
+            crossing.len(),
+            s.gradient_normals,
+            s.vertices
+        );
+        assert!(v.vertex_fraction() >= 0.97 && v.vertices_reversed == 0, "{}: {v:?}", e.name);
+        assert!(v.triangle_fraction() >= 0.97 && v.triangles_reversed == 0, "{}: {v:?}", e.name);
+        let degrees: Vec<usize> = r.edge_degrees.keys().copied().collect();
+        assert_eq!(degrees, e.degrees, "{}: {:?}", e.name, r.edge_degrees);
+        for t in e.closed_curves.iter().chain(e.open_curves) {
+            let c = r.curve_labels.iter().find(|c| c.label.0 == *t);
+            let c = c.unwrap_or_else(|| panic!("{}: no curve {t:?}", e.name));
+            if e.closed_curves.contains(t) {
+                assert_eq!(c.open_ends, 0, "{}: curve {t:?} is not closed", e.name);
+            } else {
+                // An arc from one meeting point of curves to the other.
+                assert_eq!(c.open_ends, 2, "{}: curve {t:?} is not one arc", e.name);
+            }
+        }
+        let expected = e.closed_curves.len() + e.open_curves.len();
+        assert_eq!(r.curve_labels.len(), expected, "{}: {:?}", e.name, r.curve_labels);
+        assert!(crossing.is_empty(), "{}: triangles cross: {crossing:?}", e.name);
+        assert!(s.face_vertex_fallbacks * 100 <= s.face_vertices.max(1), "{}: {s:?}", e.name);
+        assert_eq!(s.gradient_normals, s.vertices, "{}: every pair has a gradient", e.name);
+    }
+}
+
+/// The saucer's per-pair gradient functions (scene `[[regions.gradient]]`) give the vertex
+/// normals: they agree with the analytic normals of the saucer's top (z = Saucer), bottom
+/// (z = −Saucer) and the square, pointing into the lesser region.
+#[test]
+fn saucer_normals_come_from_the_gradient_functions() {
+    let (_, m, s) = mesh_example("nonmanifold/saucer-and-square.toml");
+    let saucer = |x: f64, y: f64| {
+        let d = 1.4 * (x * x + y * y).sqrt();
+        if d.abs() > 1.0 {
+            0.0
+        } else {
+            0.35 * (1.0 - (4.0 * d.powi(6) - 17.0 * d.powi(4) + 22.0 * d * d) / 9.0)
+        }
+    };
+    let h = 1e-6;
+    let mut pair_of = vec![None; m.positions.len()];
+    for (t, l) in m.triangles.iter().zip(&m.labels) {
+        for &v in t {
+            pair_of[v as usize] = Some(*l);
+        }
+    }
+    let mut worst: f64 = 0.0;
+    for (i, p) in m.positions.iter().enumerate() {
+        let [x, y, _] = p.map(f64::from);
+        let (sx, sy) = (
+            (saucer(x + h, y) - saucer(x - h, y)) / (2.0 * h),
+            (saucer(x, y + h) - saucer(x, y - h)) / (2.0 * h),
+        );
+        let expected = match pair_of[i].map(|p| (p.0, p.1)) {
+            // Into the saucer (1): down from the top, up from the bottom; into 2 from the square.
+            Some((1, 2)) => [sx, sy, -1.0],
+            Some((1, 3)) => [sx, sy, 1.0],
+            Some((2, 3)) => [0.0, 0.0, 1.0],
+            other => panic!("unexpected pair {other:?}"),
+        };
+        let len = expected.iter().map(|c| c * c).sum::<f64>().sqrt();
+        let n = m.normals[i].map(f64::from);
+        let cos: f64 = (0..3).map(|k| n[k] * expected[k] / len).sum();
+        worst = worst.max(cos.clamp(-1.0, 1.0).acos().to_degrees());
+    }
+    eprintln!("worst normal error {worst:.3}° over {} vertices", m.positions.len());
+    assert_eq!(s.gradient_normals, m.positions.len());
+    assert!(worst < 0.5, "worst normal error {worst}°");
+}
+
+/// The real saucer-and-square scene written as `.glb`: one primitive and one material per
+/// region pair, and `skelform check` reads the three labels back with the counts `mesh`
+/// reported; `check --weld` sees the closed non-manifold complex (degree 3 on the rim).
+#[test]
+fn saucer_as_glb_keeps_its_three_labels_and_welds_into_one_complex() {
+    let dir = tempfile::tempdir().unwrap();
+    let glb = dir.path().join("saucer.glb");
+    let o = skelform(&[
+        "mesh",
+        &example("nonmanifold/saucer-and-square.toml"),
+        "-o",
+        glb.to_str().unwrap(),
+        "--json",
+        "-q",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let run: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let surfaces: Vec<(serde_json::Value, u64)> = run["surfaces"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| (s["pair"].clone(), s["triangles"].as_u64().unwrap()))
+        .collect();
+    assert_eq!(surfaces.len(), 3);
+    // The glTF JSON chunk: after the 12-byte header, a chunk length and type.
+    let bytes = std::fs::read(&glb).unwrap();
+    assert_eq!(&bytes[..4], b"glTF");
+    let len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let doc: serde_json::Value = serde_json::from_slice(&bytes[20..20 + len]).unwrap();
+    assert_eq!(doc["meshes"][0]["primitives"].as_array().unwrap().len(), 3);
+    assert_eq!(doc["materials"].as_array().unwrap().len(), 3);
+    let c = skelform(&["check", glb.to_str().unwrap(), "--json"]);
+    let report: serde_json::Value = serde_json::from_slice(&c.stdout).unwrap();
+    let labels: Vec<(serde_json::Value, u64)> = report["labels"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|l| {
+            (serde_json::json!([l["label"][0], l["label"][1]]), l["triangles"].as_u64().unwrap())
+        })
+        .collect();
+    assert_eq!(labels, surfaces);
+    // Welded, the rim's edges have three triangles.
+    let c = skelform(&["check", glb.to_str().unwrap(), "--weld"]);
+    assert!(c.status.success());
+    let text = String::from_utf8_lossy(&c.stdout);
+    assert!(text.contains("welded ") && text.contains("(3: "), "{text}");
+    let c = skelform(&["check", glb.to_str().unwrap(), "--weld", "-1"]);
+    assert_eq!(c.status.code(), Some(2));
 }

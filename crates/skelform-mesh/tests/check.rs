@@ -524,3 +524,70 @@ proptest! {
         let _ = serde_json::to_string(&r).unwrap();
     }
 }
+
+/// Three sheets meeting along an edge, with each sheet's vertices duplicated (as the
+/// non-manifold polygonizer writes them): welding shows the edge of degree 3.
+#[test]
+fn welding_joins_duplicated_sheets_along_their_curve() {
+    use skelform_mesh::check::{check, check_welded, weld};
+    use skelform_mesh::{CurveEdge, RegionPair, RegionTriple};
+    let mut m = Mesh::default();
+    let apexes = [[1.0, 0.0, 0.0], [-0.5, 0.8, 0.0], [-0.5, -0.8, 0.0]];
+    for (i, apex) in apexes.into_iter().enumerate() {
+        let base = m.positions.len() as u32;
+        m.positions.extend([[0.0, 0.0, 0.0], [0.0, 0.0, 1.0], apex]);
+        m.triangles.push([base, base + 1, base + 2]);
+        m.labels.push(RegionPair(i as u32, 3));
+    }
+    // The shared edge as a curve, on the first sheet's copies, plus a dangling piece.
+    m.curves.push(CurveEdge { v: [0, 1], label: RegionTriple([0, 1, 2]) });
+    m.curves.push(CurveEdge { v: [1, 2], label: RegionTriple([0, 1, 3]) });
+    let plain = check(&m);
+    assert_eq!(plain.edge_degrees.get(&3), None);
+    assert_eq!(plain.welded_vertices, None);
+    let (w, merged) = weld(&m, 0.0);
+    assert_eq!((w.positions.len(), merged), (5, 4));
+    let r = check_welded(&m, 1e-6);
+    assert_eq!(r.welded_vertices, Some(4));
+    assert_eq!(r.edge_degrees.get(&3), Some(&1));
+    assert_eq!(r.edge_degrees.get(&1), Some(&6));
+    assert_eq!(r.labels.len(), 3);
+    assert_eq!(r.curve_labels.len(), 2);
+    assert_eq!(r.curve_labels[0].open_ends, 2, "one segment has two ends");
+    assert!(r.to_string().contains("welded        4"));
+    // A tolerance joins near but not equal points too.
+    let mut near = m.clone();
+    near.positions[3][0] += 1e-4;
+    assert_eq!(weld(&near, 0.0).1, 3);
+    assert_eq!(weld(&near, 1e-3).1, 4);
+}
+
+#[test]
+fn crossing_triangles_are_found_and_neighbours_are_not() {
+    use skelform_mesh::check::crossings;
+    // Two closed tetrahedra apart, sharing nothing: no crossings; the closed mesh's own
+    // neighbours (sharing edges and vertices) never count.
+    let t = tetrahedron();
+    assert!(crossings(&t, 1e-9).is_empty());
+    // A triangle piercing a face of the tetrahedron.
+    let mut m = t.clone();
+    let n = m.positions.len() as u32;
+    m.positions.extend([[0.2, 0.2, -0.5], [0.3, 0.2, 0.5], [0.2, 0.3, 0.5]]);
+    m.triangles.push([n, n + 1, n + 2]);
+    let c = crossings(&m, 1e-9);
+    assert!(c.contains(&(0, 4)), "{c:?}");
+    // Touching within the tolerance is not crossing: a triangle lying on the face z = 0.
+    let mut m = t.clone();
+    m.positions.extend([[0.1, 0.1, 0.0], [0.3, 0.1, 0.0], [0.1, 0.3, 0.0]]);
+    m.triangles.push([n, n + 1, n + 2]);
+    assert!(crossings(&m, 1e-9).is_empty());
+    // Sharing one vertex (as a duplicated copy at the same position) and folding through.
+    let mut m = mesh(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], &[[0, 1, 2]]);
+    m.positions.extend([[0.0, 0.0, 0.0], [0.4, 0.4, 1.0], [0.4, 0.4, -1.0]]);
+    m.triangles.push([3, 4, 5]);
+    assert_eq!(crossings(&m, 1e-9), vec![(0, 1)]);
+    // The same fold moved off the first triangle does not cross.
+    m.positions[4] = [-0.4, -0.4, 1.0];
+    m.positions[5] = [-0.4, -0.4, -1.0];
+    assert!(crossings(&m, 1e-9).is_empty());
+}

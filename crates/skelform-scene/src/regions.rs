@@ -6,9 +6,13 @@
 //! interest = [[1, 2], [1, 3], [2, 3]]   # the surfaces to make (default: every pair)
 //! parameters = { s = 1.0 }         # numbers every region formula may use
 //! full_grid = false                # true: visit every cube instead of propagating
+//! loops = false                    # true: keep looped crossings (beyond the chapter)
 //! [[regions.region]]               # in order: a point is in the first region whose
 //! id = 0                           # formula is negative there
-//! formula = "max(abs(x), abs(y), abs(z)) > s"   # (any formula; negative = inside)
+//! formula = "s - max(abs(x), abs(y), abs(z))"   # (any formula; negative = inside)
+//! [[regions.gradient]]             # optional, per pair: a function whose gradient is
+//! pair = [2, 3]                    # normal to that surface, for vertex normals
+//! formula = "z"
 //! ```
 
 use std::collections::BTreeMap;
@@ -16,7 +20,7 @@ use std::sync::Arc;
 
 use serde::Deserialize;
 use skelform_field::region::OrderedRegions;
-use skelform_mesh::RegionPair;
+use skelform_mesh::{RegionPair, RegionTriple};
 use toml::Spanned;
 
 use crate::SceneError;
@@ -26,9 +30,19 @@ use crate::SceneError;
 pub(crate) struct RegionsSection {
     default: Spanned<i64>,
     interest: Option<Spanned<Vec<[i64; 2]>>>,
+    curves: Option<Spanned<Vec<[i64; 3]>>>,
     parameters: Option<Spanned<BTreeMap<String, f64>>>,
     full_grid: Option<bool>,
+    loops: Option<bool>,
     region: Vec<RegionEntry>,
+    gradient: Option<Vec<GradientEntry>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GradientEntry {
+    pair: Spanned<[i64; 2]>,
+    formula: Spanned<String>,
 }
 
 #[derive(Deserialize)]
@@ -44,7 +58,12 @@ pub struct Regions {
     pub field: Arc<OrderedRegions>,
     /// The region pairs to polygonize; empty means every pair that occurs.
     pub interest: Vec<RegionPair>,
+    /// The intersection curves to output; empty means every one that occurs.
+    pub curves: Vec<RegionTriple>,
     pub full_grid: bool,
+    /// Keep looped crossings instead of the chapter's truncation (see
+    /// `skelform_polygonize::nonmanifold::Options::loops`).
+    pub loops: bool,
 }
 
 impl std::fmt::Debug for Regions {
@@ -110,37 +129,69 @@ pub(crate) fn build(
             compile(&r.formula, &params, sec.parameters.as_ref().map(|p| p.span().start))?;
         regions.push((rid, Box::new(formula) as Box<dyn skelform_field::Field>));
     }
-    let mut interest = Vec::new();
-    if let Some(list) = &sec.interest {
-        for [a, b] in list.get_ref() {
-            let (a, b) = (*a, *b);
-            let known = |r: i64| u32::try_from(r).ok().filter(|r| ids.contains(r));
-            match (known(a), known(b)) {
-                (Some(x), Some(y)) if x != y => interest.push(RegionPair::new(x, y)),
-                (Some(_), Some(_)) => {
-                    return Err(at(
-                        list.span().start,
-                        format!("the pair [{a}, {b}] names one region twice"),
-                    ));
-                }
-                _ => {
-                    let missing = if known(a).is_none() { a } else { b };
-                    ids.sort_unstable();
-                    return Err(at(
-                        list.span().start,
-                        format!(
-                            "the pair [{a}, {b}] names region {missing}, which is not declared (regions: {ids:?})"
-                        ),
-                    ));
-                }
+    ids.sort_unstable();
+    let pair = |[a, b]: [i64; 2], offset: usize| -> Result<RegionPair, SceneError> {
+        let known = |r: i64| u32::try_from(r).ok().filter(|r| ids.contains(r));
+        match (known(a), known(b)) {
+            (Some(x), Some(y)) if x != y => Ok(RegionPair::new(x, y)),
+            (Some(_), Some(_)) => {
+                Err(at(offset, format!("the pair [{a}, {b}] names one region twice")))
+            }
+            _ => {
+                let missing = if known(a).is_none() { a } else { b };
+                Err(at(
+                    offset,
+                    format!(
+                        "the pair [{a}, {b}] names region {missing}, which is not declared (regions: {ids:?})"
+                    ),
+                ))
             }
         }
+    };
+    let mut interest = Vec::new();
+    if let Some(list) = &sec.interest {
+        for p in list.get_ref() {
+            interest.push(pair(*p, list.span().start)?);
+        }
+    }
+    let mut curves = Vec::new();
+    if let Some(list) = &sec.curves {
+        let offset = list.span().start;
+        for &[a, b, c] in list.get_ref() {
+            if a == b || b == c || a == c {
+                return Err(at(
+                    offset,
+                    format!("the curve [{a}, {b}, {c}] names one region twice"),
+                ));
+            }
+            // Each region declared (the pairs' checks say which is not).
+            pair([a, b], offset)?;
+            pair([b, c], offset)?;
+            curves.push(RegionTriple::new([a, b, c].map(|r| r as u32)));
+        }
+    }
+    curves.sort_unstable();
+    curves.dedup();
+    let mut gradients: Vec<((u32, u32), Box<dyn skelform_field::Field>)> = Vec::new();
+    for g in sec.gradient.iter().flatten() {
+        let p = pair(*g.pair.get_ref(), g.pair.span().start)?;
+        if gradients.iter().any(|(q, _)| *q == (p.0, p.1)) {
+            return Err(at(
+                g.pair.span().start,
+                format!("the pair [{}, {}] has a gradient already", p.0, p.1),
+            ));
+        }
+        let formula =
+            compile(&g.formula, &params, sec.parameters.as_ref().map(|p| p.span().start))?;
+        gradients.push(((p.0, p.1), Box::new(formula)));
     }
     interest.sort_unstable();
     interest.dedup();
     Ok(Regions {
-        field: Arc::new(OrderedRegions { regions, default }),
+        field: Arc::new(OrderedRegions { regions, default, gradients }),
         interest,
+        curves,
         full_grid: sec.full_grid.unwrap_or(false),
+        loops: sec.loops.unwrap_or(false),
     })
 }

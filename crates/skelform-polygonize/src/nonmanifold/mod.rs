@@ -15,15 +15,22 @@
 //! from vertex to partner across its faces; one with them gets an internal vertex at their
 //! mean and a triangle to each face line of interest. Triangles are wound counter-clockwise
 //! seen from the lesser region of their pair. Afterwards vertices closer than
-//! `close_factor · ε` along a triangle edge are merged, degenerate triangles dropped, and
-//! vertices duplicated per region pair so each sheet has its own normal.
+//! `close_factor · ε` along a triangle edge are merged, a vertex closer than that to the
+//! opposite side of its triangle is moved onto it (the side split there), degenerate
+//! triangles dropped, and vertices duplicated per region pair so each sheet has its own
+//! normal: the region function's gradient for the pair where it has one (the chapter's
+//! `Gradient(p, pair)`), else the pair's area-weighted triangle normals.
+//! [`verify`] checks a result against its region function.
 //!
 //! Guarantees: deterministic output on any thread count; every triangle labelled with a
 //! pair of interest; intersection curves output as labelled polylines. Not guaranteed
 //! (the chapter's stated limits): one face vertex per face and one internal vertex per
-//! tetrahedron, so features finer than a cell can be lost; looped intersections are cut off.
+//! tetrahedron, so features finer than a cell can be lost; looped intersections are cut off
+//! unless `Options::loops` (beyond the chapter) keeps them, and one entering and leaving
+//! within one section of an edge is never seen.
 
 pub mod tets;
+pub mod verify;
 
 use std::time::{Duration, Instant};
 
@@ -50,6 +57,9 @@ pub struct Options {
     pub full_grid: bool,
     /// The surfaces to polygonize; empty means every pair that occurs.
     pub interest: Vec<RegionPair>,
+    /// The intersection curves to output (the chapter's curves of interest); empty means
+    /// every curve of the surfaces of interest.
+    pub curves: Vec<RegionTriple>,
     /// Edge sections (the chapter's n = 16).
     pub sections: u32,
     /// Least bisections per section (the chapter's m = 4).
@@ -58,6 +68,11 @@ pub struct Options {
     pub epsilon: Option<f64>,
     /// Vertices closer than `close_factor · ε` along a triangle edge are merged.
     pub close_factor: f64,
+    /// Beyond the chapter: keep looped crossings ((a,b) then (b,a) on one edge, a surface
+    /// poking through the edge) instead of ignoring them; in each face around the edge the
+    /// contour between them is followed and a vertex put where it is farthest from the
+    /// edge, so the poke is made rather than cut off. Off: the chapter's truncation.
+    pub loops: bool,
     pub max_cells: u64,
     pub control: Control,
 }
@@ -71,10 +86,12 @@ impl Default for Options {
             search_stride: 4,
             full_grid: false,
             interest: Vec::new(),
+            curves: Vec::new(),
             sections: 16,
             refinements: 4,
             epsilon: None,
             close_factor: 1.0,
+            loops: false,
             max_cells: 5_000_000,
             control: Control::default(),
         }
@@ -98,9 +115,22 @@ pub struct Stats {
     /// Face vertices the contour follower could not reach (placed at the mean of the
     /// face's crossings instead).
     pub face_vertex_fallbacks: usize,
+    /// Face vertices put on an edge crossing because a third region lies within 2ε of it
+    /// along its edge (the follower's first triangle would already hold it).
+    pub face_vertices_at_crossing: usize,
     pub looped_pairs_ignored: usize,
+    /// Looped pairs kept (`Options::loops`), and their face vertices placed by following
+    /// the contour (the rest by a fallback half a crossing gap into the face).
+    pub looped_pairs_kept: usize,
+    pub loop_vertices: usize,
+    pub loop_vertex_fallbacks: usize,
     pub merged_vertices: usize,
+    /// Vertices of thin triangles moved onto the midpoint of the opposite side.
+    pub snapped_to_edges: usize,
     pub dropped_triangles: usize,
+    /// Vertex normals taken from the region function's per-pair gradient (the rest are
+    /// area-weighted triangle normals).
+    pub gradient_normals: usize,
     /// Triangles whose side regions could not be told apart by a probe (kept as wound).
     pub unoriented_triangles: usize,
     pub triangles_per_pair: Vec<(RegionPair, usize)>,
@@ -152,6 +182,8 @@ struct Run<'a> {
     edges: FxHashMap<(Key, Key), Vec<Crossing>>,
     faces: FxHashMap<[Key; 3], FaceInfo>,
     positions: Vec<DVec3>,
+    /// The lattice segment of each edge vertex.
+    on_edge: FxHashMap<u32, (Key, Key)>,
     /// For edge vertices: the segment's direction and the regions before and after the
     /// crossing along it, which say on which side of the surface each region lies.
     crossing: Vec<Option<(DVec3, u32, u32)>>,
@@ -185,6 +217,13 @@ pub fn polygonize(regions: &dyn RegionField, options: &Options) -> Result<(Mesh,
         ));
     }
     if let Some(ids) = regions.region_ids() {
+        for t in &options.curves {
+            if let Some(r) = t.0.iter().find(|r| !ids.contains(r)) {
+                return Err(Error::BadOption(format!(
+                    "the curve {t} names region {r}, which the region function does not have (it has {ids:?})"
+                )));
+            }
+        }
         for p in &options.interest {
             for r in [p.0, p.1] {
                 if !ids.contains(&r) {
@@ -208,6 +247,7 @@ pub fn polygonize(regions: &dyn RegionField, options: &Options) -> Result<(Mesh,
         edges: FxHashMap::default(),
         faces: FxHashMap::default(),
         positions: Vec::new(),
+        on_edge: FxHashMap::default(),
         crossing: Vec::new(),
         triangles: Vec::new(),
         labels: Vec::new(),
@@ -325,7 +365,8 @@ impl Run<'_> {
         // Looped pairs: a crossing (x, y) followed by (y, x) enters and leaves along this edge.
         let mut kept: Vec<(f64, u32, u32)> = Vec::new();
         for c in found {
-            if let Some(&(_, f, t)) = kept.last()
+            if !self.opts.loops
+                && let Some(&(_, f, t)) = kept.last()
                 && f == c.2
                 && t == c.1
             {
@@ -335,8 +376,13 @@ impl Run<'_> {
             }
             kept.push(c);
         }
+        if self.opts.loops {
+            self.stats.looped_pairs_kept +=
+                kept.windows(2).filter(|w| w[0].1 == w[1].2 && w[0].2 == w[1].1).count();
+        }
         kept.into_iter()
             .map(|(t, from, to)| {
+                self.on_edge.insert(self.positions.len() as u32, (lo, hi));
                 self.positions.push(pa.lerp(pb, t));
                 self.crossing.push(Some((pb - pa, from, to)));
                 self.stats.edge_vertices += 1;
@@ -390,6 +436,22 @@ impl Run<'_> {
         }
         let mut info = FaceInfo::default();
         let unmatched = pair_off(&ring, &mut info.lines);
+        if self.opts.loops {
+            // A line between two crossings on one lattice segment is a loop: replace it by
+            // two lines through a vertex on the contour inside the face.
+            let mut lines = Vec::with_capacity(info.lines.len());
+            for (u, v, pair) in std::mem::take(&mut info.lines) {
+                match (self.on_edge.get(&u), self.on_edge.get(&v)) {
+                    (Some(eu), Some(ev)) if eu == ev => {
+                        let l = self.loop_vertex(sorted, u, v);
+                        lines.push((u, l, pair));
+                        lines.push((l, v, pair));
+                    }
+                    _ => lines.push((u, v, pair)),
+                }
+            }
+            info.lines = lines;
+        }
         if !unmatched.is_empty() {
             let mut regions: Vec<u32> = unmatched.iter().flat_map(|w| [w.from, w.to]).collect();
             regions.sort_unstable();
@@ -414,8 +476,91 @@ impl Run<'_> {
         info
     }
 
+    /// The vertex of a loop on a face: the contour leaves the face's side at crossing `u`
+    /// and comes back at `v`; follow it from `u` in small triangles (as for face vertices)
+    /// until it returns to that side, and take the triangle centre farthest from the side.
+    /// If the walk does not come back (the loop is thinner than the triangles), the vertex
+    /// goes half the gap between the crossings into the face from their midpoint.
+    fn loop_vertex(&mut self, corners: [Key; 3], u: u32, v: u32) -> u32 {
+        let [a, b, c] = corners.map(|k| self.point(k));
+        let n = (b - a).cross(c - a).normalize();
+        let (pu, pv) = (self.positions[u as usize], self.positions[v as usize]);
+        let dir = (pv - pu).normalize_or_zero();
+        // Into the face, perpendicular to the side: towards the corner off the side.
+        let third = [a, b, c]
+            .into_iter()
+            .max_by(|x, y| (*x - pu).cross(dir).length().total_cmp(&(*y - pu).cross(dir).length()))
+            .unwrap_or(c);
+        let mut inward = n.cross(dir);
+        if inward.dot(third - pu) < 0.0 {
+            inward = -inward;
+        }
+        let Some((x, y)) = self.crossing[u as usize].map(|(_, from, to)| (from, to)) else {
+            return u;
+        };
+        let side = 4.0 * self.eps;
+        let gap = pu.distance(pv);
+        let max_steps = (16.0 * (b - a).length().max((c - a).length()) / side) as usize + 16;
+        // Straddle u along the side: x before it, y after it, walking from u towards v.
+        let (mut px, mut py) = (pu - dir * side * 0.5, pu + dir * side * 0.5);
+        let (rx, ry) = (self.region_at(px), self.region_at(py));
+        let mut found = None;
+        if rx == x && ry == y {
+            let mid = (px + py) * 0.5;
+            let mut apex = mid + inward * side * 3f64.sqrt() * 0.5;
+            let (mut best, mut far) = (None, 0.0);
+            for _ in 0..max_steps {
+                let centre = (px + py + apex) / 3.0;
+                let depth = (centre - pu).dot(inward);
+                if depth > far {
+                    (best, far) = (Some(centre), depth);
+                }
+                // Back at the side: the loop is closed.
+                if (apex - pu).dot(inward) < 0.0 {
+                    found = best;
+                    break;
+                }
+                let r = self.region_at(apex);
+                if r == x {
+                    let old = px;
+                    px = apex;
+                    apex = px + py - old;
+                } else if r == y {
+                    let old = py;
+                    py = apex;
+                    apex = px + py - old;
+                } else {
+                    // A third region inside the loop: stop there.
+                    found = Some(centre);
+                    break;
+                }
+            }
+        }
+        let p = match found {
+            Some(p) if (p - pu).dot(inward) > self.eps => {
+                self.stats.loop_vertices += 1;
+                p
+            }
+            _ => {
+                self.stats.loop_vertex_fallbacks += 1;
+                (pu + pv) * 0.5 + inward * (0.5 * gap).max(2.0 * self.eps)
+            }
+        };
+        self.positions.push(p);
+        self.crossing.push(None);
+        self.positions.len() as u32 - 1
+    }
+
     /// Where the contours of a face meet: follow the contour from a crossing of interest in
-    /// small equilateral steps to the first region foreign to it.
+    /// small equilateral steps to the first region foreign to it (the chapter's follower),
+    /// and put the vertex at the centre of that last triangle, moved at least 2ε into the
+    /// face. Two cases the plain follower misses are handled: a third region already at a
+    /// corner of the first triangle (the crossing is within 2ε of the meeting point, as at
+    /// the saucer's rim, thinner than ε) ends the walk at once; and the walk may run up to
+    /// two triangles beyond the face, for regions that meet on the face's own side (a wall
+    /// half-way between lattice planes puts the square's border through the midpoints of
+    /// face diagonals). Otherwise the next start is tried, and only when none succeeds is
+    /// the vertex put at the mean of the face's crossings (`face_vertex_fallbacks`).
     fn face_vertex(
         &mut self,
         corners: [Key; 3],
@@ -424,15 +569,37 @@ impl Run<'_> {
     ) -> DVec3 {
         let [a, b, c] = corners.map(|k| self.point(k));
         let n = (b - a).cross(c - a);
-        let inside = |p: DVec3| {
-            let area = n.length_squared();
-            let w0 = (c - b).cross(p - b).dot(n) / area;
-            let w1 = (a - c).cross(p - c).dot(n) / area;
-            let w2 = (b - a).cross(p - a).dot(n) / area;
-            w0 >= -1e-9 && w1 >= -1e-9 && w2 >= -1e-9
+        let area2 = n.length_squared();
+        // Barycentric coordinates within the face's plane.
+        let bary = |p: DVec3| {
+            [
+                (c - b).cross(p - b).dot(n) / area2,
+                (a - c).cross(p - c).dot(n) / area2,
+                (b - a).cross(p - a).dot(n) / area2,
+            ]
         };
-        // Steps of 4ε: the start straddles the crossing by 2ε on each side, more than the ε
-        // within which bisection placed it, so both ends are surely in their regions.
+        // How far outside the face a point is (0 inside): the largest distance beyond one of
+        // its sides (a barycentric coordinate times that side's height).
+        let heights = [(c - b).length(), (a - c).length(), (b - a).length()]
+            .map(|l| area2.sqrt() / l.max(f64::MIN_POSITIVE));
+        let outside = move |p: DVec3| {
+            let w = bary(p);
+            (0..3).map(|i| -w[i] * heights[i]).fold(0.0f64, f64::max)
+        };
+        let inside = |p: DVec3| outside(p) <= 1e-9 * heights[0];
+        // A point of the plane moved into the face, at least 2ε from its sides: a face
+        // vertex on a side would coincide with the one of the face across that side (where a
+        // curve runs along a lattice edge), pinching the sheets there.
+        let inset = heights.map(|h| (2.0 * self.eps / h).min(0.3));
+        let clamp = |p: DVec3| {
+            let mut w = bary(p);
+            for _ in 0..3 {
+                w = std::array::from_fn(|i| w[i].max(inset[i]));
+                let s = w[0] + w[1] + w[2];
+                w = w.map(|x| x / s);
+            }
+            a * w[0] + b * w[1] + c * w[2]
+        };
         let side = 4.0 * self.eps;
         let max_steps = (8.0 * (b - a).length().max((c - a).length()) / side) as usize + 16;
         for s in starts {
@@ -448,23 +615,31 @@ impl Run<'_> {
                 .map_or(DVec3::X, |(_, d)| d);
             let mut px = v - edge_dir * side * 0.5;
             let mut py = v + edge_dir * side * 0.5;
-            let (rx, ry) = (self.region_at(px), self.region_at(py));
-            let (x, y) = (s.from, s.to);
-            if !(rx == x && ry == y) {
-                std::mem::swap(&mut px, &mut py);
-                let (rx2, ry2) = (self.region_at(px), self.region_at(py));
-                if !(rx2 == x && ry2 == y) {
-                    continue;
-                }
-            }
             let mid = (px + py) * 0.5;
             let mut w = n.normalize().cross(py - px).normalize();
             if !inside(mid + w * side) {
                 w = -w;
             }
             let mut apex = mid + w * side * 3f64.sqrt() * 0.5;
+            let (rx, ry) = (self.region_at(px), self.region_at(py));
+            let (x, y) = (s.from, s.to);
+            if ![rx, ry].iter().all(|&r| r == x || r == y) {
+                // The first triangle already has a corner in a third region (the crossing is
+                // within 2ε of it along the edge): it is the final triangle.
+                self.stats.face_vertices_at_crossing += 1;
+                return clamp((px + py + apex) / 3.0);
+            }
+            if !(rx == x && ry == y) {
+                if !(rx == y && ry == x) {
+                    continue;
+                }
+                std::mem::swap(&mut px, &mut py);
+            }
+            // The strip may run up to two triangles beyond the face: where the regions meet
+            // on (or within ε of) the face's own edge, as when a wall falls half-way between
+            // lattice planes, the contour reaches the foreign region only just outside.
             for _ in 0..max_steps {
-                if !inside(apex) {
+                if outside(apex) > 2.0 * side {
                     break;
                 }
                 let r = self.region_at(apex);
@@ -477,7 +652,7 @@ impl Run<'_> {
                     py = apex;
                     apex = px + py - old;
                 } else {
-                    return (px + py + apex) / 3.0;
+                    return clamp((px + py + apex) / 3.0);
                 }
             }
         }
@@ -517,7 +692,9 @@ impl Run<'_> {
                         && f.regions.len() >= 3
                     {
                         let tri = RegionTriple::new([f.regions[0], f.regions[1], f.regions[2]]);
-                        self.curves.push(CurveEdge { v: [fv, centre], label: tri });
+                        if self.opts.curves.is_empty() || self.opts.curves.contains(&tri) {
+                            self.curves.push(CurveEdge { v: [fv, centre], label: tri });
+                        }
                     }
                 }
                 for (u, v, pair) in lines {
@@ -529,21 +706,20 @@ impl Run<'_> {
             }
             return;
         }
-        // Disjoint surfaces: walk vertex → partner in a face → the other face on its edge.
-        let mut partner: FxHashMap<(u32, usize), u32> = FxHashMap::default();
+        // Disjoint surfaces: walk vertex → partner in a face → the other face on its edge
+        // (or, from a loop vertex inside a face, on to its other partner in that face).
+        let mut links: FxHashMap<u32, Vec<(usize, u32)>> = FxHashMap::default();
         let mut pair_of: FxHashMap<u32, RegionPair> = FxHashMap::default();
-        let mut faces_of: FxHashMap<u32, Vec<usize>> = FxHashMap::default();
         for (fi, f) in faces.iter().enumerate() {
             for &(u, v, p) in &f.lines {
-                partner.insert((u, fi), v);
-                partner.insert((v, fi), u);
+                links.entry(u).or_default().push((fi, v));
+                links.entry(v).or_default().push((fi, u));
                 pair_of.insert(u, p);
                 pair_of.insert(v, p);
-                faces_of.entry(u).or_default().push(fi);
-                faces_of.entry(v).or_default().push(fi);
             }
         }
-        let mut starts: Vec<u32> = pair_of.keys().copied().collect();
+        let mut starts: Vec<u32> =
+            pair_of.keys().copied().filter(|&v| self.crossing[v as usize].is_some()).collect();
         starts.sort_unstable();
         let mut used: FxHashSet<u32> = FxHashSet::default();
         for s in starts {
@@ -552,21 +728,30 @@ impl Run<'_> {
                 continue;
             }
             let mut poly = vec![s];
-            let (mut v, mut f) = (s, faces_of[&s][0]);
-            loop {
-                used.insert(v);
-                let Some(&w) = partner.get(&(v, f)) else { break };
-                used.insert(w);
-                if w == s {
+            used.insert(s);
+            let (mut prev, (mut f, mut cur)) = (s, links[&s][0]);
+            let mut closed = false;
+            while poly.len() <= 12 {
+                if cur == s {
+                    closed = true;
                     break;
                 }
-                poly.push(w);
-                let Some(&next) = faces_of[&w].iter().find(|&&g| g != f) else { break };
-                v = w;
-                f = next;
-                if poly.len() > 12 {
+                poly.push(cur);
+                used.insert(cur);
+                let Some(&(g, next)) = links[&cur].iter().find(|&&(g, o)| !(g == f && o == prev))
+                else {
                     break;
-                }
+                };
+                (prev, f, cur) = (cur, g, next);
+            }
+            if !closed && self.opts.loops {
+                continue;
+            }
+            // Fan from a loop vertex where there is one: a fan from an edge vertex could
+            // draw a diagonal along the lattice segment the loop crosses, which every
+            // tetrahedron around it would share.
+            if let Some(i) = poly.iter().position(|&v| self.crossing[v as usize].is_none()) {
+                poly.rotate_left(i);
             }
             if poly.len() >= 3 {
                 for k in 1..poly.len() - 1 {
@@ -819,21 +1004,41 @@ impl Run<'_> {
             e.0 += self.positions[v as usize];
             e.1 += 1.0;
         }
-        // Duplicate per (merged vertex, pair); keep first-use order, so output is stable.
-        let mut copy: FxHashMap<(u32, RegionPair), u32> = FxHashMap::default();
-        let mut first_copy: FxHashMap<u32, u32> = FxHashMap::default();
-        let mut mesh = Mesh::default();
-        let mut counts: FxHashMap<RegionPair, usize> = FxHashMap::default();
+        let mut pos = self.positions.clone();
+        for (&r, &(s, c)) in &sum {
+            pos[r as usize] = s / c;
+        }
+        let mut tris: Vec<([u32; 3], RegionPair)> = Vec::with_capacity(self.triangles.len());
         for (t, &pair) in self.triangles.iter().zip(&self.labels) {
             let r = t.map(|v| root(&mut parent, v));
             if r[0] == r[1] || r[1] == r[2] || r[0] == r[2] {
                 self.stats.dropped_triangles += 1;
                 continue;
             }
+            tris.push((r, pair));
+        }
+        let mut curves: Vec<CurveEdge> = Vec::with_capacity(self.curves.len());
+        for c in &self.curves {
+            let v = c.v.map(|v| root(&mut parent, v));
+            if v[0] != v[1] {
+                curves.push(CurveEdge { v, label: c.label });
+            }
+        }
+        let (snapped, dropped) = snap_to_edges(&mut pos, &mut tris, &mut curves, limit);
+        self.stats.snapped_to_edges += snapped;
+        self.stats.dropped_triangles += dropped;
+        // Duplicate per (merged vertex, pair); keep first-use order, so output is stable.
+        let mut copy: FxHashMap<(u32, RegionPair), u32> = FxHashMap::default();
+        let mut copy_of: Vec<(DVec3, RegionPair)> = Vec::new();
+        let mut first_copy: FxHashMap<u32, u32> = FxHashMap::default();
+        let mut mesh = Mesh::default();
+        let mut counts: FxHashMap<RegionPair, usize> = FxHashMap::default();
+        for &(r, pair) in &tris {
             let tri = r.map(|v| {
                 *copy.entry((v, pair)).or_insert_with(|| {
-                    let (s, c) = sum[&v];
-                    mesh.positions.push((s / c).as_vec3().to_array());
+                    let p = pos[v as usize];
+                    mesh.positions.push(p.as_vec3().to_array());
+                    copy_of.push((p, pair));
                     let id = mesh.positions.len() as u32 - 1;
                     first_copy.entry(v).or_insert(id);
                     id
@@ -852,13 +1057,33 @@ impl Run<'_> {
                 acc[i as usize] += nrm;
             }
         }
+        // Where the region function has a gradient for the pair (the chapter's
+        // `Gradient(p, pair)`), it gives the normal. Its sign is the function's own, so it is
+        // turned, once per pair, to agree with most of the pair's triangles (weighted by
+        // area): per vertex, a few tiny triangles at the curves could turn it the wrong way.
+        let grads: Vec<Option<DVec3>> = copy_of
+            .iter()
+            .map(|&(p, pair)| {
+                let g = self.regions.gradient(p, (pair.0, pair.1))?.normalize_or_zero();
+                (g != DVec3::ZERO).then_some(g)
+            })
+            .collect();
+        let mut agree: FxHashMap<RegionPair, f64> = FxHashMap::default();
+        for ((g, n), &(_, pair)) in grads.iter().zip(&acc).zip(&copy_of) {
+            if let Some(g) = g {
+                *agree.entry(pair).or_default() += g.dot(*n);
+            }
+        }
+        for ((g, n), &(_, pair)) in grads.iter().zip(acc.iter_mut()).zip(&copy_of) {
+            if let Some(g) = g {
+                *n = if agree[&pair] < 0.0 { -*g } else { *g };
+                self.stats.gradient_normals += 1;
+            }
+        }
         mesh.normals = acc.iter().map(|n| n.normalize_or_zero().as_vec3().to_array()).collect();
         let mut lengths: FxHashMap<RegionTriple, f64> = FxHashMap::default();
-        for c in &self.curves {
-            let r = c.v.map(|v| root(&mut parent, v));
-            if r[0] == r[1] {
-                continue;
-            }
+        for c in &curves {
+            let r = c.v;
             let (Some(&a), Some(&b)) = (first_copy.get(&r[0]), first_copy.get(&r[1])) else {
                 continue;
             };
@@ -877,6 +1102,92 @@ impl Run<'_> {
         self.stats.triangles = mesh.triangle_count();
         mesh
     }
+}
+
+/// The chapter's second post-process: a vertex closer than `limit` to the opposite side
+/// of one of its triangles (a thin triangle) moves onto that side (to its nearest point
+/// there, not the chapter's midpoint, which can be half a side away); the thin
+/// triangle, now flat, is dropped, and every other triangle on that side is split at the
+/// vertex (so no crack opens: on an intersection curve that is each sheet's triangle),
+/// as is a curve segment along it. One move per vertex and per side, in triangle order.
+fn snap_to_edges(
+    pos: &mut [DVec3],
+    tris: &mut Vec<([u32; 3], RegionPair)>,
+    curves: &mut Vec<CurveEdge>,
+    limit: f64,
+) -> (usize, usize) {
+    let key = |a: u32, b: u32| (a.min(b), a.max(b));
+    let (mut snapped, mut dropped) = (0, 0);
+    let mut touched: FxHashSet<u32> = FxHashSet::default();
+    let mut splits: FxHashMap<(u32, u32), u32> = FxHashMap::default();
+    let mut neighbours: FxHashMap<u32, Vec<u32>> = FxHashMap::default();
+    for (t, _) in tris.iter() {
+        for k in 0..3 {
+            neighbours.entry(t[k]).or_default().extend([t[(k + 1) % 3], t[(k + 2) % 3]]);
+        }
+    }
+    for (t, _) in tris.iter() {
+        for k in 0..3 {
+            let (v, a, b) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+            if touched.contains(&v) || touched.contains(&a) || touched.contains(&b) {
+                continue;
+            }
+            let (pv, pa, pb) = (pos[v as usize], pos[a as usize], pos[b as usize]);
+            let ab = pb - pa;
+            let len2 = ab.length_squared();
+            if len2 == 0.0 {
+                continue;
+            }
+            let s = (pv - pa).dot(ab) / len2;
+            // Near an end it is a short side, the merge's business.
+            if !(0.0..=1.0).contains(&s) || (pa + ab * s).distance(pv) >= limit {
+                continue;
+            }
+            // Nor may the move bring it within `limit` of a neighbour (a short side whose
+            // triangles would have no reliable normal).
+            let q = pa + ab * s;
+            if neighbours[&v].iter().any(|&w| pos[w as usize].distance(q) < limit) {
+                continue;
+            }
+            pos[v as usize] = q;
+            touched.extend([v, a, b]);
+            splits.insert(key(a, b), v);
+            snapped += 1;
+        }
+    }
+    if splits.is_empty() {
+        return (0, 0);
+    }
+    let mut out = Vec::with_capacity(tris.len() + splits.len());
+    for &(t, pair) in tris.iter() {
+        let side = (0..3).find_map(|k| {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            splits.get(&key(a, b)).map(|&v| (k, v))
+        });
+        match side {
+            None => out.push((t, pair)),
+            // The thin triangle itself.
+            Some((_, v)) if t.contains(&v) => dropped += 1,
+            Some((k, v)) => {
+                let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+                out.push(([a, v, c], pair));
+                out.push(([v, b, c], pair));
+            }
+        }
+    }
+    *tris = out;
+    let mut split_curves = Vec::with_capacity(curves.len());
+    for c in curves.iter() {
+        match splits.get(&key(c.v[0], c.v[1])) {
+            Some(&v) => {
+                split_curves.push(CurveEdge { v: [c.v[0], v], label: c.label });
+                split_curves.push(CurveEdge { v: [v, c.v[1]], label: c.label });
+            }
+            None => split_curves.push(*c),
+        }
+    }
+    *curves = split_curves;
+    (snapped, dropped)
 }
 
 /// Pairs off crossings around a face boundary like brackets: (x→y) with a later (y→x) with
@@ -911,6 +1222,32 @@ mod tests {
 
     fn w(vertex: u32, from: u32, to: u32) -> Walked {
         Walked { vertex, from, to }
+    }
+
+    #[test]
+    fn a_thin_triangles_vertex_moves_onto_the_side_which_is_split() {
+        // A thin triangle (a, b, v), v 0.1 from the middle of a-b, and two sheets beyond a-b
+        // (a non-manifold edge, as on a curve): v moves onto a-b, the thin triangle goes, and
+        // each other triangle on a-b is split at v, so every edge keeps its triangles.
+        let mut pos = vec![
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(10.0, 0.0, 0.0),
+            DVec3::new(4.0, 0.1, 0.0),
+            DVec3::new(5.0, -5.0, 0.0),
+            DVec3::new(5.0, 0.0, 5.0),
+        ];
+        let (p, q) = (RegionPair(1, 2), RegionPair(1, 3));
+        let mut tris = vec![([0, 1, 2], p), ([1, 0, 3], p), ([1, 0, 4], q)];
+        let mut curves = vec![CurveEdge { v: [0, 1], label: RegionTriple([1, 2, 3]) }];
+        let (snapped, dropped) = snap_to_edges(&mut pos, &mut tris, &mut curves, 0.5);
+        assert_eq!((snapped, dropped), (1, 1));
+        assert_eq!(pos[2], DVec3::new(4.0, 0.0, 0.0));
+        assert_eq!(tris, vec![([1, 2, 3], p), ([2, 0, 3], p), ([1, 2, 4], q), ([2, 0, 4], q)]);
+        assert_eq!(curves.iter().map(|c| c.v).collect::<Vec<_>>(), vec![[0, 2], [2, 1]]);
+        // Farther than the limit: nothing moves.
+        let mut tris = vec![([0, 1, 2], p)];
+        pos[2].y = 0.6;
+        assert_eq!(snap_to_edges(&mut pos, &mut tris, &mut Vec::new(), 0.5), (0, 0));
     }
 
     #[test]
