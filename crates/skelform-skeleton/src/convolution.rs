@@ -42,8 +42,8 @@ const EDGE_RTOL: f64 = 1e-12;
 pub(crate) struct PreparedSegment {
     a: DVec3,
     u: DVec3,
-    /// Length in radii.
-    len: f64,
+    /// Length in world units.
+    length: f64,
     inv_r: f64,
     /// `strength / line_norm`.
     scale: f64,
@@ -54,25 +54,43 @@ impl PreparedSegment {
         PreparedSegment {
             a: s.a(),
             u: s.direction(),
-            len: s.length() / radius,
+            length: s.length(),
             inv_r: 1.0 / radius,
             scale: strength / kernel.line_norm(),
         }
     }
 
     pub(crate) fn eval(&self, kernel: Kernel, p: DVec3, want_grad: bool) -> (f64, DVec3) {
-        let w = (p - self.a) * self.inv_r;
+        let (v, g, _) = self.eval_at(kernel, p, self.inv_r, want_grad);
+        (v, g)
+    }
+
+    /// The value at `p` with the radius `1/inv_r` instead of the segment's own, its
+    /// gradient at that fixed radius, and the derivative with respect to the radius (for
+    /// tapered segments, whose radius depends on `p`). The integral depends on the radius
+    /// only through `w = (p − a)/r` and the length in radii `ℓ = L/r`, so
+    /// `∂v/∂r = −(∇_w I·w + ∂I/∂ℓ·ℓ)/r` with `∂I/∂ℓ` the kernel at the far end.
+    pub(crate) fn eval_at(
+        &self,
+        kernel: Kernel,
+        p: DVec3,
+        inv_r: f64,
+        want_grad: bool,
+    ) -> (f64, DVec3, f64) {
+        let w = (p - self.a) * inv_r;
+        let len = self.length * inv_r;
         let tau = w.dot(self.u);
         let perp = w - tau * self.u;
         let d2 = perp.length_squared();
-        let (v, dv) = kernel.line_integral(d2, -tau, self.len - tau);
+        let (v, dv) = kernel.line_integral(d2, -tau, len - tau);
         if !want_grad {
-            return (self.scale * v, DVec3::ZERO);
+            return (self.scale * v, DVec3::ZERO, 0.0);
         }
         let ka = kernel.value(w.length_squared());
-        let kb = kernel.value((w - self.len * self.u).length_squared());
-        let g = (ka - kb) * self.u + 2.0 * dv * perp;
-        (self.scale * v, g * (self.scale * self.inv_r))
+        let kb = kernel.value((w - len * self.u).length_squared());
+        let gw = (ka - kb) * self.u + 2.0 * dv * perp;
+        let dv_dr = -self.scale * inv_r * (gw.dot(w) + kb * len);
+        (self.scale * v, gw * (self.scale * inv_r), dv_dr)
     }
 }
 
