@@ -44,11 +44,15 @@ pub enum SkeletonError {
         "junction at {at:?} needs at least 2 limbs (segments with an end there), found {found}"
     )]
     TooFewLimbs { at: [f64; 3], found: usize },
-    #[error("element {element} is already a limb of the junction at {first:?}: a segment can be a limb of one junction only")]
+    #[error(
+        "element {element} is already a limb of the junction at {first:?}: a segment can be a limb of one junction only"
+    )]
     LimbInTwoJunctions { element: usize, first: [f64; 3] },
     #[error("the limbs of the junction at {0:?} are in different blend groups")]
     LimbsInSeveralGroups([f64; 3]),
-    #[error("the limbs of the junction at {0:?} are collinear, so they span no plane: give a 'direction'")]
+    #[error(
+        "the limbs of the junction at {0:?} are collinear, so they span no plane: give a 'direction'"
+    )]
     CollinearLimbs([f64; 3]),
     #[error("direction must be a non-zero vector (got {0:?})")]
     BadDirection([f64; 3]),

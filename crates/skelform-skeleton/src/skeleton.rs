@@ -535,12 +535,12 @@ fn plane_normal(far: &[DVec3]) -> Option<DVec3> {
             crosses.push(far[i].normalize().cross(far[j].normalize()));
         }
     }
-    let big = crosses.iter().copied().max_by(|a, b| a.length_squared().total_cmp(&b.length_squared()))?;
+    let big =
+        crosses.iter().copied().max_by(|a, b| a.length_squared().total_cmp(&b.length_squared()))?;
     if big.length() < 1e-9 {
         return None;
     }
-    let n: DVec3 =
-        crosses.iter().map(|c| if c.dot(big) < 0.0 { -*c } else { *c }).sum();
+    let n: DVec3 = crosses.iter().map(|c| if c.dot(big) < 0.0 { -*c } else { *c }).sum();
     Some(n.normalize())
 }
 

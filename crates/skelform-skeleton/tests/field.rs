@@ -25,8 +25,11 @@ fn mixed() -> Skeleton {
     // A tapered segment with per-end strengths.
     let e = skelform_skeleton::Element::new(
         skelform_skeleton::Shape::Segment(
-            skelform_skeleton::Segment::new(DVec3::new(-0.5, -0.4, -0.1), DVec3::new(0.1, -0.5, 0.1))
-                .unwrap(),
+            skelform_skeleton::Segment::new(
+                DVec3::new(-0.5, -0.4, -0.1),
+                DVec3::new(0.1, -0.5, 0.1),
+            )
+            .unwrap(),
         ),
         0.06,
     )

@@ -161,7 +161,12 @@ fn angle_scaled_ranges_shrink_the_super_elliptic_bulge() {
     // gradients are at right angles).
     let d = DVec3::new(1.0, 0.0, 1.0).normalize();
     let crotch = |f: &SkeletonField| surface_along(f, DVec3::ZERO, d, 4.0 * R);
-    println!("crotch: {:.4} plain, {:.4} scaled, union {:.4}", crotch(&plain), crotch(&scaled), R * 2f64.sqrt());
+    println!(
+        "crotch: {:.4} plain, {:.4} scaled, union {:.4}",
+        crotch(&plain),
+        crotch(&scaled),
+        R * 2f64.sqrt()
+    );
     assert!(crotch(&scaled) > 1.2 * R * 2f64.sqrt(), "a fillet in the crotch");
 }
 
@@ -201,7 +206,12 @@ fn a_long_tapered_segment_has_the_interpolated_radius() {
 
 #[test]
 fn a_tapered_polyline_is_the_sum_of_its_segments_and_has_no_joint_bulge() {
-    let pts = [DVec3::ZERO, DVec3::new(1.0, 0.0, 0.0), DVec3::new(2.0, 0.0, 0.0), DVec3::new(3.0, 0.0, 0.0)];
+    let pts = [
+        DVec3::ZERO,
+        DVec3::new(1.0, 0.0, 0.0),
+        DVec3::new(2.0, 0.0, 0.0),
+        DVec3::new(3.0, 0.0, 0.0),
+    ];
     let radii = [0.06, 0.09, 0.12, 0.15];
     let mut chain = Skeleton::new();
     chain.add_tapered_polyline(&pts, &radii, G).unwrap();
