@@ -1037,6 +1037,12 @@ mod example_meshes {
             ("elliptic.toml", 1),
             ("combination.toml", 1),
             ("skeleton-and-formula.toml", 1),
+            ("tee-junction.toml", 1),
+            ("starfish-junction.toml", 1),
+            ("crossing-cylinders.toml", 1),
+            ("crossing-cylinders-scaled.toml", 1),
+            ("tapered.toml", 3),
+            ("image-polygons.toml", 1),
         ];
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/skeleton");
         for (file, pieces) in expected {
