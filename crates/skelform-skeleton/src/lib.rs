@@ -53,6 +53,7 @@ pub mod convolution;
 pub mod curve;
 mod error;
 pub mod field;
+mod gauss_edge;
 pub mod geometry;
 pub mod image;
 pub mod junction;
