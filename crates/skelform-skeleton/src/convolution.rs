@@ -13,10 +13,12 @@
 //!   form — `∫_0^R k(√(z² + ρ²)) ρ dρ = T(|z|) − T(√(z² + R²))` with `T` the kernel's
 //!   [tail](Kernel::tail) — so what remains is, per edge, one integral over the angle the
 //!   edge subtends. For the Wyvill and triweight kernels (polynomials in `s²`) that integral
-//!   is closed form too (powers of `tan φ` and `φ`); for the Gaussian and the B-spline it is
-//!   smooth and done by adaptive Gauss–Kronrod quadrature (each interval refined until the
-//!   Gauss and Kronrod estimates agree to 10⁻¹² of the integrand's peak, which leaves the
-//!   Kronrod value far more accurate than that). The angles themselves add up to
+//!   is closed form too (powers of `tan φ` and `φ`); for the Gaussian it is Owen's T
+//!   function, computed from `erf`s and one fixed 20-point Gauss–Legendre rule
+//!   ([`crate::gauss_edge`]); for the B-spline it is smooth and done by adaptive
+//!   Gauss–Kronrod quadrature (each interval refined until the Gauss and Kronrod estimates
+//!   agree to 10⁻¹² of the integrand's peak, which leaves the Kronrod value far more
+//!   accurate than that; [`convolve_adaptive`] takes this route for the Gaussian too). The angles themselves add up to
 //!   `2π·winding`, which is snapped to the exact multiple.
 //!   Divided by [`Kernel::area_norm`], so a large polygon of radius `r` is a slab of
 //!   half-thickness `r`.
