@@ -314,7 +314,7 @@ impl SkeletonField {
             .junctions()
             .iter()
             .map(|j| PreparedJunction::new(j, skeleton, &boxes))
-            .collect();
+            .collect::<Result<_, _>>()?;
         let mut limb_of = vec![None; items.len()];
         for (j, pj) in junctions.iter().enumerate() {
             for l in &pj.limbs {

@@ -30,6 +30,7 @@ use std::f64::consts::FRAC_PI_2;
 
 use glam::DVec3;
 
+use crate::SkeletonError;
 use crate::geometry::Shape;
 use crate::kernel::Kernel;
 use crate::skeleton::{Junction, Skeleton};
@@ -79,23 +80,19 @@ impl PreparedJunction {
         junction: &Junction,
         skeleton: &Skeleton,
         boxes: &[(DVec3, DVec3)],
-    ) -> PreparedJunction {
+    ) -> Result<PreparedJunction, SkeletonError> {
+        let direction = skeleton.junction_direction(junction)?;
         let mut limbs = Vec::new();
         let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
         let mut min_r = f64::INFINITY;
-        for &i in &junction.limbs {
+        for (&i, &at_a) in junction.limbs.iter().zip(&junction.joint_at_a) {
             let e = &skeleton.elements()[i];
             let Shape::Segment(s) = &e.shape else { continue };
             let (ra, rb) = e.radii();
             min_r = min_r.min(ra).min(rb);
-            // Which end is at the joint; pull the other (free) end inward by its radius,
-            // but never past the joint.
+            // Pull the free end inward by its radius, but never past the joint.
             let (joint_end, free_end, r_free) =
-                if (s.a() - junction.at).length() <= (s.b() - junction.at).length() {
-                    (s.a(), s.b(), rb)
-                } else {
-                    (s.b(), s.a(), ra)
-                };
+                if at_a { (s.a(), s.b(), rb) } else { (s.b(), s.a(), ra) };
             let along = free_end - joint_end;
             let pull = r_free.min(0.999 * along.length());
             let pulled = free_end - along.normalize() * pull;
@@ -103,7 +100,7 @@ impl PreparedJunction {
             lo = lo.min(boxes[i].0);
             hi = hi.max(boxes[i].1);
         }
-        PreparedJunction { limbs, direction: junction.direction, lo, hi, step: 1e-4 * min_r }
+        Ok(PreparedJunction { limbs, direction, lo, hi, step: 1e-4 * min_r })
     }
 
     #[inline]

@@ -176,14 +176,22 @@ pub struct Skeleton {
 /// A joint where segments (its *limbs*) meet, to be blended by the joint combination
 /// surface of DIS eq. 5.37 and appendix A.2 instead of plain convolution (see
 /// [`crate::junction`]). Made by [`Skeleton::add_junction`].
+///
+/// The junction refers to its limbs by index and remembers which end of each is at the
+/// joint, so it follows the limbs when a pose moves them
+/// ([`Skeleton::transform_elements`]); a default direction is recomputed from the moved
+/// limbs, a user-given one stays as given.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Junction {
-    /// The joint.
+    /// The joint, where it was declared.
     pub at: DVec3,
     /// Indices of the limbs: segments with an end at the joint.
     pub limbs: Vec<usize>,
-    /// The direction in which no blending happens (unit), normal to the joint's plane.
-    pub direction: DVec3,
+    /// For each limb, whether its end `a` (rather than `b`) is at the joint.
+    pub joint_at_a: Vec<bool>,
+    /// The user's direction in which no blending happens (unit); `None`: the normal of the
+    /// plane of the joint and the limbs' far ends.
+    pub direction: Option<DVec3>,
 }
 
 impl Default for Skeleton {
@@ -455,13 +463,13 @@ impl Skeleton {
             }
         }
         let mut limbs = Vec::new();
-        let mut far = Vec::new();
+        let mut joint_at_a = Vec::new();
         for (i, e) in self.elements.iter().enumerate() {
             let Shape::Segment(s) = &e.shape else { continue };
             if (s.a() - at).length() <= tol {
-                far.push(s.b() - at);
+                joint_at_a.push(true);
             } else if (s.b() - at).length() <= tol {
-                far.push(s.a() - at);
+                joint_at_a.push(false);
             } else {
                 continue;
             }
@@ -485,12 +493,32 @@ impl Skeleton {
                 if !(d.is_finite() && d.length() > 0.0) {
                     return Err(SkeletonError::BadDirection(d.to_array()));
                 }
-                d.normalize()
+                Some(d.normalize())
             }
-            None => plane_normal(&far).ok_or(SkeletonError::CollinearLimbs(at.to_array()))?,
+            None => None,
         };
-        self.junctions.push(Junction { at, limbs, direction });
+        let junction = Junction { at, limbs, joint_at_a, direction };
+        self.junction_direction(&junction)?;
+        self.junctions.push(junction);
         Ok(self.junctions.len() - 1)
+    }
+
+    /// The junction's direction of convexity: the user's, or the normal of the plane of the
+    /// joint and its limbs' far ends as the limbs are now.
+    pub fn junction_direction(&self, junction: &Junction) -> Result<DVec3, SkeletonError> {
+        if let Some(d) = junction.direction {
+            return Ok(d);
+        }
+        let mut far = Vec::new();
+        let mut joint = DVec3::ZERO;
+        for (&i, &at_a) in junction.limbs.iter().zip(&junction.joint_at_a) {
+            if let Shape::Segment(s) = &self.elements[i].shape {
+                let (j, f) = if at_a { (s.a(), s.b()) } else { (s.b(), s.a()) };
+                far.push(f - j);
+                joint = j;
+            }
+        }
+        plane_normal(&far).ok_or(SkeletonError::CollinearLimbs(joint.to_array()))
     }
 
     pub fn junctions(&self) -> &[Junction] {

@@ -33,7 +33,8 @@ fn tee(junction: bool) -> SkeletonField {
     if junction {
         let j = s.add_junction(DVec3::ZERO, None).unwrap();
         assert_eq!(s.junctions()[j].limbs.len(), 3, "bar split in two, plus the stem");
-        assert!((s.junctions()[j].direction.z.abs() - 1.0).abs() < 1e-12);
+        let d = s.junction_direction(&s.junctions()[j]).unwrap();
+        assert!((d.z.abs() - 1.0).abs() < 1e-12, "{d}");
     }
     SkeletonField::new(&s, Blend::Convolution(Kernel::Gaussian)).unwrap()
 }
@@ -238,4 +239,28 @@ fn a_tapered_polyline_is_the_sum_of_its_segments_and_has_no_joint_bulge() {
     // One radius per point.
     let e = Skeleton::new().add_tapered_polyline(&pts, &radii[..3], G).unwrap_err().to_string();
     assert!(e.contains("4 points, 3 radii"), "{e}");
+}
+
+#[test]
+fn a_junction_follows_its_limbs_when_they_move() {
+    // Rotate the whole starfish (as a pose would, element by element): the junction's
+    // default direction is recomputed from the moved limbs, so the field rotates with it.
+    let mut s = Skeleton::new();
+    s.add_segment(DVec3::new(-0.5, -0.2, 0.0), DVec3::ZERO, R, G).unwrap();
+    for end in [[0.06, 0.6, 0.0], [0.6, 0.4, 0.0], [0.7, -0.2, 0.0], [0.1, -0.6, 0.0]] {
+        s.add_segment(DVec3::ZERO, DVec3::from_array(end), R, G).unwrap();
+    }
+    s.add_junction(DVec3::ZERO, None).unwrap();
+    let before = SkeletonField::new(&s, Blend::Convolution(Kernel::Gaussian)).unwrap();
+    let m = glam::DAffine3::from_rotation_translation(
+        glam::DQuat::from_euler(glam::EulerRot::XYZ, 0.7, -0.4, 1.1),
+        DVec3::new(0.2, -0.1, 0.3),
+    );
+    s.transform_elements(|_, e| e.shape.transformed(&m)).unwrap();
+    let after = SkeletonField::new(&s, Blend::Convolution(Kernel::Gaussian)).unwrap();
+    for p in [DVec3::new(0.0, 0.0, 0.1), DVec3::new(0.1, 0.05, 0.08), DVec3::new(-0.2, 0.1, -0.05)]
+    {
+        let (a, b) = (before.eval(p), after.eval(m.transform_point3(p)));
+        assert!((a - b).abs() < 1e-9, "at {p}: {a} vs {b}");
+    }
 }
