@@ -1043,6 +1043,13 @@ mod example_meshes {
             ("crossing-cylinders-scaled.toml", 1),
             ("tapered.toml", 3),
             ("image-polygons.toml", 1),
+            ("kernel-gaussian.toml", 3),
+            ("kernel-wyvill.toml", 3),
+            ("kernel-triweight.toml", 3),
+            ("kernel-bspline.toml", 3),
+            ("elliptic-segments.toml", 1),
+            ("acute-combination.toml", 1),
+            ("acute-combination-unclamped.toml", 1),
         ];
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/skeleton");
         for (file, pieces) in expected {
