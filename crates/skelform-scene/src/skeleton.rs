@@ -1020,43 +1020,18 @@ radius = 0.05
 mod example_meshes {
     use crate::Scene;
     use skelform_mesh::check::check;
-    use skelform_polygonize::grid::{Options, polygonize};
+    use skelform_polygonize::grid::{Options, Resolution, polygonize};
 
-    /// Every example skeleton scene polygonizes (with the grid method, at the scene's
-    /// resolution) into closed, manifold, consistently oriented pieces, as many as its
-    /// comment says.
-    #[test]
-    fn example_skeleton_scenes_make_closed_manifold_meshes() {
-        let expected = [
-            ("segment-vs-points.toml", 3),
-            ("tee.toml", 1),
-            ("starfish.toml", 1),
-            ("fingers.toml", 1),
-            ("curve.toml", 1),
-            ("blade.toml", 1),
-            ("elliptic.toml", 1),
-            ("combination.toml", 1),
-            ("skeleton-and-formula.toml", 1),
-            ("tee-junction.toml", 1),
-            ("starfish-junction.toml", 1),
-            ("crossing-cylinders.toml", 1),
-            ("crossing-cylinders-scaled.toml", 1),
-            ("tapered.toml", 3),
-            ("image-polygons.toml", 1),
-            ("kernel-gaussian.toml", 3),
-            ("kernel-wyvill.toml", 3),
-            ("kernel-triweight.toml", 3),
-            ("kernel-bspline.toml", 3),
-            ("elliptic-segments.toml", 1),
-            ("acute-combination.toml", 1),
-            ("acute-combination-unclamped.toml", 1),
-        ];
+    /// Polygonizes each scene (grid method, at the scene's resolution or at `samples` per
+    /// axis) and checks that it is closed, manifold, consistently oriented, outward, in the
+    /// expected number of pieces.
+    fn check_examples(expected: &[(&str, usize)], samples: Option<usize>) {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/skeleton");
-        for (file, pieces) in expected {
+        for &(file, pieces) in expected {
             let scene = Scene::load(&dir.join(file)).unwrap_or_else(|e| panic!("{e}"));
             let opts = Options {
                 domain: scene.domain,
-                resolution: scene.resolution,
+                resolution: samples.map_or(scene.resolution, Resolution::Samples),
                 ..Default::default()
             };
             let (mesh, _) =
@@ -1070,5 +1045,60 @@ mod example_meshes {
             );
             assert_eq!(r.outward, Some(true), "{file}");
         }
+    }
+
+    /// Every example skeleton scene polygonizes (with the grid method, at the scene's
+    /// resolution) into closed, manifold, consistently oriented pieces, as many as its
+    /// comment says.
+    #[test]
+    fn example_skeleton_scenes_make_closed_manifold_meshes() {
+        check_examples(
+            &[
+                ("segment-vs-points.toml", 3),
+                ("tee.toml", 1),
+                ("starfish.toml", 1),
+                ("fingers.toml", 1),
+                ("curve.toml", 1),
+                ("blade.toml", 1),
+                ("elliptic.toml", 1),
+                ("combination.toml", 1),
+                ("skeleton-and-formula.toml", 1),
+            ],
+            None,
+        );
+    }
+
+    /// The blend-control, taper, kernel and polygon-method examples, on a coarser grid (96
+    /// samples across) to keep the debug test suite quick.
+    #[test]
+    fn blend_control_examples_make_closed_manifold_meshes() {
+        check_examples(
+            &[
+                ("tee-junction.toml", 1),
+                ("starfish-junction.toml", 1),
+                ("crossing-cylinders.toml", 1),
+                ("crossing-cylinders-scaled.toml", 1),
+                ("tapered.toml", 3),
+                ("image-polygons.toml", 1),
+                ("elliptic-segments.toml", 1),
+                ("acute-combination.toml", 1),
+                ("acute-combination-unclamped.toml", 1),
+            ],
+            Some(96),
+        );
+    }
+
+    /// One skeleton under each kernel (fig. 5.54).
+    #[test]
+    fn kernel_examples_make_three_pieces_each() {
+        check_examples(
+            &[
+                ("kernel-gaussian.toml", 3),
+                ("kernel-wyvill.toml", 3),
+                ("kernel-triweight.toml", 3),
+                ("kernel-bspline.toml", 3),
+            ],
+            Some(96),
+        );
     }
 }
