@@ -50,10 +50,6 @@ pub enum SkeletonError {
     LimbInTwoJunctions { element: usize, first: [f64; 3] },
     #[error("the limbs of the junction at {0:?} are in different blend groups")]
     LimbsInSeveralGroups([f64; 3]),
-    #[error(
-        "the limbs of the junction at {0:?} are collinear, so they span no plane: give a 'direction'"
-    )]
-    CollinearLimbs([f64; 3]),
     #[error("direction must be a non-zero vector (got {0:?})")]
     BadDirection([f64; 3]),
     #[error("junctions apply to the convolution blend only, not to {0}")]

@@ -504,21 +504,22 @@ impl Skeleton {
     }
 
     /// The junction's direction of convexity: the user's, or the normal of the plane of the
-    /// joint and its limbs' far ends as the limbs are now.
+    /// joint and its limbs' far ends as the limbs are now (for collinear limbs, which span
+    /// no plane and do not bulge, any direction across them).
     pub fn junction_direction(&self, junction: &Junction) -> Result<DVec3, SkeletonError> {
         if let Some(d) = junction.direction {
             return Ok(d);
         }
         let mut far = Vec::new();
-        let mut joint = DVec3::ZERO;
         for (&i, &at_a) in junction.limbs.iter().zip(&junction.joint_at_a) {
             if let Shape::Segment(s) = &self.elements[i].shape {
                 let (j, f) = if at_a { (s.a(), s.b()) } else { (s.b(), s.a()) };
                 far.push(f - j);
-                joint = j;
             }
         }
-        plane_normal(&far).ok_or(SkeletonError::CollinearLimbs(joint.to_array()))
+        // Collinear limbs span no plane, but they do not bulge either (superposition): any
+        // direction across them gives the same cylinder, so take one.
+        Ok(plane_normal(&far).unwrap_or_else(|| far[0].normalize().any_orthonormal_vector()))
     }
 
     pub fn junctions(&self) -> &[Junction] {
