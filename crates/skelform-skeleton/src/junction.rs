@@ -21,6 +21,10 @@
 //! union takes over and the bulge goes. Far along a limb both surfaces are cylinders of the
 //! limb's radius, so the mix keeps the radius whatever the Convexity.
 //!
+//! Where two limbs' union terms are equal the union has a crease, and out of the plane so
+//! does `D` (the dissertation saw it in the starfish's webbing and hid it in shading with
+//! blended normals; we keep the field's own gradient).
+//!
 //! The gradient of `D` involves the Hessian of the convolution (through `Convexity`), so it
 //! is taken by central differences of `D` with a step of 10⁻⁴ of the smallest limb radius,
 //! as the appendix does (`Gradient(p, ConvolveValue, delta)`); the rest of the field keeps
