@@ -278,3 +278,24 @@ fn a_junction_follows_its_limbs_when_they_move() {
         assert!((a - b).abs() < 1e-9, "at {p}: {a} vs {b}");
     }
 }
+
+#[test]
+fn junction_batches_give_exactly_the_single_point_values() {
+    let f = starfish(true);
+    let pts: Vec<DVec3> = (0..300)
+        .map(|i| {
+            let t = i as f64;
+            DVec3::new((t * 0.37).sin() * 0.6, (t * 0.53).cos() * 0.6, (t * 0.11).sin() * 0.2)
+        })
+        .collect();
+    let mut values = vec![0.0; pts.len()];
+    let mut grads = vec![DVec3::ZERO; pts.len()];
+    f.eval_grad_many(&pts, &mut values, &mut grads);
+    let mut only = vec![0.0; pts.len()];
+    f.eval_many(&pts, &mut only);
+    for (i, p) in pts.iter().enumerate() {
+        assert_eq!(values[i].to_bits(), f.eval(*p).to_bits());
+        assert_eq!(only[i].to_bits(), values[i].to_bits());
+        assert_eq!(grads[i], f.gradient(*p));
+    }
+}
