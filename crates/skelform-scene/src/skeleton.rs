@@ -402,14 +402,20 @@ pub(crate) fn build(s: &Spanned<SkeletonSection>, at: At) -> Result<Built, Scene
         let (r, w, g) = common(pat, &pl.radius, &pl.strength, &pl.group, &skeleton)?;
         let pts: Vec<DVec3> = pl.points.get_ref().iter().map(v3).collect();
         count(&pl.radius, r.len(), pts.len(), "radius", "polyline (per point)")?;
-        count(&pl.strength, w.len(), 1, "strength", "polyline")?;
+        count(&pl.strength, w.len(), pts.len(), "strength", "polyline (per point)")?;
         let range = if r.len() == 1 {
             skeleton.add_polyline(&pts, r[0], g)
         } else {
             skeleton.add_tapered_polyline(&pts, &r, g)
         }
         .map_err(|e| err(pat, e))?;
-        set_strength(&mut skeleton, range, w[0]).map_err(|e| err(pat, e))?;
+        if w.len() == 1 {
+            set_strength(&mut skeleton, range, w[0]).map_err(|e| err(pat, e))?;
+        } else {
+            for (k, i) in range.enumerate() {
+                skeleton.set_end_strengths(i, (w[k], w[k + 1])).map_err(|e| err(pat, e))?;
+            }
+        }
     }
     for cv in s.curve.iter().flatten() {
         let cat = cv.bezier.span().start;
@@ -879,13 +885,16 @@ radius = 0.05
         let s = parse(
             "[skeleton]\n[[skeleton.segment]]\na = [-0.8, 0, 0]\nb = [0.8, 0, 0]\nradius = [0.05, 0.15]\n\
              strength = [1, 1.5]\n[[skeleton.polyline]]\npoints = [[0, 0.5, 0], [0.3, 0.5, 0], [0.6, 0.5, 0]]\n\
-             radius = [0.05, 0.08, 0.05]\n[[skeleton.curve]]\nbezier = [[0, -0.5, 0], [0.2, -0.3, 0], [0.4, -0.7, 0], [0.6, -0.5, 0]]\n\
+             radius = [0.05, 0.08, 0.05]\nstrength = [1, 2, 1]\n[[skeleton.curve]]\nbezier = [[0, -0.5, 0], [0.2, -0.3, 0], [0.4, -0.7, 0], [0.6, -0.5, 0]]\n\
              radius = [0.03, 0.06]\n",
         )
         .unwrap();
         let f = &s.field;
         assert!(f.eval(DVec3::new(-0.4, 0.0, 0.1)) > 0.0, "thin end");
         assert!(f.eval(DVec3::new(0.4, 0.0, 0.1)) < 0.0, "thick end");
+        // The polyline's middle point weighs 2: thicker there than at its ends.
+        assert!(f.eval(DVec3::new(0.3, 0.5, 0.09)) < 0.0, "heavy middle");
+        assert!(f.eval(DVec3::new(0.05, 0.5, 0.09)) > 0.0, "light end");
 
         let cross = "[[skeleton.segment]]\na = [-1, 0, 0]\nb = [1, 0, 0]\n\
                      [[skeleton.segment]]\na = [0, 0, -1]\nb = [0, 0, 1]\n";

@@ -279,6 +279,21 @@ impl Skeleton {
         Ok(())
     }
 
+    /// Gives segment `index` the strength `wa` at `a` and `wb` at `b` (per-vertex weights,
+    /// DIS §6.4); for a polyline, consecutive segments sharing a point should share its
+    /// weight. Not a segment: an error unless `wa == wb`.
+    pub fn set_end_strengths(
+        &mut self,
+        index: usize,
+        (wa, wb): (f64, f64),
+    ) -> Result<(), SkeletonError> {
+        if let Some(e) = self.elements.get_mut(index) {
+            let updated = e.clone().with_strength(wa)?.with_end_strength(wb)?;
+            *e = updated;
+        }
+        Ok(())
+    }
+
     /// Replaces every element's shape by `f(index, element)` (radius, strength and group
     /// kept): how a pose moves a skeleton.
     pub fn transform_elements(
