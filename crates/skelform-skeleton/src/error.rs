@@ -45,7 +45,7 @@ pub enum SkeletonError {
     )]
     TooFewLimbs { at: [f64; 3], found: usize },
     #[error(
-        "element {element} is already a limb of the junction at {first:?}: a segment can be a limb of one junction only"
+        "element {element} is already part of the junction at {first:?}: a segment, and the chain it continues, can belong to one junction only"
     )]
     LimbInTwoJunctions { element: usize, first: [f64; 3] },
     #[error("the limbs of the junction at {0:?} are in different blend groups")]

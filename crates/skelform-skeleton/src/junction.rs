@@ -7,7 +7,8 @@
 //!
 //! `D = conv + Convexity·(union − conv)`
 //!
-//! where `conv` is the sum of the limbs' convolutions, `union = maxᵢ wᵢ·k(d(p, Uᵢ)/rᵢ)` is
+//! where `conv` is the sum of the limbs' convolutions (the segments meeting at the joint and
+//! the chains continuing from them), `union = maxᵢ wᵢ·k(d(p, Uᵢ)/rᵢ)` is
 //! the union of the limbs' distance surfaces with the limbs' *free* ends pulled inward by
 //! their radius (`eUnion`: the union's caps then end where the convolution's do), and
 //!
@@ -89,18 +90,19 @@ impl PreparedJunction {
         let mut limbs = Vec::new();
         let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
         let mut min_r = f64::INFINITY;
-        for (&i, &at_a) in junction.limbs.iter().zip(&junction.joint_at_a) {
+        for (&i, &[free_a, free_b]) in junction.limbs.iter().zip(&junction.free_ends) {
             let e = &skeleton.elements()[i];
             let Shape::Segment(s) = &e.shape else { continue };
             let (ra, rb) = e.radii();
             min_r = min_r.min(ra).min(rb);
-            // Pull the free end inward by its radius, but never past the joint.
-            let (joint_end, free_end, r_free) =
-                if at_a { (s.a(), s.b(), rb) } else { (s.b(), s.a(), ra) };
-            let along = free_end - joint_end;
-            let pull = r_free.min(0.999 * along.length());
-            let pulled = free_end - along.normalize() * pull;
-            limbs.push(Limb { element: i, ua: joint_end, ub: pulled });
+            // Pull free ends inward by their radius (appendix A.2's eUnion), never past
+            // the middle when both ends are free.
+            let (a, b) = (s.a(), s.b());
+            let u = (b - a).normalize();
+            let room = if free_a && free_b { 0.499 } else { 0.999 } * s.length();
+            let ua = if free_a { a + u * ra.min(room) } else { a };
+            let ub = if free_b { b - u * rb.min(room) } else { b };
+            limbs.push(Limb { element: i, ua, ub });
             lo = lo.min(boxes[i].0);
             hi = hi.max(boxes[i].1);
         }

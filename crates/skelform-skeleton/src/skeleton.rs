@@ -185,10 +185,15 @@ pub struct Skeleton {
 pub struct Junction {
     /// The joint, where it was declared.
     pub at: DVec3,
-    /// Indices of the limbs: segments with an end at the joint.
+    /// Indices of the limbs: first the segments with an end at the joint, then the
+    /// segments that continue from their far ends (whole chains, through shared ends).
     pub limbs: Vec<usize>,
-    /// For each limb, whether its end `a` (rather than `b`) is at the joint.
+    /// For each limb with an end at the joint (the first of `limbs`), whether that end is
+    /// its `a` (rather than `b`).
     pub joint_at_a: Vec<bool>,
+    /// For every limb, whether its ends `a` and `b` are free (neither at the joint nor
+    /// shared with another limb): the union pulls free ends inward by their radius.
+    pub free_ends: Vec<[bool; 2]>,
     /// The user's direction in which no blending happens (unit); `None`: the normal of the
     /// plane of the joint and the limbs' far ends.
     pub direction: Option<DVec3>,
@@ -436,8 +441,9 @@ impl Skeleton {
         self.add_polyline(&points, radius, group)
     }
 
-    /// Declares a joint at `at` whose limbs — every segment with an end there — are blended by
-    /// the joint combination surface (DIS eq. 5.37) instead of plain convolution. A segment
+    /// Declares a joint at `at` whose limbs — every segment with an end there, and the
+    /// chains of segments continuing from their far ends — are blended by the joint
+    /// combination surface (DIS eq. 5.37) instead of plain convolution. A segment
     /// that passes *through* `at` is split there first (its convolution is unchanged:
     /// superposition), so the bar of a tee need not be drawn in two pieces. Only segments
     /// already in the skeleton are considered. `direction` is the direction in which no
@@ -499,10 +505,61 @@ impl Skeleton {
         if limbs.len() < 2 {
             return Err(SkeletonError::TooFewLimbs { at: at.to_array(), found: limbs.len() });
         }
+        // The chains that continue from the limbs' far ends belong to the junction too: a
+        // limb whose far end continues into another segment must be combined with it, or
+        // the combination's union (which would end at the shared point) and the
+        // convolution (which continues) disagree there.
+        let near = |p: DVec3, q: DVec3| (p - q).length() <= 1e-9 * p.abs().max_element().max(1.0);
+        let ends = |i: usize| match &self.elements[i].shape {
+            Shape::Segment(s) => Some((s.a(), s.b())),
+            _ => None,
+        };
+        let mut frontier: Vec<DVec3> = limbs
+            .iter()
+            .zip(&joint_at_a)
+            .filter_map(|(&i, &at_a)| ends(i).map(|(a, b)| if at_a { b } else { a }))
+            .collect();
+        while let Some(pt) = frontier.pop() {
+            for i in 0..self.elements.len() {
+                if limbs.contains(&i) {
+                    continue;
+                }
+                let Some((a, b)) = ends(i) else { continue };
+                let other = if near(a, pt) {
+                    b
+                } else if near(b, pt) {
+                    a
+                } else {
+                    continue;
+                };
+                if let Some(j) = self.junctions.iter().position(|j| j.limbs.contains(&i)) {
+                    return Err(SkeletonError::LimbInTwoJunctions {
+                        element: i,
+                        first: self.junctions[j].at.to_array(),
+                    });
+                }
+                limbs.push(i);
+                frontier.push(other);
+            }
+        }
         let group = self.elements[limbs[0]].group;
         if limbs.iter().any(|&i| self.elements[i].group != group) {
             return Err(SkeletonError::LimbsInSeveralGroups(at.to_array()));
         }
+        // Free ends: at neither the joint nor another of the junction's segments.
+        let free_ends = limbs
+            .iter()
+            .map(|&i| {
+                let (a, b) = ends(i).unwrap_or((at, at));
+                let free = |e: DVec3| {
+                    !near(e, at)
+                        && !limbs.iter().any(|&k| {
+                            k != i && ends(k).is_some_and(|(c, d)| near(c, e) || near(d, e))
+                        })
+                };
+                [free(a), free(b)]
+            })
+            .collect();
         let direction = match direction {
             Some(d) => {
                 if !(d.is_finite() && d.length() > 0.0) {
@@ -512,7 +569,7 @@ impl Skeleton {
             }
             None => None,
         };
-        let junction = Junction { at, limbs, joint_at_a, direction };
+        let junction = Junction { at, limbs, joint_at_a, free_ends, direction };
         self.junction_direction(&junction)?;
         self.junctions.push(junction);
         Ok(self.junctions.len() - 1)
