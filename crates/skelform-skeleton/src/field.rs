@@ -8,7 +8,7 @@
 //! | `Sum(k)` | `c − Σ wᵢ·k(dᵢ/rᵢ)` (soft objects on distances) | §5.6.1 (5.19) applied to distances; bulges where elements meet |
 //! | `Union(Linear)` | `min dᵢ/rᵢ − 1` | eqs. 5.6, 5.9, 5.10 |
 //! | `Union(Squared)` | `min dᵢ²/rᵢ² − 1` | eq. 5.7 (no square root) |
-//! | `SuperElliptic { range, thumbweight: t }` | `1 − Σ [1 − Pᵢ/Rᵢ]₊ᵗ`, `Pᵢ = dᵢ − rᵢ`, `Rᵢ = range·rᵢ` | eqs. 5.12 (`t = 2`, elliptic), 5.13 |
+//! | `SuperElliptic { range, thumbweight: t, .. }` | `1 − Σ [1 − Pᵢ/Rᵢ]₊ᵗ`, `Pᵢ = dᵢ − rᵢ`, `Rᵢ = range·rᵢ` (times `1 − cos θ` with `angle_scaled`) | eqs. 5.12 (`t = 2`, elliptic), 5.13, 5.14 |
 //! | `Combination { range, clamp }` | `c − (B + [cos θ]₊·(U − B))`, `B = 1 − Π(1 − Pᵢ)`, `U = max Pᵢ` | eqs. 5.15–5.17 |
 //!
 //! `dᵢ` is the distance from `p` to element `i`, `rᵢ` its radius, `wᵢ` its strength, `c` the
@@ -20,6 +20,11 @@
 //! 5.15, which leaves a protuberance at acute angles). The super-elliptic sum over all
 //! elements is the natural extension of the two-primitive formula: on a lone element's
 //! surface it is 0, and beyond every element's range it is 1.
+//!
+//! A tapered segment's radius and strength are interpolated along it by the parameter of the
+//! point's projection, clamped (appendix A.2), in every blend; their gradients enter the
+//! field's gradient. A junction's limbs ([`Skeleton::add_junction`]) are taken out of the
+//! plain sum and added as one joint combination density ([`crate::junction`]).
 //!
 //! Every element has a box outside which it contributes nothing (the dissertation's speed-up,
 //! §3.7 and §7.4): the kernel's support for density blends, the range for the super-elliptic
@@ -209,8 +214,9 @@ impl Item {
         }
     }
 
-    /// The element's distance `d` from `p` and `∇d`, its nearest point, and its signed
-    /// distance in ranges `a = (d − r)/(range·r)` with `∇a`.
+    /// The element's signed distance from `p` in ranges, `a = (d − r)/(range·r)` (`d` the
+    /// distance, `r` the radius there), its gradient, and the nearest point (with its
+    /// Jacobian when `jac`).
     #[inline]
     fn in_ranges(&self, p: DVec3, range: f64, jac: bool) -> (f64, DVec3, Nearest) {
         let nearest = if jac {
