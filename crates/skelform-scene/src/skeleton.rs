@@ -1084,6 +1084,7 @@ mod example_meshes {
             &[
                 ("tee-junction.toml", 1),
                 ("starfish-junction.toml", 1),
+                ("tree-junctions.toml", 1),
                 ("crossing-cylinders.toml", 1),
                 ("crossing-cylinders-scaled.toml", 1),
                 ("tapered.toml", 3),

@@ -44,10 +44,6 @@ pub enum SkeletonError {
         "junction at {at:?} needs at least 2 limbs (segments with an end there), found {found}"
     )]
     TooFewLimbs { at: [f64; 3], found: usize },
-    #[error(
-        "element {element} is already part of the junction at {first:?}: a segment, and the chain it continues, can belong to one junction only"
-    )]
-    LimbInTwoJunctions { element: usize, first: [f64; 3] },
     #[error("the limbs of the junction at {0:?} are in different blend groups")]
     LimbsInSeveralGroups([f64; 3]),
     #[error("direction must be a non-zero vector (got {0:?})")]

@@ -16,7 +16,10 @@
 //! `Ease(x) = (4x⁶ − 17x⁴ + 22x²)/9` clamped to `[0, 1]`,
 //!
 //! with `n` the joint's direction of convexity (by default the normal of the plane of the
-//! joint and its limbs' far ends). Where the gradient of the convolution lies in the plane
+//! joint and its limbs' far ends). A junction may hold several joints (the branch points of
+//! one tree); then `n` is taken from the limb whose union term is largest, interpolated
+//! along it between the directions of the joints nearest its two ends, as the appendix
+//! interpolates each limb's `n1`, `n2` by `alpha`. Where the gradient of the convolution lies in the plane
 //! (`n·∇ = 0`, beside the limbs and in the webbing between them) `Ease = 1`, Convexity 0:
 //! pure convolution, smooth webbing. Where it is along `n` (above and below the joint) the
 //! union takes over and the bulge goes. Far along a limb both surfaces are cylinders of the
@@ -63,16 +66,21 @@ pub fn convexity(direction: DVec3, gradient: DVec3) -> f64 {
 pub(crate) struct Limb {
     /// The element's index (its convolution is evaluated by the field).
     pub element: usize,
-    /// The union segment: the limb with its free end pulled inward by its radius there.
+    /// The union segment: the limb with its free ends pulled inward by their radius.
     ua: DVec3,
     ub: DVec3,
+    /// The limb itself, for the parameter of a point's projection.
+    a: DVec3,
+    b: DVec3,
+    /// Directions of convexity at the two ends (the nearest joint's), signs aligned.
+    na: DVec3,
+    nb: DVec3,
 }
 
 /// A junction ready for evaluation.
 #[derive(Clone, Debug)]
 pub(crate) struct PreparedJunction {
     pub limbs: Vec<Limb>,
-    pub direction: DVec3,
     pub lo: DVec3,
     pub hi: DVec3,
     /// Central-difference step.
@@ -86,7 +94,28 @@ impl PreparedJunction {
         skeleton: &Skeleton,
         boxes: &[(DVec3, DVec3)],
     ) -> Result<PreparedJunction, SkeletonError> {
-        let direction = skeleton.junction_direction(junction)?;
+        // Where each joint is now (its direct limbs may have moved) and its direction.
+        let joints: Vec<(DVec3, DVec3)> = (0..junction.joints.len())
+            .map(|j| {
+                let joint = &junction.joints[j];
+                let at = joint
+                    .direct
+                    .first()
+                    .and_then(|&(i, at_a)| match &skeleton.elements()[i].shape {
+                        Shape::Segment(s) => Some(if at_a { s.a() } else { s.b() }),
+                        _ => None,
+                    })
+                    .unwrap_or(joint.at);
+                (at, skeleton.junction_direction(junction, j))
+            })
+            .collect();
+        // The direction at a point: the nearest joint's.
+        let direction_at = |p: DVec3| {
+            joints
+                .iter()
+                .min_by(|x, y| (x.0 - p).length_squared().total_cmp(&(y.0 - p).length_squared()))
+                .map_or(DVec3::Z, |j| j.1)
+        };
         let mut limbs = Vec::new();
         let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
         let mut min_r = f64::INFINITY;
@@ -102,11 +131,14 @@ impl PreparedJunction {
             let room = if free_a && free_b { 0.499 } else { 0.999 } * s.length();
             let ua = if free_a { a + u * ra.min(room) } else { a };
             let ub = if free_b { b - u * rb.min(room) } else { b };
-            limbs.push(Limb { element: i, ua, ub });
+            let na = direction_at(a);
+            let nb = direction_at(b);
+            let nb = if na.dot(nb) < 0.0 { -nb } else { nb };
+            limbs.push(Limb { element: i, ua, ub, a, b, na, nb });
             lo = lo.min(boxes[i].0);
             hi = hi.max(boxes[i].1);
         }
-        Ok(PreparedJunction { limbs, direction, lo, hi, step: 1e-4 * min_r })
+        Ok(PreparedJunction { limbs, lo, hi, step: 1e-4 * min_r })
     }
 
     #[inline]
@@ -115,7 +147,9 @@ impl PreparedJunction {
     }
 
     /// The combined density `D` at `p`, given each limb's convolution (value and gradient),
-    /// radius and strength at `p` through `limb`.
+    /// radius and strength at `p` through `limb`. The direction of convexity is that of the
+    /// limb whose union term is largest, interpolated along it (appendix A.2: `Interp(alpha,
+    /// limb.n1, limb.n2)`).
     pub(crate) fn density(
         &self,
         kernel: Kernel,
@@ -125,14 +159,23 @@ impl PreparedJunction {
         let mut conv = 0.0;
         let mut grad = DVec3::ZERO;
         let mut union: f64 = 0.0;
-        for l in &self.limbs {
+        let mut nearest = 0;
+        for (k, l) in self.limbs.iter().enumerate() {
             let (v, g, r, w) = limb(l.element, p);
             conv += v;
             grad += g;
             let d2 = (p - nearest_on(l.ua, l.ub, p)).length_squared();
-            union = union.max(w * kernel.value(d2 / (r * r)));
+            let u = w * kernel.value(d2 / (r * r));
+            if u > union {
+                union = u;
+                nearest = k;
+            }
         }
-        conv + convexity(self.direction, grad) * (union - conv)
+        let Some(l) = self.limbs.get(nearest) else { return conv };
+        let d = l.b - l.a;
+        let alpha = ((p - l.a).dot(d) / d.length_squared()).clamp(0.0, 1.0);
+        let n = (l.na + alpha * (l.nb - l.na)).try_normalize().unwrap_or(l.na);
+        conv + convexity(n, grad) * (union - conv)
     }
 }
 

@@ -38,10 +38,7 @@
 //! rotates joints and [`Articulated::posed`] gives the plain skeleton to build a field from.
 //!
 //! What it does not (yet): a closed form for polygons under the B-spline kernel (adaptive
-//! quadrature); per-vertex radii on polygons (segments, polylines and curves taper); two
-//! junctions joined by a chain of segments (a junction takes in the chains that continue
-//! from its limbs, and each segment belongs to one junction: per-limb interpolated plane
-//! normals, as the appendix has for a whole tree, are not done);
+//! quadrature); per-vertex radii on polygons (segments, polylines and curves taper);
 //! several convexity directions per joint (the `max_i(v·d_i)` of §5.6.14.5: one direction,
 //! user-set or the joint's plane normal); the appendix's special blended normals near
 //! junctions (we use the gradient of the combined field). The angle-scaled super-elliptic
@@ -89,4 +86,4 @@ pub use geometry::{Polygon, Segment, Shape};
 pub use image::{DEFAULT_IMAGE_RESOLUTION, PolygonMethod};
 pub use kernel::Kernel;
 pub use pose::{Articulated, Joint, JointId, Pose};
-pub use skeleton::{Element, Group, GroupId, Junction, Skeleton};
+pub use skeleton::{Element, Group, GroupId, Junction, JunctionJoint, Skeleton};

@@ -173,29 +173,36 @@ pub struct Skeleton {
     junctions: Vec<Junction>,
 }
 
-/// A joint where segments (its *limbs*) meet, to be blended by the joint combination
-/// surface of DIS eq. 5.37 and appendix A.2 instead of plain convolution (see
-/// [`crate::junction`]). Made by [`Skeleton::add_junction`].
+/// Joints where segments (its *limbs*) meet, to be blended by the joint combination surface
+/// of DIS eq. 5.37 and appendix A.2 instead of plain convolution (see [`crate::junction`]).
+/// Made by [`Skeleton::add_junction`].
 ///
-/// The junction refers to its limbs by index and remembers which end of each is at the
-/// joint, so it follows the limbs when a pose moves them
-/// ([`Skeleton::transform_elements`]); a default direction is recomputed from the moved
-/// limbs, a user-given one stays as given.
+/// A junction is a connected set of segments — the limbs meeting at its joints and the
+/// chains that continue from them — with one or more joints, each with its own direction
+/// of convexity; a joint declared on segments already in a junction joins it. The junction
+/// refers to its limbs by index, so it follows them when a pose moves them
+/// ([`Skeleton::transform_elements`]); default directions are recomputed from the moved
+/// limbs, user-given ones stay as given.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Junction {
-    /// The joint, where it was declared.
-    pub at: DVec3,
-    /// Indices of the limbs: first the segments with an end at the joint, then the
-    /// segments that continue from their far ends (whole chains, through shared ends).
+    /// The joints.
+    pub joints: Vec<JunctionJoint>,
+    /// Indices of the limbs: every segment of the connected set.
     pub limbs: Vec<usize>,
-    /// For each limb with an end at the joint (the first of `limbs`), whether that end is
-    /// its `a` (rather than `b`).
-    pub joint_at_a: Vec<bool>,
-    /// For every limb, whether its ends `a` and `b` are free (neither at the joint nor
-    /// shared with another limb): the union pulls free ends inward by their radius.
+    /// For every limb, whether its ends `a` and `b` are free (at no joint and shared with no
+    /// other limb): the union pulls free ends inward by their radius.
     pub free_ends: Vec<[bool; 2]>,
+}
+
+/// One joint of a [`Junction`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct JunctionJoint {
+    /// Where it was declared.
+    pub at: DVec3,
+    /// The segments with an end at the joint, and whether that end is their `a`.
+    pub direct: Vec<(usize, bool)>,
     /// The user's direction in which no blending happens (unit); `None`: the normal of the
-    /// plane of the joint and the limbs' far ends.
+    /// plane of the joint and its direct limbs' far ends.
     pub direction: Option<DVec3>,
 }
 
@@ -443,12 +450,14 @@ impl Skeleton {
 
     /// Declares a joint at `at` whose limbs — every segment with an end there, and the
     /// chains of segments continuing from their far ends — are blended by the joint
-    /// combination surface (DIS eq. 5.37) instead of plain convolution. A segment
-    /// that passes *through* `at` is split there first (its convolution is unchanged:
+    /// combination surface (DIS eq. 5.37) instead of plain convolution. A segment that
+    /// passes *through* `at` is split there first (its convolution is unchanged:
     /// superposition), so the bar of a tee need not be drawn in two pieces. Only segments
     /// already in the skeleton are considered. `direction` is the direction in which no
     /// blending happens; by default the normal of the plane of the joint and the limbs' far
-    /// ends (appendix A.2's `NormalFromPolygon`). Returns the junction's index.
+    /// ends (appendix A.2's `NormalFromPolygon`). If the limbs are already part of a
+    /// junction (a second branch point of the same tree), the joint joins it. Returns the
+    /// junction's index.
     pub fn add_junction(
         &mut self,
         at: DVec3,
@@ -457,15 +466,21 @@ impl Skeleton {
         if !at.is_finite() {
             return Err(SkeletonError::NonFinite);
         }
-        let tol = 1e-9 * at.abs().max_element().max(1.0);
+        let direction = match direction {
+            Some(d) => {
+                if !(d.is_finite() && d.length() > 0.0) {
+                    return Err(SkeletonError::BadDirection(d.to_array()));
+                }
+                Some(d.normalize())
+            }
+            None => None,
+        };
+        let near = |p: DVec3, q: DVec3| (p - q).length() <= 1e-9 * p.abs().max_element().max(1.0);
         // Split segments that pass through the joint.
         for i in 0..self.elements.len() {
             let Shape::Segment(s) = &self.elements[i].shape else { continue };
             let (q, alpha) = s.nearest(at);
-            if (q - at).length() <= tol
-                && (s.a() - at).length() > tol
-                && (s.b() - at).length() > tol
-            {
+            if near(at, q) && !near(at, s.a()) && !near(at, s.b()) {
                 let (a, b) = (s.a(), s.b());
                 let e = self.elements[i].clone();
                 let (ra, rb) = e.radii();
@@ -481,43 +496,39 @@ impl Skeleton {
                 second.strength = wm;
                 self.elements[i] = first;
                 self.elements.push(second);
+                // A junction holding the split segment now holds both halves.
+                let last = self.elements.len() - 1;
+                for j in &mut self.junctions {
+                    if let Some(k) = j.limbs.iter().position(|&l| l == i) {
+                        let free = j.free_ends[k];
+                        j.free_ends[k] = [free[0], false];
+                        j.limbs.push(last);
+                        j.free_ends.push([false, free[1]]);
+                    }
+                }
             }
         }
-        let mut limbs = Vec::new();
-        let mut joint_at_a = Vec::new();
-        for (i, e) in self.elements.iter().enumerate() {
-            let Shape::Segment(s) = &e.shape else { continue };
-            if (s.a() - at).length() <= tol {
-                joint_at_a.push(true);
-            } else if (s.b() - at).length() <= tol {
-                joint_at_a.push(false);
-            } else {
-                continue;
-            }
-            limbs.push(i);
-            if let Some(j) = self.junctions.iter().position(|j| j.limbs.contains(&i)) {
-                return Err(SkeletonError::LimbInTwoJunctions {
-                    element: i,
-                    first: self.junctions[j].at.to_array(),
-                });
-            }
-        }
-        if limbs.len() < 2 {
-            return Err(SkeletonError::TooFewLimbs { at: at.to_array(), found: limbs.len() });
-        }
-        // The chains that continue from the limbs' far ends belong to the junction too: a
-        // limb whose far end continues into another segment must be combined with it, or
-        // the combination's union (which would end at the shared point) and the
-        // convolution (which continues) disagree there.
-        let near = |p: DVec3, q: DVec3| (p - q).length() <= 1e-9 * p.abs().max_element().max(1.0);
         let ends = |i: usize| match &self.elements[i].shape {
             Shape::Segment(s) => Some((s.a(), s.b())),
             _ => None,
         };
-        let mut frontier: Vec<DVec3> = limbs
+        let mut direct = Vec::new();
+        for i in 0..self.elements.len() {
+            let Some((a, b)) = ends(i) else { continue };
+            if near(at, a) {
+                direct.push((i, true));
+            } else if near(at, b) {
+                direct.push((i, false));
+            }
+        }
+        if direct.len() < 2 {
+            return Err(SkeletonError::TooFewLimbs { at: at.to_array(), found: direct.len() });
+        }
+        // The connected set of segments through the joint.
+        let mut limbs: Vec<usize> = direct.iter().map(|d| d.0).collect();
+        let mut frontier: Vec<DVec3> = direct
             .iter()
-            .zip(&joint_at_a)
-            .filter_map(|(&i, &at_a)| ends(i).map(|(a, b)| if at_a { b } else { a }))
+            .filter_map(|&(i, at_a)| ends(i).map(|(a, b)| if at_a { b } else { a }))
             .collect();
         while let Some(pt) = frontier.pop() {
             for i in 0..self.elements.len() {
@@ -525,34 +536,52 @@ impl Skeleton {
                     continue;
                 }
                 let Some((a, b)) = ends(i) else { continue };
-                let other = if near(a, pt) {
-                    b
-                } else if near(b, pt) {
-                    a
+                if near(pt, a) {
+                    frontier.push(b);
+                } else if near(pt, b) {
+                    frontier.push(a);
                 } else {
                     continue;
-                };
-                if let Some(j) = self.junctions.iter().position(|j| j.limbs.contains(&i)) {
-                    return Err(SkeletonError::LimbInTwoJunctions {
-                        element: i,
-                        first: self.junctions[j].at.to_array(),
-                    });
                 }
                 limbs.push(i);
-                frontier.push(other);
+            }
+        }
+        // Junctions sharing segments with this set merge into one, with all their joints.
+        let joint = JunctionJoint { at, direct, direction };
+        let mut joints = vec![joint];
+        let mut keep = None;
+        let mut k = 0;
+        while k < self.junctions.len() {
+            if self.junctions[k].limbs.iter().any(|l| limbs.contains(l)) {
+                let old = if keep.is_none() {
+                    keep = Some(k);
+                    k += 1;
+                    self.junctions[k - 1].clone()
+                } else {
+                    self.junctions.remove(k)
+                };
+                for l in old.limbs {
+                    if !limbs.contains(&l) {
+                        limbs.push(l);
+                    }
+                }
+                let mut old_joints = old.joints;
+                old_joints.append(&mut joints);
+                joints = old_joints;
+            } else {
+                k += 1;
             }
         }
         let group = self.elements[limbs[0]].group;
         if limbs.iter().any(|&i| self.elements[i].group != group) {
             return Err(SkeletonError::LimbsInSeveralGroups(at.to_array()));
         }
-        // Free ends: at neither the joint nor another of the junction's segments.
         let free_ends = limbs
             .iter()
             .map(|&i| {
                 let (a, b) = ends(i).unwrap_or((at, at));
                 let free = |e: DVec3| {
-                    !near(e, at)
+                    !joints.iter().any(|j| near(j.at, e))
                         && !limbs.iter().any(|&k| {
                             k != i && ends(k).is_some_and(|(c, d)| near(c, e) || near(d, e))
                         })
@@ -560,38 +589,37 @@ impl Skeleton {
                 [free(a), free(b)]
             })
             .collect();
-        let direction = match direction {
-            Some(d) => {
-                if !(d.is_finite() && d.length() > 0.0) {
-                    return Err(SkeletonError::BadDirection(d.to_array()));
-                }
-                Some(d.normalize())
+        let junction = Junction { joints, limbs, free_ends };
+        Ok(match keep {
+            Some(k) => {
+                self.junctions[k] = junction;
+                k
             }
-            None => None,
-        };
-        let junction = Junction { at, limbs, joint_at_a, free_ends, direction };
-        self.junction_direction(&junction)?;
-        self.junctions.push(junction);
-        Ok(self.junctions.len() - 1)
+            None => {
+                self.junctions.push(junction);
+                self.junctions.len() - 1
+            }
+        })
     }
 
-    /// The junction's direction of convexity: the user's, or the normal of the plane of the
-    /// joint and its limbs' far ends as the limbs are now (for collinear limbs, which span
-    /// no plane and do not bulge, any direction across them).
-    pub fn junction_direction(&self, junction: &Junction) -> Result<DVec3, SkeletonError> {
-        if let Some(d) = junction.direction {
-            return Ok(d);
+    /// The direction of convexity of joint `joint` of `junction`: the user's, or the normal
+    /// of the plane of the joint and its direct limbs' far ends as the limbs are now (for
+    /// collinear limbs, which span no plane and do not bulge, any direction across them).
+    pub fn junction_direction(&self, junction: &Junction, joint: usize) -> DVec3 {
+        let j = &junction.joints[joint];
+        if let Some(d) = j.direction {
+            return d;
         }
         let mut far = Vec::new();
-        for (&i, &at_a) in junction.limbs.iter().zip(&junction.joint_at_a) {
+        for &(i, at_a) in &j.direct {
             if let Shape::Segment(s) = &self.elements[i].shape {
-                let (j, f) = if at_a { (s.a(), s.b()) } else { (s.b(), s.a()) };
-                far.push(f - j);
+                let (a, b) = (s.a(), s.b());
+                far.push(if at_a { b - a } else { a - b });
             }
         }
-        // Collinear limbs span no plane, but they do not bulge either (superposition): any
-        // direction across them gives the same cylinder, so take one.
-        Ok(plane_normal(&far).unwrap_or_else(|| far[0].normalize().any_orthonormal_vector()))
+        plane_normal(&far).unwrap_or_else(|| {
+            far.first().map_or(DVec3::Z, |f| f.normalize().any_orthonormal_vector())
+        })
     }
 
     pub fn junctions(&self) -> &[Junction] {
