@@ -17,9 +17,10 @@
 //!
 //! with `n` the joint's direction of convexity (by default the normal of the plane of the
 //! joint and its limbs' far ends). A junction may hold several joints (the branch points of
-//! one tree); then `n` is taken from the limb whose union term is largest, interpolated
-//! along it between the directions of the joints nearest its two ends, as the appendix
-//! interpolates each limb's `n1`, `n2` by `alpha`. Where the gradient of the convolution lies in the plane
+//! one tree), each with its direction; the Convexity is then the joints' Convexities
+//! averaged with weights `1/(|p − jointⱼ|² + r²)²`. The appendix instead interpolates each
+//! limb's end normals along the limb nearest `p`; that switches direction abruptly where
+//! the nearest limb changes, a visible seam, which the smooth weights avoid. Where the gradient of the convolution lies in the plane
 //! (`n·∇ = 0`, beside the limbs and in the webbing between them) `Ease = 1`, Convexity 0:
 //! pure convolution, smooth webbing. Where it is along `n` (above and below the joint) the
 //! union takes over and the bulge goes. Far along a limb both surfaces are cylinders of the
@@ -69,18 +70,16 @@ pub(crate) struct Limb {
     /// The union segment: the limb with its free ends pulled inward by their radius.
     ua: DVec3,
     ub: DVec3,
-    /// The limb itself, for the parameter of a point's projection.
-    a: DVec3,
-    b: DVec3,
-    /// Directions of convexity at the two ends (the nearest joint's), signs aligned.
-    na: DVec3,
-    nb: DVec3,
 }
 
 /// A junction ready for evaluation.
 #[derive(Clone, Debug)]
 pub(crate) struct PreparedJunction {
     pub limbs: Vec<Limb>,
+    /// Each joint's position and direction of convexity.
+    joints: Vec<(DVec3, DVec3)>,
+    /// Squared softening length of the joints' weights (the smallest limb radius).
+    soft2: f64,
     pub lo: DVec3,
     pub hi: DVec3,
     /// Central-difference step.
@@ -109,13 +108,6 @@ impl PreparedJunction {
                 (at, skeleton.junction_direction(junction, j))
             })
             .collect();
-        // The direction at a point: the nearest joint's.
-        let direction_at = |p: DVec3| {
-            joints
-                .iter()
-                .min_by(|x, y| (x.0 - p).length_squared().total_cmp(&(y.0 - p).length_squared()))
-                .map_or(DVec3::Z, |j| j.1)
-        };
         let mut limbs = Vec::new();
         let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
         let mut min_r = f64::INFINITY;
@@ -131,14 +123,11 @@ impl PreparedJunction {
             let room = if free_a && free_b { 0.499 } else { 0.999 } * s.length();
             let ua = if free_a { a + u * ra.min(room) } else { a };
             let ub = if free_b { b - u * rb.min(room) } else { b };
-            let na = direction_at(a);
-            let nb = direction_at(b);
-            let nb = if na.dot(nb) < 0.0 { -nb } else { nb };
-            limbs.push(Limb { element: i, ua, ub, a, b, na, nb });
+            limbs.push(Limb { element: i, ua, ub });
             lo = lo.min(boxes[i].0);
             hi = hi.max(boxes[i].1);
         }
-        Ok(PreparedJunction { limbs, lo, hi, step: 1e-4 * min_r })
+        Ok(PreparedJunction { limbs, joints, soft2: min_r * min_r, lo, hi, step: 1e-4 * min_r })
     }
 
     #[inline]
@@ -147,9 +136,9 @@ impl PreparedJunction {
     }
 
     /// The combined density `D` at `p`, given each limb's convolution (value and gradient),
-    /// radius and strength at `p` through `limb`. The direction of convexity is that of the
-    /// limb whose union term is largest, interpolated along it (appendix A.2: `Interp(alpha,
-    /// limb.n1, limb.n2)`).
+    /// radius and strength at `p` through `limb`. With several joints the Convexity is the
+    /// joints' Convexities averaged with weights `1/(|p − jointⱼ|² + r²)²`: smooth in `p`,
+    /// each joint's own near it.
     pub(crate) fn density(
         &self,
         kernel: Kernel,
@@ -159,23 +148,26 @@ impl PreparedJunction {
         let mut conv = 0.0;
         let mut grad = DVec3::ZERO;
         let mut union: f64 = 0.0;
-        let mut nearest = 0;
-        for (k, l) in self.limbs.iter().enumerate() {
+        for l in &self.limbs {
             let (v, g, r, w) = limb(l.element, p);
             conv += v;
             grad += g;
             let d2 = (p - nearest_on(l.ua, l.ub, p)).length_squared();
-            let u = w * kernel.value(d2 / (r * r));
-            if u > union {
-                union = u;
-                nearest = k;
-            }
+            union = union.max(w * kernel.value(d2 / (r * r)));
         }
-        let Some(l) = self.limbs.get(nearest) else { return conv };
-        let d = l.b - l.a;
-        let alpha = ((p - l.a).dot(d) / d.length_squared()).clamp(0.0, 1.0);
-        let n = (l.na + alpha * (l.nb - l.na)).try_normalize().unwrap_or(l.na);
-        conv + convexity(n, grad) * (union - conv)
+        let c = match self.joints.as_slice() {
+            [(_, n)] => convexity(*n, grad),
+            joints => {
+                let (mut sum, mut weights) = (0.0, 0.0);
+                for (at, n) in joints {
+                    let w = 1.0 / ((p - *at).length_squared() + self.soft2).powi(2);
+                    sum += w * convexity(*n, grad);
+                    weights += w;
+                }
+                sum / weights
+            }
+        };
+        conv + c * (union - conv)
     }
 }
 

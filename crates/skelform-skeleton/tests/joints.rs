@@ -348,6 +348,17 @@ fn a_tree_with_two_branch_points_is_one_junction_with_two_joints() {
         assert!(hp > 1.2 * R, "the plain tree bulges: {hp}");
         assert!((hj - R).abs() < 0.03 * R, "{hj}");
     }
+    // The field is continuous: no step as a point moves past where limbs meet.
+    let mut worst: f64 = 0.0;
+    for k in 0..1000 {
+        for (x, z) in [(0.08, 0.05), (0.1, 0.1), (0.05, 0.12)] {
+            let p = DVec3::new(x, 0.35 + 0.25 * k as f64 / 1000.0, z);
+            let q = p + DVec3::Y * 2.5e-4;
+            worst = worst.max((joint.eval(q) - joint.eval(p)).abs());
+        }
+    }
+    println!("largest step over 2.5e-4: {worst:.2e}");
+    assert!(worst < 2e-3, "a step of {worst} over 2.5e-4");
     // Along the stem between the joints the radius stays r: midway in every direction
     // around it, and nearer a joint out of that joint's plane (in the plane the webbing
     // of the convolution widens it, as at a single tee).
