@@ -23,8 +23,9 @@ use std::sync::Arc;
 use serde::Deserialize;
 use skelform_field::{Aabb, DVec3, Field};
 use skelform_skeleton::{
-    Blend, CubicCurve, DEFAULT_IMAGE_RESOLUTION, Element, Falloff, GroupId, Kernel, Polygon,
-    PolygonMethod, Segment, Shape, Skeleton, SkeletonError, SkeletonField,
+    Blend, CubicCurve, DEFAULT_IMAGE_RESOLUTION, Element, Falloff, GroupId, Kernel,
+    MAX_IMAGE_RESOLUTION, Polygon, PolygonMethod, Segment, Shape, Skeleton, SkeletonError,
+    SkeletonField,
 };
 use toml::Spanned;
 
@@ -536,10 +537,12 @@ fn polygon_method(
     let res = match resolution {
         Some(r) => {
             let v = *r.get_ref();
-            if !(4..=4096).contains(&v) {
+            if !(4..=MAX_IMAGE_RESOLUTION as i64).contains(&v) {
                 return Err(at(
                     r.span().start,
-                    format!("image_resolution must be between 4 and 4096 pixels (got {v})"),
+                    format!(
+                        "image_resolution must be between 4 and {MAX_IMAGE_RESOLUTION} pixels (got {v})"
+                    ),
                 ));
             }
             Some(v as usize)
@@ -974,7 +977,7 @@ radius = 0.05
         let (_, _, m) = error(&format!(
             "[skeleton]\nradius = 0.1\npolygon_method = \"image\"\nimage_resolution = 2\n{tri}"
         ));
-        assert!(m.contains("between 4 and 4096"), "{m}");
+        assert!(m.contains("between 4 and 1024"), "{m}");
         let (_, _, m) = error(&format!(
             "[skeleton]\nblend = \"sum\"\nradius = 0.1\npolygon_method = \"image\"\n{tri}"
         ));

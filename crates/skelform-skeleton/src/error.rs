@@ -50,7 +50,7 @@ pub enum SkeletonError {
     BadDirection([f64; 3]),
     #[error("junctions apply to the convolution blend only, not to {0}")]
     JunctionNeedsConvolution(&'static str),
-    #[error("image_resolution must be between 4 and 4096 pixels (got {0})")]
+    #[error("image_resolution must be between 4 and {max} pixels (got {0})", max = crate::image::MAX_IMAGE_RESOLUTION)]
     BadImageResolution(usize),
     #[error("the skeleton has no elements")]
     Empty,

@@ -28,6 +28,10 @@ use crate::kernel::{Kernel, OMEGA};
 /// The image method's default resolution: pixels across the longer side of the image box.
 pub const DEFAULT_IMAGE_RESOLUTION: usize = 80;
 
+/// The largest resolution accepted: the image and its filter grow with its square (and,
+/// for the non-separable kernels, the filter with its fourth power).
+pub const MAX_IMAGE_RESOLUTION: usize = 1024;
+
 /// Sub-samples per pixel side when rasterizing.
 const SUBSAMPLES: usize = 4;
 
@@ -44,7 +48,9 @@ pub enum PolygonMethod {
 impl PolygonMethod {
     pub(crate) fn check(&self) -> Result<(), SkeletonError> {
         match *self {
-            PolygonMethod::Image { resolution } if !(4..=4096).contains(&resolution) => {
+            PolygonMethod::Image { resolution }
+                if !(4..=MAX_IMAGE_RESOLUTION).contains(&resolution) =>
+            {
                 Err(SkeletonError::BadImageResolution(resolution))
             }
             _ => Ok(()),

@@ -103,5 +103,5 @@ fn image_method_gradient_is_the_derivative_of_its_interpolant() {
     )
     .unwrap()
     .with_polygon_method(PolygonMethod::Image { resolution: 2 });
-    assert!(bad.unwrap_err().to_string().contains("between 4 and 4096"));
+    assert!(bad.unwrap_err().to_string().contains("between 4 and 1024"));
 }
