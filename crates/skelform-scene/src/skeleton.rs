@@ -23,8 +23,9 @@ use std::sync::Arc;
 use serde::Deserialize;
 use skelform_field::{Aabb, DVec3, Field};
 use skelform_skeleton::{
-    Blend, CubicCurve, Element, Falloff, GroupId, Kernel, Polygon, Segment, Shape, Skeleton,
-    SkeletonError, SkeletonField,
+    Blend, CubicCurve, DEFAULT_IMAGE_RESOLUTION, Element, Falloff, GroupId, Kernel,
+    MAX_IMAGE_RESOLUTION, Polygon, PolygonMethod, Segment, Shape, Skeleton, SkeletonError,
+    SkeletonField,
 };
 use toml::Spanned;
 
@@ -44,6 +45,11 @@ pub(crate) struct SkeletonSection {
     thumbweight: Option<Spanned<f64>>,
     falloff: Option<Spanned<String>>,
     clamp: Option<Spanned<bool>>,
+    /// Super-elliptic ranges scaled by `1 − cos θ` (DIS eq. 5.14).
+    angle_scaled: Option<Spanned<bool>>,
+    /// Default polygon method: "exact" or "image" (DIS appendix A.3).
+    polygon_method: Option<Spanned<String>>,
+    image_resolution: Option<Spanned<i64>>,
     /// How the skeleton combines with a `[field]` formula in the same scene.
     combine: Option<Spanned<String>>,
     groups: Option<BTreeMap<String, Spanned<Vec<Spanned<String>>>>>,
@@ -53,14 +59,58 @@ pub(crate) struct SkeletonSection {
     curve: Option<Vec<CurveSpec>>,
     triangle: Option<Vec<PolygonSpec>>,
     polygon: Option<Vec<PolygonSpec>>,
+    junction: Option<Vec<JunctionSpec>>,
+}
+
+/// A joint blended by the joint combination surface (DIS eq. 5.37).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct JunctionSpec {
+    at: Spanned<[f64; 3]>,
+    direction: Option<Spanned<[f64; 3]>>,
+}
+
+/// One number, or a list of them (a radius per end or per point).
+struct Numbers(Vec<f64>);
+
+impl<'de> Deserialize<'de> for Numbers {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> serde::de::Visitor<'de> for V {
+            type Value = Numbers;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a number or a list of numbers")
+            }
+            fn visit_f64<E>(self, v: f64) -> Result<Numbers, E> {
+                Ok(Numbers(vec![v]))
+            }
+            fn visit_i64<E>(self, v: i64) -> Result<Numbers, E> {
+                Ok(Numbers(vec![v as f64]))
+            }
+            fn visit_u64<E>(self, v: u64) -> Result<Numbers, E> {
+                Ok(Numbers(vec![v as f64]))
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                mut a: A,
+            ) -> Result<Numbers, A::Error> {
+                let mut v = Vec::new();
+                while let Some(x) = a.next_element::<f64>()? {
+                    v.push(x);
+                }
+                Ok(Numbers(v))
+            }
+        }
+        d.deserialize_any(V)
+    }
 }
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct PointSpec {
     at: Spanned<[f64; 3]>,
-    radius: Option<Spanned<f64>>,
-    strength: Option<Spanned<f64>>,
+    radius: Option<Spanned<Numbers>>,
+    strength: Option<Spanned<Numbers>>,
     group: Option<Spanned<String>>,
 }
 
@@ -69,8 +119,8 @@ struct PointSpec {
 struct SegmentSpec {
     a: Spanned<[f64; 3]>,
     b: Spanned<[f64; 3]>,
-    radius: Option<Spanned<f64>>,
-    strength: Option<Spanned<f64>>,
+    radius: Option<Spanned<Numbers>>,
+    strength: Option<Spanned<Numbers>>,
     group: Option<Spanned<String>>,
 }
 
@@ -78,8 +128,8 @@ struct SegmentSpec {
 #[serde(deny_unknown_fields)]
 struct PolylineSpec {
     points: Spanned<Vec<[f64; 3]>>,
-    radius: Option<Spanned<f64>>,
-    strength: Option<Spanned<f64>>,
+    radius: Option<Spanned<Numbers>>,
+    strength: Option<Spanned<Numbers>>,
     group: Option<Spanned<String>>,
 }
 
@@ -90,8 +140,8 @@ struct CurveSpec {
     bezier: Spanned<[[f64; 3]; 4]>,
     /// Largest distance between the curve and its segments; default a tenth of the radius.
     tolerance: Option<Spanned<f64>>,
-    radius: Option<Spanned<f64>>,
-    strength: Option<Spanned<f64>>,
+    radius: Option<Spanned<Numbers>>,
+    strength: Option<Spanned<Numbers>>,
     group: Option<Spanned<String>>,
 }
 
@@ -99,9 +149,11 @@ struct CurveSpec {
 #[serde(deny_unknown_fields)]
 struct PolygonSpec {
     vertices: Spanned<Vec<[f64; 3]>>,
-    radius: Option<Spanned<f64>>,
-    strength: Option<Spanned<f64>>,
+    radius: Option<Spanned<Numbers>>,
+    strength: Option<Spanned<Numbers>>,
     group: Option<Spanned<String>>,
+    polygon_method: Option<Spanned<String>>,
+    image_resolution: Option<Spanned<i64>>,
 }
 
 /// How a skeleton and a formula in the same scene make one surface.
@@ -152,10 +204,15 @@ pub(crate) fn build(s: &Spanned<SkeletonSection>, at: At) -> Result<Built, Scene
                 }
             },
         }),
-        "elliptic" => Blend::SuperElliptic { range: number(&s.range, 1.0), thumbweight: 2.0 },
+        "elliptic" => Blend::SuperElliptic {
+            range: number(&s.range, 1.0),
+            thumbweight: 2.0,
+            angle_scaled: s.angle_scaled.as_ref().is_some_and(|c| *c.get_ref()),
+        },
         "super-elliptic" => Blend::SuperElliptic {
             range: number(&s.range, 1.0),
             thumbweight: number(&s.thumbweight, 3.0),
+            angle_scaled: s.angle_scaled.as_ref().is_some_and(|c| *c.get_ref()),
         },
         "combination" => Blend::Combination {
             range: number(&s.range, 1.0),
@@ -199,6 +256,25 @@ pub(crate) fn build(s: &Spanned<SkeletonSection>, at: At) -> Result<Built, Scene
     {
         return Err(not_for("clamp", c.span().start, "combination"));
     }
+    if let Some(c) = &s.angle_scaled
+        && !matches!(blend, Blend::SuperElliptic { .. })
+    {
+        return Err(not_for("angle_scaled", c.span().start, "elliptic and super-elliptic"));
+    }
+    let conv_only = |key: &str, offset: usize| -> Result<(), SceneError> {
+        if matches!(blend, Blend::Convolution(_)) {
+            Ok(())
+        } else {
+            Err(not_for(key, offset, "convolution"))
+        }
+    };
+    let default_method = polygon_method(&s.polygon_method, &s.image_resolution, None, at)?;
+    if let Some(m) = &s.polygon_method {
+        conv_only("polygon_method", m.span().start)?;
+    }
+    if let Some(j) = s.junction.iter().flatten().next() {
+        conv_only("[[skeleton.junction]]", j.at.span().start)?;
+    }
     if let Some(i) = &s.iso
         && !blend.has_iso()
     {
@@ -229,23 +305,26 @@ pub(crate) fn build(s: &Spanned<SkeletonSection>, at: At) -> Result<Built, Scene
         }
     }
 
-    // Elements. Each may name its radius, strength and group; the radius defaults to the
-    // section's.
+    // Elements. Each may name its radius (one, or one per end or point where the element
+    // tapers), strength and group; the radius defaults to the section's.
     let common = |element_at: usize,
-                  radius: &Option<Spanned<f64>>,
-                  strength: &Option<Spanned<f64>>,
+                  radius: &Option<Spanned<Numbers>>,
+                  strength: &Option<Spanned<Numbers>>,
                   group: &Option<Spanned<String>>,
                   skeleton: &Skeleton|
-     -> Result<(f64, f64, GroupId), SceneError> {
+     -> Result<(Vec<f64>, Vec<f64>, GroupId), SceneError> {
         let r = match (radius, &s.radius) {
             (Some(r), _) => {
-                let v = *r.get_ref();
-                if !(v.is_finite() && v > 0.0) {
-                    return Err(err(r.span().start, SkeletonError::BadRadius(v)));
+                let v = &r.get_ref().0;
+                if v.is_empty() {
+                    return Err(at(r.span().start, "radius: the list is empty".into()));
                 }
-                v
+                if let Some(bad) = v.iter().find(|x| !(x.is_finite() && **x > 0.0)) {
+                    return Err(err(r.span().start, SkeletonError::BadRadius(*bad)));
+                }
+                v.clone()
             }
-            (None, Some(d)) => *d.get_ref(),
+            (None, Some(d)) => vec![*d.get_ref()],
             (None, None) => {
                 return Err(at(
                     element_at,
@@ -254,11 +333,17 @@ pub(crate) fn build(s: &Spanned<SkeletonSection>, at: At) -> Result<Built, Scene
             }
         };
         let w = match strength {
-            Some(w) if !w.get_ref().is_finite() => {
-                return Err(err(w.span().start, SkeletonError::BadStrength(*w.get_ref())));
+            Some(w) => {
+                let v = &w.get_ref().0;
+                if v.is_empty() {
+                    return Err(at(w.span().start, "strength: the list is empty".into()));
+                }
+                if let Some(bad) = v.iter().find(|x| !x.is_finite()) {
+                    return Err(err(w.span().start, SkeletonError::BadStrength(*bad)));
+                }
+                v.clone()
             }
-            Some(w) => *w.get_ref(),
-            None => 1.0,
+            None => vec![1.0],
         };
         let g = match group {
             Some(g) => skeleton
@@ -268,40 +353,76 @@ pub(crate) fn build(s: &Spanned<SkeletonSection>, at: At) -> Result<Built, Scene
         };
         Ok((r, w, g))
     };
-    let add =
-        |skeleton: &mut Skeleton, shape: Shape, (r, w, g): (f64, f64, GroupId), offset: usize| {
-            let e = Element::new(shape, r)
-                .and_then(|e| e.with_strength(w))
-                .map_err(|e| err(offset, e))?;
-            skeleton.push(e.in_group(g)).map_err(|e| err(offset, e))
-        };
+    // How many values a radius or strength list may have: one, or `n` (per end or point).
+    let count = |v: &Option<Spanned<Numbers>>, got: usize, n: usize, what: &str, kind: &str| match v
+    {
+        Some(v) if got != 1 && got != n => Err(at(
+            v.span().start,
+            if n == 1 {
+                format!(
+                    "a {kind} takes one {what} (got a list of {got}); only segments, polylines and curves taper"
+                )
+            } else {
+                format!("a {kind} takes one {what} or {n} (got {got})")
+            },
+        )),
+        _ => Ok(()),
+    };
+    let add = |skeleton: &mut Skeleton, e: Result<Element, SkeletonError>, g, offset: usize| {
+        let e = e.map_err(|e| err(offset, e))?;
+        skeleton.push(e.in_group(g)).map_err(|e| err(offset, e))
+    };
     let v3 = |a: &[f64; 3]| DVec3::from_array(*a);
+    let last = |v: &[f64]| v[v.len() - 1];
 
     for p in s.point.iter().flatten() {
-        let c = common(p.at.span().start, &p.radius, &p.strength, &p.group, &skeleton)?;
+        let (r, w, g) = common(p.at.span().start, &p.radius, &p.strength, &p.group, &skeleton)?;
+        count(&p.radius, r.len(), 1, "radius", "point")?;
+        count(&p.strength, w.len(), 1, "strength", "point")?;
         let at_ = v3(p.at.get_ref());
         if !at_.is_finite() {
             return Err(err(p.at.span().start, SkeletonError::NonFinite));
         }
-        add(&mut skeleton, Shape::Point(at_), c, p.at.span().start)?;
+        let e = Element::new(Shape::Point(at_), r[0]).and_then(|e| e.with_strength(w[0]));
+        add(&mut skeleton, e, g, p.at.span().start)?;
     }
     for sg in s.segment.iter().flatten() {
-        let c = common(sg.a.span().start, &sg.radius, &sg.strength, &sg.group, &skeleton)?;
+        let (r, w, g) = common(sg.a.span().start, &sg.radius, &sg.strength, &sg.group, &skeleton)?;
+        count(&sg.radius, r.len(), 2, "radius", "segment")?;
+        count(&sg.strength, w.len(), 2, "strength", "segment")?;
         let seg = Segment::new(v3(sg.a.get_ref()), v3(sg.b.get_ref()))
             .map_err(|e| err(sg.b.span().start, e))?;
-        add(&mut skeleton, Shape::Segment(seg), c, sg.a.span().start)?;
+        let e = Element::new(Shape::Segment(seg), r[0])
+            .and_then(|e| e.with_end_radius(last(&r)))
+            .and_then(|e| e.with_strength(w[0]))
+            .and_then(|e| e.with_end_strength(last(&w)));
+        add(&mut skeleton, e, g, sg.a.span().start)?;
     }
     for pl in s.polyline.iter().flatten() {
-        let (r, w, g) =
-            common(pl.points.span().start, &pl.radius, &pl.strength, &pl.group, &skeleton)?;
+        let pat = pl.points.span().start;
+        let (r, w, g) = common(pat, &pl.radius, &pl.strength, &pl.group, &skeleton)?;
         let pts: Vec<DVec3> = pl.points.get_ref().iter().map(v3).collect();
-        let range =
-            skeleton.add_polyline(&pts, r, g).map_err(|e| err(pl.points.span().start, e))?;
-        set_strength(&mut skeleton, range, w).map_err(|e| err(pl.points.span().start, e))?;
+        count(&pl.radius, r.len(), pts.len(), "radius", "polyline (per point)")?;
+        count(&pl.strength, w.len(), pts.len(), "strength", "polyline (per point)")?;
+        let range = if r.len() == 1 {
+            skeleton.add_polyline(&pts, r[0], g)
+        } else {
+            skeleton.add_tapered_polyline(&pts, &r, g)
+        }
+        .map_err(|e| err(pat, e))?;
+        if w.len() == 1 {
+            set_strength(&mut skeleton, range, w[0]).map_err(|e| err(pat, e))?;
+        } else {
+            for (k, i) in range.enumerate() {
+                skeleton.set_end_strengths(i, (w[k], w[k + 1])).map_err(|e| err(pat, e))?;
+            }
+        }
     }
     for cv in s.curve.iter().flatten() {
-        let (r, w, g) =
-            common(cv.bezier.span().start, &cv.radius, &cv.strength, &cv.group, &skeleton)?;
+        let cat = cv.bezier.span().start;
+        let (r, w, g) = common(cat, &cv.radius, &cv.strength, &cv.group, &skeleton)?;
+        count(&cv.radius, r.len(), 2, "radius", "curve (start and end)")?;
+        count(&cv.strength, w.len(), 1, "strength", "curve")?;
         let tol = match &cv.tolerance {
             Some(t) => {
                 let v = *t.get_ref();
@@ -313,17 +434,20 @@ pub(crate) fn build(s: &Spanned<SkeletonSection>, at: At) -> Result<Built, Scene
                 }
                 v
             }
-            None => 0.1 * r,
+            None => 0.1 * r[0].min(last(&r)),
         };
         let curve = CubicCurve::bezier(cv.bezier.get_ref().map(DVec3::from_array));
-        let range =
-            skeleton.add_curve(&curve, tol, r, g).map_err(|e| err(cv.bezier.span().start, e))?;
-        set_strength(&mut skeleton, range, w).map_err(|e| err(cv.bezier.span().start, e))?;
+        let range = skeleton
+            .add_tapered_curve(&curve, tol, (r[0], last(&r)), g)
+            .map_err(|e| err(cat, e))?;
+        set_strength(&mut skeleton, range, w[0]).map_err(|e| err(cat, e))?;
     }
     for (kind, list) in [("triangle", &s.triangle), ("polygon", &s.polygon)] {
         for pg in list.iter().flatten() {
             let vat = pg.vertices.span().start;
-            let c = common(vat, &pg.radius, &pg.strength, &pg.group, &skeleton)?;
+            let (r, w, g) = common(vat, &pg.radius, &pg.strength, &pg.group, &skeleton)?;
+            count(&pg.radius, r.len(), 1, "radius", kind)?;
+            count(&pg.strength, w.len(), 1, "strength", kind)?;
             let vs: Vec<DVec3> = pg.vertices.get_ref().iter().map(v3).collect();
             if kind == "triangle" && vs.len() != 3 {
                 return Err(at(
@@ -334,9 +458,27 @@ pub(crate) fn build(s: &Spanned<SkeletonSection>, at: At) -> Result<Built, Scene
                     ),
                 ));
             }
+            if let Some(m) = &pg.polygon_method {
+                conv_only("polygon_method", m.span().start)?;
+            }
+            let method =
+                polygon_method(&pg.polygon_method, &pg.image_resolution, Some(default_method), at)?;
             let poly = Polygon::new(vs).map_err(|e| err(vat, e))?;
-            add(&mut skeleton, Shape::Polygon(poly), c, vat)?;
+            let e = Element::new(Shape::Polygon(poly), r[0])
+                .and_then(|e| e.with_strength(w[0]))
+                .and_then(|e| e.with_polygon_method(method));
+            add(&mut skeleton, e, g, vat)?;
         }
+    }
+    for j in s.junction.iter().flatten() {
+        let direction = j.direction.as_ref().map(|d| v3(d.get_ref()));
+        skeleton.add_junction(v3(j.at.get_ref()), direction).map_err(|e| {
+            let offset = match (&e, &j.direction) {
+                (SkeletonError::BadDirection(_), Some(d)) => d.span().start,
+                _ => j.at.span().start,
+            };
+            err(offset, e)
+        })?;
     }
     if skeleton.is_empty() {
         return Err(at(
@@ -382,6 +524,67 @@ pub(crate) fn build(s: &Spanned<SkeletonSection>, at: At) -> Result<Built, Scene
         )),
     };
     Ok(Built { field: Arc::new(field), combine, section_at })
+}
+
+/// The polygon method from `polygon_method` and `image_resolution` keys (a polygon's own,
+/// over the section's `default`).
+fn polygon_method(
+    method: &Option<Spanned<String>>,
+    resolution: &Option<Spanned<i64>>,
+    default: Option<PolygonMethod>,
+    at: At,
+) -> Result<PolygonMethod, SceneError> {
+    let res = match resolution {
+        Some(r) => {
+            let v = *r.get_ref();
+            if !(4..=MAX_IMAGE_RESOLUTION as i64).contains(&v) {
+                return Err(at(
+                    r.span().start,
+                    format!(
+                        "image_resolution must be between 4 and {MAX_IMAGE_RESOLUTION} pixels (got {v})"
+                    ),
+                ));
+            }
+            Some(v as usize)
+        }
+        None => None,
+    };
+    let base = default.unwrap_or_default();
+    let m = match method.as_ref().map(|m| (m.get_ref().as_str(), m.span().start)) {
+        None => match (base, res) {
+            (PolygonMethod::Image { .. }, Some(n)) => PolygonMethod::Image { resolution: n },
+            (PolygonMethod::Exact, Some(_)) => {
+                let r = resolution.as_ref().map_or(0, |r| r.span().start);
+                return Err(at(
+                    r,
+                    "image_resolution applies to polygon_method = \"image\" only".into(),
+                ));
+            }
+            (b, None) => b,
+        },
+        Some(("exact", offset)) => {
+            if res.is_some() {
+                return Err(at(
+                    offset,
+                    "image_resolution applies to polygon_method = \"image\" only".into(),
+                ));
+            }
+            PolygonMethod::Exact
+        }
+        Some(("image", _)) => PolygonMethod::Image {
+            resolution: res.unwrap_or(match base {
+                PolygonMethod::Image { resolution } => resolution,
+                PolygonMethod::Exact => DEFAULT_IMAGE_RESOLUTION,
+            }),
+        },
+        Some((other, offset)) => {
+            return Err(at(
+                offset,
+                format!("unknown polygon_method '{other}'; expected exact or image"),
+            ));
+        }
+    };
+    Ok(m)
 }
 
 fn set_strength(
@@ -667,6 +870,123 @@ radius = 0.05
     }
 
     #[test]
+    fn junctions_tapers_angle_scaling_and_polygon_methods_parse() {
+        let tee = "[[skeleton.segment]]\na = [-0.6, 0, 0]\nb = [0.6, 0, 0]\n\
+                   [[skeleton.segment]]\na = [0, 0, 0]\nb = [0, 0.6, 0]\n";
+        let plain = parse(&format!("[skeleton]\nradius = 0.1\n{tee}")).unwrap();
+        let joint = parse(&format!(
+            "[skeleton]\nradius = 0.1\n{tee}[[skeleton.junction]]\nat = [0, 0, 0]\n"
+        ))
+        .unwrap();
+        let above = DVec3::new(0.0, 0.0, 0.11);
+        assert!(plain.field.eval(above) < 0.0, "the plain tee bulges above its junction");
+        assert!(joint.field.eval(above) > 0.0, "the junction removes the bulge");
+        // The bar was split at the junction: one more element.
+        assert_eq!(joint.skeleton.as_ref().unwrap().element_count(), 3);
+
+        // A tapered segment, a tapered polyline, a tapered curve, per-end strengths.
+        let s = parse(
+            "[skeleton]\n[[skeleton.segment]]\na = [-0.8, 0, 0]\nb = [0.8, 0, 0]\nradius = [0.05, 0.15]\n\
+             strength = [1, 1.5]\n[[skeleton.polyline]]\npoints = [[0, 0.5, 0], [0.3, 0.5, 0], [0.6, 0.5, 0]]\n\
+             radius = [0.05, 0.08, 0.05]\nstrength = [1, 2, 1]\n[[skeleton.curve]]\nbezier = [[0, -0.5, 0], [0.2, -0.3, 0], [0.4, -0.7, 0], [0.6, -0.5, 0]]\n\
+             radius = [0.03, 0.06]\n",
+        )
+        .unwrap();
+        let f = &s.field;
+        assert!(f.eval(DVec3::new(-0.4, 0.0, 0.1)) > 0.0, "thin end");
+        assert!(f.eval(DVec3::new(0.4, 0.0, 0.1)) < 0.0, "thick end");
+        // The polyline's middle point weighs 2: thicker there than at its ends.
+        assert!(f.eval(DVec3::new(0.3, 0.5, 0.09)) < 0.0, "heavy middle");
+        assert!(f.eval(DVec3::new(0.05, 0.5, 0.09)) > 0.0, "light end");
+
+        let cross = "[[skeleton.segment]]\na = [-1, 0, 0]\nb = [1, 0, 0]\n\
+                     [[skeleton.segment]]\na = [0, 0, -1]\nb = [0, 0, 1]\n";
+        let bulge = |extra: &str| {
+            let s = parse(&format!(
+                "[skeleton]\nblend = \"super-elliptic\"\nradius = 0.1\n{extra}{cross}"
+            ))
+            .unwrap();
+            s.field.eval(DVec3::new(0.0, 0.11, 0.0))
+        };
+        assert!(bulge("") < 0.0 && bulge("angle_scaled = true\n") > 0.0);
+
+        let square = "vertices = [[0, 0, 0], [0.5, 0, 0], [0.5, 0.5, 0], [0, 0.5, 0]]\n";
+        let img = parse(&format!(
+            "[skeleton]\nradius = 0.1\npolygon_method = \"image\"\nimage_resolution = 60\n\
+             [[skeleton.polygon]]\n{square}[[skeleton.polygon]]\n{square}polygon_method = \"exact\"\n"
+        ))
+        .unwrap();
+        let ex = parse(&format!(
+            "[skeleton]\nradius = 0.1\n[[skeleton.polygon]]\n{square}[[skeleton.polygon]]\n{square}"
+        ))
+        .unwrap();
+        let p = DVec3::new(0.25, 0.3, 0.12);
+        let (a, b) = (img.field.eval(p), ex.field.eval(p));
+        assert!(a != b && (a - b).abs() < 1e-2, "{a} vs {b}");
+    }
+
+    #[test]
+    fn bad_junctions_tapers_and_methods_are_reported_with_their_position() {
+        let seg = "[[skeleton.segment]]\na = [0, 0, 0]\nb = [1, 0, 0]\n";
+        // A junction with a single limb: at its `at`.
+        let (l, c, m) = error(&format!(
+            "[skeleton]\nradius = 0.1\n{seg}[[skeleton.junction]]\nat = [0, 0, 0]\n"
+        ));
+        assert_eq!((l, c), (10, 6), "{m}");
+        assert!(m.contains("at least 2 limbs"), "{m}");
+        // Collinear limbs: fine (any direction across them).
+        let two = "[[skeleton.segment]]\na = [0, 0, 0]\nb = [-1, 0, 0]\n";
+        parse(&format!(
+            "[skeleton]\nradius = 0.1\n{seg}{two}[[skeleton.junction]]\nat = [0, 0, 0]\n"
+        ))
+        .unwrap();
+        // A zero direction: at the direction.
+        let (l, c, m) = error(&format!(
+            "[skeleton]\nradius = 0.1\n{seg}{two}[[skeleton.junction]]\nat = [0, 0, 0]\ndirection = [0, 0, 0]\n"
+        ));
+        assert_eq!((l, c), (14, 13), "{m}");
+        assert!(m.contains("non-zero"), "{m}");
+        // Junctions with another blend.
+        let (_, _, m) = error(&format!(
+            "[skeleton]\nblend = \"union\"\nradius = 0.1\n{seg}{two}[[skeleton.junction]]\nat = [0, 0, 0]\n"
+        ));
+        assert!(m.contains("does not apply to the union blend"), "{m}");
+        // Three radii on a segment; two on a point; a negative one in a list.
+        let (l, c, m) = error(&format!("[skeleton]\n{seg}radius = [0.1, 0.2, 0.3]\n"));
+        assert_eq!((l, c), (8, 10), "{m}");
+        assert!(m.contains("one radius or 2 (got 3)"), "{m}");
+        let (_, _, m) =
+            error("[skeleton]\n[[skeleton.point]]\nat = [0, 0, 0]\nradius = [0.1, 0.2]\n");
+        assert!(m.contains("only segments, polylines and curves taper"), "{m}");
+        let (_, _, m) = error(&format!("[skeleton]\n{seg}radius = [0.1, -0.2]\n"));
+        assert!(m.contains("radius must be a positive length (got -0.2)"), "{m}");
+        let (_, _, m) = error(
+            "[skeleton]\n[[skeleton.polyline]]\npoints = [[0, 0, 0], [1, 0, 0], [2, 0, 0]]\nradius = [0.1, 0.2]\n",
+        );
+        assert!(m.contains("one radius or 3 (got 2)"), "{m}");
+        let (_, _, m) = error(&format!("[skeleton]\n{seg}radius = \"thick\"\n"));
+        assert!(m.contains("a number or a list of numbers"), "{m}");
+        // Polygon methods.
+        let tri = "[[skeleton.triangle]]\nvertices = [[0, 0, 0], [1, 0, 0], [0, 1, 0]]\n";
+        let (l, c, m) =
+            error(&format!("[skeleton]\nradius = 0.1\npolygon_method = \"raster\"\n{tri}"));
+        assert_eq!((l, c), (6, 18), "{m}");
+        assert!(m.contains("unknown polygon_method 'raster'"), "{m}");
+        let (_, _, m) = error(&format!("[skeleton]\nradius = 0.1\nimage_resolution = 40\n{tri}"));
+        assert!(m.contains("applies to polygon_method = \"image\" only"), "{m}");
+        let (_, _, m) = error(&format!(
+            "[skeleton]\nradius = 0.1\npolygon_method = \"image\"\nimage_resolution = 2\n{tri}"
+        ));
+        assert!(m.contains("between 4 and 1024"), "{m}");
+        let (_, _, m) = error(&format!(
+            "[skeleton]\nblend = \"sum\"\nradius = 0.1\npolygon_method = \"image\"\n{tri}"
+        ));
+        assert!(m.contains("'polygon_method' does not apply to the sum blend"), "{m}");
+        let (_, _, m) = error(&format!("[skeleton]\nradius = 0.1\nangle_scaled = true\n{tri}"));
+        assert!(m.contains("'angle_scaled' does not apply"), "{m}");
+    }
+
+    #[test]
     fn a_skeleton_combines_with_a_formula() {
         let seg = "radius = 0.1\n[[skeleton.segment]]\na = [-0.5, 0, 0]\nb = [0.5, 0, 0]\n";
         let s = parse(&format!(
@@ -711,30 +1031,18 @@ radius = 0.05
 mod example_meshes {
     use crate::Scene;
     use skelform_mesh::check::check;
-    use skelform_polygonize::grid::{Options, polygonize};
+    use skelform_polygonize::grid::{Options, Resolution, polygonize};
 
-    /// Every example skeleton scene polygonizes (with the grid method, at the scene's
-    /// resolution) into closed, manifold, consistently oriented pieces, as many as its
-    /// comment says.
-    #[test]
-    fn example_skeleton_scenes_make_closed_manifold_meshes() {
-        let expected = [
-            ("segment-vs-points.toml", 3),
-            ("tee.toml", 1),
-            ("starfish.toml", 1),
-            ("fingers.toml", 1),
-            ("curve.toml", 1),
-            ("blade.toml", 1),
-            ("elliptic.toml", 1),
-            ("combination.toml", 1),
-            ("skeleton-and-formula.toml", 1),
-        ];
+    /// Polygonizes each scene (grid method, at the scene's resolution or at `samples` per
+    /// axis) and checks that it is closed, manifold, consistently oriented, outward, in the
+    /// expected number of pieces.
+    fn check_examples(expected: &[(&str, usize)], samples: Option<usize>) {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/skeleton");
-        for (file, pieces) in expected {
+        for &(file, pieces) in expected {
             let scene = Scene::load(&dir.join(file)).unwrap_or_else(|e| panic!("{e}"));
             let opts = Options {
                 domain: scene.domain,
-                resolution: scene.resolution,
+                resolution: samples.map_or(scene.resolution, Resolution::Samples),
                 ..Default::default()
             };
             let (mesh, _) =
@@ -748,5 +1056,61 @@ mod example_meshes {
             );
             assert_eq!(r.outward, Some(true), "{file}");
         }
+    }
+
+    /// Every example skeleton scene polygonizes (with the grid method, at the scene's
+    /// resolution) into closed, manifold, consistently oriented pieces, as many as its
+    /// comment says.
+    #[test]
+    fn example_skeleton_scenes_make_closed_manifold_meshes() {
+        check_examples(
+            &[
+                ("segment-vs-points.toml", 3),
+                ("tee.toml", 1),
+                ("starfish.toml", 1),
+                ("fingers.toml", 1),
+                ("curve.toml", 1),
+                ("blade.toml", 1),
+                ("elliptic.toml", 1),
+                ("combination.toml", 1),
+                ("skeleton-and-formula.toml", 1),
+            ],
+            None,
+        );
+    }
+
+    /// The blend-control, taper, kernel and polygon-method examples, on a coarser grid (96
+    /// samples across) to keep the debug test suite quick.
+    #[test]
+    fn blend_control_examples_make_closed_manifold_meshes() {
+        check_examples(
+            &[
+                ("tee-junction.toml", 1),
+                ("starfish-junction.toml", 1),
+                ("tree-junctions.toml", 1),
+                ("crossing-cylinders.toml", 1),
+                ("crossing-cylinders-scaled.toml", 1),
+                ("tapered.toml", 3),
+                ("image-polygons.toml", 1),
+                ("elliptic-segments.toml", 1),
+                ("acute-combination.toml", 1),
+                ("acute-combination-unclamped.toml", 1),
+            ],
+            Some(96),
+        );
+    }
+
+    /// One skeleton under each kernel (fig. 5.54).
+    #[test]
+    fn kernel_examples_make_three_pieces_each() {
+        check_examples(
+            &[
+                ("kernel-gaussian.toml", 3),
+                ("kernel-wyvill.toml", 3),
+                ("kernel-triweight.toml", 3),
+                ("kernel-bspline.toml", 3),
+            ],
+            Some(96),
+        );
     }
 }

@@ -2,6 +2,9 @@
 //! through `eval_many`, z-layers in parallel on all cores). Throughput is in lattice points
 //! per second.
 //!
+//! Also `gaussian-polygon`: one Gaussian polygon's convolution, default path against
+//! adaptive quadrature.
+//!
 //! Two skeletons:
 //! * `segments`: 22 segments in five chains and five point sources, Gaussian convolution;
 //! * `hand-like`: the dissertation's hand in element counts (ch. 6: 15 palm triangles, 48
@@ -119,5 +122,38 @@ fn bench(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench);
+/// One Gaussian polygon (the trapezoid of DIS fig. 6.3, radius 0.1) evaluated with its
+/// gradient at 4 096 points around it: the default path (closed form up to a fixed 20-point
+/// rule per edge, `gauss_edge`) against adaptive Gauss–Kronrod quadrature of every edge.
+fn gaussian_polygon(c: &mut Criterion) {
+    use skelform_skeleton::convolution::{convolve, convolve_adaptive};
+    use skelform_skeleton::{Polygon, Shape};
+    let v = |x: f64, y: f64| DVec3::new(x, y, 0.0);
+    let shape = Shape::Polygon(
+        Polygon::new(vec![v(0.0, 0.0), v(0.5, 0.0), v(0.4, 0.3), v(0.1, 0.3)]).unwrap(),
+    );
+    let points: Vec<DVec3> = (0..4096)
+        .map(|i| {
+            let (a, b, c) = (i % 16, (i / 16) % 16, i / 256);
+            DVec3::new(-0.2 + 0.06 * a as f64, -0.2 + 0.045 * b as f64, -0.3 + 0.04 * c as f64)
+        })
+        .collect();
+    let mut group = c.benchmark_group("gaussian-polygon");
+    group.sample_size(10);
+    group.throughput(Throughput::Elements(points.len() as u64));
+    group.bench_function("fast", |b| {
+        b.iter(|| points.iter().map(|p| convolve(Kernel::Gaussian, &shape, 0.1, *p).0).sum::<f64>())
+    });
+    group.bench_function("adaptive", |b| {
+        b.iter(|| {
+            points
+                .iter()
+                .map(|p| convolve_adaptive(Kernel::Gaussian, &shape, 0.1, *p).0)
+                .sum::<f64>()
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, bench, gaussian_polygon);
 criterion_main!(benches);

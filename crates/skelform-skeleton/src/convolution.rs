@@ -13,10 +13,12 @@
 //!   form — `∫_0^R k(√(z² + ρ²)) ρ dρ = T(|z|) − T(√(z² + R²))` with `T` the kernel's
 //!   [tail](Kernel::tail) — so what remains is, per edge, one integral over the angle the
 //!   edge subtends. For the Wyvill and triweight kernels (polynomials in `s²`) that integral
-//!   is closed form too (powers of `tan φ` and `φ`); for the Gaussian and the B-spline it is
-//!   smooth and done by adaptive Gauss–Kronrod quadrature (each interval refined until the
-//!   Gauss and Kronrod estimates agree to 10⁻¹² of the integrand's peak, which leaves the
-//!   Kronrod value far more accurate than that). The angles themselves add up to
+//!   is closed form too (powers of `tan φ` and `φ`); for the Gaussian it is Owen's T
+//!   function, computed from `erf`s and one fixed 20-point Gauss–Legendre rule
+//!   ([`crate::gauss_edge`]); for the B-spline it is smooth and done by adaptive
+//!   Gauss–Kronrod quadrature (each interval refined until the Gauss and Kronrod estimates
+//!   agree to 10⁻¹² of the integrand's peak, which leaves the Kronrod value far more
+//!   accurate than that; [`convolve_adaptive`] takes this route for the Gaussian too). The angles themselves add up to
 //!   `2π·winding`, which is snapped to the exact multiple.
 //!   Divided by [`Kernel::area_norm`], so a large polygon of radius `r` is a slab of
 //!   half-thickness `r`.
@@ -30,6 +32,7 @@ use std::f64::consts::TAU;
 
 use glam::{DVec2, DVec3};
 
+use crate::gauss_edge::edge_part;
 use crate::geometry::{Polygon, Segment, Shape};
 use crate::kernel::{Kernel, OMEGA};
 use crate::quad::integrate;
@@ -42,8 +45,8 @@ const EDGE_RTOL: f64 = 1e-12;
 pub(crate) struct PreparedSegment {
     a: DVec3,
     u: DVec3,
-    /// Length in radii.
-    len: f64,
+    /// Length in world units.
+    length: f64,
     inv_r: f64,
     /// `strength / line_norm`.
     scale: f64,
@@ -54,25 +57,43 @@ impl PreparedSegment {
         PreparedSegment {
             a: s.a(),
             u: s.direction(),
-            len: s.length() / radius,
+            length: s.length(),
             inv_r: 1.0 / radius,
             scale: strength / kernel.line_norm(),
         }
     }
 
     pub(crate) fn eval(&self, kernel: Kernel, p: DVec3, want_grad: bool) -> (f64, DVec3) {
-        let w = (p - self.a) * self.inv_r;
+        let (v, g, _) = self.eval_at(kernel, p, self.inv_r, want_grad);
+        (v, g)
+    }
+
+    /// The value at `p` with the radius `1/inv_r` instead of the segment's own, its
+    /// gradient at that fixed radius, and the derivative with respect to the radius (for
+    /// tapered segments, whose radius depends on `p`). The integral depends on the radius
+    /// only through `w = (p − a)/r` and the length in radii `ℓ = L/r`, so
+    /// `∂v/∂r = −(∇_w I·w + ∂I/∂ℓ·ℓ)/r` with `∂I/∂ℓ` the kernel at the far end.
+    pub(crate) fn eval_at(
+        &self,
+        kernel: Kernel,
+        p: DVec3,
+        inv_r: f64,
+        want_grad: bool,
+    ) -> (f64, DVec3, f64) {
+        let w = (p - self.a) * inv_r;
+        let len = self.length * inv_r;
         let tau = w.dot(self.u);
         let perp = w - tau * self.u;
         let d2 = perp.length_squared();
-        let (v, dv) = kernel.line_integral(d2, -tau, self.len - tau);
+        let (v, dv) = kernel.line_integral(d2, -tau, len - tau);
         if !want_grad {
-            return (self.scale * v, DVec3::ZERO);
+            return (self.scale * v, DVec3::ZERO, 0.0);
         }
         let ka = kernel.value(w.length_squared());
-        let kb = kernel.value((w - self.len * self.u).length_squared());
-        let g = (ka - kb) * self.u + 2.0 * dv * perp;
-        (self.scale * v, g * (self.scale * self.inv_r))
+        let kb = kernel.value((w - len * self.u).length_squared());
+        let gw = (ka - kb) * self.u + 2.0 * dv * perp;
+        let dv_dr = -self.scale * inv_r * (gw.dot(w) + kb * len);
+        (self.scale * v, gw * (self.scale * inv_r), dv_dr)
     }
 }
 
@@ -95,6 +116,8 @@ pub(crate) struct PreparedPolygon {
     inv_r: f64,
     /// `strength / area_norm`.
     scale: f64,
+    /// Gaussian edges by adaptive quadrature instead of [`crate::gauss_edge`].
+    adaptive: bool,
 }
 
 impl PreparedPolygon {
@@ -118,6 +141,7 @@ impl PreparedPolygon {
             edges,
             inv_r: 1.0 / radius,
             scale: strength / kernel.area_norm(),
+            adaptive: false,
         }
     }
 
@@ -150,6 +174,13 @@ impl PreparedPolygon {
             theta += sign * (pb - pa);
             if z2 + h * h >= support2 {
                 continue; // the whole edge is beyond the kernel's reach
+            }
+            if kernel == Kernel::Gaussian && !self.adaptive {
+                // T = k/(2ω) for the Gaussian: one integral serves value and gradient.
+                let part = (-OMEGA * z2).exp() * (edge_part(h, tb) - edge_part(h, ta));
+                tail_sum += sign * part / (2.0 * OMEGA);
+                k_sum += sign * part;
+                continue;
             }
             tail_sum += sign * edge_integral(kernel, z2, h, pa, pb, false);
             if want_grad {
@@ -304,5 +335,20 @@ pub fn convolve(kernel: Kernel, shape: &Shape, radius: f64, p: DVec3) -> (f64, D
         Shape::Polygon(poly) => {
             PreparedPolygon::new(kernel, poly, radius, 1.0).eval(kernel, p, true)
         }
+    }
+}
+
+/// [`convolve`] with every polygon edge integrated by adaptive Gauss–Kronrod quadrature,
+/// the Gaussian's too (the default path gives the Gaussian's edges in closed form up to a
+/// fixed 20-point rule, [`crate::gauss_edge`]): the reference the fast path is tested
+/// against, and the baseline of the `polygon` benchmark.
+pub fn convolve_adaptive(kernel: Kernel, shape: &Shape, radius: f64, p: DVec3) -> (f64, DVec3) {
+    match shape {
+        Shape::Polygon(poly) => {
+            let mut prepared = PreparedPolygon::new(kernel, poly, radius, 1.0);
+            prepared.adaptive = true;
+            prepared.eval(kernel, p, true)
+        }
+        other => convolve(kernel, other, radius, p),
     }
 }

@@ -36,6 +36,22 @@ pub enum SkeletonError {
     UnknownJoint(String),
     #[error("joint '{0}' is defined twice")]
     DuplicateJoint(String),
+    #[error("radius must be one number or one per point: {points} points, {radii} radii")]
+    RadiusCount { points: usize, radii: usize },
+    #[error("only segments (and polylines and curves) can taper: give one radius")]
+    TaperNeedsSegment,
+    #[error(
+        "junction at {at:?} needs at least 2 limbs (segments with an end there), found {found}"
+    )]
+    TooFewLimbs { at: [f64; 3], found: usize },
+    #[error("the limbs of the junction at {0:?} are in different blend groups")]
+    LimbsInSeveralGroups([f64; 3]),
+    #[error("direction must be a non-zero vector (got {0:?})")]
+    BadDirection([f64; 3]),
+    #[error("junctions apply to the convolution blend only, not to {0}")]
+    JunctionNeedsConvolution(&'static str),
+    #[error("image_resolution must be between 4 and {max} pixels (got {0})", max = crate::image::MAX_IMAGE_RESOLUTION)]
+    BadImageResolution(usize),
     #[error("the skeleton has no elements")]
     Empty,
     #[error("iso applies to density blends (convolution, sum, combination), not to {0}")]

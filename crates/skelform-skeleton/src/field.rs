@@ -8,7 +8,7 @@
 //! | `Sum(k)` | `c − Σ wᵢ·k(dᵢ/rᵢ)` (soft objects on distances) | §5.6.1 (5.19) applied to distances; bulges where elements meet |
 //! | `Union(Linear)` | `min dᵢ/rᵢ − 1` | eqs. 5.6, 5.9, 5.10 |
 //! | `Union(Squared)` | `min dᵢ²/rᵢ² − 1` | eq. 5.7 (no square root) |
-//! | `SuperElliptic { range, thumbweight: t }` | `1 − Σ [1 − Pᵢ/Rᵢ]₊ᵗ`, `Pᵢ = dᵢ − rᵢ`, `Rᵢ = range·rᵢ` | eqs. 5.12 (`t = 2`, elliptic), 5.13 |
+//! | `SuperElliptic { range, thumbweight: t, .. }` | `1 − Σ [1 − Pᵢ/Rᵢ]₊ᵗ`, `Pᵢ = dᵢ − rᵢ`, `Rᵢ = range·rᵢ` (times `1 − cos θ` with `angle_scaled`) | eqs. 5.12 (`t = 2`, elliptic), 5.13, 5.14 |
 //! | `Combination { range, clamp }` | `c − (B + [cos θ]₊·(U − B))`, `B = 1 − Π(1 − Pᵢ)`, `U = max Pᵢ` | eqs. 5.15–5.17 |
 //!
 //! `dᵢ` is the distance from `p` to element `i`, `rᵢ` its radius, `wᵢ` its strength, `c` the
@@ -20,6 +20,11 @@
 //! 5.15, which leaves a protuberance at acute angles). The super-elliptic sum over all
 //! elements is the natural extension of the two-primitive formula: on a lone element's
 //! surface it is 0, and beyond every element's range it is 1.
+//!
+//! A tapered segment's radius and strength are interpolated along it by the parameter of the
+//! point's projection, clamped (appendix A.2), in every blend; their gradients enter the
+//! field's gradient. A junction's limbs ([`Skeleton::add_junction`]) are taken out of the
+//! plain sum and added as one joint combination density ([`crate::junction`]).
 //!
 //! Every element has a box outside which it contributes nothing (the dissertation's speed-up,
 //! §3.7 and §7.4): the kernel's support for density blends, the range for the super-elliptic
@@ -46,8 +51,10 @@ use skelform_field::{Aabb, Field};
 use crate::SkeletonError;
 use crate::convolution::{PreparedPolygon, PreparedSegment};
 use crate::geometry::{Nearest, Shape};
+use crate::image::{ImagePolygon, PolygonMethod};
+use crate::junction::PreparedJunction;
 use crate::kernel::Kernel;
-use crate::skeleton::Skeleton;
+use crate::skeleton::{Element, Skeleton};
 
 /// How a distance surface measures distance (DIS eqs. 5.6 and 5.7).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
@@ -71,8 +78,11 @@ pub enum Blend {
     Union(Falloff),
     /// Rockwood's super-elliptic blend (DIS eq. 5.13; `thumbweight = 2` is the elliptic
     /// blend 5.12). `range` is each element's range of influence beyond its surface, in
-    /// multiples of its radius.
-    SuperElliptic { range: f64, thumbweight: f64 },
+    /// multiples of its radius. With `angle_scaled`, every range is multiplied by
+    /// `1 − cos θ`, `θ` the angle between the gradients of the two elements nearest `p` (in
+    /// units of their ranges): eq. 5.14, full blend where the primitives meet at right
+    /// angles, the union where their gradients agree, which removes the blend's bulge.
+    SuperElliptic { range: f64, thumbweight: f64, angle_scaled: bool },
     /// The combination surface (DIS eqs. 5.15–5.17): a product blend where the skeleton is
     /// concave, the union where it is convex. `range` is the width of the blend zone, in
     /// multiples of the radius.
@@ -105,7 +115,7 @@ impl Blend {
             }
         };
         match *self {
-            Blend::SuperElliptic { range, thumbweight } => {
+            Blend::SuperElliptic { range, thumbweight, .. } => {
                 positive("range", range)?;
                 if !(thumbweight.is_finite() && thumbweight >= 1.0) {
                     return Err(SkeletonError::BadParameter {
@@ -129,6 +139,11 @@ pub const DEFAULT_ISO: f64 = 0.5;
 /// The union blend's cap, in radii: beyond `d = 2r` an element is culled.
 const UNION_CAP: f64 = 2.0;
 
+/// The smallest range factor `1 − cos θ` of the angle-scaled super-elliptic blend: where
+/// the two gradients agree the blend is 1 % of its range wide (a union to the eye) rather
+/// than zero, which would send the field to −∞ inside.
+const MIN_ANGLE_SCALE: f64 = 0.01;
+
 /// Points per inner batch: accumulators live on the stack.
 const CHUNK: usize = 64;
 
@@ -137,6 +152,40 @@ enum Prepared {
     Point { c: DVec3, inv_r: f64, strength: f64 },
     Segment(PreparedSegment),
     Polygon(PreparedPolygon),
+    Image(ImagePolygon),
+}
+
+/// Radius and strength varying linearly along a segment, by the parameter of the point's
+/// projection, clamped to the segment.
+#[derive(Clone, Copy, Debug)]
+struct Taper {
+    a: DVec3,
+    /// `(b − a)/|b − a|²`: `∇α`.
+    grad_alpha: DVec3,
+    ra: f64,
+    dr: f64,
+    wa: f64,
+    dw: f64,
+}
+
+impl Taper {
+    /// Radius, its gradient, strength, its gradient at `p`.
+    #[inline]
+    fn at(&self, p: DVec3) -> (f64, DVec3, f64, DVec3) {
+        let t = (p - self.a).dot(self.grad_alpha);
+        if t <= 0.0 {
+            (self.ra, DVec3::ZERO, self.wa, DVec3::ZERO)
+        } else if t >= 1.0 {
+            (self.ra + self.dr, DVec3::ZERO, self.wa + self.dw, DVec3::ZERO)
+        } else {
+            (
+                self.ra + self.dr * t,
+                self.grad_alpha * self.dr,
+                self.wa + self.dw * t,
+                self.grad_alpha * self.dw,
+            )
+        }
+    }
 }
 
 #[derive(Clone, Debug)]
@@ -146,6 +195,7 @@ struct Item {
     shape: Shape,
     radius: f64,
     strength: f64,
+    taper: Option<Taper>,
     conv: Prepared,
 }
 
@@ -153,6 +203,36 @@ impl Item {
     #[inline]
     fn contains(&self, p: DVec3) -> bool {
         p.cmpge(self.lo).all() && p.cmple(self.hi).all()
+    }
+
+    /// Radius, its gradient, strength, its gradient at `p`.
+    #[inline]
+    fn radius_strength(&self, p: DVec3) -> (f64, DVec3, f64, DVec3) {
+        match &self.taper {
+            Some(t) => t.at(p),
+            None => (self.radius, DVec3::ZERO, self.strength, DVec3::ZERO),
+        }
+    }
+
+    /// The element's signed distance from `p` in ranges, `a = (d − r)/(range·r)` (`d` the
+    /// distance, `r` the radius there), its gradient, and the nearest point (with its
+    /// Jacobian when `jac`).
+    #[inline]
+    fn in_ranges(&self, p: DVec3, range: f64, jac: bool) -> (f64, DVec3, Nearest) {
+        let nearest = if jac {
+            self.shape.nearest_with_jacobian(p)
+        } else {
+            Nearest { point: self.shape.nearest(p), jacobian: DMat3::ZERO }
+        };
+        let v = p - nearest.point;
+        let d = v.length();
+        let (r, gr, _, _) = self.radius_strength(p);
+        let rr = range * r;
+        let a = (d - r) / rr;
+        let gd = if d > 0.0 { v / d } else { DVec3::ZERO };
+        // a = d/(range·r) − 1/range.
+        let ga = gd / rr - gr * (d / (rr * r));
+        (a, ga, nearest)
     }
 }
 
@@ -178,6 +258,16 @@ struct Acc {
     prod: f64,
     prod_g: DVec3,
     best: [Influence; 2],
+    /// The angle-scaled super-elliptic blend's range factor `1 − cos θ` and its gradient.
+    scale: f64,
+    scale_g: DVec3,
+}
+
+/// The elements of one clique: those evaluated one by one, and junctions.
+#[derive(Clone, Debug)]
+struct Clique {
+    plain: Vec<usize>,
+    junctions: Vec<usize>,
 }
 
 /// A skeleton's field: inside negative, exact gradients, deterministic.
@@ -197,8 +287,8 @@ pub struct SkeletonField {
     blend: Blend,
     iso: f64,
     items: Vec<Item>,
-    /// Element indices of each clique with elements.
-    cliques: Vec<Vec<usize>>,
+    cliques: Vec<Clique>,
+    junctions: Vec<PreparedJunction>,
     bounds: Aabb,
     seeds: Vec<DVec3>,
     min_radius: f64,
@@ -212,65 +302,110 @@ impl SkeletonField {
         if skeleton.is_empty() {
             return Err(SkeletonError::Empty);
         }
+        if !skeleton.junctions().is_empty() && !matches!(blend, Blend::Convolution(_)) {
+            return Err(SkeletonError::JunctionNeedsConvolution(blend.name()));
+        }
         let mut items = Vec::with_capacity(skeleton.len());
         let mut bounds: Option<Aabb> = None;
         let mut min_radius = f64::INFINITY;
         for e in skeleton.elements() {
-            let r = e.radius();
-            min_radius = min_radius.min(r);
-            let reach = r * match blend {
-                Blend::Convolution(k) | Blend::Sum(k) => k.support(),
-                Blend::Union(_) => UNION_CAP,
-                Blend::SuperElliptic { range, .. } => 1.0 + range,
-                Blend::Combination { range, .. } => 1.0 + 0.5 * range,
-            };
-            let kernel = match blend {
-                Blend::Convolution(k) => k,
-                _ => Kernel::Gaussian,
-            };
-            let conv = match &e.shape {
-                Shape::Point(c) => {
-                    Prepared::Point { c: *c, inv_r: 1.0 / r, strength: e.strength() }
-                }
-                Shape::Segment(s) => {
-                    Prepared::Segment(PreparedSegment::new(kernel, s, r, e.strength()))
-                }
-                Shape::Polygon(p) => {
-                    Prepared::Polygon(PreparedPolygon::new(kernel, p, r, e.strength()))
-                }
-            };
-            let (lo, hi) = e.shape.bounds();
-            let (lo, hi) = (lo - DVec3::splat(reach), hi + DVec3::splat(reach));
-            let b = Aabb { min: lo, max: hi };
+            let item = Self::item(e, blend);
+            min_radius = min_radius.min(e.radii().0).min(e.radii().1);
+            let b = Aabb { min: item.lo, max: item.hi };
             bounds = Some(bounds.map_or(b, |x| x.union(&b)));
-            items.push(Item {
-                lo,
-                hi,
-                shape: e.shape.clone(),
-                radius: r,
-                strength: e.strength(),
-                conv,
-            });
+            items.push(item);
         }
-        let cliques: Vec<Vec<usize>> = skeleton
+        let boxes: Vec<(DVec3, DVec3)> = items.iter().map(|it| (it.lo, it.hi)).collect();
+        let junctions: Vec<PreparedJunction> = skeleton
+            .junctions()
+            .iter()
+            .map(|j| PreparedJunction::new(j, skeleton, &boxes))
+            .collect::<Result<_, _>>()?;
+        let mut limb_of = vec![None; items.len()];
+        for (j, pj) in junctions.iter().enumerate() {
+            for l in &pj.limbs {
+                limb_of[l.element] = Some(j);
+            }
+        }
+        let cliques: Vec<Clique> = skeleton
             .blend_cliques()
             .into_iter()
             .map(|groups| {
-                (0..skeleton.len())
+                let members: Vec<usize> = (0..skeleton.len())
                     .filter(|&i| groups.contains(&skeleton.elements()[i].group()))
-                    .collect()
+                    .collect();
+                let plain = members.iter().copied().filter(|&i| limb_of[i].is_none()).collect();
+                let mut js: Vec<usize> = members.iter().filter_map(|&i| limb_of[i]).collect();
+                js.sort_unstable();
+                js.dedup();
+                Clique { plain, junctions: js }
             })
-            .filter(|c: &Vec<usize>| !c.is_empty())
+            .filter(|c| !(c.plain.is_empty() && c.junctions.is_empty()))
             .collect();
         Ok(SkeletonField {
             blend,
             iso: DEFAULT_ISO,
             items,
             cliques,
+            junctions,
             bounds: bounds.ok_or(SkeletonError::Empty)?,
             seeds: skeleton.seed_points(),
             min_radius,
         })
+    }
+
+    fn item(e: &Element, blend: Blend) -> Item {
+        let (ra, rb) = e.radii();
+        let (wa, wb) = e.strengths();
+        let r = ra.max(rb);
+        let reach = r * match blend {
+            Blend::Convolution(k) | Blend::Sum(k) => k.support(),
+            Blend::Union(_) => UNION_CAP,
+            Blend::SuperElliptic { range, .. } => 1.0 + range,
+            Blend::Combination { range, .. } => 1.0 + 0.5 * range,
+        };
+        let kernel = match blend {
+            Blend::Convolution(k) => k,
+            _ => Kernel::Gaussian,
+        };
+        let taper = match &e.shape {
+            Shape::Segment(s) if e.is_tapered() => Some(Taper {
+                a: s.a(),
+                grad_alpha: (s.b() - s.a()) / (s.b() - s.a()).length_squared(),
+                ra,
+                dr: rb - ra,
+                wa,
+                dw: wb - wa,
+            }),
+            _ => None,
+        };
+        let conv = match &e.shape {
+            Shape::Point(c) => Prepared::Point { c: *c, inv_r: 1.0 / ra, strength: wa },
+            Shape::Segment(s) => Prepared::Segment(PreparedSegment::new(
+                kernel,
+                s,
+                ra,
+                if taper.is_some() { 1.0 } else { wa },
+            )),
+            Shape::Polygon(p) => match e.polygon_method() {
+                PolygonMethod::Exact => {
+                    Prepared::Polygon(PreparedPolygon::new(kernel, p, ra, e.strength()))
+                }
+                PolygonMethod::Image { resolution } => {
+                    Prepared::Image(ImagePolygon::new(kernel, p, ra, e.strength(), resolution))
+                }
+            },
+        };
+        let (lo, hi) = e.shape.bounds();
+        Item {
+            lo: lo - DVec3::splat(reach),
+            hi: hi + DVec3::splat(reach),
+            shape: e.shape.clone(),
+            radius: ra,
+            strength: wa,
+            taper,
+            conv,
+        }
     }
 
     /// The same field with another iso value (density blends only; must be positive, since
@@ -320,7 +455,40 @@ impl SkeletonField {
             Blend::Union(Falloff::Squared) => UNION_CAP * UNION_CAP,
             _ => 0.0,
         };
-        Acc { v, g: DVec3::ZERO, prod: 1.0, prod_g: DVec3::ZERO, best: [NO_INFLUENCE; 2] }
+        Acc {
+            v,
+            g: DVec3::ZERO,
+            prod: 1.0,
+            prod_g: DVec3::ZERO,
+            best: [NO_INFLUENCE; 2],
+            scale: 1.0,
+            scale_g: DVec3::ZERO,
+        }
+    }
+
+    /// One element's convolution with kernel `k` at `p` (strength included).
+    #[inline]
+    fn convolve(&self, k: Kernel, it: &Item, p: DVec3, want_grad: bool) -> (f64, DVec3) {
+        match &it.conv {
+            Prepared::Point { c, inv_r, strength } => {
+                let w = (p - *c) * *inv_r;
+                let (kv, dk) = k.value_d(w.length_squared());
+                (
+                    strength * kv,
+                    if want_grad { w * (2.0 * strength * dk * inv_r) } else { DVec3::ZERO },
+                )
+            }
+            Prepared::Segment(s) => match &it.taper {
+                None => s.eval(k, p, want_grad),
+                Some(t) => {
+                    let (r, gr, w, gw) = t.at(p);
+                    let (v, g, dv_dr) = s.eval_at(k, p, 1.0 / r, want_grad);
+                    (w * v, if want_grad { w * (g + dv_dr * gr) + v * gw } else { DVec3::ZERO })
+                }
+            },
+            Prepared::Polygon(poly) => poly.eval(k, p, want_grad),
+            Prepared::Image(img) => img.eval(k, p, want_grad),
+        }
     }
 
     /// Adds one element's influence at `p` (already known to be inside its box).
@@ -328,41 +496,32 @@ impl SkeletonField {
     fn accumulate(&self, it: &Item, p: DVec3, acc: &mut Acc, want_grad: bool) {
         match self.blend {
             Blend::Convolution(k) => {
-                let (v, g) = match &it.conv {
-                    Prepared::Point { c, inv_r, strength } => {
-                        let w = (p - *c) * *inv_r;
-                        let (kv, dk) = k.value_d(w.length_squared());
-                        (
-                            strength * kv,
-                            if want_grad { w * (2.0 * strength * dk * inv_r) } else { DVec3::ZERO },
-                        )
-                    }
-                    Prepared::Segment(s) => s.eval(k, p, want_grad),
-                    Prepared::Polygon(poly) => poly.eval(k, p, want_grad),
-                };
+                let (v, g) = self.convolve(k, it, p, want_grad);
                 acc.v += v;
                 acc.g += g;
             }
             Blend::Sum(k) => {
-                let n = it.shape.nearest(p);
-                let w = (p - n) / it.radius;
-                let (kv, dk) = k.value_d(w.length_squared());
-                acc.v += it.strength * kv;
+                let v = p - it.shape.nearest(p);
+                let (r, gr, w, gw) = it.radius_strength(p);
+                let d2 = v.length_squared();
+                let (kv, dk) = k.value_d(d2 / (r * r));
+                acc.v += w * kv;
                 if want_grad {
-                    acc.g += w * (2.0 * it.strength * dk / it.radius);
+                    acc.g += (v - gr * (d2 / r)) * (2.0 * w * dk / (r * r)) + gw * kv;
                 }
             }
             Blend::Union(falloff) => {
-                let n = it.shape.nearest(p);
-                let v = p - n;
+                let v = p - it.shape.nearest(p);
                 let d = v.length();
+                let (r, gr, _, _) = it.radius_strength(p);
                 let (x, g) = match falloff {
-                    Falloff::Linear => {
-                        (d / it.radius, if d > 0.0 { v / (d * it.radius) } else { DVec3::ZERO })
-                    }
+                    Falloff::Linear => (
+                        d / r,
+                        if d > 0.0 { v / (d * r) } else { DVec3::ZERO } - gr * (d / (r * r)),
+                    ),
                     Falloff::Squared => {
-                        let r2 = it.radius * it.radius;
-                        (d * d / r2, v * (2.0 / r2))
+                        let r2 = r * r;
+                        (d * d / r2, v * (2.0 / r2) - gr * (2.0 * d * d / (r2 * r)))
                     }
                 };
                 if x < acc.v {
@@ -370,27 +529,22 @@ impl SkeletonField {
                     acc.g = g;
                 }
             }
-            Blend::SuperElliptic { range, thumbweight } => {
-                let n = it.shape.nearest(p);
-                let v = p - n;
-                let d = v.length();
-                let rr = range * it.radius;
-                let x = 1.0 - (d - it.radius) / rr;
+            Blend::SuperElliptic { range, thumbweight, .. } => {
+                let (a, ga, _) = it.in_ranges(p, range, false);
+                let x = 1.0 - a / acc.scale;
                 if x > 0.0 {
                     acc.v += x.powf(thumbweight);
-                    if want_grad && d > 0.0 {
-                        acc.g -= v * (thumbweight * x.powf(thumbweight - 1.0) / (rr * d));
+                    if want_grad {
+                        let gx = (a * acc.scale_g / acc.scale - ga) / acc.scale;
+                        acc.g += gx * (thumbweight * x.powf(thumbweight - 1.0));
                     }
                 }
             }
             Blend::Combination { range, .. } => {
-                let nearest = it.shape.nearest_with_jacobian(p);
-                let v = p - nearest.point;
-                let d = v.length();
-                let rr = range * it.radius;
-                let (h, dh) = decay(0.5 + (d - it.radius) / rr);
+                let (a, ga, nearest) = it.in_ranges(p, range, true);
+                let (h, dh) = decay(0.5 + a);
                 if h > 0.0 {
-                    let grad = if d > 0.0 { v * (dh / (rr * d)) } else { DVec3::ZERO };
+                    let grad = ga * dh;
                     acc.prod_g = acc.prod_g * (1.0 - h) - acc.prod * grad;
                     acc.prod *= 1.0 - h;
                     let inf = Influence { p: h, grad, nearest };
@@ -403,6 +557,50 @@ impl SkeletonField {
                 }
             }
         }
+    }
+
+    /// For the angle-scaled super-elliptic blend: finds the two elements nearest `p` in
+    /// units of their ranges and sets the range factor `1 − cos θ` from their gradients.
+    fn angle_scale(&self, elements: &[usize], range: f64, p: DVec3, acc: &mut Acc) {
+        let mut best: [(f64, Option<Nearest>); 2] = [(f64::INFINITY, None), (f64::INFINITY, None)];
+        for &e in elements {
+            let it = &self.items[e];
+            if !it.contains(p) {
+                continue;
+            }
+            let (a, _, n) = it.in_ranges(p, range, true);
+            if a < best[0].0 {
+                best[1] = best[0];
+                best[0] = (a, Some(n));
+            } else if a < best[1].0 {
+                best[1] = (a, Some(n));
+            }
+        }
+        if let (Some(n0), Some(n1)) = (best[0].1, best[1].1) {
+            // cos θ between the gradients p − nᵢ equals that between the vectors p → nᵢ.
+            let (c, gc) = convexity(p, &n0, &n1);
+            let s = 1.0 - c;
+            if s > MIN_ANGLE_SCALE {
+                acc.scale = s;
+                acc.scale_g = -gc;
+            } else {
+                acc.scale = MIN_ANGLE_SCALE;
+                acc.scale_g = DVec3::ZERO;
+            }
+        }
+    }
+
+    /// A junction's combined density at `p` (see [`crate::junction`]).
+    fn junction_density(&self, j: &PreparedJunction, k: Kernel, p: DVec3) -> f64 {
+        j.density(k, p, |e, p| {
+            let it = &self.items[e];
+            if !it.contains(p) {
+                return (0.0, DVec3::ZERO, it.radius, 0.0);
+            }
+            let (v, g) = self.convolve(k, it, p, true);
+            let (r, _, w, _) = it.radius_strength(p);
+            (v, g, r, w)
+        })
     }
 
     /// The clique's field value (inside negative) and gradient from its accumulator.
@@ -444,11 +642,39 @@ impl SkeletonField {
             let mut accs = [init; CHUNK];
             for clique in &self.cliques {
                 accs[..pts.len()].fill(init);
-                for &e in clique {
+                if let Blend::SuperElliptic { range, angle_scaled: true, .. } = self.blend {
+                    for (p, acc) in pts.iter().zip(accs.iter_mut()) {
+                        self.angle_scale(&clique.plain, range, *p, acc);
+                    }
+                }
+                for &e in &clique.plain {
                     let it = &self.items[e];
                     for (p, acc) in pts.iter().zip(accs.iter_mut()) {
                         if it.contains(*p) {
                             self.accumulate(it, *p, acc, want_grad);
+                        }
+                    }
+                }
+                if let Blend::Convolution(k) = self.blend {
+                    for &j in &clique.junctions {
+                        let junction = &self.junctions[j];
+                        for (p, acc) in pts.iter().zip(accs.iter_mut()) {
+                            if !junction.contains(*p) {
+                                continue;
+                            }
+                            acc.v += self.junction_density(junction, k, *p);
+                            if want_grad {
+                                let h = junction.step;
+                                let mut g = DVec3::ZERO;
+                                for axis in 0..3 {
+                                    let mut dp = DVec3::ZERO;
+                                    dp[axis] = h;
+                                    g[axis] = (self.junction_density(junction, k, *p + dp)
+                                        - self.junction_density(junction, k, *p - dp))
+                                        / (2.0 * h);
+                                }
+                                acc.g += g;
+                            }
                         }
                     }
                 }

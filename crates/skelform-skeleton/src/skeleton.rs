@@ -8,6 +8,7 @@ use glam::DVec3;
 use crate::SkeletonError;
 use crate::curve::CubicCurve;
 use crate::geometry::{Polygon, Segment, Shape};
+use crate::image::PolygonMethod;
 
 /// A blend group, by index into [`Skeleton::groups`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -40,12 +41,20 @@ impl Group {
 /// One skeletal element: a shape with a radius (the distance from the skeleton at which a
 /// lone element's surface lies) and a strength (a weight on its density; negative
 /// strengths carve).
+///
+/// A segment may be **tapered**: its radius and strength at `b` may differ from those at
+/// `a`. At a query point they are interpolated linearly by the parameter `α ∈ [0, 1]` of the
+/// point's projection onto the segment (clamped), as the dissertation's appendix A.2 does
+/// (`near.radius` from `alpha`, DIS §5.6.7 "radii may differ per endpoint").
 #[derive(Clone, Debug, PartialEq)]
 pub struct Element {
     pub shape: Shape,
     radius: f64,
+    end_radius: f64,
     strength: f64,
+    end_strength: f64,
     group: GroupId,
+    polygon_method: PolygonMethod,
 }
 
 impl Element {
@@ -55,15 +64,57 @@ impl Element {
         if !(radius.is_finite() && radius > 0.0) {
             return Err(SkeletonError::BadRadius(radius));
         }
-        Ok(Element { shape, radius, strength: 1.0, group: GroupId::DEFAULT })
+        Ok(Element {
+            shape,
+            radius,
+            end_radius: radius,
+            strength: 1.0,
+            end_strength: 1.0,
+            group: GroupId::DEFAULT,
+            polygon_method: PolygonMethod::Exact,
+        })
     }
 
-    /// The same element with another strength (any finite number).
+    /// The same element with another strength (any finite number), at both ends.
     pub fn with_strength(mut self, strength: f64) -> Result<Element, SkeletonError> {
         if !strength.is_finite() {
             return Err(SkeletonError::BadStrength(strength));
         }
         self.strength = strength;
+        self.end_strength = strength;
+        Ok(self)
+    }
+
+    /// A tapered segment: radius `radius` at `a` (as given to [`Element::new`]) and
+    /// `end_radius` at `b`. Only segments taper; other shapes are an error.
+    pub fn with_end_radius(mut self, end_radius: f64) -> Result<Element, SkeletonError> {
+        if !(end_radius.is_finite() && end_radius > 0.0) {
+            return Err(SkeletonError::BadRadius(end_radius));
+        }
+        if end_radius != self.radius && !matches!(self.shape, Shape::Segment(_)) {
+            return Err(SkeletonError::TaperNeedsSegment);
+        }
+        self.end_radius = end_radius;
+        Ok(self)
+    }
+
+    /// A segment whose strength goes from its current value at `a` to `end_strength` at
+    /// `b` (per-vertex weights, DIS §6.4). Only segments; other shapes are an error.
+    pub fn with_end_strength(mut self, end_strength: f64) -> Result<Element, SkeletonError> {
+        if !end_strength.is_finite() {
+            return Err(SkeletonError::BadStrength(end_strength));
+        }
+        if end_strength != self.strength && !matches!(self.shape, Shape::Segment(_)) {
+            return Err(SkeletonError::TaperNeedsSegment);
+        }
+        self.end_strength = end_strength;
+        Ok(self)
+    }
+
+    /// How a polygon's convolution is computed (ignored for other shapes).
+    pub fn with_polygon_method(mut self, method: PolygonMethod) -> Result<Element, SkeletonError> {
+        method.check()?;
+        self.polygon_method = method;
         Ok(self)
     }
 
@@ -73,12 +124,34 @@ impl Element {
         self
     }
 
+    /// The radius (at `a` for a tapered segment).
     pub fn radius(&self) -> f64 {
         self.radius
     }
 
+    /// Radii at the two ends of a segment (equal unless tapered; both the radius for other
+    /// shapes).
+    pub fn radii(&self) -> (f64, f64) {
+        (self.radius, self.end_radius)
+    }
+
+    /// The strength (at `a` for a segment with per-end weights).
     pub fn strength(&self) -> f64 {
         self.strength
+    }
+
+    /// Strengths at the two ends of a segment.
+    pub fn strengths(&self) -> (f64, f64) {
+        (self.strength, self.end_strength)
+    }
+
+    /// Whether radius or strength vary along the element.
+    pub fn is_tapered(&self) -> bool {
+        self.radius != self.end_radius || self.strength != self.end_strength
+    }
+
+    pub fn polygon_method(&self) -> PolygonMethod {
+        self.polygon_method
     }
 
     pub fn group(&self) -> GroupId {
@@ -97,6 +170,40 @@ impl Element {
 pub struct Skeleton {
     elements: Vec<Element>,
     groups: Vec<Group>,
+    junctions: Vec<Junction>,
+}
+
+/// Joints where segments (its *limbs*) meet, to be blended by the joint combination surface
+/// of DIS eq. 5.37 and appendix A.2 instead of plain convolution (see [`crate::junction`]).
+/// Made by [`Skeleton::add_junction`].
+///
+/// A junction is a connected set of segments — the limbs meeting at its joints and the
+/// chains that continue from them — with one or more joints, each with its own direction
+/// of convexity; a joint declared on segments already in a junction joins it. The junction
+/// refers to its limbs by index, so it follows them when a pose moves them
+/// ([`Skeleton::transform_elements`]); default directions are recomputed from the moved
+/// limbs, user-given ones stay as given.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Junction {
+    /// The joints.
+    pub joints: Vec<JunctionJoint>,
+    /// Indices of the limbs: every segment of the connected set.
+    pub limbs: Vec<usize>,
+    /// For every limb, whether its ends `a` and `b` are free (at no joint and shared with no
+    /// other limb): the union pulls free ends inward by their radius.
+    pub free_ends: Vec<[bool; 2]>,
+}
+
+/// One joint of a [`Junction`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct JunctionJoint {
+    /// Where it was declared.
+    pub at: DVec3,
+    /// The segments with an end at the joint, and whether that end is their `a`.
+    pub direct: Vec<(usize, bool)>,
+    /// The user's direction in which no blending happens (unit); `None`: the normal of the
+    /// plane of the joint and its direct limbs' far ends.
+    pub direction: Option<DVec3>,
 }
 
 impl Default for Skeleton {
@@ -111,6 +218,7 @@ impl Skeleton {
         Skeleton {
             elements: Vec::new(),
             groups: vec![Group { name: "default".into(), blends_with: BTreeSet::new() }],
+            junctions: Vec::new(),
         }
     }
 
@@ -178,6 +286,22 @@ impl Skeleton {
         }
         if let Some(e) = self.elements.get_mut(index) {
             e.strength = strength;
+            e.end_strength = strength;
+        }
+        Ok(())
+    }
+
+    /// Gives segment `index` the strength `wa` at `a` and `wb` at `b` (per-vertex weights,
+    /// DIS §6.4); for a polyline, consecutive segments sharing a point should share its
+    /// weight. Not a segment: an error unless `wa == wb`.
+    pub fn set_end_strengths(
+        &mut self,
+        index: usize,
+        (wa, wb): (f64, f64),
+    ) -> Result<(), SkeletonError> {
+        if let Some(e) = self.elements.get_mut(index) {
+            let updated = e.clone().with_strength(wa)?.with_end_strength(wb)?;
+            *e = updated;
         }
         Ok(())
     }
@@ -248,6 +372,60 @@ impl Skeleton {
         Ok(start..self.elements.len())
     }
 
+    /// A tapered segment: radius `ra` at `a`, `rb` at `b`, interpolated along it.
+    pub fn add_tapered_segment(
+        &mut self,
+        a: DVec3,
+        b: DVec3,
+        (ra, rb): (f64, f64),
+        group: GroupId,
+    ) -> Result<usize, SkeletonError> {
+        let e = Element::new(Shape::Segment(Segment::new(a, b)?), ra)?.with_end_radius(rb)?;
+        self.push(e.in_group(group))
+    }
+
+    /// A chain of tapered segments: `radii[i]` is the radius at `points[i]`, so consecutive
+    /// segments agree where they meet. Returns the range of the segments' indices.
+    pub fn add_tapered_polyline(
+        &mut self,
+        points: &[DVec3],
+        radii: &[f64],
+        group: GroupId,
+    ) -> Result<Range<usize>, SkeletonError> {
+        if radii.len() != points.len() {
+            return Err(SkeletonError::RadiusCount { points: points.len(), radii: radii.len() });
+        }
+        if let Some(r) = radii.iter().find(|r| !(r.is_finite() && **r > 0.0)) {
+            return Err(SkeletonError::BadRadius(*r));
+        }
+        let range = self.add_polyline(points, radii[0], group)?;
+        for (k, i) in range.clone().enumerate() {
+            let e = &mut self.elements[i];
+            e.radius = radii[k];
+            e.end_radius = radii[k + 1];
+        }
+        Ok(range)
+    }
+
+    /// A cubic curve whose radius goes from `r0` at its start to `r1` at its end, in
+    /// proportion to arc length along the segments that approximate it.
+    pub fn add_tapered_curve(
+        &mut self,
+        curve: &CubicCurve,
+        tolerance: f64,
+        (r0, r1): (f64, f64),
+        group: GroupId,
+    ) -> Result<Range<usize>, SkeletonError> {
+        let points = curve.to_polyline(tolerance, 1024)?;
+        let mut arc = vec![0.0];
+        for w in points.windows(2) {
+            arc.push(arc[arc.len() - 1] + (w[1] - w[0]).length());
+        }
+        let total = arc[arc.len() - 1].max(f64::MIN_POSITIVE);
+        let radii: Vec<f64> = arc.iter().map(|s| r0 + (r1 - r0) * s / total).collect();
+        self.add_tapered_polyline(&points, &radii, group)
+    }
+
     /// A planar polygon (a triangle when given three vertices).
     pub fn add_polygon(
         &mut self,
@@ -268,6 +446,184 @@ impl Skeleton {
     ) -> Result<Range<usize>, SkeletonError> {
         let points = curve.to_polyline(tolerance, 1024)?;
         self.add_polyline(&points, radius, group)
+    }
+
+    /// Declares a joint at `at` whose limbs — every segment with an end there, and the
+    /// chains of segments continuing from their far ends — are blended by the joint
+    /// combination surface (DIS eq. 5.37) instead of plain convolution. A segment that
+    /// passes *through* `at` is split there first (its convolution is unchanged:
+    /// superposition), so the bar of a tee need not be drawn in two pieces. Only segments
+    /// already in the skeleton are considered. `direction` is the direction in which no
+    /// blending happens; by default the normal of the plane of the joint and the limbs' far
+    /// ends (appendix A.2's `NormalFromPolygon`). If the limbs are already part of a
+    /// junction (a second branch point of the same tree), the joint joins it. Returns the
+    /// junction's index.
+    pub fn add_junction(
+        &mut self,
+        at: DVec3,
+        direction: Option<DVec3>,
+    ) -> Result<usize, SkeletonError> {
+        if !at.is_finite() {
+            return Err(SkeletonError::NonFinite);
+        }
+        let direction = match direction {
+            Some(d) => {
+                if !(d.is_finite() && d.length() > 0.0) {
+                    return Err(SkeletonError::BadDirection(d.to_array()));
+                }
+                Some(d.normalize())
+            }
+            None => None,
+        };
+        let near = |p: DVec3, q: DVec3| (p - q).length() <= 1e-9 * p.abs().max_element().max(1.0);
+        // Split segments that pass through the joint.
+        for i in 0..self.elements.len() {
+            let Shape::Segment(s) = &self.elements[i].shape else { continue };
+            let (q, alpha) = s.nearest(at);
+            if near(at, q) && !near(at, s.a()) && !near(at, s.b()) {
+                let (a, b) = (s.a(), s.b());
+                let e = self.elements[i].clone();
+                let (ra, rb) = e.radii();
+                let (wa, wb) = e.strengths();
+                let (rm, wm) = (ra + alpha * (rb - ra), wa + alpha * (wb - wa));
+                let mut first = e.clone();
+                first.shape = Shape::Segment(Segment::new(a, at)?);
+                first.end_radius = rm;
+                first.end_strength = wm;
+                let mut second = e;
+                second.shape = Shape::Segment(Segment::new(at, b)?);
+                second.radius = rm;
+                second.strength = wm;
+                self.elements[i] = first;
+                self.elements.push(second);
+                // A junction holding the split segment now holds both halves.
+                let last = self.elements.len() - 1;
+                for j in &mut self.junctions {
+                    if let Some(k) = j.limbs.iter().position(|&l| l == i) {
+                        let free = j.free_ends[k];
+                        j.free_ends[k] = [free[0], false];
+                        j.limbs.push(last);
+                        j.free_ends.push([false, free[1]]);
+                    }
+                }
+            }
+        }
+        let ends = |i: usize| match &self.elements[i].shape {
+            Shape::Segment(s) => Some((s.a(), s.b())),
+            _ => None,
+        };
+        let mut direct = Vec::new();
+        for i in 0..self.elements.len() {
+            let Some((a, b)) = ends(i) else { continue };
+            if near(at, a) {
+                direct.push((i, true));
+            } else if near(at, b) {
+                direct.push((i, false));
+            }
+        }
+        if direct.len() < 2 {
+            return Err(SkeletonError::TooFewLimbs { at: at.to_array(), found: direct.len() });
+        }
+        // The connected set of segments through the joint.
+        let mut limbs: Vec<usize> = direct.iter().map(|d| d.0).collect();
+        let mut frontier: Vec<DVec3> = direct
+            .iter()
+            .filter_map(|&(i, at_a)| ends(i).map(|(a, b)| if at_a { b } else { a }))
+            .collect();
+        while let Some(pt) = frontier.pop() {
+            for i in 0..self.elements.len() {
+                if limbs.contains(&i) {
+                    continue;
+                }
+                let Some((a, b)) = ends(i) else { continue };
+                if near(pt, a) {
+                    frontier.push(b);
+                } else if near(pt, b) {
+                    frontier.push(a);
+                } else {
+                    continue;
+                }
+                limbs.push(i);
+            }
+        }
+        // Junctions sharing segments with this set merge into one, with all their joints.
+        let joint = JunctionJoint { at, direct, direction };
+        let mut joints = vec![joint];
+        let mut keep = None;
+        let mut k = 0;
+        while k < self.junctions.len() {
+            if self.junctions[k].limbs.iter().any(|l| limbs.contains(l)) {
+                let old = if keep.is_none() {
+                    keep = Some(k);
+                    k += 1;
+                    self.junctions[k - 1].clone()
+                } else {
+                    self.junctions.remove(k)
+                };
+                for l in old.limbs {
+                    if !limbs.contains(&l) {
+                        limbs.push(l);
+                    }
+                }
+                let mut old_joints = old.joints;
+                old_joints.append(&mut joints);
+                joints = old_joints;
+            } else {
+                k += 1;
+            }
+        }
+        let group = self.elements[limbs[0]].group;
+        if limbs.iter().any(|&i| self.elements[i].group != group) {
+            return Err(SkeletonError::LimbsInSeveralGroups(at.to_array()));
+        }
+        let free_ends = limbs
+            .iter()
+            .map(|&i| {
+                let (a, b) = ends(i).unwrap_or((at, at));
+                let free = |e: DVec3| {
+                    !joints.iter().any(|j| near(j.at, e))
+                        && !limbs.iter().any(|&k| {
+                            k != i && ends(k).is_some_and(|(c, d)| near(c, e) || near(d, e))
+                        })
+                };
+                [free(a), free(b)]
+            })
+            .collect();
+        let junction = Junction { joints, limbs, free_ends };
+        Ok(match keep {
+            Some(k) => {
+                self.junctions[k] = junction;
+                k
+            }
+            None => {
+                self.junctions.push(junction);
+                self.junctions.len() - 1
+            }
+        })
+    }
+
+    /// The direction of convexity of joint `joint` of `junction`: the user's, or the normal
+    /// of the plane of the joint and its direct limbs' far ends as the limbs are now (for
+    /// collinear limbs, which span no plane and do not bulge, any direction across them).
+    pub fn junction_direction(&self, junction: &Junction, joint: usize) -> DVec3 {
+        let j = &junction.joints[joint];
+        if let Some(d) = j.direction {
+            return d;
+        }
+        let mut far = Vec::new();
+        for &(i, at_a) in &j.direct {
+            if let Shape::Segment(s) = &self.elements[i].shape {
+                let (a, b) = (s.a(), s.b());
+                far.push(if at_a { b - a } else { a - b });
+            }
+        }
+        plane_normal(&far).unwrap_or_else(|| {
+            far.first().map_or(DVec3::Z, |f| f.normalize().any_orthonormal_vector())
+        })
+    }
+
+    pub fn junctions(&self) -> &[Junction] {
+        &self.junctions
     }
 
     /// One point on each element (a point, a segment's midpoint, a point inside a polygon):
@@ -295,6 +651,26 @@ impl Skeleton {
         cliques.sort();
         cliques
     }
+}
+
+/// The normal of the plane through the joint (the origin) and the limbs' far ends `far`:
+/// the sum of the cross products of consecutive limbs taken around their mean plane,
+/// each flipped to agree with the largest. Exact when the limbs are coplanar; `None` when
+/// they are collinear.
+fn plane_normal(far: &[DVec3]) -> Option<DVec3> {
+    let mut crosses: Vec<DVec3> = Vec::new();
+    for i in 0..far.len() {
+        for j in i + 1..far.len() {
+            crosses.push(far[i].normalize().cross(far[j].normalize()));
+        }
+    }
+    let big =
+        crosses.iter().copied().max_by(|a, b| a.length_squared().total_cmp(&b.length_squared()))?;
+    if big.length() < 1e-9 {
+        return None;
+    }
+    let n: DVec3 = crosses.iter().map(|c| if c.dot(big) < 0.0 { -*c } else { *c }).sum();
+    Some(n.normalize())
 }
 
 /// Maximal cliques (Bron–Kerbosch with pivoting); groups are few, so plain sets do.

@@ -303,3 +303,42 @@ fn convolution_gradients_match_central_differences() {
         }
     }
 }
+
+#[test]
+fn gaussian_polygon_fast_path_equals_adaptive_quadrature() {
+    use skelform_skeleton::convolution::convolve_adaptive;
+    // The trapezoid of fig. 6.3 and a thin sliver, at points near, on and far, including
+    // points on edges' lines (h = 0), at vertices and beyond the kernel's reach.
+    let v = |x: f64, y: f64| DVec3::new(x, y, 0.0);
+    let shapes = [
+        Polygon::new(vec![v(0.0, 0.0), v(0.5, 0.0), v(0.4, 0.3), v(0.1, 0.3)]).unwrap(),
+        Polygon::triangle(v(0.0, 0.0), v(1.0, 0.01), v(0.5, 0.03)).unwrap(),
+    ];
+    let r = 0.1;
+    let mut worst: f64 = 0.0;
+    for poly in &shapes {
+        let shape = Shape::Polygon(poly.clone());
+        for i in -4..=14 {
+            for j in -4..=8 {
+                for z in [0.0, 1e-9, 0.03, 0.1, 0.25, 0.55] {
+                    let p = DVec3::new(0.05 * i as f64, 0.05 * j as f64, z);
+                    let (a, ga) = convolve(Kernel::Gaussian, &shape, r, p);
+                    let (b, gb) = convolve_adaptive(Kernel::Gaussian, &shape, r, p);
+                    // Relative 1e-6; below 1e-15 of the plateau (far beyond the Gaussian's
+                    // cut-off at 2^-40) both are rounding noise.
+                    assert!((a - b).abs() <= 1e-6 * b.abs() + 1e-15, "at {p}: {a:e} vs {b:e}");
+                    if b.abs() > 1e-12 {
+                        worst = worst.max((a - b).abs() / b.abs());
+                    }
+                    assert!((ga - gb).length() <= 1e-6 * gb.length() + 1e-12, "∇ at {p}");
+                }
+            }
+        }
+        for vtx in poly.vertices() {
+            let (a, _) = convolve(Kernel::Gaussian, &shape, r, *vtx);
+            let (b, _) = convolve_adaptive(Kernel::Gaussian, &shape, r, *vtx);
+            assert!((a - b).abs() < 1e-6 * b, "at vertex {vtx}");
+        }
+    }
+    println!("worst relative difference {worst:.2e}");
+}

@@ -22,6 +22,25 @@ fn mixed() -> Skeleton {
         g,
     )
     .unwrap();
+    // A tapered segment with per-end strengths.
+    let e = skelform_skeleton::Element::new(
+        skelform_skeleton::Shape::Segment(
+            skelform_skeleton::Segment::new(
+                DVec3::new(-0.5, -0.4, -0.1),
+                DVec3::new(0.1, -0.5, 0.1),
+            )
+            .unwrap(),
+        ),
+        0.06,
+    )
+    .unwrap()
+    .with_end_radius(0.12)
+    .unwrap()
+    .with_strength(0.8)
+    .unwrap()
+    .with_end_strength(1.2)
+    .unwrap();
+    s.push(e).unwrap();
     s
 }
 
@@ -31,8 +50,8 @@ fn blends() -> Vec<Blend> {
     v.extend([
         Blend::Union(Falloff::Linear),
         Blend::Union(Falloff::Squared),
-        Blend::SuperElliptic { range: 1.0, thumbweight: 2.0 },
-        Blend::SuperElliptic { range: 0.7, thumbweight: 3.0 },
+        Blend::SuperElliptic { range: 1.0, thumbweight: 2.0, angle_scaled: false },
+        Blend::SuperElliptic { range: 0.7, thumbweight: 3.0, angle_scaled: true },
         Blend::Combination { range: 1.0, clamp: true },
         Blend::Combination { range: 1.5, clamp: false },
     ]);
