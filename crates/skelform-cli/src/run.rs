@@ -128,9 +128,9 @@ pub fn run_scene(scene: &Scene, a: &RunArgs) -> Result<(Mesh, report::Run, Metho
                 .map(|(m, s)| (m, report::Run::Grid(s)))
         }
         Method::NonManifold => {
-            let Some(regions) = &scene.regions else {
+            let Some((field, interest, full_grid)) = scene.nonmanifold_regions() else {
                 return Err(input(anyhow!(
-                    "{}: --method nonmanifold needs [regions] in the scene",
+                    "{}: --method nonmanifold needs [regions] or [leaf] in the scene",
                     scene.origin
                 )));
             };
@@ -141,8 +141,8 @@ pub fn run_scene(scene: &Scene, a: &RunArgs) -> Result<(Mesh, report::Run, Metho
                 cell,
                 seeds: seeds(scene, a),
                 search_stride: scene.continuation.search_stride.unwrap_or(defaults.search_stride),
-                full_grid: regions.full_grid,
-                interest: regions.interest.clone(),
+                full_grid,
+                interest,
                 max_cells: a
                     .max_cells
                     .or(scene.continuation.max_cells)
@@ -150,7 +150,6 @@ pub fn run_scene(scene: &Scene, a: &RunArgs) -> Result<(Mesh, report::Run, Metho
                 control,
                 ..defaults
             };
-            let field = regions.field.clone();
             pool.install(|| nonmanifold::polygonize(field.as_ref(), &options))
                 .map(|(m, s)| (m, report::Run::NonManifold(Box::new(s))))
         }

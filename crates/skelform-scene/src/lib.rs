@@ -24,6 +24,7 @@
 //!
 //! The format is documented with examples in `docs/SCENES.md`.
 
+mod leaf;
 mod regions;
 mod schema;
 mod skeleton;
@@ -36,6 +37,7 @@ use skelform_field::{Aabb, Field, Iso};
 use skelform_mesh::io::Format;
 use skelform_polygonize::grid::Resolution;
 
+pub use leaf::LeafRegions;
 pub use regions::Regions;
 pub use schema::{Method, ParseMethodError};
 pub use skeleton::Combine;
@@ -62,7 +64,10 @@ pub struct Scene {
     pub healed: Healed,
     /// Regions of space for the non-manifold method, when the scene has `[regions]`.
     pub regions: Option<Regions>,
-    /// True when the scene has `[regions]` and neither a formula nor a skeleton: only the
+    /// The leaf of chapter 7 as regions (beyond, vein, above, below), when the scene has
+    /// `[leaf]`; meshed by the non-manifold method like `[regions]`.
+    pub leaf: Option<LeafRegions>,
+    /// True when the scene has `[regions]` (or `[leaf]`) and neither a formula nor a skeleton: only the
     /// non-manifold method can mesh it.
     pub regions_only: bool,
     /// The field with the iso value already subtracted: its zero set is the surface.
@@ -139,6 +144,19 @@ pub enum SceneError {
 }
 
 impl Scene {
+    /// What the non-manifold method polygonizes: the region function, the pairs of interest
+    /// and whether to visit every cube; from `[leaf]` or `[regions]`.
+    pub fn nonmanifold_regions(
+        &self,
+    ) -> Option<(Arc<dyn skelform_field::RegionField>, Vec<skelform_mesh::RegionPair>, bool)> {
+        if let Some(l) = &self.leaf {
+            return Some((l.region_field(), l.interest.clone(), l.full_grid));
+        }
+        self.regions.as_ref().map(|r| {
+            (r.field.clone() as Arc<dyn skelform_field::RegionField>, r.interest.clone(), r.full_grid)
+        })
+    }
+
     /// Reads and validates a scene file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
         let shown = path.display().to_string();
