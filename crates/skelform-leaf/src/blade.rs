@@ -150,7 +150,8 @@ impl Blade {
         let mut vertex_on_margin = vec![false; vertices.len()];
         let mut edge_normal = vec![[DVec3::ZERO; 3]; triangles.len()];
         for (&(a, b), list) in &uses {
-            let n: DVec3 = list.iter().map(|&(t, _)| face_normal[t]).sum::<DVec3>().normalize_or_zero();
+            let n: DVec3 =
+                list.iter().map(|&(t, _)| face_normal[t]).sum::<DVec3>().normalize_or_zero();
             for &(t, k) in list {
                 edge_normal[t][k] = n;
                 if list.len() == 1 {
@@ -163,7 +164,8 @@ impl Blade {
         let mut vertex_normal = vec![DVec3::ZERO; vertices.len()];
         for (t, tri) in triangles.iter().enumerate() {
             for k in 0..3 {
-                let [a, b, c] = [tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]].map(|i| vertices[i as usize]);
+                let [a, b, c] =
+                    [tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]].map(|i| vertices[i as usize]);
                 let angle = (b - a).angle_between(c - a);
                 if angle.is_finite() {
                     vertex_normal[tri[k] as usize] += face_normal[t] * angle;
@@ -173,7 +175,9 @@ impl Blade {
         for n in &mut vertex_normal {
             *n = n.normalize_or_zero();
         }
-        let (lo, hi) = vertices.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(l, h), v| (l.min(*v), h.max(*v)));
+        let (lo, hi) = vertices
+            .iter()
+            .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(l, h), v| (l.min(*v), h.max(*v)));
         let scale = (hi - lo).max_element().max(1e-300);
         let mut blade = Blade {
             vertices,
@@ -223,13 +227,18 @@ impl Blade {
                 nodes[node] = Node { lo, hi, start: s as u32, count: (e - s) as u32 };
                 continue;
             }
-            let (clo, chi) = order[s..e]
-                .iter()
-                .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(l, h), &t| {
+            let (clo, chi) =
+                order[s..e].iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(l, h), &t| {
                     (l.min(centre[t as usize]), h.max(centre[t as usize]))
                 });
             let ext = chi - clo;
-            let axis = if ext.x >= ext.y && ext.x >= ext.z { 0 } else if ext.y >= ext.z { 1 } else { 2 };
+            let axis = if ext.x >= ext.y && ext.x >= ext.z {
+                0
+            } else if ext.y >= ext.z {
+                1
+            } else {
+                2
+            };
             order[s..e].sort_by(|&a, &b| {
                 centre[a as usize][axis].total_cmp(&centre[b as usize][axis]).then(a.cmp(&b))
             });

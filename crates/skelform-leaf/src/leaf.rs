@@ -9,7 +9,7 @@ use crate::LeafError;
 use crate::blade::Blade;
 use crate::regions::{BladeRegions, Fillet};
 use crate::veins::{VeinSegment, Veins};
-use crate::venation::{LeafParams, Venation, VeinKind, wrap};
+use crate::venation::{LeafParams, VeinKind, Venation, wrap};
 use crate::web::{Web, WebStats};
 
 /// A vein in space: points and the radius at each.
@@ -44,12 +44,15 @@ impl Leaf {
             let (r0, taper) = match vein.kind {
                 VeinKind::Petiole => (p.vein_radius, 1.0),
                 VeinKind::Primary => (p.vein_radius, p.tip_radius),
-                VeinKind::Secondary if p.secondary_radius > 0.0 => (p.secondary_radius, p.tip_radius),
+                VeinKind::Secondary if p.secondary_radius > 0.0 => {
+                    (p.secondary_radius, p.tip_radius)
+                }
                 VeinKind::Secondary => continue,
             };
             let chain = web.refined_chain(&vein.points);
             let pts2: Vec<DVec2> = chain.iter().map(|&k| web.points[k]).collect();
-            let points: Vec<DVec3> = chain.iter().map(|&k| wrap(web.points[k], web.curvature[k])).collect();
+            let points: Vec<DVec3> =
+                chain.iter().map(|&k| wrap(web.points[k], web.curvature[k])).collect();
             let mut along = vec![0.0];
             for w in pts2.windows(2) {
                 along.push(along.last().copied().unwrap_or(0.0) + w[0].distance(w[1]));
@@ -77,13 +80,22 @@ impl Leaf {
         stats.triangles = blade.triangles.len();
         for (i, v) in veins.iter().enumerate() {
             if v.points.len() < 2 || v.points.len() != v.radii.len() {
-                return Err(LeafError::BadVein { vein: i, why: "needs at least 2 points, each with a radius".into() });
+                return Err(LeafError::BadVein {
+                    vein: i,
+                    why: "needs at least 2 points, each with a radius".into(),
+                });
             }
             if let Some(r) = v.radii.iter().find(|r| !(r.is_finite() && **r > 0.0)) {
-                return Err(LeafError::BadVein { vein: i, why: format!("has radius {r}; radii must be positive") });
+                return Err(LeafError::BadVein {
+                    vein: i,
+                    why: format!("has radius {r}; radii must be positive"),
+                });
             }
             if let Some(w) = v.points.windows(2).position(|w| w[0] == w[1]) {
-                return Err(LeafError::BadVein { vein: i, why: format!("repeats point {} (zero-length segment)", w + 1) });
+                return Err(LeafError::BadVein {
+                    vein: i,
+                    why: format!("repeats point {} (zero-length segment)", w + 1),
+                });
             }
         }
         Ok(Leaf { venation: None, stats, blade, veins })

@@ -64,7 +64,12 @@ impl BladeRegions {
     /// documentation); only the blade when there are no veins.
     pub fn interest(&self) -> Vec<RegionPair> {
         if self.veins.is_some() {
-            vec![RegionPair(BEYOND, VEIN), RegionPair(VEIN, ABOVE), RegionPair(VEIN, BELOW), RegionPair(ABOVE, BELOW)]
+            vec![
+                RegionPair(BEYOND, VEIN),
+                RegionPair(VEIN, ABOVE),
+                RegionPair(VEIN, BELOW),
+                RegionPair(ABOVE, BELOW),
+            ]
         } else {
             vec![RegionPair(ABOVE, BELOW)]
         }
@@ -114,6 +119,10 @@ impl RegionField for BladeRegions {
     }
 
     fn region_ids(&self) -> Option<Vec<u32>> {
-        Some(if self.veins.is_some() { vec![BEYOND, VEIN, ABOVE, BELOW] } else { vec![BEYOND, ABOVE, BELOW] })
+        Some(if self.veins.is_some() {
+            vec![BEYOND, VEIN, ABOVE, BELOW]
+        } else {
+            vec![BEYOND, ABOVE, BELOW]
+        })
     }
 }

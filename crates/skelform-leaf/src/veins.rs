@@ -95,6 +95,8 @@ impl Veins {
 
     /// Bounding box of everything the veins reach.
     pub fn bounds(&self) -> (DVec3, DVec3) {
-        self.reach.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(l, h), r| (l.min(r.lo), h.max(r.hi)))
+        self.reach
+            .iter()
+            .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(l, h), r| (l.min(r.lo), h.max(r.hi)))
     }
 }

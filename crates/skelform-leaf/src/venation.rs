@@ -131,7 +131,8 @@ impl Default for LeafParams {
 impl LeafParams {
     /// Checks every parameter; the error names the first bad one.
     pub fn check(&self) -> Result<(), LeafError> {
-        let bad = |name, value: f64, expected| Err(LeafError::BadParameter { name, value, expected });
+        let bad =
+            |name, value: f64, expected| Err(LeafError::BadParameter { name, value, expected });
         let pos = |v: f64| v.is_finite() && v > 0.0;
         if !pos(self.size) {
             return bad("size", self.size, "a positive length");
@@ -221,13 +222,16 @@ impl Venation {
         };
         // Lobe k: its angle, length and the margin tips on each side as (angle, radius).
         for k in 0..n {
-            let theta = if n > 1 { -spread / 2.0 + spread * k as f64 / (n - 1) as f64 } else { 0.0 };
+            let theta =
+                if n > 1 { -spread / 2.0 + spread * k as f64 / (n - 1) as f64 } else { 0.0 };
             let rel = if n > 1 && spread > 0.0 { theta / (spread / 2.0) } else { 0.0 };
             let len = p.size * (1.0 - p.outer_shortening * rel * rel);
             let u = polar(theta, 1.0);
             let lateral_left = DVec2::new(-u.y, u.x);
             // The margin's radius at an angle off the primary: the lobe profile.
-            let profile = |off: f64| len * (sinus + (1.0 - sinus) * (1.0 - off / half_gap).max(0.0).powf(0.7));
+            let profile = |off: f64| {
+                len * (sinus + (1.0 - sinus) * (1.0 - off / half_gap).max(0.0).powf(0.7))
+            };
             // Tips on the left (counter-clockwise side) from the sinus out, then the right.
             let mut sides: [Vec<(f64, f64)>; 2] = [Vec::new(), Vec::new()];
             for j in 0..m {
@@ -302,7 +306,8 @@ impl Venation {
                 for t in [1.0 / 3.0, 2.0 / 3.0, 1.0] {
                     let mut q = s0.lerp(tip, t) + bow * (4.0 * t * (1.0 - t));
                     if t < 1.0 {
-                        q += DVec2::new(rng.symmetric(), rng.symmetric()) * (0.3 * p.jitter * p.size);
+                        q += DVec2::new(rng.symmetric(), rng.symmetric())
+                            * (0.3 * p.jitter * p.size);
                     }
                     let prev = *pts.last().unwrap_or(&start);
                     pts.push(v.add_point(q, prev));
@@ -361,10 +366,14 @@ impl Venation {
                 (pos(w), (tip - pts[chain[0]]).length())
             };
             for side in 0..2 {
-                let mut list =
-                    if side == 0 { self.veins[i].left.clone() } else { self.veins[i].right.clone() };
+                let mut list = if side == 0 {
+                    self.veins[i].left.clone()
+                } else {
+                    self.veins[i].right.clone()
+                };
                 list.sort_by(|a, b| {
-                    let (ka, kb) = (key(a, &self.veins, &self.points), key(b, &self.veins, &self.points));
+                    let (ka, kb) =
+                        (key(a, &self.veins, &self.points), key(b, &self.veins, &self.points));
                     ka.0.cmp(&kb.0).then(ka.1.total_cmp(&kb.1))
                 });
                 if side == 0 {

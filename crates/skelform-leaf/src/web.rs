@@ -69,7 +69,10 @@ impl Web {
             let mut poly = v.web_polygon(a, b);
             let pts: Vec<DVec2> = poly.iter().map(|&k| web.points[k]).collect();
             let area2 = signed_area2(&pts);
-            if poly.len() < 3 || area2.abs() < 1e-12 * v.points.iter().map(|p| p.length_squared()).fold(0.0, f64::max) {
+            if poly.len() < 3
+                || area2.abs()
+                    < 1e-12 * v.points.iter().map(|p| p.length_squared()).fold(0.0, f64::max)
+            {
                 return Err(LeafError::BadWeb(format!(
                     "the polygon between margin points {a} and {b} has no area"
                 )));
@@ -90,7 +93,7 @@ impl Web {
         }
         let mut poly: Vec<usize> = (0..outline.len()).collect();
         let a2 = signed_area2(outline);
-        if !(a2.abs() > 0.0) || !simple(outline) {
+        if a2 == 0.0 || !a2.is_finite() || !simple(outline) {
             return Err(LeafError::BadOutline);
         }
         if a2 < 0.0 {
@@ -158,7 +161,8 @@ impl Web {
             let poly = self.expanded(&poly);
             let pts: Vec<DVec2> = poly.iter().map(|&k| self.points[k]).collect();
             let area = signed_area2(&pts) / 2.0;
-            let perimeter: f64 = (0..pts.len()).map(|i| pts[i].distance(pts[(i + 1) % pts.len()])).sum();
+            let perimeter: f64 =
+                (0..pts.len()).map(|i| pts[i].distance(pts[(i + 1) % pts.len()])).sum();
             // A thin polygon cut across its long axis gets shorter, not wider: once it is about
             // as long as it is wide, the ratio is as low as cutting can make it.
             let (long, narrow) = extents(&pts);
@@ -326,7 +330,9 @@ impl Web {
     pub fn triangulate(&self) -> Result<Vec<[usize; 3]>, LeafError> {
         let mut out = Vec::new();
         for (i, p) in self.polygons.iter().enumerate() {
-            ear_cut(&self.points, p, &mut out).map_err(|_| LeafError::Triangulation(i))?;
+            if !ear_cut(&self.points, p, &mut out) {
+                return Err(LeafError::Triangulation(i));
+            }
         }
         Ok(out)
     }
@@ -381,11 +387,17 @@ fn orient(a: DVec2, b: DVec2, c: DVec2) -> f64 {
 /// Whether closed segments ab and cd share a point.
 fn segments_touch(a: DVec2, b: DVec2, c: DVec2, d: DVec2) -> bool {
     let (o1, o2, o3, o4) = (orient(a, b, c), orient(a, b, d), orient(c, d, a), orient(c, d, b));
-    if ((o1 > 0.0 && o2 < 0.0) || (o1 < 0.0 && o2 > 0.0)) && ((o3 > 0.0 && o4 < 0.0) || (o3 < 0.0 && o4 > 0.0)) {
+    if ((o1 > 0.0 && o2 < 0.0) || (o1 < 0.0 && o2 > 0.0))
+        && ((o3 > 0.0 && o4 < 0.0) || (o3 < 0.0 && o4 > 0.0))
+    {
         return true;
     }
     let on = |p: DVec2, q: DVec2, r: DVec2, o: f64| {
-        o == 0.0 && r.x >= p.x.min(q.x) && r.x <= p.x.max(q.x) && r.y >= p.y.min(q.y) && r.y <= p.y.max(q.y)
+        o == 0.0
+            && r.x >= p.x.min(q.x)
+            && r.x <= p.x.max(q.x)
+            && r.y >= p.y.min(q.y)
+            && r.y <= p.y.max(q.y)
     };
     on(a, b, c, o1) || on(a, b, d, o2) || on(c, d, a, o3) || on(c, d, b, o4)
 }
@@ -396,8 +408,9 @@ fn in_triangle(p: DVec2, a: DVec2, b: DVec2, c: DVec2) -> bool {
     orient(a, b, p) >= tol && orient(b, c, p) >= tol && orient(c, a, p) >= tol
 }
 
-/// Ear cutting with the shortest semi-adjacent diagonal first (§7.2, fig. 7.7).
-pub fn ear_cut(points: &[DVec2], poly: &[usize], out: &mut Vec<[usize; 3]>) -> Result<(), ()> {
+/// Ear cutting with the shortest semi-adjacent diagonal first (§7.2, fig. 7.7); `false` when
+/// some step finds no ear free of other vertices (the polygon is not simple).
+pub fn ear_cut(points: &[DVec2], poly: &[usize], out: &mut Vec<[usize; 3]>) -> bool {
     let mut ring: Vec<usize> = poly.to_vec();
     while ring.len() > 3 {
         let n = ring.len();
@@ -423,16 +436,16 @@ pub fn ear_cut(points: &[DVec2], poly: &[usize], out: &mut Vec<[usize; 3]>) -> R
                 best = Some((d, k));
             }
         }
-        let (_, k) = best.ok_or(())?;
+        let Some((_, k)) = best else { return false };
         out.push([ring[(k + n - 1) % n], ring[k], ring[(k + 1) % n]]);
         ring.remove(k);
     }
     let (a, b, c) = (points[ring[0]], points[ring[1]], points[ring[2]]);
     if orient(a, b, c) <= 0.0 {
-        return Err(());
+        return false;
     }
     out.push([ring[0], ring[1], ring[2]]);
-    Ok(())
+    true
 }
 
 #[cfg(test)]
@@ -453,7 +466,7 @@ mod tests {
         ];
         let poly: Vec<usize> = (0..pts.len()).collect();
         let mut tris = Vec::new();
-        ear_cut(&pts, &poly, &mut tris).unwrap();
+        assert!(ear_cut(&pts, &poly, &mut tris));
         assert_eq!(tris.len(), pts.len() - 2);
         let sum: f64 = tris.iter().map(|t| orient(pts[t[0]], pts[t[1]], pts[t[2]])).sum();
         assert!((sum - signed_area2(&pts)).abs() < 1e-12);
@@ -462,7 +475,12 @@ mod tests {
 
     #[test]
     fn refining_a_square_keeps_its_area_and_meets_the_limits() {
-        let sq = [DVec2::new(0.0, 0.0), DVec2::new(1.0, 0.0), DVec2::new(1.0, 1.0), DVec2::new(0.0, 1.0)];
+        let sq = [
+            DVec2::new(0.0, 0.0),
+            DVec2::new(1.0, 0.0),
+            DVec2::new(1.0, 1.0),
+            DVec2::new(0.0, 1.0),
+        ];
         let mut w = Web::from_outline(&sq).unwrap();
         let unsplit = w.refine(0.02, 40.0);
         assert_eq!(unsplit, 0);
@@ -478,7 +496,8 @@ mod tests {
         }
         assert!((total - 1.0).abs() < 1e-12);
         let tris = w.triangulate().unwrap();
-        let area: f64 = tris.iter().map(|t| orient(w.points[t[0]], w.points[t[1]], w.points[t[2]]) / 2.0).sum();
+        let area: f64 =
+            tris.iter().map(|t| orient(w.points[t[0]], w.points[t[1]], w.points[t[2]]) / 2.0).sum();
         assert!((area - 1.0).abs() < 1e-12);
     }
 }

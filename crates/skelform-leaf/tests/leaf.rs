@@ -67,14 +67,25 @@ fn the_venation_is_a_tree_with_the_stated_counts() {
     // The margin: the base and every blade vein's tip, a clockwise simple loop.
     let margin = v.margin();
     assert_eq!(margin.len(), 1 + 5 + 26);
-    let tips: BTreeSet<usize> =
-        v.veins.iter().enumerate().filter(|(_, w)| w.kind != VeinKind::Petiole).map(|(k, _)| v.tip(k)).collect();
+    let tips: BTreeSet<usize> = v
+        .veins
+        .iter()
+        .enumerate()
+        .filter(|(_, w)| w.kind != VeinKind::Petiole)
+        .map(|(k, _)| v.tip(k))
+        .collect();
     assert_eq!(margin[1..].iter().copied().collect::<BTreeSet<_>>(), tips);
     let outline: Vec<DVec2> = margin.iter().map(|&k| v.points[k]).collect();
     assert!(signed_area2(&outline) < 0.0, "clockwise");
     assert!(skelform_leaf::web::simple(&outline));
     // Curvature: set at the primaries' tips, spread to every blade point.
-    assert!(v.veins.iter().filter(|w| w.kind != VeinKind::Petiole).flat_map(|w| &w.points).all(|&k| v.curvature[k] != 0.0));
+    assert!(
+        v.veins
+            .iter()
+            .filter(|w| w.kind != VeinKind::Petiole)
+            .flat_map(|w| &w.points)
+            .all(|&k| v.curvature[k] != 0.0)
+    );
 }
 
 #[test]
@@ -130,7 +141,11 @@ fn the_web_tiles_the_blade() {
         let tol = 1e-14;
         o(a, b, c) * o(a, b, d) < -tol && o(c, d, a) * o(c, d, b) < -tol
     };
-    let edges: Vec<(usize, usize)> = directed.keys().filter(|(a, b)| a < b || !directed.contains_key(&(*b, *a))).copied().collect();
+    let edges: Vec<(usize, usize)> = directed
+        .keys()
+        .filter(|(a, b)| a < b || !directed.contains_key(&(*b, *a)))
+        .copied()
+        .collect();
     for (i, &(a, b)) in edges.iter().enumerate() {
         for &(c, d) in &edges[i + 1..] {
             if a == c || a == d || b == c || b == d {
@@ -224,15 +239,20 @@ fn between_regions(m: &Mesh, regions: &dyn RegionField, eps: f64) -> (usize, usi
             pair_of[v as usize] = Some(*p);
         }
     }
-    let on_curve: BTreeSet<[u32; 3]> =
-        m.curves.iter().flat_map(|c| c.v).map(|v| m.positions[v as usize].map(f32::to_bits)).collect();
+    let on_curve: BTreeSet<[u32; 3]> = m
+        .curves
+        .iter()
+        .flat_map(|c| c.v)
+        .map(|v| m.positions[v as usize].map(f32::to_bits))
+        .collect();
     let (mut ok, mut wrong, mut total) = (0, 0, 0);
     for (i, p) in m.positions.iter().enumerate() {
         let Some(pair) = pair_of[i] else { continue };
         if on_curve.contains(&p.map(f32::to_bits)) {
             continue;
         }
-        let (p, n) = (DVec3::from_array(p.map(f64::from)), DVec3::from_array(m.normals[i].map(f64::from)));
+        let (p, n) =
+            (DVec3::from_array(p.map(f64::from)), DVec3::from_array(m.normals[i].map(f64::from)));
         let (front, back) = (regions.region(p + n * 2.0 * eps), regions.region(p - n * 2.0 * eps));
         total += 1;
         if front == pair.0 && back == pair.1 {
@@ -250,7 +270,11 @@ fn pairs(s: &Stats) -> Vec<RegionPair> {
 }
 
 fn curve_length(s: &Stats, t: [u32; 3]) -> f64 {
-    s.curve_length_per_triple.iter().filter(|(c, _)| *c == RegionTriple::new(t)).map(|(_, l)| l).sum()
+    s.curve_length_per_triple
+        .iter()
+        .filter(|(c, _)| *c == RegionTriple::new(t))
+        .map(|(_, l)| l)
+        .sum()
 }
 
 #[test]
@@ -262,7 +286,12 @@ fn the_leaf_polygonizes_into_labelled_blade_and_veins() {
     eprintln!("{} blade triangles; mesh {:?}", leaf.blade.triangles.len(), s.triangles_per_pair);
     assert_eq!(
         pairs(&s),
-        vec![RegionPair(BEYOND, VEIN), RegionPair(VEIN, ABOVE), RegionPair(VEIN, BELOW), RegionPair(ABOVE, BELOW)]
+        vec![
+            RegionPair(BEYOND, VEIN),
+            RegionPair(VEIN, ABOVE),
+            RegionPair(VEIN, BELOW),
+            RegionPair(ABOVE, BELOW)
+        ]
     );
     assert!(s.triangles_per_pair.iter().all(|(_, n)| *n > 50), "{:?}", s.triangles_per_pair);
     let (ok, wrong, total) = between_regions(&m, &r, s.epsilon);
@@ -275,7 +304,8 @@ fn the_leaf_polygonizes_into_labelled_blade_and_veins() {
     // the blade's outline.
     let v = leaf.venation.as_ref().unwrap();
     let outline: Vec<DVec2> = v.margin().iter().map(|&k| v.points[k]).collect();
-    let perimeter: f64 = (0..outline.len()).map(|i| outline[i].distance(outline[(i + 1) % outline.len()])).sum();
+    let perimeter: f64 =
+        (0..outline.len()).map(|i| outline[i].distance(outline[(i + 1) % outline.len()])).sum();
     let margin = curve_length(&s, [BEYOND, ABOVE, BELOW]);
     eprintln!("margin curve {margin:.3}, outline {perimeter:.3}");
     assert!(margin > 0.7 * perimeter && margin < 1.3 * perimeter, "{margin} vs {perimeter}");
@@ -313,7 +343,12 @@ fn leaves_are_deterministic_and_the_seed_perturbs_them() {
 
 /// The chapter's test: a tee of two segments embedded in a square blade (figs. 7.11, 7.12).
 fn tee_in_square(fillet: Fillet) -> (Leaf, skelform_leaf::BladeRegions) {
-    let square = [DVec2::new(-1.0, -1.0), DVec2::new(1.0, -1.0), DVec2::new(1.0, 1.0), DVec2::new(-1.0, 1.0)];
+    let square = [
+        DVec2::new(-1.0, -1.0),
+        DVec2::new(1.0, -1.0),
+        DVec2::new(1.0, 1.0),
+        DVec2::new(-1.0, 1.0),
+    ];
     let vein = |a: DVec3, b: DVec3| VeinCurve { points: vec![a, b], radii: vec![0.1, 0.1] };
     let veins = vec![
         vein(DVec3::new(-0.6, -0.2, 0.0), DVec3::new(0.6, -0.2, 0.0)),
@@ -332,7 +367,10 @@ fn a_tee_fillets_into_a_square_blade() {
         let (m, s) = polygonize(&r, &opts).unwrap();
         eprintln!("{fillet:?}: {:?}", s.triangles_per_pair);
         // The tee stays inside the square: no vein beyond the margin.
-        assert_eq!(pairs(&s), vec![RegionPair(VEIN, ABOVE), RegionPair(VEIN, BELOW), RegionPair(ABOVE, BELOW)]);
+        assert_eq!(
+            pairs(&s),
+            vec![RegionPair(VEIN, ABOVE), RegionPair(VEIN, BELOW), RegionPair(ABOVE, BELOW)]
+        );
         // The square's border is the margin curve: 8 long.
         let margin = curve_length(&s, [BEYOND, ABOVE, BELOW]);
         assert!((margin - 8.0).abs() < 0.2, "margin {margin}");

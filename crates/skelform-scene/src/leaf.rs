@@ -155,37 +155,51 @@ pub(crate) fn build(
         if let Some((name, Some(o))) = generated_keys.iter().find(|(_, o)| o.is_some()) {
             return Err(at(
                 *o,
-                format!("'{name}' shapes the generated leaf; a leaf with an 'outline' takes its veins from [[leaf.vein]]"),
+                format!(
+                    "'{name}' shapes the generated leaf; a leaf with an 'outline' takes its veins from [[leaf.vein]]"
+                ),
             ));
         }
-        let pts: Vec<glam::DVec2> = outline.get_ref().iter().map(|p| glam::DVec2::from_array(*p)).collect();
+        let pts: Vec<glam::DVec2> =
+            outline.get_ref().iter().map(|p| glam::DVec2::from_array(*p)).collect();
         if pts.iter().any(|p| !p.is_finite()) {
             return Err(at(outline.span().start, "outline points must be finite numbers".into()));
         }
         let max_area = num(&s.max_area, f64::INFINITY);
         let max_ratio = num(&s.max_ratio, f64::INFINITY);
         for (name, v) in [("max_area", max_area), ("max_ratio", max_ratio)] {
-            if !(v > 0.0) {
+            if v.is_nan() || v <= 0.0 {
                 return Err(at(spans[name], format!("{name} must be positive (got {v})")));
             }
         }
         let mut veins = Vec::new();
         for v in s.vein.iter().flatten() {
-            let points: Vec<DVec3> = v.points.get_ref().iter().map(|p| DVec3::from_array(*p)).collect();
+            let points: Vec<DVec3> =
+                v.points.get_ref().iter().map(|p| DVec3::from_array(*p)).collect();
             let radii = match (&v.radius, &v.radii) {
                 (Some(_), Some(r)) => {
-                    return Err(at(r.span().start, "give either 'radius' or 'radii', not both".into()));
+                    return Err(at(
+                        r.span().start,
+                        "give either 'radius' or 'radii', not both".into(),
+                    ));
                 }
                 (Some(r), None) => vec![*r.get_ref(); points.len()],
                 (None, Some(r)) if r.get_ref().len() != points.len() => {
                     return Err(at(
                         r.span().start,
-                        format!("'radii' has {} numbers for {} points", r.get_ref().len(), points.len()),
+                        format!(
+                            "'radii' has {} numbers for {} points",
+                            r.get_ref().len(),
+                            points.len()
+                        ),
                     ));
                 }
                 (None, Some(r)) => r.get_ref().clone(),
                 (None, None) => {
-                    return Err(at(v.points.span().start, "a vein needs a 'radius' (or 'radii')".into()));
+                    return Err(at(
+                        v.points.span().start,
+                        "a vein needs a 'radius' (or 'radii')".into(),
+                    ));
                 }
             };
             if points.iter().any(|p| !p.is_finite()) {
@@ -195,11 +209,10 @@ pub(crate) fn build(
         }
         let spans_of: Vec<usize> = veins.iter().map(|v| v.1).collect();
         let curves: Vec<VeinCurve> = veins.into_iter().map(|v| v.0).collect();
-        Leaf::from_outline(&pts, curves, max_area, max_ratio)
-            .map_err(|e| match e {
-                LeafError::BadVein { vein, .. } => at(spans_of[vein], e.to_string()),
-                _ => at(outline.span().start, e.to_string()),
-            })?
+        Leaf::from_outline(&pts, curves, max_area, max_ratio).map_err(|e| match e {
+            LeafError::BadVein { vein, .. } => at(spans_of[vein], e.to_string()),
+            _ => at(outline.span().start, e.to_string()),
+        })?
     } else {
         if let Some(v) = s.vein.as_ref().and_then(|v| v.first()) {
             return Err(at(
@@ -207,12 +220,19 @@ pub(crate) fn build(
                 "[[leaf.vein]] needs an 'outline' (the generated leaf grows its own veins)".into(),
             ));
         }
-        let whole = |name: &'static str, v: &Option<Spanned<i64>>, default: usize| -> Result<usize, SceneError> {
+        let whole = |name: &'static str,
+                     v: &Option<Spanned<i64>>,
+                     default: usize|
+         -> Result<usize, SceneError> {
             match v {
                 Some(x) => {
                     let n = *x.get_ref();
-                    usize::try_from(n)
-                        .map_err(|_| at(x.span().start, format!("{name} must be a whole number of at least 0 (got {n})")))
+                    usize::try_from(n).map_err(|_| {
+                        at(
+                            x.span().start,
+                            format!("{name} must be a whole number of at least 0 (got {n})"),
+                        )
+                    })
                 }
                 None => Ok(default),
             }
@@ -241,7 +261,9 @@ pub(crate) fn build(
         };
         Leaf::maple(&p).map_err(|e| {
             let o = match &e {
-                LeafError::BadParameter { name, .. } => spans.get(name).copied().unwrap_or(section_at),
+                LeafError::BadParameter { name, .. } => {
+                    spans.get(name).copied().unwrap_or(section_at)
+                }
                 _ => section_at,
             };
             at(o, e.to_string())

@@ -153,7 +153,11 @@ impl Scene {
             return Some((l.region_field(), l.interest.clone(), l.full_grid));
         }
         self.regions.as_ref().map(|r| {
-            (r.field.clone() as Arc<dyn skelform_field::RegionField>, r.interest.clone(), r.full_grid)
+            (
+                r.field.clone() as Arc<dyn skelform_field::RegionField>,
+                r.interest.clone(),
+                r.full_grid,
+            )
         })
     }
 

@@ -40,7 +40,11 @@ fn the_leaf_examples_load_and_polygonize() {
     }
     for name in ["tee-in-square.toml", "tee-in-square-fillet.toml"] {
         let s = example(name);
-        assert_eq!(mesh(&s, 0.06), vec![RegionPair(1, 2), RegionPair(1, 3), RegionPair(2, 3)], "{name}");
+        assert_eq!(
+            mesh(&s, 0.06),
+            vec![RegionPair(1, 2), RegionPair(1, 3), RegionPair(2, 3)],
+            "{name}"
+        );
     }
 }
 
@@ -52,7 +56,8 @@ fn parse_err(text: &str) -> (usize, usize, String) {
     }
 }
 
-const HEAD: &str = "[domain]\nmin = [-2, -2, -2]\nmax = [2, 2, 2]\n[mesh]\nmethod = \"nonmanifold\"\n";
+const HEAD: &str =
+    "[domain]\nmin = [-2, -2, -2]\nmax = [2, 2, 2]\n[mesh]\nmethod = \"nonmanifold\"\n";
 
 #[test]
 fn bad_leaves_are_errors_with_their_line() {
@@ -75,11 +80,13 @@ fn bad_leaves_are_errors_with_their_line() {
     let (l, _, m) = parse_err(&format!("{HEAD}[leaf]\n{sq}lobes = 3\n"));
     assert_eq!(l, 8);
     assert!(m.contains("outline"), "{m}");
-    let (l, _, m) = parse_err(&format!("{HEAD}[leaf]\n{sq}[[leaf.vein]]\npoints = [[0, 0, 0], [1, 0, 0]]\n"));
+    let (l, _, m) =
+        parse_err(&format!("{HEAD}[leaf]\n{sq}[[leaf.vein]]\npoints = [[0, 0, 0], [1, 0, 0]]\n"));
     assert_eq!(l, 9);
     assert!(m.contains("radius"), "{m}");
-    let (l, _, m) =
-        parse_err(&format!("{HEAD}[leaf]\n{sq}[[leaf.vein]]\npoints = [[0, 0, 0], [0.5, 0, 0]]\nradii = [0.1]\n"));
+    let (l, _, m) = parse_err(&format!(
+        "{HEAD}[leaf]\n{sq}[[leaf.vein]]\npoints = [[0, 0, 0], [0.5, 0, 0]]\nradii = [0.1]\n"
+    ));
     assert_eq!(l, 10);
     assert!(m.contains("radii"), "{m}");
     let (l, _, m) = parse_err(&format!(
@@ -87,7 +94,8 @@ fn bad_leaves_are_errors_with_their_line() {
     ));
     assert_eq!(l, 9);
     assert!(m.contains("zero-length"), "{m}");
-    let (l, _, m) = parse_err(&format!("{HEAD}[leaf]\noutline = [[0, 0], [1, 1], [1, 0], [0, 1]]\n"));
+    let (l, _, m) =
+        parse_err(&format!("{HEAD}[leaf]\noutline = [[0, 0], [1, 1], [1, 0], [0, 1]]\n"));
     assert_eq!(l, 7);
     assert!(m.contains("crosses itself"), "{m}");
     let (_, _, m) = parse_err(&format!(
