@@ -199,9 +199,13 @@ impl Venation {
     ///
     /// Construction: the primaries fan out from the base; the margin is first laid out as a
     /// polar curve with one lobe per primary (the sinus between two lobes at their bisector,
-    /// `1 − lobe_depth` of the way out); each margin point is the tip of a secondary vein
-    /// leaving its lobe's primary at `branch_angle`, so tips nearer the lobe's point leave the
-    /// primary farther from the base, and secondaries never cross.
+    /// `1 − lobe_depth` of the way out); each margin point is the tip of a straight secondary
+    /// vein leaving its lobe's primary at `branch_angle` (or steeper, where that would leave
+    /// from too near the base or the tip), so tips nearer the lobe's point leave the primary
+    /// farther from the base. Secondaries of one side are then parallel or fan from one point,
+    /// and each stays in its lobe's wedge, so veins do not cross for any parameters in the
+    /// usual range (tested on a grid of them); a venation whose veins would cross anyway is
+    /// refused ([`LeafError::BadWeb`]).
     pub fn maple(p: &LeafParams) -> Result<Venation, LeafError> {
         p.check()?;
         let mut rng = Rng::new(p.seed);
@@ -245,12 +249,21 @@ impl Venation {
             // The primary's chain: where its secondaries leave it, plus regular samples.
             let mut branches: Vec<(f64, DVec2, usize)> = Vec::new(); // (distance, tip, side)
             for (side, tips) in sides.iter().enumerate() {
+                // Tips run from the sinus towards the lobe's point; their veins must leave the
+                // primary in that order too (a vein that left earlier would cross the others).
+                let mut last_a = 0.0f64;
                 for &(angle, r) in tips {
                     let r = r * (1.0 + 2.0 * p.jitter * rng.symmetric());
                     let tip = polar(angle, r);
                     let x = tip.dot(u);
                     let y = tip.dot(lateral_left).abs();
-                    let a = (x - y / beta.tan()).clamp(0.08 * len, 0.85 * x.max(0.1 * len));
+                    // Leave the primary at the branch angle, but always before the tip's
+                    // foot on it, so the vein runs outwards.
+                    let hi = 0.85 * x.max(0.0);
+                    let a = (x - y / beta.tan())
+                        .clamp((0.08 * len).min(0.5 * hi), hi.max(1e-9 * len))
+                        .max(last_a);
+                    last_a = a;
                     branches.push((a, tip, side));
                 }
             }
@@ -273,7 +286,7 @@ impl Venation {
             let mut chain = vec![v.base];
             for (i, &d) in chain_d.iter().enumerate() {
                 let last = i + 1 == chain_d.len();
-                let wobble = if last { 0.0 } else { p.jitter * p.size * rng.symmetric() };
+                let wobble = if last { 0.0 } else { 0.3 * p.jitter * p.size * rng.symmetric() };
                 let pt = u * d + lateral_left * wobble;
                 chain.push(v.add_point(pt, *chain.last().unwrap_or(&0)));
             }
@@ -300,15 +313,12 @@ impl Venation {
                     .map_or(0, |(i, _)| i + 1);
                 let start = chain[at];
                 let s0 = v.points[start];
-                // A gently bowed secondary: the middle points pushed towards the lobe's tip.
-                let bow = u * (0.06 * (tip - s0).length());
+                // Straight: the secondaries of one side then leave the primary at one angle
+                // (parallel) or fan from one point, and cannot cross one another; each stays
+                // in its lobe's wedge, so it cannot cross a neighbour lobe's veins either.
                 let mut pts = vec![start];
                 for t in [1.0 / 3.0, 2.0 / 3.0, 1.0] {
-                    let mut q = s0.lerp(tip, t) + bow * (4.0 * t * (1.0 - t));
-                    if t < 1.0 {
-                        q += DVec2::new(rng.symmetric(), rng.symmetric())
-                            * (0.3 * p.jitter * p.size);
-                    }
+                    let q = s0.lerp(tip, t);
                     let prev = *pts.last().unwrap_or(&start);
                     pts.push(v.add_point(q, prev));
                 }
@@ -355,33 +365,39 @@ impl Venation {
         self.points.len() - 1
     }
 
-    /// Orders every vein's left and right descendants by distance from the vein's base.
+    /// Orders every vein's left and right descendants by distance from the vein's base; veins
+    /// that leave from the same point are ordered by how far they turn from the parent (the
+    /// one that turns most, towards the parent's base, first).
     fn sort_descendants(&mut self) {
         for i in 0..self.veins.len() {
             let chain = self.veins[i].points.clone();
-            let pos = |vein: &Vein| chain.iter().position(|&c| c == vein.points[0]).unwrap_or(0);
-            let key = |id: &usize, veins: &[Vein], pts: &[DVec2]| {
-                let w = &veins[*id];
-                let tip = pts[*w.points.last().unwrap_or(&0)];
-                (pos(w), (tip - pts[chain[0]]).length())
+            let key = |id: usize| -> (usize, f64) {
+                let w = &self.veins[id];
+                let at = chain.iter().position(|&c| c == w.points[0]).unwrap_or(0);
+                let (a, tip) =
+                    (self.points[w.points[0]], self.points[*w.points.last().unwrap_or(&0)]);
+                let next = self.points[chain[(at + 1).min(chain.len() - 1)]];
+                let prev = self.points[chain[at.saturating_sub(1)]];
+                let dir = (next - prev).normalize_or_zero();
+                let turn = dir.angle_to(tip - a).abs();
+                (at, -turn)
             };
-            for side in 0..2 {
+            let mut sorted: [Vec<usize>; 2] = [Vec::new(), Vec::new()];
+            for (side, out) in sorted.iter_mut().enumerate() {
                 let mut list = if side == 0 {
                     self.veins[i].left.clone()
                 } else {
                     self.veins[i].right.clone()
                 };
-                list.sort_by(|a, b| {
-                    let (ka, kb) =
-                        (key(a, &self.veins, &self.points), key(b, &self.veins, &self.points));
+                list.sort_by(|&a, &b| {
+                    let (ka, kb) = (key(a), key(b));
                     ka.0.cmp(&kb.0).then(ka.1.total_cmp(&kb.1))
                 });
-                if side == 0 {
-                    self.veins[i].left = list;
-                } else {
-                    self.veins[i].right = list;
-                }
+                *out = list;
             }
+            let [l, r] = sorted;
+            self.veins[i].left = l;
+            self.veins[i].right = r;
         }
     }
 

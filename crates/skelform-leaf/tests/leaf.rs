@@ -28,6 +28,7 @@ fn the_venation_is_a_tree_with_the_stated_counts() {
     // 5 primaries; per primary 3 secondaries on the left (one into the sinus) and 2 on the
     // right, plus the last lobe's basal sinus vein: 5·5 + 1 = 26; one petiole.
     assert_eq!(v.counts(), (5, 26, 1));
+    eprintln!("venation: {} points, veins {:?}", v.points.len(), v.counts());
     // A tree: every point but the base has a parent and reaches the base.
     for i in 0..v.points.len() {
         let path = v.path_to_base(i);
@@ -417,4 +418,67 @@ fn the_vein_region_widens_near_the_blade() {
         *edges.entry(at(i as f64 * 0.004, 0.002)).or_default() += 1;
     }
     assert_eq!(edges.keys().copied().collect::<Vec<_>>(), vec![VEIN, ABOVE]);
+}
+
+#[test]
+fn any_parameters_in_range_give_a_leaf_or_a_clear_error() {
+    // Corners of the parameter ranges: never a panic; a venation whose veins would cross is
+    // refused with an error that says so.
+    for lobes in [1, 2, 5, 15] {
+        for spread in [20.0, 200.0, 300.0] {
+            for depth in [0.0, 0.9] {
+                for secondaries in [1, 12] {
+                    for angle in [15.0, 80.0] {
+                        let p = LeafParams {
+                            lobes,
+                            spread,
+                            lobe_depth: depth,
+                            secondaries,
+                            branch_angle: angle,
+                            jitter: 0.05,
+                            ..LeafParams::default()
+                        };
+                        if let Err(e) = Leaf::maple(&p) {
+                            let m = e.to_string();
+                            assert!(m.contains("web") || m.contains("spread"), "{p:?}: {m}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn maple_like_parameters_always_give_a_leaf() {
+    let mut n = 0;
+    for lobes in [1, 3, 5, 7] {
+        for depth in [0.1, 0.45, 0.7] {
+            for secondaries in [2, 3, 5] {
+                for angle in [35.0, 50.0, 65.0] {
+                    for seed in [1, 2] {
+                        let p = LeafParams {
+                            lobes,
+                            spread: (40.0 * (lobes as f64 - 1.0)).min(240.0),
+                            lobe_depth: depth,
+                            secondaries,
+                            branch_angle: angle,
+                            seed,
+                            ..LeafParams::default()
+                        };
+                        match Leaf::maple(&p) {
+                            Ok(leaf) => {
+                                assert!(leaf.blade.area() > 0.0);
+                                n += 1;
+                            }
+                            Err(e) => eprintln!(
+                                "FAIL lobes {lobes} depth {depth} sec {secondaries} angle {angle} seed {seed}: {e}"
+                            ),
+                        }
+                    }
+                }
+            }
+        }
+    }
+    assert_eq!(n, 216);
 }
