@@ -482,3 +482,39 @@ fn maple_like_parameters_always_give_a_leaf() {
     }
     assert_eq!(n, 216);
 }
+
+#[test]
+fn the_leaf_is_the_same_on_any_number_of_threads() {
+    let leaf =
+        Leaf::maple(&LeafParams { lobes: 3, spread: 100.0, ..LeafParams::default() }).unwrap();
+    let r = leaf.regions(Kernel::Wyvill, Fillet::Below).unwrap();
+    let opts = options(&leaf, &r, 0.06);
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| polygonize(&r, &opts).unwrap())
+    };
+    let ((a, sa), (b, _)) = (run(1), run(3));
+    assert_eq!(a.positions, b.positions);
+    assert_eq!(a.triangles, b.triangles);
+    assert_eq!(a.labels, b.labels);
+    // The localized fillet: the vein's upper side is the blade itself, so (1, 2) vertices lie
+    // on the blade (within the polygonizer's accuracy), except on the short walls where a vein
+    // leaves the blade at the margin (the petiole, the vein tips).
+    assert!(pairs(&sa).contains(&RegionPair(VEIN, BELOW)));
+    let d: Vec<f64> = a
+        .triangles
+        .iter()
+        .zip(&a.labels)
+        .filter(|(_, l)| **l == RegionPair(VEIN, ABOVE))
+        .flat_map(|(t, _)| *t)
+        .map(|v| {
+            leaf.blade
+                .distance(DVec3::from_array(a.positions[v as usize].map(f64::from)))
+                .distance
+                .abs()
+        })
+        .collect();
+    let near = d.iter().filter(|&&x| x < 0.06 / 16.0).count();
+    eprintln!("{near} of {} (1,2) vertices on the blade", d.len());
+    assert!(near as f64 > 0.9 * d.len() as f64, "{near} of {}", d.len());
+}
