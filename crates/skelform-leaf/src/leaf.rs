@@ -33,7 +33,14 @@ impl Leaf {
     /// The generated maple-like leaf (see [`LeafParams`]).
     pub fn maple(p: &LeafParams) -> Result<Leaf, LeafError> {
         let v = Venation::maple(p)?;
-        let mut web = Web::from_venation(&v)?;
+        let mut web = if p.smooth_margin {
+            // Splines a side's veins would cross are dropped side by side; if the smoothed
+            // margin still fails, the straight one is used.
+            Web::from_venation_smoothed(&v, 0.5 * (p.max_area * p.size * p.size).sqrt())
+                .or_else(|_| Web::from_venation(&v))?
+        } else {
+            Web::from_venation(&v)?
+        };
         let mut stats = WebStats { web_polygons: web.polygons.len(), ..WebStats::default() };
         stats.unsplit = web.refine(p.max_area * p.size * p.size, p.max_ratio / p.size);
         stats.polygons = web.polygons.len();

@@ -12,8 +12,9 @@
 //! 1. [`Venation::maple`]: a palmate venation (a tree of veins in the plane, primaries
 //!    clockwise round the petiole, left and right descendants ordered from the base), with
 //!    per-point curvature;
-//! 2. [`Web`]: the polygonal web (adjacent margin points joined through their vein paths),
-//!    refined by cuts and triangulated by shortest-diagonal ear cutting; each point wrapped
+//! 2. [`Web`]: the polygonal web (adjacent margin points joined through their vein paths,
+//!    the margin smoothed by natural splines), refined by cuts and triangulated by
+//!    shortest-diagonal ear cutting; each point wrapped
 //!    onto a sphere by its curvature ([`wrap`]) gives the bent [`Blade`];
 //! 3. [`Blade::distance`]: the exact signed distance to the blade, with above, below and
 //!    beyond, through a bounding-volume hierarchy;

@@ -98,6 +98,9 @@ pub struct LeafParams {
     /// Radius of secondary veins where they leave their primary; 0 leaves them out of the
     /// vein volume (they still shape the blade), as in the dissertation.
     pub secondary_radius: f64,
+    /// Smooth the margin with natural splines through the vein tips (§7.6, note 1) instead of
+    /// straight sides.
+    pub smooth_margin: bool,
     /// Web refinement: largest polygon area, as a fraction of `size²`.
     pub max_area: f64,
     /// Web refinement: largest perimeter/area ratio, in units of 1/size.
@@ -122,6 +125,7 @@ impl Default for LeafParams {
             vein_radius: 0.03,
             tip_radius: 0.35,
             secondary_radius: 0.0,
+            smooth_margin: true,
             max_area: 0.006,
             max_ratio: 60.0,
         }

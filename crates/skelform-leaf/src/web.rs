@@ -7,8 +7,11 @@
 //!
 //! The web's polygons are too large for the bending (creases), so each is split recursively,
 //! across its long axis (a cut parallel to its narrow axis), until its area is below
-//! `max_area` and its perimeter/area below `max_ratio`; a cut that is not wholly inside a
-//! concave polygon is rotated until one is. A cut's ends land on polygon sides shared with
+//! `max_area` and its perimeter/area below `max_ratio` (thin pieces are cut only while
+//! cutting makes them less thin, and pieces below an eighth of `max_area` are left alone, so
+//! that the sharp corner where two veins meet is not cut forever); a cut that is not wholly
+//! inside a concave polygon is rotated until one is, and a cut that would end near a corner
+//! ends at that corner. A cut's ends land on polygon sides shared with
 //! neighbours; those sides are split for the neighbours too, so the mesh has no T-junctions.
 //! Finally each polygon is triangulated by cutting off, again and again, the ear with the
 //! shortest diagonal between semi-adjacent vertices, rejecting ears that contain another
@@ -57,16 +60,58 @@ fn key(a: usize, b: usize) -> (usize, usize) {
 impl Web {
     /// The venation's web: one polygon per adjacent pair of margin points.
     pub fn from_venation(v: &Venation) -> Result<Web, LeafError> {
+        Web::build(v, None)
+    }
+
+    /// The same with a smooth margin (§7.6, note 1): natural cubic splines run from each
+    /// convex margin point through the concave ones after it to the next convex one, and each
+    /// margin side gets points of its spline about `step` apart. A side whose spline would
+    /// cross its polygon's veins stays straight.
+    pub fn from_venation_smoothed(v: &Venation, step: f64) -> Result<Web, LeafError> {
+        Web::build(v, Some(step))
+    }
+
+    fn build(v: &Venation, smooth: Option<f64>) -> Result<Web, LeafError> {
         let margin = v.margin();
+        let n = margin.len();
         let mut web = Web {
             points: v.points.clone(),
             curvature: v.curvature.clone(),
             polygons: Vec::new(),
             splits: HashMap::new(),
         };
-        for i in 0..margin.len() {
-            let (a, b) = (margin[i], margin[(i + 1) % margin.len()]);
-            let mut poly = v.web_polygon(a, b);
+        let samples: Vec<Vec<DVec2>> = match smooth {
+            Some(step) if step > 0.0 => {
+                let pts: Vec<DVec2> = margin.iter().map(|&k| v.points[k]).collect();
+                margin_splines(&pts, step)
+            }
+            _ => vec![Vec::new(); n],
+        };
+        let mut outline: Vec<DVec2> = Vec::new();
+        for i in 0..n {
+            let (a, b) = (margin[i], margin[(i + 1) % n]);
+            let path = v.web_polygon(a, b);
+            // The margin side runs from b back to a: its spline points in that order.
+            let mut poly = path.clone();
+            let mut extra = Vec::new();
+            for q in samples[i].iter().rev() {
+                let t = (q.distance(v.points[a])
+                    / (q.distance(v.points[a]) + q.distance(v.points[b])).max(1e-300))
+                .clamp(0.0, 1.0);
+                extra.push((*q, v.curvature[a] + (v.curvature[b] - v.curvature[a]) * t));
+            }
+            let mut with: Vec<DVec2> = path.iter().map(|&k| v.points[k]).collect();
+            with.extend(extra.iter().map(|e| e.0));
+            let keep = !extra.is_empty() && simple(&with);
+            outline.push(v.points[a]);
+            if keep {
+                outline.extend(extra.iter().rev().map(|e| e.0));
+                for (q, c) in extra {
+                    web.points.push(q);
+                    web.curvature.push(c);
+                    poly.push(web.points.len() - 1);
+                }
+            }
             let pts: Vec<DVec2> = poly.iter().map(|&k| web.points[k]).collect();
             let area2 = signed_area2(&pts);
             if poly.len() < 3
@@ -82,7 +127,10 @@ impl Web {
             }
             web.polygons.push(poly);
         }
-        web.check_tiling(&margin)?;
+        if !simple(&outline) {
+            return Err(LeafError::BadWeb("the margin crosses itself".into()));
+        }
+        web.check_tiling(&outline)?;
         Ok(web)
     }
 
@@ -109,9 +157,8 @@ impl Web {
 
     /// The polygons' areas must add up to the area inside the margin, and each polygon must be
     /// simple: otherwise veins cross each other or the margin.
-    fn check_tiling(&self, margin: &[usize]) -> Result<(), LeafError> {
-        let outline: Vec<DVec2> = margin.iter().map(|&k| self.points[k]).collect();
-        let total = signed_area2(&outline).abs();
+    fn check_tiling(&self, outline: &[DVec2]) -> Result<(), LeafError> {
+        let total = signed_area2(outline).abs();
         let sum: f64 = self
             .polygons
             .iter()
@@ -272,25 +319,99 @@ impl Web {
         }
         let (h0, h1) = (hits[best], hits[best + 1]);
         let chord = (h1.0 - h0.0).abs();
-        // Keep new points off existing ones, so no sliver triangles come of it.
-        for h in [h0, h1] {
+        // Each end: an existing corner when the crossing is near one (no sliver triangles, and
+        // short sides such as a smoothed margin's can still be cut), else a new point.
+        #[derive(Clone, Copy)]
+        enum End {
+            Corner(usize),
+            New { side: usize, s: f64 },
+        }
+        let end = |h: (f64, usize, f64)| {
             let len = pts[h.1].distance(pts[(h.1 + 1) % n]);
-            if h.2 * len < 0.15 * chord || (1.0 - h.2) * len < 0.15 * chord {
+            if h.2 * len < 0.15 * chord {
+                End::Corner(h.1)
+            } else if (1.0 - h.2) * len < 0.15 * chord {
+                End::Corner((h.1 + 1) % n)
+            } else {
+                End::New { side: h.1, s: h.2 }
+            }
+        };
+        let ends = [end(h0), end(h1)];
+        let at = |e: End| match e {
+            End::Corner(k) => pts[k],
+            End::New { side, s } => pts[side].lerp(pts[(side + 1) % n], s),
+        };
+        let (p0, p1) = (at(ends[0]), at(ends[1]));
+        // The chord must lie inside: it may touch the boundary only at its own ends.
+        let touches_end = |k: usize, e: End| match e {
+            End::Corner(c) => k == c || (k + 1) % n == c,
+            End::New { side, .. } => k == side,
+        };
+        for k in 0..n {
+            if touches_end(k, ends[0]) || touches_end(k, ends[1]) {
+                continue;
+            }
+            if segments_touch(p0, p1, pts[k], pts[(k + 1) % n]) {
                 return None;
             }
         }
-        let (e0, e1) = if h0.1 < h1.1 { (h0, h1) } else { (h1, h0) };
-        if e0.1 == e1.1 {
-            return None;
+        // Positions in a ring with the new points inserted, then the two pieces.
+        let mut ring: Vec<Option<usize>> = Vec::with_capacity(n + 2); // None: a new point
+        let mut pos = [usize::MAX; 2];
+        for (k, &corner) in poly.iter().enumerate() {
+            for (j, e) in ends.iter().enumerate() {
+                if let End::Corner(c) = e
+                    && *c == k
+                {
+                    pos[j] = ring.len();
+                }
+            }
+            ring.push(Some(corner));
+            for (j, e) in ends.iter().enumerate() {
+                if let End::New { side, .. } = e
+                    && *side == k
+                {
+                    pos[j] = ring.len();
+                    ring.push(None);
+                }
+            }
         }
-        let m0 = self.split_side(poly[e0.1], poly[(e0.1 + 1) % n], e0.2);
-        let m1 = self.split_side(poly[e1.1], poly[(e1.1 + 1) % n], e1.2);
-        let mut a = vec![m0];
-        a.extend_from_slice(&poly[e0.1 + 1..=e1.1]);
-        a.push(m1);
-        let mut b = vec![m1];
-        b.extend((e1.1 + 1..e1.1 + 1 + (n - (e1.1 - e0.1))).map(|i| poly[i % n]));
-        b.push(m0);
+        if let (End::New { side: a, .. }, End::New { side: b, .. }) = (ends[0], ends[1])
+            && a == b
+        {
+            return None; // both ends on one side
+        }
+        if !contains(pts, (p0 + p1) * 0.5) {
+            return None; // a chord from a reflex corner that leaves the polygon
+        }
+        let (i0, i1) = (pos[0].min(pos[1]), pos[0].max(pos[1]));
+        let m = ring.len();
+        if i1 - i0 < 2 || m - (i1 - i0) < 2 {
+            return None; // the chord would be a side
+        }
+        // Commit: create the new points, then cut the ring.
+        let mut ids = [usize::MAX; 2];
+        for (j, e) in ends.iter().enumerate() {
+            if let End::New { side, s } = *e {
+                ids[j] = self.split_side(poly[side], poly[(side + 1) % n], s);
+            }
+        }
+        let mut resolved: Vec<usize> = Vec::with_capacity(m);
+        for (idx, x) in ring.iter().enumerate() {
+            resolved.push(match x {
+                Some(k) => *k,
+                None => {
+                    if idx == pos[0] {
+                        ids[0]
+                    } else {
+                        ids[1]
+                    }
+                }
+            });
+        }
+        let a: Vec<usize> = resolved[i0..=i1].to_vec();
+        let mut b: Vec<usize> = resolved[i1..].to_vec();
+        b.extend_from_slice(&resolved[..=i0]);
         Some((a, b))
     }
 
@@ -338,6 +459,70 @@ impl Web {
     }
 }
 
+/// Natural cubic splines through the margin (a closed loop of points, clockwise): one from
+/// each convex point through the following concave points to the next convex point, zero
+/// curvature at both ends. Returns, for each side (point i to i + 1), the spline's points
+/// strictly between its ends, about `step` apart.
+fn margin_splines(pts: &[DVec2], step: f64) -> Vec<Vec<DVec2>> {
+    let n = pts.len();
+    let mut out = vec![Vec::new(); n];
+    // Clockwise loop: a convex (outer) corner turns right.
+    let convex: Vec<usize> = (0..n)
+        .filter(|&i| {
+            let (p, m, q) = (pts[(i + n - 1) % n], pts[i], pts[(i + 1) % n]);
+            (m - p).perp_dot(q - m) < 0.0
+        })
+        .collect();
+    if convex.len() < 2 {
+        return out;
+    }
+    for (k, &start) in convex.iter().enumerate() {
+        let end = convex[(k + 1) % convex.len()];
+        let len = (end + n - start) % n;
+        if len == 0 {
+            continue;
+        }
+        let run: Vec<DVec2> = (0..=len).map(|j| pts[(start + j) % n]).collect();
+        // Chord-length parameters and the natural spline's second derivatives (tridiagonal).
+        let h: Vec<f64> = run.windows(2).map(|w| w[0].distance(w[1]).max(1e-300)).collect();
+        let m = run.len();
+        let mut second = vec![DVec2::ZERO; m];
+        if m > 2 {
+            let (mut diag, mut rhs) = (vec![0.0; m], vec![DVec2::ZERO; m]);
+            let mut sub = vec![0.0; m];
+            for i in 1..m - 1 {
+                sub[i] = h[i - 1];
+                diag[i] = 2.0 * (h[i - 1] + h[i]);
+                rhs[i] = 6.0 * ((run[i + 1] - run[i]) / h[i] - (run[i] - run[i - 1]) / h[i - 1]);
+            }
+            // Thomas algorithm over rows 1..m−1 (the ends are zero).
+            for i in 2..m - 1 {
+                let w = sub[i] / diag[i - 1];
+                diag[i] -= w * h[i - 1];
+                rhs[i] = rhs[i] - rhs[i - 1] * w;
+            }
+            for i in (1..m - 1).rev() {
+                let next = if i + 1 < m - 1 { second[i + 1] } else { DVec2::ZERO };
+                second[i] = (rhs[i] - next * h[i]) / diag[i];
+            }
+        }
+        for i in 0..m - 1 {
+            let count = (h[i] / step).floor() as usize;
+            let side = (start + i) % n;
+            for j in 1..=count {
+                let t = j as f64 / (count + 1) as f64;
+                let (a, b) = (1.0 - t, t);
+                let q = run[i] * a
+                    + run[i + 1] * b
+                    + (second[i] * (a * a * a - a) + second[i + 1] * (b * b * b - b))
+                        * (h[i] * h[i] / 6.0);
+                out[side].push(q);
+            }
+        }
+    }
+    out
+}
+
 /// Most polygons refinement may make (a guard against limits too small for the blade).
 const MAX_POLYGONS: usize = 200_000;
 
@@ -362,6 +547,18 @@ fn extents(pts: &[DVec2]) -> (f64, f64) {
     };
     let (a, b) = (span(u), span(w));
     (a.max(b), a.min(b))
+}
+
+/// Whether `q` is inside a closed polygon (crossing number).
+fn contains(pts: &[DVec2], q: DVec2) -> bool {
+    let mut inside = false;
+    for i in 0..pts.len() {
+        let (a, b) = (pts[i], pts[(i + 1) % pts.len()]);
+        if (a.y > q.y) != (b.y > q.y) && q.x < a.x + (q.y - a.y) / (b.y - a.y) * (b.x - a.x) {
+            inside = !inside;
+        }
+    }
+    inside
 }
 
 /// Whether a closed polygon's sides cross only at shared corners.

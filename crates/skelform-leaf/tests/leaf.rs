@@ -187,7 +187,8 @@ fn blade_distance_is_the_brute_force_distance() {
 
 #[test]
 fn blade_distance_of_a_flat_leaf_is_height_inside_and_beyond_outside() {
-    let leaf = Leaf::maple(&LeafParams { curvature: 0.0, ..LeafParams::default() }).unwrap();
+    let flat = LeafParams { curvature: 0.0, smooth_margin: false, ..LeafParams::default() };
+    let leaf = Leaf::maple(&flat).unwrap();
     let v = leaf.venation.as_ref().unwrap();
     let outline: Vec<DVec2> = v.margin().iter().map(|&k| v.points[k]).collect();
     let inside = |q: DVec2| {
@@ -284,7 +285,7 @@ fn the_leaf_polygonizes_into_labelled_blade_and_veins() {
     let r = leaf.regions(Kernel::Wyvill, Fillet::Both).unwrap();
     let opts = options(&leaf, &r, 0.05);
     let (m, s) = polygonize(&r, &opts).unwrap();
-    eprintln!("{} blade triangles; mesh {:?}", leaf.blade.triangles.len(), s.triangles_per_pair);
+    eprintln!("{:?}; mesh {:?}", leaf.stats, s.triangles_per_pair);
     assert_eq!(
         pairs(&s),
         vec![
@@ -517,4 +518,44 @@ fn the_leaf_is_the_same_on_any_number_of_threads() {
     let near = d.iter().filter(|&&x| x < 0.06 / 16.0).count();
     eprintln!("{near} of {} (1,2) vertices on the blade", d.len());
     assert!(near as f64 > 0.9 * d.len() as f64, "{near} of {}", d.len());
+}
+
+#[test]
+fn the_smoothed_margin_still_tiles_and_passes_through_every_tip() {
+    let p = LeafParams::default();
+    let v = Venation::maple(&p).unwrap();
+    let straight = Web::from_venation(&v).unwrap();
+    let mut web = Web::from_venation_smoothed(&v, 0.5 * p.max_area.sqrt()).unwrap();
+    assert!(web.points.len() > straight.points.len() + 20, "the spline adds margin points");
+    web.refine(p.max_area, p.max_ratio);
+    let tris = web.triangulate().unwrap();
+    let pts = &web.points;
+    let area = |t: &[usize; 3]| (pts[t[1]] - pts[t[0]]).perp_dot(pts[t[2]] - pts[t[0]]) / 2.0;
+    assert!(tris.iter().all(|t| area(t) > 0.0));
+    let mut directed: HashMap<(usize, usize), usize> = HashMap::new();
+    for t in &tris {
+        for k in 0..3 {
+            *directed.entry((t[k], t[(k + 1) % 3])).or_default() += 1;
+        }
+    }
+    assert!(directed.values().all(|&c| c == 1));
+    let next: HashMap<usize, usize> =
+        directed.keys().filter(|(a, b)| !directed.contains_key(&(*b, *a))).copied().collect();
+    // Walk the boundary loop: it holds every margin point, and encloses the triangles' area.
+    let start = v.base;
+    let mut loop_pts = vec![pts[start]];
+    let mut on_loop = BTreeSet::from([start]);
+    let mut at = next[&start];
+    while at != start {
+        loop_pts.push(pts[at]);
+        on_loop.insert(at);
+        at = next[&at];
+        assert!(loop_pts.len() <= next.len());
+    }
+    assert_eq!(loop_pts.len(), next.len(), "one loop");
+    assert!(v.margin().iter().all(|k| on_loop.contains(k)), "the spline passes through the tips");
+    let enclosed = signed_area2(&loop_pts).abs() / 2.0;
+    let sum: f64 = tris.iter().map(area).sum();
+    assert!((sum - enclosed).abs() < 1e-9 * enclosed, "{sum} vs {enclosed}");
+    eprintln!("smoothed margin: {} triangles, area {enclosed:.4}", tris.len());
 }

@@ -51,6 +51,7 @@ pub(crate) struct LeafSection {
     vein_radius: Option<Spanned<f64>>,
     tip_radius: Option<Spanned<f64>>,
     secondary_radius: Option<Spanned<f64>>,
+    smooth_margin: Option<Spanned<bool>>,
     max_area: Option<Spanned<f64>>,
     max_ratio: Option<Spanned<f64>>,
     kernel: Option<Spanned<String>>,
@@ -124,7 +125,7 @@ pub(crate) fn build(
         None => Fillet::Both,
     };
     // Where each key is written, for errors about its value.
-    let generated_keys: [(&'static str, Option<usize>); 15] = [
+    let generated_keys: [(&'static str, Option<usize>); 16] = [
         ("size", s.size.as_ref().map(|x| x.span().start)),
         ("lobes", s.lobes.as_ref().map(|x| x.span().start)),
         ("spread", s.spread.as_ref().map(|x| x.span().start)),
@@ -140,6 +141,7 @@ pub(crate) fn build(
         ("vein_radius", s.vein_radius.as_ref().map(|x| x.span().start)),
         ("tip_radius", s.tip_radius.as_ref().map(|x| x.span().start)),
         ("secondary_radius", s.secondary_radius.as_ref().map(|x| x.span().start)),
+        ("smooth_margin", s.smooth_margin.as_ref().map(|x| x.span().start)),
     ];
     let mut spans: BTreeMap<&'static str, usize> =
         generated_keys.iter().filter_map(|(k, o)| o.map(|o| (*k, o))).collect();
@@ -256,6 +258,7 @@ pub(crate) fn build(
             vein_radius: num(&s.vein_radius, d.vein_radius),
             tip_radius: num(&s.tip_radius, d.tip_radius),
             secondary_radius: num(&s.secondary_radius, d.secondary_radius),
+            smooth_margin: s.smooth_margin.as_ref().map_or(d.smooth_margin, |b| *b.get_ref()),
             max_area: num(&s.max_area, d.max_area),
             max_ratio: num(&s.max_ratio, d.max_ratio),
         };
