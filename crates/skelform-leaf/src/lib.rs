@@ -22,6 +22,11 @@
 //! 5. [`BladeRegions`]: the regions beyond (0), vein (1), above (2), below (3), with the
 //!    surfaces and curves of interest.
 //!
+//! Not done (yet): the tertiary venation texture of §7.4 (perturbed subdivision of the cut
+//! lines); region gradients for smooth per-pair normals (the polygonizer takes none, so the
+//! leaf's normals are area-weighted facet normals); taper along a segment (each segment has
+//! one radius, stepping down along a vein, until skeletal tapering lands).
+//!
 //! ```
 //! use skelform_leaf::{Fillet, Leaf, LeafParams, regions};
 //! use skelform_field::RegionField;
