@@ -151,9 +151,9 @@ pub fn run_scene(scene: &Scene, a: &RunArgs) -> Result<(Mesh, report::Run, Metho
                 .map(|(m, s)| (m, report::Run::Grid(s)))
         }
         Method::NonManifold => {
-            let Some(regions) = &scene.regions else {
+            let Some(setup) = scene.nonmanifold_regions() else {
                 return Err(input(anyhow!(
-                    "{}: --method nonmanifold needs [regions] in the scene",
+                    "{}: --method nonmanifold needs [regions] or [leaf] in the scene",
                     scene.origin
                 )));
             };
@@ -164,10 +164,10 @@ pub fn run_scene(scene: &Scene, a: &RunArgs) -> Result<(Mesh, report::Run, Metho
                 cell,
                 seeds: seeds(scene, a),
                 search_stride: scene.continuation.search_stride.unwrap_or(defaults.search_stride),
-                full_grid: regions.full_grid,
-                loops: regions.loops,
-                interest: regions.interest.clone(),
-                curves: regions.curves.clone(),
+                full_grid: setup.full_grid,
+                loops: setup.loops,
+                interest: setup.interest,
+                curves: setup.curves,
                 max_cells: a
                     .max_cells
                     .or(scene.continuation.max_cells)
@@ -175,8 +175,7 @@ pub fn run_scene(scene: &Scene, a: &RunArgs) -> Result<(Mesh, report::Run, Metho
                 control,
                 ..defaults
             };
-            let field = regions.field.clone();
-            pool.install(|| nonmanifold::polygonize(field.as_ref(), &options))
+            pool.install(|| nonmanifold::polygonize(setup.field.as_ref(), &options))
                 .map(|(m, s)| (m, report::Run::NonManifold(Box::new(s))))
         }
         Method::Continuation | Method::Tetra => {

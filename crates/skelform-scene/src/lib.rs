@@ -24,6 +24,7 @@
 //!
 //! The format is documented with examples in `docs/SCENES.md`.
 
+mod leaf;
 mod regions;
 mod schema;
 mod skeleton;
@@ -36,6 +37,7 @@ use skelform_field::{Aabb, Field, Iso};
 use skelform_mesh::io::Format;
 use skelform_polygonize::grid::Resolution;
 
+pub use leaf::LeafRegions;
 pub use regions::Regions;
 pub use schema::{Method, ParseMethodError};
 pub use skeleton::Combine;
@@ -62,7 +64,10 @@ pub struct Scene {
     pub healed: Healed,
     /// Regions of space for the non-manifold method, when the scene has `[regions]`.
     pub regions: Option<Regions>,
-    /// True when the scene has `[regions]` and neither a formula nor a skeleton: only the
+    /// The leaf of chapter 7 as regions (beyond, vein, above, below), when the scene has
+    /// `[leaf]`; meshed by the non-manifold method like `[regions]`.
+    pub leaf: Option<LeafRegions>,
+    /// True when the scene has `[regions]` (or `[leaf]`) and neither a formula nor a skeleton: only the
     /// non-manifold method can mesh it.
     pub regions_only: bool,
     /// The field with the iso value already subtracted: its zero set is the surface.
@@ -138,7 +143,40 @@ pub enum SceneError {
     Invalid { path: String, message: String },
 }
 
+/// What the non-manifold polygonizer needs from a scene's `[regions]` or `[leaf]`.
+pub struct NonManifoldSetup {
+    pub field: Arc<dyn skelform_field::RegionField>,
+    /// Surfaces of interest (region pairs).
+    pub interest: Vec<skelform_mesh::RegionPair>,
+    /// Curves of interest (region triples); empty: every curve between surfaces of interest.
+    pub curves: Vec<skelform_mesh::RegionTriple>,
+    pub full_grid: bool,
+    /// Resolve looped intersections (beyond the chapter).
+    pub loops: bool,
+}
+
 impl Scene {
+    /// What the non-manifold method polygonizes: the region function, the pairs of interest
+    /// and whether to visit every cube; from `[leaf]` or `[regions]`.
+    pub fn nonmanifold_regions(&self) -> Option<NonManifoldSetup> {
+        if let Some(l) = &self.leaf {
+            return Some(NonManifoldSetup {
+                field: l.region_field(),
+                interest: l.interest.clone(),
+                curves: Vec::new(),
+                full_grid: l.full_grid,
+                loops: false,
+            });
+        }
+        self.regions.as_ref().map(|r| NonManifoldSetup {
+            field: r.field.clone() as Arc<dyn skelform_field::RegionField>,
+            interest: r.interest.clone(),
+            curves: r.curves.clone(),
+            full_grid: r.full_grid,
+            loops: r.loops,
+        })
+    }
+
     /// Reads and validates a scene file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
         let shown = path.display().to_string();

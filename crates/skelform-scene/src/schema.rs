@@ -77,6 +77,8 @@ struct File {
     skeleton: Option<Spanned<crate::skeleton::SkeletonSection>>,
     /// Regions of space for the non-manifold polygonizer (see `crate::regions`).
     regions: Option<Spanned<crate::regions::RegionsSection>>,
+    /// The leaf of chapter 7 as regions (see `crate::leaf`).
+    leaf: Option<Spanned<crate::leaf::LeafSection>>,
     output: Option<OutputSection>,
 }
 
@@ -252,6 +254,13 @@ pub(crate) fn build(text: &str, origin: &str) -> Result<Scene, SceneError> {
         )?),
         None => None,
     };
+    let leaf = match &file.leaf {
+        Some(l) if regions.is_some() => {
+            return Err(cx.at(l.span().start, "give either [regions] or [leaf], not both"));
+        }
+        Some(l) => Some(crate::leaf::build(l, &domain, &|o, m| cx.at(o, m))?),
+        None => None,
+    };
     let (formula, iso, formula_field) = match &file.field {
         Some(field) => {
             let f = field.get_ref();
@@ -278,14 +287,14 @@ pub(crate) fn build(text: &str, origin: &str) -> Result<Scene, SceneError> {
         }
         None => {
             let placeholder = Arc::new(Formula::parse("1").map_err(|e| cx.at(0, e.message()))?);
-            match (&skeleton, &regions) {
+            match (&skeleton, regions.is_some() || leaf.is_some()) {
                 // No formula: a constant stands in for `skelform info`.
                 (Some(sk), _) => (placeholder, sk.field.iso().unwrap_or(0.0), None),
                 // Regions alone: the constant is the (unused) field.
-                (None, Some(_)) => {
+                (None, true) => {
                     (placeholder.clone(), 0.0, Some(placeholder as Arc<dyn skelform_field::Field>))
                 }
-                (None, None) => {
+                (None, false) => {
                     return Err(
                         cx.at(0, "a scene needs a [field] formula, a [skeleton] or [regions]")
                     );
@@ -319,6 +328,12 @@ pub(crate) fn build(text: &str, origin: &str) -> Result<Scene, SceneError> {
             return Err(cx.at(0, "a scene needs a [field] formula, a [skeleton] or [regions]"));
         }
     };
+    if let Some(l) = &leaf
+        && continuation.seeds.is_empty()
+    {
+        // Seeding from the blade and the veins.
+        continuation.seeds = l.seeds.iter().copied().filter(|p| domain.contains(*p)).collect();
+    }
     if let Some(sk) = &skeleton
         && continuation.seeds.is_empty()
     {
@@ -355,8 +370,11 @@ pub(crate) fn build(text: &str, origin: &str) -> Result<Scene, SceneError> {
         tolerance,
         continuation,
         healed,
-        regions_only: regions.is_some() && file.field.is_none() && skeleton.is_none(),
+        regions_only: (regions.is_some() || leaf.is_some())
+            && file.field.is_none()
+            && skeleton.is_none(),
         regions,
+        leaf,
         field,
         skeleton: skeleton.map(|s| s.field),
         formula,

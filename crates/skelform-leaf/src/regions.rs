@@ -1,0 +1,128 @@
+//! Blade and vein as regions of space (dissertation §7.3, after the sphere/patch blend of
+//! §4.8.4): what the non-manifold polygonizer needs to make the leaf.
+//!
+//! | id | region | rule, in order |
+//! |---|---|---|
+//! | 1 | vein | `Σ veins > min(|d| / r, ½)` (`fillet = Below`: and not above the blade) |
+//! | 0 | beyond | beyond the blade's margin |
+//! | 2 | above | `d > 0` |
+//! | 3 | below | otherwise |
+//!
+//! `d` is the signed distance to the blade ([`crate::Blade::distance`]), `Σ veins` the sum
+//! of the vein primitives and `r` the radius of the nearest vein. The vein test comes first
+//! so that veins continue past the margin (the petiole, the rounded vein tips): the vein's
+//! surface there is the pair (0, 1).
+//!
+//! The cap at ½ is ours: the dissertation's rule `Σ > |d|/r` alone makes a vein vanish a
+//! radius away from the blade (a petiole would be cut off where it leaves the leaf). Capped,
+//! a vein away from the blade is its own convolution surface (`Σ = ½`, radius `r`), and the
+//! dissertation's rule governs where it matters, within half a radius of the blade, where the
+//! fillet forms.
+//!
+//! Surfaces of interest: (2, 3) the blade, (1, 2) and (1, 3) the vein above and below the
+//! blade, (0, 1) the vein beyond the margin. Curves of interest: (0, 2, 3) the margin,
+//! (1, 2, 3) where vein and blade meet, (0, 1, 2) and (0, 1, 3) where a vein leaves the blade
+//! at the margin.
+//!
+//! Near the blade, `|d|` is small, so even a faint vein density claims the point: the vein
+//! fillets smoothly into the blade (fig. 7.11). The localized variant (`Fillet::Below`)
+//! keeps everything above the blade out of the vein, so the vein stands out only below and
+//! the blade's upper side stays smooth (fig. 7.10, 7.12).
+
+use glam::DVec3;
+use skelform_field::RegionField;
+use skelform_mesh::{RegionPair, RegionTriple};
+
+use crate::blade::{Blade, Side};
+use crate::veins::Veins;
+
+pub const BEYOND: u32 = 0;
+pub const VEIN: u32 = 1;
+pub const ABOVE: u32 = 2;
+pub const BELOW: u32 = 3;
+
+/// Where a vein may fillet into the blade.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Fillet {
+    /// Above and below (the dissertation's first blend, fig. 7.11).
+    #[default]
+    Both,
+    /// Only below: a point above the blade is never in the vein (fig. 7.12).
+    Below,
+}
+
+/// The region function of a blade with veins.
+#[derive(Clone, Debug)]
+pub struct BladeRegions {
+    pub blade: Blade,
+    pub veins: Option<Veins>,
+    pub fillet: Fillet,
+}
+
+impl BladeRegions {
+    /// The surfaces to polygonize: blade, vein above, vein below, vein beyond (see the module
+    /// documentation); only the blade when there are no veins.
+    pub fn interest(&self) -> Vec<RegionPair> {
+        if self.veins.is_some() {
+            vec![
+                RegionPair(BEYOND, VEIN),
+                RegionPair(VEIN, ABOVE),
+                RegionPair(VEIN, BELOW),
+                RegionPair(ABOVE, BELOW),
+            ]
+        } else {
+            vec![RegionPair(ABOVE, BELOW)]
+        }
+    }
+
+    /// The curves where the surfaces of interest meet.
+    pub fn curves(&self) -> Vec<RegionTriple> {
+        let mut c = vec![RegionTriple::new([BEYOND, ABOVE, BELOW])];
+        if self.veins.is_some() {
+            c.extend([
+                RegionTriple::new([VEIN, ABOVE, BELOW]),
+                RegionTriple::new([BEYOND, VEIN, ABOVE]),
+                RegionTriple::new([BEYOND, VEIN, BELOW]),
+            ]);
+        }
+        c.sort();
+        c
+    }
+
+    /// Points on each surface of interest to start the polygonizer from: the blade's
+    /// vertices and the vein segments' ends.
+    pub fn seeds(&self) -> Vec<DVec3> {
+        let mut s: Vec<DVec3> = self.blade.vertices.iter().step_by(7).copied().collect();
+        if let Some(v) = &self.veins {
+            s.extend(v.segments.iter().map(|seg| seg.a + DVec3::Z * 0.5 * seg.radius));
+        }
+        s
+    }
+}
+
+impl RegionField for BladeRegions {
+    fn region(&self, p: DVec3) -> u32 {
+        let d = self.blade.distance(p);
+        if let Some(v) = &self.veins
+            && !(self.fillet == Fillet::Below && d.side == Side::Above)
+        {
+            let (sum, r) = v.density(p);
+            if sum > 0.0 && sum > (d.distance.abs() / r).min(skelform_skeleton::DEFAULT_ISO) {
+                return VEIN;
+            }
+        }
+        match d.side {
+            Side::Beyond => BEYOND,
+            Side::Above => ABOVE,
+            Side::Below => BELOW,
+        }
+    }
+
+    fn region_ids(&self) -> Option<Vec<u32>> {
+        Some(if self.veins.is_some() {
+            vec![BEYOND, VEIN, ABOVE, BELOW]
+        } else {
+            vec![BEYOND, ABOVE, BELOW]
+        })
+    }
+}

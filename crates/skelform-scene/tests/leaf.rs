@@ -1,0 +1,114 @@
+//! `[leaf]` scenes: the examples load and polygonize; bad input is reported with its line.
+
+use std::path::Path;
+
+use skelform_mesh::RegionPair;
+use skelform_polygonize::nonmanifold::{Options, polygonize};
+use skelform_scene::{Scene, SceneError};
+
+fn example(name: &str) -> Scene {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/nonmanifold").join(name);
+    Scene::load(&p).unwrap_or_else(|e| panic!("{name}: {e}"))
+}
+
+/// Polygonizes a scene's leaf with a coarser cell than the example's, to stay quick.
+fn mesh(scene: &Scene, cell: f64) -> Vec<RegionPair> {
+    let (field, interest, full_grid) = scene.nonmanifold_regions().unwrap();
+    let opts = Options {
+        domain: scene.domain,
+        cell,
+        seeds: scene.continuation.seeds.clone(),
+        interest,
+        full_grid,
+        ..Options::default()
+    };
+    let (_, s) = polygonize(field.as_ref(), &opts).unwrap();
+    s.triangles_per_pair.iter().map(|(p, _)| *p).collect()
+}
+
+#[test]
+fn the_leaf_examples_load_and_polygonize() {
+    let all = vec![RegionPair(0, 1), RegionPair(1, 2), RegionPair(1, 3), RegionPair(2, 3)];
+    for name in ["leaf.toml", "leaf-three-lobes.toml"] {
+        let s = example(name);
+        assert!(s.regions_only, "{name}");
+        let leaf = s.leaf.as_ref().unwrap();
+        eprintln!("{name}: {:?}", leaf.stats);
+        assert_eq!(leaf.interest, all);
+        assert!(!s.continuation.seeds.is_empty());
+        assert_eq!(mesh(&s, 0.05), all, "{name}");
+    }
+    for name in ["tee-in-square.toml", "tee-in-square-fillet.toml"] {
+        let s = example(name);
+        assert_eq!(
+            mesh(&s, 0.06),
+            vec![RegionPair(1, 2), RegionPair(1, 3), RegionPair(2, 3)],
+            "{name}"
+        );
+    }
+}
+
+fn parse_err(text: &str) -> (usize, usize, String) {
+    match Scene::parse(text, "leaf.toml") {
+        Err(SceneError::At { line, column, message, .. }) => (line, column, message),
+        Err(e) => panic!("unpositioned error: {e}"),
+        Ok(_) => panic!("accepted:\n{text}"),
+    }
+}
+
+const HEAD: &str =
+    "[domain]\nmin = [-2, -2, -2]\nmax = [2, 2, 2]\n[mesh]\nmethod = \"nonmanifold\"\n";
+
+#[test]
+fn bad_leaves_are_errors_with_their_line() {
+    let (l, _, m) = parse_err(&format!("{HEAD}[leaf]\nlobes = 5\nlobez = 3\n"));
+    assert_eq!(l, 8, "{m}");
+    assert!(m.contains("lobez"), "{m}");
+    let (l, c, m) = parse_err(&format!("{HEAD}[leaf]\nseed = 3\nlobes = 40\n"));
+    assert_eq!((l, c), (8, 9), "{m}");
+    assert!(m.contains("lobes must be"), "{m}");
+    let (l, _, m) = parse_err(&format!("{HEAD}[leaf]\nlobe_depth = 1.5\n"));
+    assert_eq!(l, 7, "{m}");
+    let (l, _, m) = parse_err(&format!("{HEAD}[leaf]\nkernel = \"sinc\"\n"));
+    assert_eq!(l, 7);
+    assert!(m.contains("unknown kernel"), "{m}");
+    let (l, _, m) = parse_err(&format!("{HEAD}[leaf]\nfillet = \"above\"\n"));
+    assert_eq!(l, 7);
+    assert!(m.contains("both or below"), "{m}");
+    // Outline leaves: generated-leaf keys, veins without radius, radii that do not match.
+    let sq = "outline = [[-1, -1], [1, -1], [1, 1], [-1, 1]]\n";
+    let (l, _, m) = parse_err(&format!("{HEAD}[leaf]\n{sq}lobes = 3\n"));
+    assert_eq!(l, 8);
+    assert!(m.contains("outline"), "{m}");
+    let (l, _, m) =
+        parse_err(&format!("{HEAD}[leaf]\n{sq}[[leaf.vein]]\npoints = [[0, 0, 0], [1, 0, 0]]\n"));
+    assert_eq!(l, 9);
+    assert!(m.contains("radius"), "{m}");
+    let (l, _, m) = parse_err(&format!(
+        "{HEAD}[leaf]\n{sq}[[leaf.vein]]\npoints = [[0, 0, 0], [0.5, 0, 0]]\nradii = [0.1]\n"
+    ));
+    assert_eq!(l, 10);
+    assert!(m.contains("radii"), "{m}");
+    let (l, _, m) = parse_err(&format!(
+        "{HEAD}[leaf]\n{sq}[[leaf.vein]]\npoints = [[0, 0, 0], [0, 0, 0]]\nradius = 0.1\n"
+    ));
+    assert_eq!(l, 9);
+    assert!(m.contains("zero-length"), "{m}");
+    let (l, _, m) =
+        parse_err(&format!("{HEAD}[leaf]\noutline = [[0, 0], [1, 1], [1, 0], [0, 1]]\n"));
+    assert_eq!(l, 7);
+    assert!(m.contains("crosses itself"), "{m}");
+    let (_, _, m) = parse_err(&format!(
+        "{HEAD}[leaf]\n{sq}[[leaf.vein]]\npoints = [[0, 0, 0], [1, 0, 0]]\nradius = -0.1\n"
+    ));
+    assert!(m.contains("positive"), "{m}");
+    // A leaf larger than the domain, and [leaf] beside [regions].
+    let small = "[domain]\nmin = [-0.5, -0.5, -0.5]\nmax = [0.5, 0.5, 0.5]\n[leaf]\n";
+    let (l, _, m) = parse_err(small);
+    assert_eq!(l, 4);
+    assert!(m.contains("outside the domain"), "{m}");
+    let (_, _, m) = parse_err(&format!(
+        "{HEAD}[regions]\ndefault = 0\n[[regions.region]]\nid = 1\nformula = \"x\"\n[leaf]\n"
+    ));
+    assert!(m.contains("[regions] or [leaf]"), "{m}");
+}
