@@ -13,16 +13,16 @@ fn example(name: &str) -> Scene {
 
 /// Polygonizes a scene's leaf with a coarser cell than the example's, to stay quick.
 fn mesh(scene: &Scene, cell: f64) -> Vec<RegionPair> {
-    let (field, interest, full_grid) = scene.nonmanifold_regions().unwrap();
+    let setup = scene.nonmanifold_regions().unwrap();
     let opts = Options {
         domain: scene.domain,
         cell,
         seeds: scene.continuation.seeds.clone(),
-        interest,
-        full_grid,
+        interest: setup.interest,
+        full_grid: setup.full_grid,
         ..Options::default()
     };
-    let (_, s) = polygonize(field.as_ref(), &opts).unwrap();
+    let (_, s) = polygonize(setup.field.as_ref(), &opts).unwrap();
     s.triangles_per_pair.iter().map(|(p, _)| *p).collect()
 }
 
