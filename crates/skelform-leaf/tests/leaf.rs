@@ -223,8 +223,12 @@ fn blade_distance_of_a_flat_leaf_is_height_inside_and_beyond_outside() {
 /// Non-manifold options for a region field with the leaf's interest.
 fn options(leaf: &Leaf, r: &skelform_leaf::BladeRegions, cell: f64) -> Options {
     let (lo, hi) = leaf.bounds(r.veins.as_ref().map_or(Kernel::Wyvill, |v| v.kernel));
+    // The lattice starts a fraction of a cell off the round numbers, so that no lattice
+    // plane holds the flat parts of the blade (z = 0) or a straight margin (x = ±1): a
+    // region boundary lying in a lattice plane is the chapter's degenerate case.
+    let lo = lo - DVec3::splat(2.0 * cell) + DVec3::splat(0.17 * cell);
     Options {
-        domain: Aabb::new(lo - DVec3::splat(2.0 * cell), hi + DVec3::splat(2.0 * cell)),
+        domain: Aabb::new(lo, hi + DVec3::splat(2.0 * cell)),
         cell,
         seeds: r.seeds(),
         interest: r.interest(),
