@@ -36,6 +36,10 @@ pub enum SkeletonError {
     UnknownJoint(String),
     #[error("joint '{0}' is defined twice")]
     DuplicateJoint(String),
+    #[error("joint '{joint}' turns about {axes} axes, so it takes {axes} angles (got {got})")]
+    AngleCount { joint: String, axes: usize, got: usize },
+    #[error("there is no element {0}")]
+    UnknownElement(usize),
     #[error("the skeleton has no elements")]
     Empty,
     #[error("iso applies to density blends (convolution, sum, combination), not to {0}")]
