@@ -154,7 +154,11 @@ impl Ctx<'_> {
     }
 }
 
-pub(crate) fn build(text: &str, origin: &str) -> Result<Scene, SceneError> {
+pub(crate) fn build(
+    text: &str,
+    origin: &str,
+    options: &crate::LoadOptions,
+) -> Result<Scene, SceneError> {
     let cx = Ctx { text, origin };
     let file: File = toml::from_str(text).map_err(|e| {
         let offset = e.span().map_or(0, |s| s.start);
@@ -241,7 +245,10 @@ pub(crate) fn build(text: &str, origin: &str) -> Result<Scene, SceneError> {
     let healed = healed_settings(&cx, &mesh)?;
 
     let skeleton = match &file.skeleton {
-        Some(s) => Some(crate::skeleton::build(s, &|o, m| cx.at(o, m))?),
+        Some(s) => {
+            let choice = crate::pose::Choice { pose: options.pose.as_deref(), origin };
+            Some(crate::skeleton::build(s, &|o, m| cx.at(o, m), choice)?)
+        }
         None => None,
     };
     let regions = match &file.regions {
@@ -358,6 +365,7 @@ pub(crate) fn build(text: &str, origin: &str) -> Result<Scene, SceneError> {
         regions_only: regions.is_some() && file.field.is_none() && skeleton.is_none(),
         regions,
         field,
+        articulation: skeleton.as_ref().and_then(|s| s.articulation.clone()),
         skeleton: skeleton.map(|s| s.field),
         formula,
         iso,

@@ -53,6 +53,10 @@ pub(crate) struct SkeletonSection {
     curve: Option<Vec<CurveSpec>>,
     triangle: Option<Vec<PolygonSpec>>,
     polygon: Option<Vec<PolygonSpec>>,
+    /// Joints and poses (see `crate::pose`).
+    joint: Option<Vec<crate::pose::JointSpec>>,
+    poses: Option<BTreeMap<Spanned<String>, crate::pose::PoseSpec>>,
+    pose: Option<Spanned<String>>,
 }
 
 #[derive(Deserialize)]
@@ -62,6 +66,8 @@ struct PointSpec {
     radius: Option<Spanned<f64>>,
     strength: Option<Spanned<f64>>,
     group: Option<Spanned<String>>,
+    /// The joint whose frame the element is written in.
+    joint: Option<Spanned<String>>,
 }
 
 #[derive(Deserialize)]
@@ -72,6 +78,8 @@ struct SegmentSpec {
     radius: Option<Spanned<f64>>,
     strength: Option<Spanned<f64>>,
     group: Option<Spanned<String>>,
+    /// The joint whose frame the element is written in.
+    joint: Option<Spanned<String>>,
 }
 
 #[derive(Deserialize)]
@@ -81,6 +89,8 @@ struct PolylineSpec {
     radius: Option<Spanned<f64>>,
     strength: Option<Spanned<f64>>,
     group: Option<Spanned<String>>,
+    /// The joint whose frame the element is written in.
+    joint: Option<Spanned<String>>,
 }
 
 #[derive(Deserialize)]
@@ -93,6 +103,8 @@ struct CurveSpec {
     radius: Option<Spanned<f64>>,
     strength: Option<Spanned<f64>>,
     group: Option<Spanned<String>>,
+    /// The joint whose frame the element is written in.
+    joint: Option<Spanned<String>>,
 }
 
 #[derive(Deserialize)]
@@ -102,6 +114,8 @@ struct PolygonSpec {
     radius: Option<Spanned<f64>>,
     strength: Option<Spanned<f64>>,
     group: Option<Spanned<String>>,
+    /// The joint whose frame the element is written in.
+    joint: Option<Spanned<String>>,
 }
 
 /// How a skeleton and a formula in the same scene make one surface.
@@ -120,9 +134,14 @@ pub(crate) struct Built {
     pub field: Arc<SkeletonField>,
     pub combine: Option<(Combine, usize)>,
     pub section_at: usize,
+    pub articulation: Option<crate::pose::Articulation>,
 }
 
-pub(crate) fn build(s: &Spanned<SkeletonSection>, at: At) -> Result<Built, SceneError> {
+pub(crate) fn build(
+    s: &Spanned<SkeletonSection>,
+    at: At,
+    choice: crate::pose::Choice,
+) -> Result<Built, SceneError> {
     let section_at = s.span().start;
     let s = s.get_ref();
     let err = |offset: usize, e: SkeletonError| at(offset, e.to_string());
@@ -277,29 +296,38 @@ pub(crate) fn build(s: &Spanned<SkeletonSection>, at: At) -> Result<Built, Scene
         };
     let v3 = |a: &[f64; 3]| DVec3::from_array(*a);
 
+    // Which elements hang from which joint (see `crate::pose`).
+    let mut marks: crate::pose::Marks = Vec::new();
     for p in s.point.iter().flatten() {
+        let first = skeleton.len();
         let c = common(p.at.span().start, &p.radius, &p.strength, &p.group, &skeleton)?;
         let at_ = v3(p.at.get_ref());
         if !at_.is_finite() {
             return Err(err(p.at.span().start, SkeletonError::NonFinite));
         }
         add(&mut skeleton, Shape::Point(at_), c, p.at.span().start)?;
+        marks.push((first..skeleton.len(), p.joint.as_ref()));
     }
     for sg in s.segment.iter().flatten() {
+        let first = skeleton.len();
         let c = common(sg.a.span().start, &sg.radius, &sg.strength, &sg.group, &skeleton)?;
         let seg = Segment::new(v3(sg.a.get_ref()), v3(sg.b.get_ref()))
             .map_err(|e| err(sg.b.span().start, e))?;
         add(&mut skeleton, Shape::Segment(seg), c, sg.a.span().start)?;
+        marks.push((first..skeleton.len(), sg.joint.as_ref()));
     }
     for pl in s.polyline.iter().flatten() {
+        let first = skeleton.len();
         let (r, w, g) =
             common(pl.points.span().start, &pl.radius, &pl.strength, &pl.group, &skeleton)?;
         let pts: Vec<DVec3> = pl.points.get_ref().iter().map(v3).collect();
         let range =
             skeleton.add_polyline(&pts, r, g).map_err(|e| err(pl.points.span().start, e))?;
         set_strength(&mut skeleton, range, w).map_err(|e| err(pl.points.span().start, e))?;
+        marks.push((first..skeleton.len(), pl.joint.as_ref()));
     }
     for cv in s.curve.iter().flatten() {
+        let first = skeleton.len();
         let (r, w, g) =
             common(cv.bezier.span().start, &cv.radius, &cv.strength, &cv.group, &skeleton)?;
         let tol = match &cv.tolerance {
@@ -319,9 +347,11 @@ pub(crate) fn build(s: &Spanned<SkeletonSection>, at: At) -> Result<Built, Scene
         let range =
             skeleton.add_curve(&curve, tol, r, g).map_err(|e| err(cv.bezier.span().start, e))?;
         set_strength(&mut skeleton, range, w).map_err(|e| err(cv.bezier.span().start, e))?;
+        marks.push((first..skeleton.len(), cv.joint.as_ref()));
     }
     for (kind, list) in [("triangle", &s.triangle), ("polygon", &s.polygon)] {
         for pg in list.iter().flatten() {
+            let first = skeleton.len();
             let vat = pg.vertices.span().start;
             let c = common(vat, &pg.radius, &pg.strength, &pg.group, &skeleton)?;
             let vs: Vec<DVec3> = pg.vertices.get_ref().iter().map(v3).collect();
@@ -336,6 +366,7 @@ pub(crate) fn build(s: &Spanned<SkeletonSection>, at: At) -> Result<Built, Scene
             }
             let poly = Polygon::new(vs).map_err(|e| err(vat, e))?;
             add(&mut skeleton, Shape::Polygon(poly), c, vat)?;
+            marks.push((first..skeleton.len(), pg.joint.as_ref()));
         }
     }
     if skeleton.is_empty() {
@@ -346,6 +377,12 @@ pub(crate) fn build(s: &Spanned<SkeletonSection>, at: At) -> Result<Built, Scene
                 .into(),
         ));
     }
+    let spec = crate::pose::Spec {
+        joints: s.joint.as_deref(),
+        poses: s.poses.as_ref(),
+        pose: s.pose.as_ref(),
+    };
+    let (skeleton, articulation) = crate::pose::articulate(&spec, skeleton, &marks, choice, at)?;
 
     let mut field = SkeletonField::new(&skeleton, blend).map_err(|e| {
         let offset = match &e {
@@ -381,7 +418,7 @@ pub(crate) fn build(s: &Spanned<SkeletonSection>, at: At) -> Result<Built, Scene
             c.span().start,
         )),
     };
-    Ok(Built { field: Arc::new(field), combine, section_at })
+    Ok(Built { field: Arc::new(field), combine, section_at, articulation })
 }
 
 fn set_strength(
