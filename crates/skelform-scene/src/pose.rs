@@ -29,7 +29,7 @@
 
 use std::collections::{BTreeMap, HashMap};
 
-use glam::DQuat;
+use glam::{DAffine3, DQuat};
 use serde::Deserialize;
 use skelform_field::DVec3;
 use skelform_skeleton::{Articulated, JointId, Pose, Skeleton, SkeletonError};
@@ -91,14 +91,18 @@ pub(crate) struct Choice<'a> {
 }
 
 /// What a scene's articulation is, for `skelform info` and the command line.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Articulation {
     /// Joint names in file order.
     pub joints: Vec<String>,
-    /// Pose names: `rest` first, then the file's in file order.
+    /// Pose names: `rest` first, then the file's in name order.
     pub poses: Vec<String>,
     /// The pose the field was built in.
     pub pose: String,
+    /// Each joint's frame in world coordinates in that pose (in the order of `joints`): its
+    /// origin is where the joint is, and an element point `q` of the joint lies at
+    /// `frame.transform_point3(q)`.
+    pub frames: Vec<DAffine3>,
 }
 
 /// Element ranges of the skeleton and the joint each is attached to (`None`: world).
@@ -298,10 +302,12 @@ pub(crate) fn articulate(
         path: choice.origin.to_string(),
         message: format!("pose '{chosen}': {e}"),
     })?;
+    let frames = art.frames(pose);
     let articulation = Articulation {
         joints: joints.iter().map(|j| j.name.get_ref().clone()).collect(),
         poses: names,
         pose: chosen,
+        frames: id.iter().map(|j| j.map_or(DAffine3::IDENTITY, |j| frames[j.index()])).collect(),
     };
     Ok((posed, Some(articulation)))
 }
