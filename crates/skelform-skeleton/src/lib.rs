@@ -25,7 +25,12 @@
 //! Articulation: an [`Articulated`] skeleton hangs elements from a tree of joints; a [`Pose`]
 //! rotates joints and [`Articulated::posed`] gives the plain skeleton to build a field from.
 //!
-//! What it does not (yet): scene syntax for joints, tapered radii, the joint combination
+//! Joints turn about named axes by angles in degrees ([`Articulated::set_axes`],
+//! [`Articulated::set_angles`]), so the dissertation's finger parameters (θ, φ at the first
+//! knuckle, grip2 and grip3 at the others) are joint angles as they stand; the scene syntax
+//! is `[[skeleton.joint]]` and `[skeleton.poses.NAME]` (`docs/SCENES.md`).
+//!
+//! What it does not (yet): tapered radii, the joint combination
 //! surface of appendix A.2 with per-joint planes, the raster-image polygon method of appendix
 //! A.3, a closed form for polygons under the Gaussian and B-spline kernels (they use adaptive
 //! quadrature); distance surfaces take the distance to the skeleton element, so they
