@@ -419,6 +419,14 @@ middle = 90
         assert_eq!(s.articulation.as_ref().unwrap().pose, "bent");
         let s = parse(&text, Some("rest")).unwrap();
         assert!(inside(&s, [1.5, 0.0, 0.0]));
+        // Children may come before their parents in the file.
+        let (first, second) =
+            FINGER.split_at(FINGER.find("[[skeleton.joint]]\nname = \"middle\"").unwrap());
+        let (joint2, rest_of_file) = second.split_at(second.find("[[skeleton.segment]]").unwrap());
+        let reordered = format!("{joint2}{first}{rest_of_file}");
+        let s = parse(&reordered, Some("turned")).unwrap();
+        assert!(inside(&s, [0.0, 1.0, -0.5]) && !inside(&s, [1.0, 0.0, -0.5]));
+        assert_eq!(s.articulation.as_ref().unwrap().joints, ["middle", "knuckle"]);
         // Seeds follow the pose.
         assert!(
             bent.continuation
@@ -451,6 +459,14 @@ middle = 90
             r => panic!("{:?}", r.map(|_| ())),
         }
         assert!(parse(plain, None).unwrap().articulation.is_none());
+        let formula = "[domain]\nmin = [-1, -1, -1]\nmax = [1, 1, 1]\n[field]\nformula = \"x\"\n";
+        let options = LoadOptions { pose: Some("open".into()) };
+        match Scene::parse_with(formula, "f.toml", &options) {
+            Err(SceneError::Invalid { message, .. }) => {
+                assert!(message.contains("no [skeleton] joints"), "{message}")
+            }
+            r => panic!("{:?}", r.map(|_| ())),
+        }
     }
 
     #[test]

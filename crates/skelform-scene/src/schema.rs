@@ -249,7 +249,15 @@ pub(crate) fn build(
             let choice = crate::pose::Choice { pose: options.pose.as_deref(), origin };
             Some(crate::skeleton::build(s, &|o, m| cx.at(o, m), choice)?)
         }
-        None => None,
+        None => {
+            if let Some(p) = &options.pose {
+                return Err(SceneError::Invalid {
+                    path: origin.to_string(),
+                    message: format!("cannot take pose '{p}': the scene has no [skeleton] joints"),
+                });
+            }
+            None
+        }
     };
     let regions = match &file.regions {
         Some(r) => Some(crate::regions::build(
