@@ -1,12 +1,13 @@
 #!/usr/bin/env bash
 # Field evaluations and time of each polygonizer on the same scenes, from one run.
-# Usage: bench/methods.sh [scene.toml ...]   (default: the continuation benchmark scenes)
+# Usage: bench/methods.sh [scene.toml ...]   (default: the continuation benchmark scenes and
+# the chapter-6 hand, whose 85 skeletal elements seed the continuation methods)
 # Evaluation counts are exact and repeatable; times are from this run on this machine.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo build --release --quiet --bin skelform
 scenes=("$@")
-[ ${#scenes[@]} -gt 0 ] || scenes=(examples/continuation/blobs-50.toml examples/continuation/torus.toml examples/continuation/jacks.toml)
+[ ${#scenes[@]} -gt 0 ] || scenes=(examples/continuation/blobs-50.toml examples/continuation/torus.toml examples/continuation/jacks.toml examples/skeleton/hand.toml)
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
 printf '| scene | method | evaluations | triangles | components | seconds (median of 3) |\n|---|---|---|---|---|---|\n'

@@ -85,6 +85,9 @@ struct InfoArgs {
     /// Also print the compiled instruction tape.
     #[arg(long)]
     tape: bool,
+    /// Describe the scene in this named pose (see `skelform mesh --pose`).
+    #[arg(long)]
+    pose: Option<String>,
 }
 
 /// A failure with its exit code.
@@ -121,7 +124,13 @@ fn main() -> ExitCode {
 }
 
 fn load_scene(path: &Path) -> Result<Scene, Failure> {
-    Scene::load(path).map_err(input)
+    load_scene_posed(path, None)
+}
+
+/// Loads a scene, its skeleton in the named pose when one is given.
+fn load_scene_posed(path: &Path, pose: Option<&str>) -> Result<Scene, Failure> {
+    let options = skelform_scene::LoadOptions { pose: pose.map(str::to_string) };
+    Scene::load_with(path, &options).map_err(input)
 }
 
 fn output_format(path: &Path) -> Result<Format, Failure> {
@@ -134,7 +143,7 @@ fn output_format(path: &Path) -> Result<Format, Failure> {
 }
 
 fn mesh(a: MeshArgs) -> Result<(), Failure> {
-    let scene = load_scene(&a.scene)?;
+    let scene = load_scene_posed(&a.scene, a.run.pose.as_deref())?;
     let out = a.output.clone().or_else(|| scene.output.file.clone()).ok_or_else(|| {
         input(anyhow!("no output file: give -o OUT.ply (or set [output] file in the scene)"))
     })?;
@@ -202,7 +211,7 @@ fn check(a: CheckArgs) -> Result<(), Failure> {
 }
 
 fn info(a: InfoArgs) -> Result<(), Failure> {
-    let scene = load_scene(&a.scene)?;
+    let scene = load_scene_posed(&a.scene, a.pose.as_deref())?;
     println!("scene       {}", scene.origin);
     if let Some(n) = &scene.name {
         println!("name        {n}");
@@ -238,6 +247,10 @@ fn info(a: InfoArgs) -> Result<(), Failure> {
             println!("iso         {}", scene.iso);
             println!("formula     {} instructions", scene.formula.instruction_count());
         }
+    }
+    if let Some(art) = &scene.articulation {
+        println!("joints      {}", art.joints.len());
+        println!("pose        {} (poses: {})", art.pose, art.poses.join(", "));
     }
     if a.tape {
         println!("{}", scene.formula.tape());

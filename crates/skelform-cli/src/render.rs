@@ -9,7 +9,7 @@ use skelform_mesh::Mesh;
 use skelform_mesh::io::read_mesh;
 use skelform_render::{Projection, RenderError, Renderer, Settings, View, write_apng};
 
-use crate::{Failure, input, load_scene, report, run, runtime};
+use crate::{Failure, input, load_scene_posed, report, run, runtime};
 
 #[derive(Args)]
 pub struct RenderArgs {
@@ -101,7 +101,7 @@ pub fn failure(e: RenderError) -> Failure {
 pub fn load(path: &Path, run_args: &run::RunArgs) -> Result<Mesh, Failure> {
     let is_scene = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml"));
     let mesh = if is_scene {
-        let scene = load_scene(path)?;
+        let scene = load_scene_posed(path, run_args.pose.as_deref())?;
         let (mesh, stats, _) = run::run_scene(&scene, run_args)?;
         if mesh.is_empty() {
             return Err(runtime(report::no_surface(&scene, &stats)));

@@ -78,6 +78,10 @@ pub struct RunArgs {
     /// No progress bar.
     #[arg(short, long)]
     pub quiet: bool,
+    /// Build an articulated skeleton in this named pose (overrides the scene's `pose`);
+    /// `rest` is every joint at its default angles.
+    #[arg(long)]
+    pub pose: Option<String>,
 }
 
 /// The cell side the scene's domain and resolution give.

@@ -25,6 +25,7 @@
 //! The format is documented with examples in `docs/SCENES.md`.
 
 mod leaf;
+mod pose;
 mod regions;
 mod schema;
 mod skeleton;
@@ -38,6 +39,7 @@ use skelform_mesh::io::Format;
 use skelform_polygonize::grid::Resolution;
 
 pub use leaf::LeafRegions;
+pub use pose::{Articulation, REST as REST_POSE};
 pub use regions::Regions;
 pub use schema::{Method, ParseMethodError};
 pub use skeleton::Combine;
@@ -80,6 +82,17 @@ pub struct Scene {
     pub formula: Arc<Formula>,
     pub iso: f64,
     pub output: Output,
+    /// Joints and poses, when the skeleton has them: the pose the field was built in and
+    /// the others a load could ask for ([`LoadOptions::pose`]).
+    pub articulation: Option<Articulation>,
+}
+
+/// Choices a load makes that the file leaves open (the command line's).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct LoadOptions {
+    /// Build the skeleton in this pose instead of the scene's `pose` (or `rest`); a name the
+    /// scene does not define is an error listing the ones it does.
+    pub pose: Option<String>,
 }
 
 impl std::fmt::Debug for Scene {
@@ -179,10 +192,15 @@ impl Scene {
 
     /// Reads and validates a scene file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        Scene::load_with(path, &LoadOptions::default())
+    }
+
+    /// Reads and validates a scene file with choices from outside it (a pose).
+    pub fn load_with(path: &Path, options: &LoadOptions) -> Result<Scene, SceneError> {
         let shown = path.display().to_string();
         let text = std::fs::read_to_string(path)
             .map_err(|source| SceneError::Io { path: shown.clone(), source })?;
-        let mut scene = Scene::parse(&text, &shown)?;
+        let mut scene = Scene::parse_with(&text, &shown, options)?;
         if let (Some(file), Some(dir)) = (&scene.output.file, path.parent()) {
             scene.output.file = Some(dir.join(file));
         }
@@ -191,7 +209,16 @@ impl Scene {
 
     /// Validates scene text; `origin` names it in messages.
     pub fn parse(text: &str, origin: &str) -> Result<Scene, SceneError> {
-        schema::build(text, origin)
+        schema::build(text, origin, &LoadOptions::default())
+    }
+
+    /// Validates scene text with choices from outside it (a pose).
+    pub fn parse_with(
+        text: &str,
+        origin: &str,
+        options: &LoadOptions,
+    ) -> Result<Scene, SceneError> {
+        schema::build(text, origin, options)
     }
 }
 

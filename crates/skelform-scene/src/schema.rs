@@ -156,7 +156,11 @@ impl Ctx<'_> {
     }
 }
 
-pub(crate) fn build(text: &str, origin: &str) -> Result<Scene, SceneError> {
+pub(crate) fn build(
+    text: &str,
+    origin: &str,
+    options: &crate::LoadOptions,
+) -> Result<Scene, SceneError> {
     let cx = Ctx { text, origin };
     let file: File = toml::from_str(text).map_err(|e| {
         let offset = e.span().map_or(0, |s| s.start);
@@ -243,8 +247,19 @@ pub(crate) fn build(text: &str, origin: &str) -> Result<Scene, SceneError> {
     let healed = healed_settings(&cx, &mesh)?;
 
     let skeleton = match &file.skeleton {
-        Some(s) => Some(crate::skeleton::build(s, &|o, m| cx.at(o, m))?),
-        None => None,
+        Some(s) => {
+            let choice = crate::pose::Choice { pose: options.pose.as_deref(), origin };
+            Some(crate::skeleton::build(s, &|o, m| cx.at(o, m), choice)?)
+        }
+        None => {
+            if let Some(p) = &options.pose {
+                return Err(SceneError::Invalid {
+                    path: origin.to_string(),
+                    message: format!("cannot take pose '{p}': the scene has no [skeleton] joints"),
+                });
+            }
+            None
+        }
     };
     let regions = match &file.regions {
         Some(r) => Some(crate::regions::build(
@@ -376,6 +391,7 @@ pub(crate) fn build(text: &str, origin: &str) -> Result<Scene, SceneError> {
         regions,
         leaf,
         field,
+        articulation: skeleton.as_ref().and_then(|s| s.articulation.clone()),
         skeleton: skeleton.map(|s| s.field),
         formula,
         iso,

@@ -59,6 +59,10 @@ pub(crate) struct SkeletonSection {
     curve: Option<Vec<CurveSpec>>,
     triangle: Option<Vec<PolygonSpec>>,
     polygon: Option<Vec<PolygonSpec>>,
+    /// Joints and poses (see `crate::pose`).
+    joint: Option<Vec<crate::pose::JointSpec>>,
+    poses: Option<BTreeMap<Spanned<String>, crate::pose::PoseSpec>>,
+    pose: Option<Spanned<String>>,
     junction: Option<Vec<JunctionSpec>>,
 }
 
@@ -112,6 +116,8 @@ struct PointSpec {
     radius: Option<Spanned<Numbers>>,
     strength: Option<Spanned<Numbers>>,
     group: Option<Spanned<String>>,
+    /// The joint whose frame the element is written in.
+    joint: Option<Spanned<String>>,
 }
 
 #[derive(Deserialize)]
@@ -122,6 +128,8 @@ struct SegmentSpec {
     radius: Option<Spanned<Numbers>>,
     strength: Option<Spanned<Numbers>>,
     group: Option<Spanned<String>>,
+    /// The joint whose frame the element is written in.
+    joint: Option<Spanned<String>>,
 }
 
 #[derive(Deserialize)]
@@ -131,6 +139,8 @@ struct PolylineSpec {
     radius: Option<Spanned<Numbers>>,
     strength: Option<Spanned<Numbers>>,
     group: Option<Spanned<String>>,
+    /// The joint whose frame the element is written in.
+    joint: Option<Spanned<String>>,
 }
 
 #[derive(Deserialize)]
@@ -143,6 +153,8 @@ struct CurveSpec {
     radius: Option<Spanned<Numbers>>,
     strength: Option<Spanned<Numbers>>,
     group: Option<Spanned<String>>,
+    /// The joint whose frame the element is written in.
+    joint: Option<Spanned<String>>,
 }
 
 #[derive(Deserialize)]
@@ -154,6 +166,8 @@ struct PolygonSpec {
     group: Option<Spanned<String>>,
     polygon_method: Option<Spanned<String>>,
     image_resolution: Option<Spanned<i64>>,
+    /// The joint whose frame the element is written in.
+    joint: Option<Spanned<String>>,
 }
 
 /// How a skeleton and a formula in the same scene make one surface.
@@ -172,9 +186,14 @@ pub(crate) struct Built {
     pub field: Arc<SkeletonField>,
     pub combine: Option<(Combine, usize)>,
     pub section_at: usize,
+    pub articulation: Option<crate::pose::Articulation>,
 }
 
-pub(crate) fn build(s: &Spanned<SkeletonSection>, at: At) -> Result<Built, SceneError> {
+pub(crate) fn build(
+    s: &Spanned<SkeletonSection>,
+    at: At,
+    choice: crate::pose::Choice,
+) -> Result<Built, SceneError> {
     let section_at = s.span().start;
     let s = s.get_ref();
     let err = |offset: usize, e: SkeletonError| at(offset, e.to_string());
@@ -375,7 +394,10 @@ pub(crate) fn build(s: &Spanned<SkeletonSection>, at: At) -> Result<Built, Scene
     let v3 = |a: &[f64; 3]| DVec3::from_array(*a);
     let last = |v: &[f64]| v[v.len() - 1];
 
+    // Which elements hang from which joint (see `crate::pose`).
+    let mut marks: crate::pose::Marks = Vec::new();
     for p in s.point.iter().flatten() {
+        let first = skeleton.len();
         let (r, w, g) = common(p.at.span().start, &p.radius, &p.strength, &p.group, &skeleton)?;
         count(&p.radius, r.len(), 1, "radius", "point")?;
         count(&p.strength, w.len(), 1, "strength", "point")?;
@@ -385,8 +407,10 @@ pub(crate) fn build(s: &Spanned<SkeletonSection>, at: At) -> Result<Built, Scene
         }
         let e = Element::new(Shape::Point(at_), r[0]).and_then(|e| e.with_strength(w[0]));
         add(&mut skeleton, e, g, p.at.span().start)?;
+        marks.push((first..skeleton.len(), p.joint.as_ref()));
     }
     for sg in s.segment.iter().flatten() {
+        let first = skeleton.len();
         let (r, w, g) = common(sg.a.span().start, &sg.radius, &sg.strength, &sg.group, &skeleton)?;
         count(&sg.radius, r.len(), 2, "radius", "segment")?;
         count(&sg.strength, w.len(), 2, "strength", "segment")?;
@@ -397,8 +421,10 @@ pub(crate) fn build(s: &Spanned<SkeletonSection>, at: At) -> Result<Built, Scene
             .and_then(|e| e.with_strength(w[0]))
             .and_then(|e| e.with_end_strength(last(&w)));
         add(&mut skeleton, e, g, sg.a.span().start)?;
+        marks.push((first..skeleton.len(), sg.joint.as_ref()));
     }
     for pl in s.polyline.iter().flatten() {
+        let first = skeleton.len();
         let pat = pl.points.span().start;
         let (r, w, g) = common(pat, &pl.radius, &pl.strength, &pl.group, &skeleton)?;
         let pts: Vec<DVec3> = pl.points.get_ref().iter().map(v3).collect();
@@ -417,8 +443,10 @@ pub(crate) fn build(s: &Spanned<SkeletonSection>, at: At) -> Result<Built, Scene
                 skeleton.set_end_strengths(i, (w[k], w[k + 1])).map_err(|e| err(pat, e))?;
             }
         }
+        marks.push((first..skeleton.len(), pl.joint.as_ref()));
     }
     for cv in s.curve.iter().flatten() {
+        let first = skeleton.len();
         let cat = cv.bezier.span().start;
         let (r, w, g) = common(cat, &cv.radius, &cv.strength, &cv.group, &skeleton)?;
         count(&cv.radius, r.len(), 2, "radius", "curve (start and end)")?;
@@ -441,9 +469,11 @@ pub(crate) fn build(s: &Spanned<SkeletonSection>, at: At) -> Result<Built, Scene
             .add_tapered_curve(&curve, tol, (r[0], last(&r)), g)
             .map_err(|e| err(cat, e))?;
         set_strength(&mut skeleton, range, w[0]).map_err(|e| err(cat, e))?;
+        marks.push((first..skeleton.len(), cv.joint.as_ref()));
     }
     for (kind, list) in [("triangle", &s.triangle), ("polygon", &s.polygon)] {
         for pg in list.iter().flatten() {
+            let first = skeleton.len();
             let vat = pg.vertices.span().start;
             let (r, w, g) = common(vat, &pg.radius, &pg.strength, &pg.group, &skeleton)?;
             count(&pg.radius, r.len(), 1, "radius", kind)?;
@@ -468,7 +498,16 @@ pub(crate) fn build(s: &Spanned<SkeletonSection>, at: At) -> Result<Built, Scene
                 .and_then(|e| e.with_strength(w[0]))
                 .and_then(|e| e.with_polygon_method(method));
             add(&mut skeleton, e, g, vat)?;
+            marks.push((first..skeleton.len(), pg.joint.as_ref()));
         }
+    }
+    if let (Some(j), Some(_)) = (s.junction.as_ref().and_then(|j| j.first()), &s.joint) {
+        return Err(at(
+            j.at.span().start,
+            "junctions and joints cannot be combined yet: a junction splits the segments \
+             through it, and the pieces would not follow their joint"
+                .to_string(),
+        ));
     }
     for j in s.junction.iter().flatten() {
         let direction = j.direction.as_ref().map(|d| v3(d.get_ref()));
@@ -488,6 +527,12 @@ pub(crate) fn build(s: &Spanned<SkeletonSection>, at: At) -> Result<Built, Scene
                 .into(),
         ));
     }
+    let spec = crate::pose::Spec {
+        joints: s.joint.as_deref(),
+        poses: s.poses.as_ref(),
+        pose: s.pose.as_ref(),
+    };
+    let (skeleton, articulation) = crate::pose::articulate(&spec, skeleton, &marks, choice, at)?;
 
     let mut field = SkeletonField::new(&skeleton, blend).map_err(|e| {
         let offset = match &e {
@@ -523,7 +568,7 @@ pub(crate) fn build(s: &Spanned<SkeletonSection>, at: At) -> Result<Built, Scene
             c.span().start,
         )),
     };
-    Ok(Built { field: Arc::new(field), combine, section_at })
+    Ok(Built { field: Arc::new(field), combine, section_at, articulation })
 }
 
 /// The polygon method from `polygon_method` and `image_resolution` keys (a polygon's own,

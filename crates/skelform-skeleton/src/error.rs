@@ -52,6 +52,10 @@ pub enum SkeletonError {
     JunctionNeedsConvolution(&'static str),
     #[error("image_resolution must be between 4 and {max} pixels (got {0})", max = crate::image::MAX_IMAGE_RESOLUTION)]
     BadImageResolution(usize),
+    #[error("joint '{joint}' turns about {axes} axes, so it takes {axes} angles (got {got})")]
+    AngleCount { joint: String, axes: usize, got: usize },
+    #[error("there is no element {0}")]
+    UnknownElement(usize),
     #[error("the skeleton has no elements")]
     Empty,
     #[error("iso applies to density blends (convolution, sum, combination), not to {0}")]

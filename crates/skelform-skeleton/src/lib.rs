@@ -39,6 +39,11 @@
 //! Articulation: an [`Articulated`] skeleton hangs elements from a tree of joints; a [`Pose`]
 //! rotates joints and [`Articulated::posed`] gives the plain skeleton to build a field from.
 //!
+//! Joints turn about named axes by angles in degrees ([`Articulated::set_axes`],
+//! [`Articulated::set_angles`]), so the dissertation's finger parameters (θ, φ at the first
+//! knuckle, grip2 and grip3 at the others) are joint angles as they stand; the scene syntax
+//! is `[[skeleton.joint]]` and `[skeleton.poses.NAME]` (`docs/SCENES.md`).
+//!
 //! What it does not (yet): a closed form for polygons under the B-spline kernel (adaptive
 //! quadrature); per-vertex radii on polygons (segments, polylines and curves taper);
 //! several convexity directions per joint (the `max_i(v·d_i)` of §5.6.14.5: one direction,

@@ -25,13 +25,41 @@ impl JointId {
     }
 }
 
-/// A joint: where it sits in its parent's frame and how it is turned at rest.
+/// A joint: where it sits in its parent's frame, how it is turned at rest, and the axes it
+/// turns about.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Joint {
     pub name: String,
     pub parent: Option<JointId>,
     pub offset: DVec3,
     pub rest: DQuat,
+    /// Unit rotation axes in the joint's rest frame, applied in order (intrinsic angles: the
+    /// second axis is turned by the first rotation). Empty for a joint that is only turned
+    /// by whole rotations ([`Pose::set`]).
+    pub axes: Vec<DVec3>,
+    /// The angle about each axis (degrees) when a pose does not say otherwise.
+    pub default_angles: Vec<f64>,
+}
+
+impl Joint {
+    /// The rotation (relative to rest) that `degrees` about the joint's axes give:
+    /// `R(axis₁, a₁)·R(axis₂, a₂)·…`, so that a finger's first knuckle with axes (palm normal,
+    /// side axis) takes the dissertation's Euler angles θ, φ directly (DIS §2.7).
+    pub fn rotation(&self, degrees: &[f64]) -> Result<DQuat, SkeletonError> {
+        if degrees.len() != self.axes.len() {
+            return Err(SkeletonError::AngleCount {
+                joint: self.name.clone(),
+                axes: self.axes.len(),
+                got: degrees.len(),
+            });
+        }
+        if !degrees.iter().all(|a| a.is_finite()) {
+            return Err(SkeletonError::NonFinite);
+        }
+        Ok(self.axes.iter().zip(degrees).fold(DQuat::IDENTITY, |q, (axis, a)| {
+            q * DQuat::from_axis_angle(*axis, a.to_radians())
+        }))
+    }
 }
 
 /// A rotation per joint (relative to its rest rotation); joints not set stay at rest.
@@ -118,8 +146,89 @@ impl Articulated {
         if !(offset.is_finite() && rest.is_finite()) {
             return Err(SkeletonError::NonFinite);
         }
-        self.joints.push(Joint { name: name.to_string(), parent, offset, rest: rest.normalize() });
+        self.joints.push(Joint {
+            name: name.to_string(),
+            parent,
+            offset,
+            rest: rest.normalize(),
+            axes: Vec::new(),
+            default_angles: Vec::new(),
+        });
         Ok(JointId(self.joints.len() - 1))
+    }
+
+    /// Gives `joint` its rotation axes (in its rest frame; normalised here) and the angles
+    /// (degrees) it has when a pose does not set it.
+    pub fn set_axes(
+        &mut self,
+        joint: JointId,
+        axes: &[DVec3],
+        default_degrees: &[f64],
+    ) -> Result<(), SkeletonError> {
+        let j = self
+            .joints
+            .get_mut(joint.0)
+            .ok_or_else(|| SkeletonError::UnknownJoint(format!("#{}", joint.0)))?;
+        if axes.len() != default_degrees.len() {
+            return Err(SkeletonError::AngleCount {
+                joint: j.name.clone(),
+                axes: axes.len(),
+                got: default_degrees.len(),
+            });
+        }
+        if !axes.iter().all(|a| a.is_finite() && a.length() > 0.0)
+            || !default_degrees.iter().all(|a| a.is_finite())
+        {
+            return Err(SkeletonError::NonFinite);
+        }
+        j.axes = axes.iter().map(|a| a.normalize()).collect();
+        j.default_angles = default_degrees.to_vec();
+        Ok(())
+    }
+
+    /// Sets `joint` in `pose` to `degrees` about its axes.
+    pub fn set_angles(
+        &self,
+        pose: &mut Pose,
+        joint: JointId,
+        degrees: &[f64],
+    ) -> Result<(), SkeletonError> {
+        let j = self
+            .joints
+            .get(joint.0)
+            .ok_or_else(|| SkeletonError::UnknownJoint(format!("#{}", joint.0)))?;
+        pose.set(joint, j.rotation(degrees)?);
+        Ok(())
+    }
+
+    /// The pose with every joint at its default angles.
+    pub fn default_pose(&self) -> Pose {
+        let mut pose = Pose::new();
+        for (i, j) in self.joints.iter().enumerate() {
+            if !j.axes.is_empty() {
+                // Axes and defaults were checked together in `set_axes`.
+                if let Ok(q) = j.rotation(&j.default_angles) {
+                    pose.set(JointId(i), q);
+                }
+            }
+        }
+        pose
+    }
+
+    /// Attaches element `index` of [`Articulated::skeleton`] to `joint` (its shape is then
+    /// read in that joint's frame).
+    pub fn attach(&mut self, index: usize, joint: Option<JointId>) -> Result<(), SkeletonError> {
+        if let Some(j) = joint
+            && j.0 >= self.joints.len()
+        {
+            return Err(SkeletonError::UnknownJoint(format!("#{}", j.0)));
+        }
+        if index >= self.skeleton.len() {
+            return Err(SkeletonError::UnknownElement(index));
+        }
+        self.attached.resize(self.skeleton.len(), None);
+        self.attached[index] = joint;
+        Ok(())
     }
 
     /// Adds an element written in `joint`'s frame (or in world coordinates for `None`).
@@ -236,5 +345,59 @@ mod tests {
             a.add_joint("middle", None, DVec3::X, DQuat::IDENTITY),
             Err(SkeletonError::DuplicateJoint(_))
         ));
+    }
+
+    #[test]
+    fn euler_angles_at_a_knuckle_spread_then_bend() {
+        // A finger along x with the back of the hand up (+z): θ turns it about z (spread),
+        // φ about its own side axis y (bend towards the palm, −z).
+        let (mut a, knuckle, middle) = finger();
+        a.set_axes(knuckle, &[DVec3::Z, DVec3::Y], &[0.0, 0.0]).unwrap();
+        a.set_axes(middle, &[DVec3::Y], &[0.0]).unwrap();
+        let mut pose = a.default_pose();
+        a.set_angles(&mut pose, knuckle, &[90.0, 90.0]).unwrap();
+        let s = a.posed(&pose).unwrap();
+        // Spread by 90° the finger points along y; bent by 90° about its side axis it
+        // points down.
+        let (p, q) = ends(&s, 0);
+        assert!(p.length() < 1e-12 && (q + DVec3::Z).length() < 1e-12, "{q}");
+        a.set_angles(&mut pose, knuckle, &[30.0, 0.0]).unwrap();
+        a.set_angles(&mut pose, middle, &[45.0]).unwrap();
+        let s = a.posed(&pose).unwrap();
+        let (_, q) = ends(&s, 0);
+        let c = 30f64.to_radians();
+        assert!((q - DVec3::new(c.cos(), c.sin(), 0.0)).length() < 1e-12, "{q}");
+        let (p2, q2) = ends(&s, 1);
+        assert!((p2 - q).length() < 1e-12, "the second bone starts where the first ends");
+        assert!(((q2 - p2).length() - 0.6).abs() < 1e-12, "and keeps its length");
+        assert!(q2.z < -0.4, "bent towards the palm: {q2}");
+        // Wrong number of angles.
+        assert!(matches!(
+            a.set_angles(&mut pose, middle, &[1.0, 2.0]),
+            Err(SkeletonError::AngleCount { axes: 1, got: 2, .. })
+        ));
+        assert!(matches!(
+            a.set_axes(middle, &[DVec3::Y], &[]),
+            Err(SkeletonError::AngleCount { .. })
+        ));
+    }
+
+    #[test]
+    fn any_pose_keeps_every_bone_length_and_joint_connection() {
+        let (mut a, knuckle, middle) = finger();
+        a.set_axes(knuckle, &[DVec3::Z, DVec3::Y], &[10.0, 15.0]).unwrap();
+        a.set_axes(middle, &[DVec3::Y], &[30.0]).unwrap();
+        for k in 0..20 {
+            let t = k as f64;
+            let mut pose = a.default_pose();
+            a.set_angles(&mut pose, knuckle, &[37.0 * t - 200.0, 13.0 * t]).unwrap();
+            a.set_angles(&mut pose, middle, &[-90.0 + 11.0 * t]).unwrap();
+            let s = a.posed(&pose).unwrap();
+            let (p0, q0) = ends(&s, 0);
+            let (p1, q1) = ends(&s, 1);
+            assert!(((q0 - p0).length() - 1.0).abs() < 1e-12);
+            assert!(((q1 - p1).length() - 0.6).abs() < 1e-12);
+            assert!((q0 - p1).length() < 1e-12);
+        }
     }
 }
