@@ -226,3 +226,29 @@ fn no_surface_gives_an_empty_mesh_and_the_value_range() {
     assert!(m.is_empty());
     assert!(s.min_sample > 0.0);
 }
+
+#[test]
+fn surface_cubes_counts_the_cubes_with_both_signs() {
+    use skelform_field::control::Control;
+    use skelform_field::grid::{Grid, sample};
+    use skelform_polygonize::grid::cell::case_of;
+    use skelform_polygonize::grid::extract::surface_cubes;
+    // 70 samples across: rows longer than one 64-bit word, so the word carry is exercised.
+    let f =
+        Formula::parse("sin(5*x)*cos(4*y) + sin(4*y)*cos(5*z) + sin(5*z)*cos(4*x) - 0.1").unwrap();
+    let grid = Grid::with_resolution(&Aabb::cube(1.0), 70).unwrap();
+    let v = sample(&f, &grid, &Control::default()).unwrap();
+    let [nx, ny, nz] = grid.dims;
+    let mut brute = 0;
+    for k in 0..nz - 1 {
+        for j in 0..ny - 1 {
+            for i in 0..nx - 1 {
+                let c: [f32; 8] =
+                    std::array::from_fn(|c| v.get(i + (c & 1), j + ((c >> 1) & 1), k + (c >> 2)));
+                brute += u64::from(!matches!(case_of(&c), 0 | 255));
+            }
+        }
+    }
+    assert!(brute > 10_000);
+    assert_eq!(surface_cubes(&v), brute);
+}

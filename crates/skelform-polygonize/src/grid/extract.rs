@@ -536,6 +536,55 @@ fn layer_signs(layer: &[f32], nx: usize, words: usize, out: &mut [u64]) {
     }
 }
 
+/// Bit `b` of the result: whether cube `64·w + b` of a row of cubes has corners of both
+/// signs, from the sign words of the four sample rows around it (bits past the row's last
+/// cube are garbage: mask them).
+#[inline]
+fn mixed_cubes(rows: &[&[u64]; 4], w: usize) -> u64 {
+    let any = |w: usize| rows.iter().fold(0u64, |m, r| m | r[w]);
+    let all = |w: usize| rows.iter().fold(u64::MAX, |m, r| m & r[w]);
+    let (or, and) = (any(w), all(w));
+    let words = rows[0].len();
+    let (or_next, and_next) = if w + 1 < words { (any(w + 1) & 1, all(w + 1) & 1) } else { (0, 0) };
+    // Cube i spans samples i and i + 1.
+    let some_inside = or | (or >> 1) | (or_next << 63);
+    let all_inside = and & ((and >> 1) | (and_next << 63));
+    some_inside & !all_inside
+}
+
+/// How many cubes of the volume the surface passes through (corners of both signs): the
+/// classification phase of extraction on its own, for statistics and benchmarks.
+pub fn surface_cubes(volume: &Volume) -> u64 {
+    let [nx, ny, nz] = volume.grid.dims;
+    let layer = nx * ny;
+    let words = nx.div_ceil(64);
+    let valid = |w: usize| -> u64 {
+        let cubes = (nx - 1).saturating_sub(w * 64).min(64);
+        if cubes == 64 { u64::MAX } else { (1u64 << cubes) - 1 }
+    };
+    (0..nz - 1)
+        .into_par_iter()
+        .map(|k| {
+            let (mut below, mut above) = (vec![0u64; ny * words], vec![0u64; ny * words]);
+            layer_signs(&volume.values[k * layer..(k + 1) * layer], nx, words, &mut below);
+            layer_signs(&volume.values[(k + 1) * layer..(k + 2) * layer], nx, words, &mut above);
+            let mut count = 0u64;
+            for j in 0..ny - 1 {
+                let rows = [
+                    &below[j * words..(j + 1) * words],
+                    &below[(j + 1) * words..(j + 2) * words],
+                    &above[j * words..(j + 1) * words],
+                    &above[(j + 1) * words..(j + 2) * words],
+                ];
+                for w in 0..words {
+                    count += (mixed_cubes(&rows, w) & valid(w)).count_ones() as u64;
+                }
+            }
+            count
+        })
+        .sum()
+}
+
 /// Marching cubes over the cube layers `z0..z1`; `vals` holds the sample layers
 /// `z0..=z1` (and possibly more), starting with layer `z0`.
 fn extract_slab<V: SlabVertex>(
@@ -588,16 +637,8 @@ fn extract_slab<V: SlabVertex>(
                 &above[j * words..(j + 1) * words],
                 &above[(j + 1) * words..(j + 2) * words],
             ];
-            let any = |w: usize| rows.iter().fold(0u64, |m, r| m | r[w]);
-            let all = |w: usize| rows.iter().fold(u64::MAX, |m, r| m & r[w]);
             for w in 0..words {
-                let (or, and) = (any(w), all(w));
-                let (or_next, and_next) =
-                    if w + 1 < words { (any(w + 1) & 1, all(w + 1) & 1) } else { (0, 0) };
-                // Cube i spans samples i and i + 1.
-                let some_inside = or | (or >> 1) | (or_next << 63);
-                let all_inside = and & ((and >> 1) | (and_next << 63));
-                let mut mixed = some_inside & !all_inside & valid(w);
+                let mut mixed = mixed_cubes(&rows, w) & valid(w);
                 while mixed != 0 {
                     let i = w * 64 + mixed.trailing_zeros() as usize;
                     mixed &= mixed - 1;
