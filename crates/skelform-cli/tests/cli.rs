@@ -2,15 +2,10 @@
 //! report, and one clear error with the right exit code for every kind of bad input.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
-fn skelform(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_skelform")).args(args).output().expect("run skelform")
-}
-
-fn example(name: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples").join(name).display().to_string()
-}
+mod common;
+use common::{example, skelform};
 
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()

@@ -1,15 +1,9 @@
 //! `skelform mesh --method continuation|tetra` as a user runs it.
 
 use std::path::Path;
-use std::process::{Command, Output};
 
-fn skelform(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_skelform")).args(args).output().expect("run skelform")
-}
-
-fn example(name: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples").join(name).display().to_string()
-}
+mod common;
+use common::{example, skelform};
 
 fn text(b: &[u8]) -> String {
     String::from_utf8_lossy(b).into_owned()

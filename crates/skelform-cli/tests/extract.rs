@@ -1,10 +1,7 @@
 //! `skelform extract` on raw float32 volumes.
 
-use std::process::{Command, Output};
-
-fn skelform(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_skelform")).args(args).output().expect("run skelform")
-}
+mod common;
+use common::skelform;
 
 /// A sphere of radius `r` sampled on n³ points of [-1, 1]³, x fastest, as raw bytes.
 fn sphere(n: usize, r: f32) -> Vec<u8> {

@@ -1,15 +1,7 @@
 //! `skelform mesh` on `[leaf]` scenes (chapter 7 with the non-manifold polygonizer).
 
-use std::path::Path;
-use std::process::{Command, Output};
-
-fn skelform(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_skelform")).args(args).output().expect("run skelform")
-}
-
-fn example(name: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples").join(name).display().to_string()
-}
+mod common;
+use common::{example, skelform};
 
 #[test]
 fn the_leaf_meshes_into_blade_and_vein_surfaces() {

@@ -1,15 +1,6 @@
 //! `skelform mesh` on region scenes (`--method nonmanifold`).
 
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn skelform(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_skelform")).args(args).output().expect("run skelform")
-}
-
-fn example(name: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples").join(name).display().to_string()
-}
 
 #[test]
 fn region_scenes_give_labelled_surfaces_and_curves() {
@@ -152,6 +143,9 @@ fn mesh_example(name: &str) -> (skelform_scene::Scene, skelform_mesh::Mesh, nonm
 }
 
 use skelform_polygonize::nonmanifold;
+
+mod common;
+use common::{example, skelform};
 
 /// Every example of the chapter: the surfaces and curves it describes, vertices between
 /// their regions, triangles facing their lesser region, the expected edge degrees once the

@@ -1,11 +1,9 @@
 //! `--pose`: meshing, drawing and describing an articulated scene in a named pose.
 
 use std::path::Path;
-use std::process::{Command, Output};
 
-fn skelform(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_skelform")).args(args).output().expect("run skelform")
-}
+mod common;
+use common::skelform;
 
 fn finger() -> String {
     Path::new(env!("CARGO_MANIFEST_DIR"))

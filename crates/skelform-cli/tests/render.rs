@@ -10,9 +10,8 @@ use serde_json::Value;
 use skelform_mesh::io::{Format, WriteOptions, write_mesh};
 use skelform_mesh::{CurveEdge, Mesh, RegionPair, RegionTriple};
 
-fn skelform(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_skelform")).args(args).output().expect("run skelform")
-}
+mod common;
+use common::skelform;
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")

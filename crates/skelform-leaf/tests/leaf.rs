@@ -239,36 +239,8 @@ fn options(leaf: &Leaf, r: &skelform_leaf::BladeRegions, cell: f64) -> Options {
 /// Vertices whose ±2ε steps along their normal land in their pair's two regions (lesser
 /// region in front), those facing the wrong way, and the total; vertices on curves excluded.
 fn between_regions(m: &Mesh, regions: &dyn RegionField, eps: f64) -> (usize, usize, usize) {
-    let mut pair_of = vec![None; m.positions.len()];
-    for (t, p) in m.triangles.iter().zip(&m.labels) {
-        for &v in t {
-            pair_of[v as usize] = Some(*p);
-        }
-    }
-    let on_curve: BTreeSet<[u32; 3]> = m
-        .curves
-        .iter()
-        .flat_map(|c| c.v)
-        .map(|v| m.positions[v as usize].map(f32::to_bits))
-        .collect();
-    let (mut ok, mut wrong, mut total) = (0, 0, 0);
-    for (i, p) in m.positions.iter().enumerate() {
-        let Some(pair) = pair_of[i] else { continue };
-        if on_curve.contains(&p.map(f32::to_bits)) {
-            continue;
-        }
-        let (p, n) =
-            (DVec3::from_array(p.map(f64::from)), DVec3::from_array(m.normals[i].map(f64::from)));
-        let (front, back) = (regions.region(p + n * 2.0 * eps), regions.region(p - n * 2.0 * eps));
-        total += 1;
-        if front == pair.0 && back == pair.1 {
-            ok += 1;
-        }
-        if front == pair.1 && back == pair.0 {
-            wrong += 1;
-        }
-    }
-    (ok, wrong, total)
+    let v = skelform_polygonize::nonmanifold::verify::verify(m, regions, 2.0 * eps);
+    (v.vertices_between, v.vertices_reversed, v.vertices)
 }
 
 fn pairs(s: &Stats) -> Vec<RegionPair> {

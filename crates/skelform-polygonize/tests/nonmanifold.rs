@@ -151,39 +151,10 @@ fn vertices_lie_between_their_regions_and_triangles_face_the_lesser_region() {
     let regions = saucer_and_square();
     let (m, s) = polygonize(&regions, &saucer_options()).unwrap();
     let eps = s.epsilon;
-    // Each vertex copy belongs to one pair (vertices are duplicated per pair); its normal is
-    // its pair's area-weighted triangle normal, so it also says which way the triangles face.
-    let mut pair_of = vec![None; m.positions.len()];
-    for (t, p) in m.triangles.iter().zip(&m.labels) {
-        for &v in t {
-            pair_of[v as usize] = Some(*p);
-        }
-    }
-    // Vertices on the intersection curves (face and internal vertices) meet three regions;
-    // the test is for the vertices inside the sheets.
-    let on_curve: BTreeSet<[u32; 3]> = m
-        .curves
-        .iter()
-        .flat_map(|c| c.v)
-        .map(|v| m.positions[v as usize].map(f32::to_bits))
-        .collect();
-    let (mut ok, mut total, mut wrong_side) = (0, 0, 0);
-    for (i, p) in m.positions.iter().enumerate() {
-        let Some(pair) = pair_of[i] else { continue };
-        if on_curve.contains(&p.map(f32::to_bits)) {
-            continue;
-        }
-        let (p, n) =
-            (DVec3::from_array(p.map(f64::from)), DVec3::from_array(m.normals[i].map(f64::from)));
-        let (front, back) = (regions.region(p + n * 2.0 * eps), regions.region(p - n * 2.0 * eps));
-        total += 1;
-        if front == pair.0 && back == pair.1 {
-            ok += 1;
-        }
-        if front == pair.1 && back == pair.0 {
-            wrong_side += 1;
-        }
-    }
+    // Each vertex copy belongs to one pair (vertices are duplicated per pair); vertices on
+    // the intersection curves meet three regions and are counted apart.
+    let v = skelform_polygonize::nonmanifold::verify::verify(&m, &regions, 2.0 * eps);
+    let (ok, total, wrong_side) = (v.vertices_between, v.vertices, v.vertices_reversed);
     eprintln!("{ok} of {total} vertices between their regions, {wrong_side} facing the wrong way");
     assert_eq!(wrong_side, 0, "vertex normals point into the greater region");
     assert!(ok as f64 >= 0.95 * total as f64, "{ok} of {total} vertices between their regions");

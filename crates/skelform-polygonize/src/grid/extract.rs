@@ -536,6 +536,14 @@ fn layer_signs(layer: &[f32], nx: usize, words: usize, out: &mut [u64]) {
     }
 }
 
+/// The sign words of the four sample rows around row `j` of cubes: rows `j` and `j + 1` of
+/// the layer below, then of the layer above (corner bit order: y, then z).
+#[inline]
+fn cube_rows<'a>(below: &'a [u64], above: &'a [u64], j: usize, words: usize) -> [&'a [u64]; 4] {
+    let row = |layer: &'a [u64], j: usize| &layer[j * words..(j + 1) * words];
+    [row(below, j), row(below, j + 1), row(above, j), row(above, j + 1)]
+}
+
 /// Bit `b` of the result: whether cube `64·w + b` of a row of cubes has corners of both
 /// signs, from the sign words of the four sample rows around it (bits past the row's last
 /// cube are garbage: mask them).
@@ -570,12 +578,7 @@ pub fn surface_cubes(volume: &Volume) -> u64 {
             layer_signs(&volume.values[(k + 1) * layer..(k + 2) * layer], nx, words, &mut above);
             let mut count = 0u64;
             for j in 0..ny - 1 {
-                let rows = [
-                    &below[j * words..(j + 1) * words],
-                    &below[(j + 1) * words..(j + 2) * words],
-                    &above[j * words..(j + 1) * words],
-                    &above[(j + 1) * words..(j + 2) * words],
-                ];
+                let rows = cube_rows(&below, &above, j, words);
                 for w in 0..words {
                     count += (mixed_cubes(&rows, w) & valid(w)).count_ones() as u64;
                 }
@@ -631,12 +634,7 @@ fn extract_slab<V: SlabVertex>(
         // the last slab, which owns the volume's top): refer to them by key.
         let top_borrows = k + 1 == z1 && !last;
         for j in 0..ny - 1 {
-            let rows = [
-                &below[j * words..(j + 1) * words],
-                &below[(j + 1) * words..(j + 2) * words],
-                &above[j * words..(j + 1) * words],
-                &above[(j + 1) * words..(j + 2) * words],
-            ];
+            let rows = cube_rows(below, above, j, words);
             for w in 0..words {
                 let mut mixed = mixed_cubes(&rows, w) & valid(w);
                 while mixed != 0 {

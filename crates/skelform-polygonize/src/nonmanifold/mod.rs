@@ -521,15 +521,7 @@ impl Run<'_> {
                     break;
                 }
                 let r = self.region_at(apex);
-                if r == x {
-                    let old = px;
-                    px = apex;
-                    apex = px + py - old;
-                } else if r == y {
-                    let old = py;
-                    py = apex;
-                    apex = px + py - old;
-                } else {
+                if !flip_strip(r, x, y, &mut px, &mut py, &mut apex) {
                     // A third region inside the loop: stop there.
                     found = Some(centre);
                     break;
@@ -643,15 +635,7 @@ impl Run<'_> {
                     break;
                 }
                 let r = self.region_at(apex);
-                if r == x {
-                    let old = px;
-                    px = apex;
-                    apex = px + py - old;
-                } else if r == y {
-                    let old = py;
-                    py = apex;
-                    apex = px + py - old;
-                } else {
+                if !flip_strip(r, x, y, &mut px, &mut py, &mut apex) {
                     return clamp((px + py + apex) / 3.0);
                 }
             }
@@ -1214,6 +1198,21 @@ fn pair_off(ring: &[Walked], lines: &mut Vec<(u32, u32, RegionPair)>) -> Vec<Wal
         items.remove(lo);
     }
     items
+}
+
+/// One step of the contour follower's strip of triangles: the apex, in region `r`, replaces
+/// the base corner of the same region (`px` in `x`, `py` in `y`), and the new apex is that
+/// corner mirrored across the new base. False (nothing moved) when `r` is a third region.
+fn flip_strip(r: u32, x: u32, y: u32, px: &mut DVec3, py: &mut DVec3, apex: &mut DVec3) -> bool {
+    let old = if r == x {
+        std::mem::replace(px, *apex)
+    } else if r == y {
+        std::mem::replace(py, *apex)
+    } else {
+        return false;
+    };
+    *apex = *px + *py - old;
+    true
 }
 
 #[cfg(test)]
