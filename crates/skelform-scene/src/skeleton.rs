@@ -1188,11 +1188,11 @@ mod example_meshes {
         let (mesh, _) = polygonize(&*scene.field, &opts).unwrap();
         let r = check(&mesh);
         assert!(r.components.iter().all(|c| c.genus == Some(1)), "{:?}", r.components);
-        // The ring is 0.3183 across, radius 0.02: the tube within 1.1 radii of it, the band
-        // 3.3 to 4.2 radii out.
+        // 100 sources 0.02 apart make a ring of radius 1/π; the tube lies within 1.1 source
+        // radii of it, the band 3.3 to 4.2 radii out.
         let from_ring = |p: &[f32; 3]| {
             let (x, y, z) = (p[0] as f64, p[1] as f64, p[2] as f64);
-            (x.hypot(y) - 0.3183).hypot(z) / 0.02
+            (x.hypot(y) - std::f64::consts::FRAC_1_PI).hypot(z) / 0.02
         };
         let tube = mesh.positions.iter().filter(|p| from_ring(p) < 1.3).count();
         let band = mesh.positions.iter().filter(|p| (3.1..4.4).contains(&from_ring(p))).count();
