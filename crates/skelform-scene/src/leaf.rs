@@ -108,7 +108,21 @@ pub(crate) fn build(
     let s = sec.get_ref();
     let section_at = sec.span().start;
     let kernel = match &s.kernel {
-        Some(k) => k.get_ref().parse::<Kernel>().map_err(|e| at(k.span().start, e.to_string()))?,
+        Some(k) => {
+            let kernel =
+                k.get_ref().parse::<Kernel>().map_err(|e| at(k.span().start, e.to_string()))?;
+            if !kernel.convolves_extended() {
+                return Err(at(
+                    k.span().start,
+                    format!(
+                        "the {} kernel convolves points only, and veins are segments; use \
+                         wyvill, gaussian, triweight or bspline",
+                        kernel.name()
+                    ),
+                ));
+            }
+            kernel
+        }
         None => Kernel::Wyvill,
     };
     let fillet = match &s.fillet {

@@ -69,9 +69,13 @@ fn bad_leaves_are_errors_with_their_line() {
     assert!(m.contains("lobes must be"), "{m}");
     let (l, _, m) = parse_err(&format!("{HEAD}[leaf]\nlobe_depth = 1.5\n"));
     assert_eq!(l, 7, "{m}");
-    let (l, _, m) = parse_err(&format!("{HEAD}[leaf]\nkernel = \"sinc\"\n"));
+    let (l, _, m) = parse_err(&format!("{HEAD}[leaf]\nkernel = \"cosine\"\n"));
     assert_eq!(l, 7);
     assert!(m.contains("unknown kernel"), "{m}");
+    // The sinc is a kernel, but for points only: veins are segments.
+    let (l, c, m) = parse_err(&format!("{HEAD}[leaf]\nkernel = \"sinc\"\n"));
+    assert_eq!((l, c), (7, 10));
+    assert!(m.contains("points only") && m.contains("wyvill"), "{m}");
     let (l, _, m) = parse_err(&format!("{HEAD}[leaf]\nfillet = \"above\"\n"));
     assert_eq!(l, 7);
     assert!(m.contains("both or below"), "{m}");

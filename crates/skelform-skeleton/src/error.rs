@@ -58,6 +58,13 @@ pub enum SkeletonError {
     UnknownElement(usize),
     #[error("the skeleton has no elements")]
     Empty,
+    #[error(
+        "the {kernel} kernel convolves points only: it is not separable, so a {shape}'s \
+         convolution with it has no closed form; use blend = \"sum\" (the {kernel} of the \
+         distance to each element) or another kernel"
+    )]
+    /// `element`: the index of the first segment or polygon.
+    KernelConvolvesPointsOnly { kernel: &'static str, shape: &'static str, element: usize },
     #[error("iso applies to density blends (convolution, sum, combination), not to {0}")]
     IsoNotApplicable(&'static str),
 }

@@ -21,6 +21,10 @@
 //! elements is the natural extension of the two-primitive formula: on a lone element's
 //! surface it is 0, and beyond every element's range it is 1.
 //!
+//! `Convolution(Kernel::Sinc)` takes points only (see [`Kernel::convolves_extended`]); a
+//! skeleton with a segment or polygon is refused with
+//! [`SkeletonError::KernelConvolvesPointsOnly`]. `Sum(Kernel::Sinc)` takes every element.
+//!
 //! A tapered segment's radius and strength are interpolated along it by the parameter of the
 //! point's projection, clamped (appendix A.2), in every blend; their gradients enter the
 //! field's gradient. A junction's limbs ([`Skeleton::add_junction`]) are taken out of the
@@ -304,6 +308,21 @@ impl SkeletonField {
         }
         if !skeleton.junctions().is_empty() && !matches!(blend, Blend::Convolution(_)) {
             return Err(SkeletonError::JunctionNeedsConvolution(blend.name()));
+        }
+        if let Blend::Convolution(k) = blend
+            && !k.convolves_extended()
+            && let Some((element, e)) = skeleton
+                .elements()
+                .iter()
+                .enumerate()
+                .find(|(_, e)| !matches!(e.shape, Shape::Point(_)))
+        {
+            let shape = if matches!(e.shape, Shape::Segment(_)) { "segment" } else { "polygon" };
+            return Err(SkeletonError::KernelConvolvesPointsOnly {
+                kernel: k.name(),
+                shape,
+                element,
+            });
         }
         let mut items = Vec::with_capacity(skeleton.len());
         let mut bounds: Option<Aabb> = None;

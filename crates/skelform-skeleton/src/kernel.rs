@@ -10,6 +10,7 @@
 //! | [`Kernel::Wyvill`] | `W(s/2)`, `W(x) = (9 − 22x² + 17x⁴ − 4x⁶)/9` | `s ≤ 2` | DIS eq. 5.34 (Wyvill's soft objects) |
 //! | [`Kernel::Triweight`] | `(1 − s²/R²)³`, `R = 1/√(1 − 2^{−1/3})` | `s ≤ R ≈ 2.20` | the `(1 − x²)³` kernel the chapter also tried \[Wyvill 94\] |
 //! | [`Kernel::BSpline`] | `1.5·B(β s)`, `B` the uniform cubic B-spline, `β ≈ 0.72235` | `s ≤ 2/β ≈ 2.77` | DIS eq. 5.31, scaled per fig. 5.54 |
+//! | [`Kernel::Sinc`] | `sin(a s)/(a s)`, `sin a / a = ½`, `a ≈ 1.89549` | none (cut at its third zero, `s = 3π/a ≈ 4.97`) | DIS §5.6.8, fig. 5.48; rejected there (fig. 5.49) |
 //!
 //! The dissertation convolves segments with the non-Gaussian kernels as if they were
 //! separable (an integration filter along the segment times a distance filter), which is
@@ -18,9 +19,20 @@
 //! polynomial in `s`, so `∫ k(√(d² + t²)) dt` has a closed form (polynomials, `t·s` and
 //! `ln(t + s)` terms). The Gaussian's is the dissertation's: `e^{−ω d²}` times an `erf`
 //! difference.
+//!
+//! The sinc is here to show why the dissertation rejected it (§5.6.8): it is not monotone —
+//! a negative lobe, then a second positive one — so where elements crowd, the ringing of the
+//! summed lobes makes a spurious contour away from the skeleton (fig. 5.49: a row of point
+//! sources grows a second shell, at about 3.7 radii, around its surface). It applies to points
+//! (a point's convolution is the kernel itself) and to every element under the `sum` blend
+//! (the kernel of the distance). Segments and polygons under convolution are refused by
+//! [`crate::SkeletonField`] (see [`Kernel::convolves_extended`]); the integrals here still
+//! answer for it, by quadrature, so that every kernel has every method.
 
 use std::f64::consts::PI;
 use std::str::FromStr;
+
+use crate::quad::integrate;
 
 /// `ω = ln 2`: with it a long Gaussian segment's iso-½ surface lies at exactly one radius
 /// (DIS eq. 5.32: `½ − e^{−ω} = 0`).
@@ -38,6 +50,22 @@ const BETA: f64 = 0.722_351_724_464_376_3;
 /// `R⁻²` of the triweight kernel: `(1 − s²/R²)³ = ½` at `s = 1`.
 const TRI_A: f64 = 0.206_299_474_015_900_2;
 
+/// `a` of the sinc kernel `sin(a s)/(a s)`: the root of `sin a / a = ½`, so that `k(1) = ½`
+/// (fig. 5.54's scaling).
+const SINC_A: f64 = 1.895_494_267_033_981;
+
+/// Where the sinc is cut, in radii: its third zero, `s = 3π/a ≈ 4.97`. Its tail never dies
+/// (the lobes shrink only like `1/s`, and neither its plane nor its volume integral
+/// converges), so any cut is a choice. Why this one: at a zero of the sine the field stays
+/// continuous (only its slope jumps, by `a/(3π) ≈ 0.2` per radius); it is the first zero
+/// that keeps both the negative lobe and the second positive lobe, which are what makes the
+/// spurious contours the dissertation rejected the kernel for (a cut at the first zero would
+/// leave a plain monotone bump); and ending after a positive lobe (an odd multiple of π)
+/// keeps the truncated kernel's plane and volume integrals positive — at an even multiple
+/// the plane integral is exactly 0 and the volume integral negative, so a dense cloud of
+/// points would have negative density. The reach, 4.97 radii, is within the Gaussian's.
+pub const SINC_CUTOFF: f64 = 3.0 * PI / SINC_A;
+
 /// A radial convolution kernel, scaled to `k(0) = 1`, `k(1) = ½` (distance in radii).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
 pub enum Kernel {
@@ -52,6 +80,10 @@ pub enum Kernel {
     Triweight,
     /// The uniform cubic B-spline (DIS eq. 5.31), scaled per fig. 5.54.
     BSpline,
+    /// `sin(a s)/(a s)` (DIS §5.6.8), scaled per fig. 5.54 and cut at [`SINC_CUTOFF`]: the
+    /// ideal low-pass filter, but not monotone, so it makes spurious contours (fig. 5.49).
+    /// Points only under convolution; any element under the `sum` blend.
+    Sinc,
 }
 
 /// One polynomial piece of a kernel: `k(s) = Σ c[n]·sⁿ` for `lo ≤ s ≤ hi`.
@@ -92,7 +124,7 @@ const BSPLINE: [Piece; 2] = [
 
 /// A kernel name that is not one of [`Kernel::ALL`].
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("unknown kernel '{0}'; expected one of: gaussian, wyvill, triweight, bspline")]
+#[error("unknown kernel '{0}'; expected one of: gaussian, wyvill, triweight, bspline, sinc")]
 pub struct ParseKernelError(pub String);
 
 impl FromStr for Kernel {
@@ -113,7 +145,18 @@ impl Kernel {
         ("wyvill", Kernel::Wyvill),
         ("triweight", Kernel::Triweight),
         ("bspline", Kernel::BSpline),
+        ("sinc", Kernel::Sinc),
     ];
+
+    /// Whether [`crate::SkeletonField`] convolves segments and polygons with this kernel
+    /// (points it convolves with every kernel: a point's convolution is the kernel itself).
+    /// False for the sinc: it is not separable, so a segment's integral has no closed form
+    /// (it would be quadrature at every evaluation), and its plane integral does not
+    /// converge — truncated, it is `2π·2cos²(a z/2)/a²` at height `z`, periodic, so a large
+    /// polygon would be a stack of slabs 3.3 radii apart up to the cut.
+    pub fn convolves_extended(self) -> bool {
+        self != Kernel::Sinc
+    }
 
     /// The scene-file name.
     pub fn name(self) -> &'static str {
@@ -122,18 +165,19 @@ impl Kernel {
 
     fn pieces(self) -> &'static [Piece] {
         match self {
-            Kernel::Gaussian => &[],
             Kernel::Wyvill => &WYVILL,
             Kernel::Triweight => &TRIWEIGHT,
             Kernel::BSpline => &BSPLINE,
+            Kernel::Gaussian | Kernel::Sinc => &[],
         }
     }
 
     /// Distance (in radii) beyond which the kernel is zero: exact for the polynomial
-    /// kernels, [`GAUSSIAN_CUTOFF`] for the Gaussian.
+    /// kernels, [`GAUSSIAN_CUTOFF`] for the Gaussian, [`SINC_CUTOFF`] for the sinc.
     pub fn support(self) -> f64 {
         match self {
             Kernel::Gaussian => GAUSSIAN_CUTOFF,
+            Kernel::Sinc => SINC_CUTOFF,
             k => k.pieces().last().map_or(0.0, |p| p.hi),
         }
     }
@@ -191,6 +235,24 @@ impl Kernel {
                     )
                 }
             }
+            Kernel::Sinc => {
+                let s = s2.sqrt();
+                if s >= SINC_CUTOFF {
+                    return (0.0, 0.0);
+                }
+                // k = sin x / x, x = a s; dk/d(s²) = dk/ds/(2s) = a²(x cos x − sin x)/(2x³).
+                let x = SINC_A * s;
+                if x < 0.5 {
+                    // (x cos x − sin x)/x³ cancels near 0: its series, Σ (−1)ⁿ 2n x²ⁿ⁻²/(2n+1)!.
+                    let x2 = x * x;
+                    let g = SINC_G.iter().rev().fold(0.0, |acc, c| acc * x2 + c);
+                    let k = if x == 0.0 { 1.0 } else { x.sin() / x };
+                    (k, 0.5 * SINC_A * SINC_A * g)
+                } else {
+                    let (sn, cs) = x.sin_cos();
+                    (sn / x, 0.5 * SINC_A * SINC_A * (x * cs - sn) / (x * x * x))
+                }
+            }
         }
     }
 
@@ -204,6 +266,9 @@ impl Kernel {
         if self == Kernel::Gaussian {
             let v = (-OMEGA * d2).exp() * gauss_1d(t1, t2);
             return (v, -OMEGA * v);
+        }
+        if self == Kernel::Sinc {
+            return sinc_line_integral(d2.max(0.0), t1, t2);
         }
         let mut v = 0.0;
         let mut dv = 0.0;
@@ -278,6 +343,15 @@ impl Kernel {
                     outer(1.0) + inner
                 }
             }
+            Kernel::Sinc => {
+                // ∫ sin(a x)/a dx = (cos(a σ) − cos 3π)/a² = 2cos²(a σ/2)/a²: no cancellation
+                // at the cut.
+                if sigma >= SINC_CUTOFF {
+                    return 0.0;
+                }
+                let c = (0.5 * SINC_A * sigma).cos();
+                2.0 * c * c / (SINC_A * SINC_A)
+            }
         }
     }
 
@@ -297,14 +371,15 @@ impl Kernel {
             Kernel::Triweight => {
                 Some((TRI_A, [0.0, 0.0, 0.0, 0.0, 1.0 / (8.0 * TRI_A)], [0.0, 0.0, 0.0, 1.0, 0.0]))
             }
-            Kernel::Gaussian | Kernel::BSpline => None,
+            Kernel::Gaussian | Kernel::BSpline | Kernel::Sinc => None,
         }
     }
 
     /// Breakpoints of the kernel's pieces in `(0, support]`: where a polygon's edge integrand
-    /// stops being smooth.
+    /// stops being smooth (for the sinc, its cut).
     pub(crate) fn breakpoints(self) -> impl Iterator<Item = f64> {
-        self.pieces().iter().map(|p| p.hi)
+        let cut = (self == Kernel::Sinc).then_some(SINC_CUTOFF);
+        self.pieces().iter().map(|p| p.hi).chain(cut)
     }
 
     /// `∫_{−∞}^{∞} k(√(1 + t²)) dt`·2: divides a segment's line integral so that a long
@@ -341,6 +416,47 @@ pub(crate) fn gauss_1d(t1: f64, t2: f64) -> f64 {
         libm::erf(x2) - libm::erf(x1)
     };
     0.5 * (PI / OMEGA).sqrt() * diff
+}
+
+/// Coefficients of `(x cos x − sin x)/x³ = Σ_{n≥1} (−1)ⁿ 2n x²ⁿ⁻²/(2n+1)!` in powers of
+/// `x²`; eight terms reach double precision for `x < ½`.
+const SINC_G: [f64; 8] = [
+    -1.0 / 3.0,
+    1.0 / 30.0,
+    -1.0 / 840.0,
+    1.0 / 45_360.0,
+    -1.0 / 3_991_680.0,
+    1.0 / 518_918_400.0,
+    -1.0 / 93_405_312_000.0,
+    1.0 / 22_230_464_256_000.0,
+];
+
+/// [`Kernel::line_integral`] for the sinc, which has no closed form: adaptive Gauss–Kronrod
+/// quadrature to 10⁻¹³ over the part of `[t1, t2]` within the cut, split at `t = 0` (the
+/// integrand is even and smooth in `t` on either side).
+fn sinc_line_integral(d2: f64, t1: f64, t2: f64) -> (f64, f64) {
+    let reach2 = SINC_CUTOFF * SINC_CUTOFF - d2;
+    if reach2 <= 0.0 {
+        return (0.0, 0.0);
+    }
+    let reach = reach2.sqrt();
+    let (lo, hi) = (t1.max(-reach), t2.min(reach));
+    if hi <= lo {
+        return (0.0, 0.0);
+    }
+    let f = |t: f64| {
+        let (k, dk) = Kernel::Sinc.value_d(d2 + t * t);
+        [k, dk]
+    };
+    let tol = [1e-13 * (hi - lo), 1e-13 * (hi - lo)];
+    let [v, dv] = if lo < 0.0 && hi > 0.0 {
+        let [a, b] = integrate(f, lo, 0.0, tol);
+        let [c, d] = integrate(f, 0.0, hi, tol);
+        [a + c, b + d]
+    } else {
+        integrate(f, lo, hi, tol)
+    };
+    (v, dv)
 }
 
 /// `∫_a^b Σ c_n sⁿ dt` and `∫_a^b Σ c_n (n/2) s^{n−2} dt` with `s = √(d² + t²)`,
@@ -408,7 +524,10 @@ mod tests {
                 let lo = k.value_d((b * (1.0 - 1e-9)).powi(2));
                 let hi = k.value_d((b * (1.0 + 1e-9)).powi(2));
                 assert!((lo.0 - hi.0).abs() < 1e-8, "{name} at {b}: {lo:?} {hi:?}");
-                assert!((lo.1 - hi.1).abs() < 1e-6, "{name} at {b}: {lo:?} {hi:?}");
+                // The sinc is cut at a zero of the sine, not of its slope (see SINC_CUTOFF).
+                if *k != Kernel::Sinc {
+                    assert!((lo.1 - hi.1).abs() < 1e-6, "{name} at {b}: {lo:?} {hi:?}");
+                }
             }
             assert!(k.value(k.support().powi(2) * (1.0 - 1e-12)).abs() < 1e-10, "{name}");
         }
@@ -453,6 +572,64 @@ mod tests {
         for (name, k) in Kernel::ALL {
             let v = 2.0 * k.line_integral(1.0, -100.0, 100.0).0 / k.line_norm();
             assert!((v - 1.0).abs() < 1e-12, "{name}: {v}");
+        }
+    }
+
+    #[test]
+    fn sinc_is_scaled_like_the_others_and_rings() {
+        let k = Kernel::Sinc;
+        assert_eq!(k.value(0.0), 1.0);
+        assert!((k.value(1.0) - 0.5).abs() < 1e-15, "{}", k.value(1.0));
+        // Continuous at the cut (a zero of the sine), zero beyond it.
+        assert!(k.value(SINC_CUTOFF * SINC_CUTOFF * (1.0 - 1e-12)).abs() < 1e-11);
+        assert_eq!(k.value_d(SINC_CUTOFF * SINC_CUTOFF), (0.0, 0.0));
+        // Not monotone: negative past the first zero π/a, positive again past 2π/a — the
+        // ringing the dissertation rejected it for — but never back up to ½, so a lone
+        // point has one surface.
+        let at = |x: f64| k.value((x / SINC_A).powi(2));
+        assert!(at(4.4934) < -0.217 && at(4.4934) > -0.218, "{}", at(4.4934));
+        assert!(at(7.7253) > 0.128 && at(7.7253) < 0.1284, "{}", at(7.7253));
+    }
+
+    #[test]
+    fn sinc_derivative_is_accurate_on_both_sides_of_the_series_switch() {
+        // x = a·s around ½, where value_d switches from the series to sin and cos, and near 0.
+        let k = Kernel::Sinc;
+        for x in [0.01, 0.3, 0.499_999, 0.5, 0.500_001, 1.0, 3.0, 9.0] {
+            let s2 = (x / SINC_A).powi(2);
+            let h = (1e-3 * s2).min(1e-5);
+            let fd = (k.value(s2 + h) - k.value(s2 - h)) / (2.0 * h);
+            let (_, d) = k.value_d(s2);
+            assert!((fd - d).abs() < 1e-6 * (1.0 + d.abs()), "x={x}: {fd} vs {d}");
+        }
+        // At and near 0: dk/d(s²) = −a²/6 + a⁴s²/60 − a⁶s⁴/1680 + ….
+        assert!((k.value_d(0.0).1 + SINC_A * SINC_A / 6.0).abs() < 1e-15);
+        let s2 = 1e-6;
+        let want =
+            -SINC_A.powi(2) / 6.0 + SINC_A.powi(4) * s2 / 60.0 - SINC_A.powi(6) * s2 * s2 / 1680.0;
+        assert!((k.value_d(s2).1 - want).abs() < 1e-14, "{}", k.value_d(s2).1);
+    }
+
+    #[test]
+    fn sinc_line_integral_is_the_truncated_bessel_one() {
+        // ∫ sin(a√(d² + t²))/(a√(d² + t²)) dt over the whole line is π·J₀(a d)/a; the cut at
+        // 3π/a changes it by a few per cent at most. Its secondary maximum (J₀'s, at a d ≈
+        // 7.016) exceeds its value at one radius: a long row of sinc sources has a second
+        // iso-½ contour (DIS fig. 5.49).
+        let k = Kernel::Sinc;
+        let line = |d: f64| 2.0 * k.line_integral(d * d, 0.0, f64::INFINITY).0;
+        assert!((line(0.0) - 1.7671).abs() < 1e-3, "{}", line(0.0));
+        assert!((line(1.0) - 0.5832).abs() < 1e-3, "{}", line(1.0));
+        let second = line(7.0156 / SINC_A);
+        assert!(second > 1.1 * line(1.0), "{second} vs {}", line(1.0));
+        // Its d²-derivative is the line integral of dk/d(s²).
+        for d in [0.3, 1.0, 2.5] {
+            let h = 1e-6;
+            let fd = (k.line_integral(d * d + h, -1.0, 3.0).0
+                - k.line_integral(d * d - h, -1.0, 3.0).0)
+                / (2.0 * h);
+            let dv = k.line_integral(d * d, -1.0, 3.0).1;
+            assert!((fd - dv).abs() < 1e-7, "d={d}: {fd} vs {dv}");
         }
     }
 }

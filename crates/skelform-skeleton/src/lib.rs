@@ -7,12 +7,20 @@
 //! a convolution surface with one of the [`Kernel`]s, a sum of kernels of distances, a union
 //! of distance surfaces, Rockwood's (super-)elliptic blend, or the combination surface.
 //!
+//! The kernels are the Gaussian and those the dissertation compares it with (§5.6.7–5.6.9,
+//! fig. 5.54): Wyvill's, the triweight, the cubic B-spline and the sinc. The sinc is there to
+//! show why it was rejected — it is not monotone, so a row of sources grows a spurious contour
+//! (fig. 5.49, measured in the tests: a second, hollow band 3.3–4.2 radii out) — and it
+//! convolves points only (a point's convolution is the kernel itself); under the sum blend it
+//! takes every element.
+//!
 //! What it guarantees:
 //! * the field convention of the workspace: **inside negative**, outward normal `∇f/|∇f|`; a
 //!   density `D` with iso value `c` is exposed as `c − D`;
 //! * radius means radius: a lone point, a long segment and a large polygon of radius `r` have
 //!   their surface at distance `r` from the skeleton, for every kernel and blend (the
-//!   dissertation's normalisation, eq. 5.30–5.32, extended to the other kernels); a tapered
+//!   dissertation's normalisation, eq. 5.30–5.32, extended to the other kernels; for the
+//!   sinc under convolution, points only, and a lone point has no second contour); a tapered
 //!   segment has, away from its ends, the radius interpolated along it (within 2 %, tested);
 //! * convolution is exact — closed forms for points and segments and, with the Wyvill and
 //!   triweight kernels, for polygons; for polygons under the Gaussian a closed form up to a
@@ -25,7 +33,8 @@
 //!   joint combination surface involves the convolution's Hessian);
 //! * evaluation is deterministic, and a batch gives bit-for-bit the values of single points;
 //! * every element contributes nothing outside its box (the Gaussian is cut where it falls
-//!   below 2⁻⁴⁰); elements outside a point's reach cost one box test.
+//!   below 2⁻⁴⁰, the sinc at its third zero, 4.97 radii); elements outside a point's reach
+//!   cost one box test.
 //!
 //! Blend control beyond groups: [`Skeleton::add_junction`] blends the limbs meeting at a
 //! joint by the joint combination surface of DIS eq. 5.37 and appendix A.2 ([`junction`]),
@@ -45,7 +54,10 @@
 //! is `[[skeleton.joint]]` and `[skeleton.poses.NAME]` (`docs/SCENES.md`).
 //!
 //! What it does not (yet): a closed form for polygons under the B-spline kernel (adaptive
-//! quadrature); per-vertex radii on polygons (segments, polylines and curves taper);
+//! quadrature); segments and polygons convolved with the sinc (refused with
+//! [`SkeletonError::KernelConvolvesPointsOnly`]: no closed form, and its plane integral does
+//! not converge; [`convolution::convolve`] answers for them by quadrature of the truncated
+//! kernel); per-vertex radii on polygons (segments, polylines and curves taper);
 //! several convexity directions per joint (the `max_i(v·d_i)` of §5.6.14.5: one direction,
 //! user-set or the joint's plane normal); the appendix's special blended normals near
 //! junctions (we use the gradient of the combined field, so the crease that the union

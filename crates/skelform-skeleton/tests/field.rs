@@ -45,7 +45,12 @@ fn mixed() -> Skeleton {
 }
 
 fn blends() -> Vec<Blend> {
-    let mut v: Vec<Blend> = Kernel::ALL.iter().map(|(_, k)| Blend::Convolution(*k)).collect();
+    // The sinc convolves points only (see `sinc_convolves_points_only`).
+    let mut v: Vec<Blend> = Kernel::ALL
+        .iter()
+        .filter(|(_, k)| k.convolves_extended())
+        .map(|(_, k)| Blend::Convolution(*k))
+        .collect();
     v.extend(Kernel::ALL.iter().map(|(_, k)| Blend::Sum(*k)));
     v.extend([
         Blend::Union(Falloff::Linear),
@@ -151,7 +156,7 @@ fn seeds_are_inside_and_on_every_element() {
 #[test]
 fn lone_elements_have_their_surface_at_their_radius_under_every_blend() {
     let r = 0.1;
-    for blend in blends() {
+    for blend in blends().into_iter().chain([Blend::Convolution(Kernel::Sinc)]) {
         let mut s = Skeleton::new();
         s.add_point(DVec3::ZERO, r, GroupId::DEFAULT).unwrap();
         let f = SkeletonField::new(&s, blend).unwrap();
@@ -260,4 +265,39 @@ fn combination_removes_the_bulge_of_the_product_blend_where_convex() {
     // Concave side: in the crotch the blend adds material the union does not have.
     let crotch = DVec3::new(1.05 * r, 1.05 * r, 0.0);
     assert!(union.eval(crotch) > 0.0 && comb.eval(crotch) < 0.0, "a fillet inside the corner");
+}
+
+#[test]
+fn sinc_convolves_points_only() {
+    let g = GroupId::DEFAULT;
+    // A lone sinc point: its surface at its radius, and no second contour in its rings —
+    // the second lobe peaks at 0.128, far below ½.
+    let mut s = Skeleton::new();
+    s.add_point(DVec3::ZERO, 0.1, g).unwrap();
+    let f = SkeletonField::new(&s, Blend::Convolution(Kernel::Sinc)).unwrap();
+    assert!(f.eval(DVec3::new(0.0, 0.1, 0.0)).abs() < 1e-15);
+    let density = |x: f64| 0.5 - f.eval(DVec3::new(x, 0.0, 0.0));
+    assert!((101..600).all(|i| density(i as f64 * 1e-3) < 0.5));
+    let ring = (170..600).map(|i| density(i as f64 * 1e-3)).fold(0.0, f64::max);
+    assert!((0.128..0.1284).contains(&ring), "{ring}");
+    // The sum blend takes every element.
+    let m = mixed();
+    assert!(SkeletonField::new(&m, Blend::Sum(Kernel::Sinc)).is_ok());
+    // Convolution refuses segments and polygons, naming the first one.
+    s.add_segment(DVec3::X, DVec3::Y, 0.1, g).unwrap();
+    let e = SkeletonField::new(&s, Blend::Convolution(Kernel::Sinc)).unwrap_err();
+    assert_eq!(
+        e,
+        skelform_skeleton::SkeletonError::KernelConvolvesPointsOnly {
+            kernel: "sinc",
+            shape: "segment",
+            element: 1
+        }
+    );
+    let msg = e.to_string();
+    assert!(msg.contains("not separable") && msg.contains("blend = \"sum\""), "{msg}");
+    let mut t = Skeleton::new();
+    t.add_polygon(vec![DVec3::ZERO, DVec3::X, DVec3::Y], 0.1, g).unwrap();
+    let e = SkeletonField::new(&t, Blend::Convolution(Kernel::Sinc)).unwrap_err();
+    assert!(e.to_string().contains("a polygon's convolution"), "{e}");
 }

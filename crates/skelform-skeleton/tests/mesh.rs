@@ -109,3 +109,46 @@ fn fingers_in_two_groups_are_two_components_in_one_group_one() {
         }
     }
 }
+
+/// A row of point sources one radius apart along x, from −0.7 to 0.7, each weighted by its
+/// share of the line (spacing/(r·line_norm)): the discrete convolution of a segment.
+fn row_of_points(kernel: Kernel) -> SkeletonField {
+    let w = R / (R * kernel.line_norm());
+    let mut s = Skeleton::new();
+    for i in -7..=7 {
+        let at = DVec3::new(i as f64 * R, 0.0, 0.0);
+        let e = s.add_point(at, R, GroupId::DEFAULT).unwrap();
+        s.set_strength(e, w).unwrap();
+    }
+    SkeletonField::new(&s, Blend::Convolution(kernel)).unwrap()
+}
+
+#[test]
+fn a_row_of_sinc_sources_grows_a_spurious_shell_that_the_gaussian_does_not() {
+    // DIS §5.6.8, fig. 5.49: the sinc is not monotone, so the lobes of many sources add up
+    // to a second contour away from the skeleton. The Gaussian's row is one tube of radius
+    // r; the sinc's is the same tube inside a ring-shaped band (a solid torus around the
+    // row, open past its ends) at 3–4 radii, where the sources' second lobes add up to more
+    // than ½ (the line integral's secondary maximum, J₀'s at a·d ≈ 7.0, is 1.1 times its
+    // value at one radius).
+    let domain = Aabb::new(DVec3::new(-1.25, -0.55, -0.55), DVec3::new(1.25, 0.55, 0.55));
+    for kernel in [Kernel::Gaussian, Kernel::Sinc] {
+        let m = mesh(&row_of_points(kernel), domain, 0.02);
+        let report = check(&m);
+        assert!(report.components.iter().all(|c| c.is_closed_manifold()), "{kernel:?}");
+        let mut genera: Vec<i64> = report.components.iter().filter_map(|c| c.genus).collect();
+        genera.sort_unstable();
+        let axis = |p: &[f32; 3]| (p[1] as f64).hypot(p[2] as f64);
+        let tube = m.positions.iter().filter(|p| axis(p) < 1.5 * R).count();
+        let band = m.positions.iter().filter(|p| (3.0 * R..4.5 * R).contains(&axis(p))).count();
+        assert_eq!(tube + band, m.positions.len(), "{kernel:?}: a vertex elsewhere");
+        assert!(tube > 1000, "{kernel:?}: {tube}");
+        if kernel == Kernel::Gaussian {
+            assert_eq!(genera, [0], "one tube");
+            assert_eq!(band, 0);
+        } else {
+            assert_eq!(genera, [0, 1], "the tube and the spurious band around it");
+            assert!(band > 1000, "{band}");
+        }
+    }
+}
