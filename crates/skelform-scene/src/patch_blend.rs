@@ -36,10 +36,13 @@ pub(crate) const INTEREST: [RegionPair; 3] = [RegionPair(1, 2), RegionPair(1, 3)
 const SAUCER_RADIUS: f64 = 1.0 / 1.4;
 const SAUCER_HEIGHT: f64 = 0.35;
 
+/// One row of control points, each where it is written.
+type Row = Spanned<Vec<Spanned<[f64; 3]>>>;
+
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct PatchBlendSection {
-    control: Spanned<Vec<Spanned<Vec<Spanned<[f64; 3]>>>>>,
+    control: Spanned<Vec<Row>>,
     centre: Option<Spanned<[f64; 3]>>,
     radius: Option<Spanned<f64>>,
     height: Option<Spanned<f64>>,
