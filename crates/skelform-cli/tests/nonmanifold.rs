@@ -188,6 +188,14 @@ fn the_chapter_examples_are_what_the_chapter_describes() {
             open_curves: &[[0, 1, 2], [0, 1, 3], [1, 2, 3], [0, 2, 3]],
             degrees: &[1, 2, 3],
         },
+        // The blend to a patch ([regions.patch_blend]): the bump's rim and the patch's border.
+        Expect {
+            name: "nonmanifold/patch-blend.toml",
+            pairs: &[[1, 2], [1, 3], [2, 3]],
+            closed_curves: &[[1, 2, 3], [0, 2, 3]],
+            open_curves: &[],
+            degrees: &[1, 2, 3],
+        },
     ];
     for e in cases {
         let (scene, m, s) = mesh_example(e.name);
@@ -228,6 +236,89 @@ fn the_chapter_examples_are_what_the_chapter_describes() {
         assert!(s.face_vertex_fallbacks * 100 <= s.face_vertices.max(1), "{}: {s:?}", e.name);
         assert_eq!(s.gradient_normals, s.vertices, "{}: every pair has a gradient", e.name);
     }
+}
+
+/// Signed distance from `p` to the saddle `z = 0.1 (x² − y² + x)`, positive above: Newton's
+/// method on the nearest point `(u, v, h(u, v))`, where `p − q` is normal to the surface.
+fn distance_to_saddle([x, y, z]: [f64; 3]) -> f64 {
+    let h = |u: f64, v: f64| 0.1 * (u * u - v * v + u);
+    let (mut u, mut v) = (x, y);
+    for _ in 0..20 {
+        let (hu, hv, e) = (0.1 * (2.0 * u + 1.0), -0.2 * v, h(u, v) - z);
+        let (f, g) = (u - x + e * hu, v - y + e * hv);
+        let (a, b, d) = (1.0 + hu * hu + 0.2 * e, hu * hv, 1.0 + hv * hv - 0.2 * e);
+        let det = a * d - b * b;
+        (u, v) = (u - (d * f - b * g) / det, v - (a * g - b * f) / det);
+    }
+    let q = [u, v, h(u, v)];
+    let len = ((x - q[0]).powi(2) + (y - q[1]).powi(2) + (z - q[2]).powi(2)).sqrt();
+    if z >= q[2] { len } else { -len }
+}
+
+/// The blend to a patch: the scene's control points make the saddle z = 0.1 (x² − y² + x)
+/// over [-1, 1]² exactly, so the patch's sheet (2,3) lies on it within the polygonizer's
+/// accuracy, with normals from the patch (the built-in's gradient) facing up into region 2;
+/// the bump's sheets (1,2) and (1,3) are where the distance to the patch is the bump's height
+/// 0.35 Sigmoid(1.4 |p|) (centred on P(½, ½), the origin), above and below.
+#[test]
+fn the_patch_blend_lies_on_its_patch_and_bump() {
+    let (_, m, s) = mesh_example("nonmanifold/patch-blend.toml");
+    let sigmoid = |d: f64| {
+        if d > 1.0 { 0.0 } else { 1.0 - (4.0 * d.powi(6) - 17.0 * d.powi(4) + 22.0 * d * d) / 9.0 }
+    };
+    let mut pair_of = vec![None; m.positions.len()];
+    for (t, l) in m.triangles.iter().zip(&m.labels) {
+        for &v in t {
+            pair_of[v as usize] = Some((l.0, l.1));
+        }
+    }
+    // Vertices on the rim and the border (found by the face contour follower) apart.
+    let on_curve: std::collections::HashSet<[u32; 3]> = m
+        .curves
+        .iter()
+        .flat_map(|c| c.v)
+        .map(|v| m.positions[v as usize].map(f32::to_bits))
+        .collect();
+    let (mut sheet, mut edge, mut bump, mut normal) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+    let mut counted = [0usize; 3];
+    for (i, p) in m.positions.iter().enumerate() {
+        let [x, y, z] = p.map(f64::from);
+        let off = distance_to_saddle([x, y, z]);
+        let r = (x * x + y * y + z * z).sqrt();
+        match pair_of[i] {
+            Some((2, 3)) => {
+                let worst =
+                    if on_curve.contains(&p.map(f32::to_bits)) { &mut edge } else { &mut sheet };
+                *worst = worst.max(off.abs());
+                counted[0] += 1;
+                let (gx, gy) = (0.1 * (2.0 * x + 1.0), -0.2 * y);
+                let n = m.normals[i].map(f64::from);
+                let cos = (-gx * n[0] - gy * n[1] + n[2]) / (1.0 + gx * gx + gy * gy).sqrt();
+                normal = normal.max(cos.clamp(-1.0, 1.0).acos().to_degrees());
+            }
+            Some((1, b)) => {
+                let want = 0.35 * sigmoid(1.4 * r);
+                bump = bump.max((off.abs() - want).abs());
+                // Above for (1,2), below for (1,3) (at the rim, where the bump is thinner
+                // than the accuracy, both sheets touch the patch).
+                assert!(
+                    want < 4.0 * s.epsilon || off * if b == 2 { 1.0 } else { -1.0 } > 0.0,
+                    "{p:?} on the wrong side"
+                );
+                counted[b as usize - 1] += 1;
+            }
+            other => panic!("unexpected pair {other:?}"),
+        }
+    }
+    eprintln!(
+        "patch sheet off by {sheet:.2e} ({edge:.2e} on curves), normals by {normal:.3}°; bump off by {bump:.2e} (ε {:.2e}); {counted:?}",
+        s.epsilon
+    );
+    assert!(counted.iter().all(|&c| c > 500), "{counted:?}");
+    assert!(sheet < s.epsilon, "the patch's sheet is {sheet} off the patch");
+    assert!(edge < 4.0 * s.epsilon, "the rim and border are {edge} off the patch");
+    assert!(normal < 0.5, "normals {normal}° off the patch's");
+    assert!(bump < 4.0 * s.epsilon, "the bump's sheets are {bump} off the bump");
 }
 
 /// The saucer's per-pair gradient functions (scene `[[regions.gradient]]`) give the vertex

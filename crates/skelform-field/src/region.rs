@@ -41,27 +41,57 @@ pub trait RegionField: Send + Sync {
 }
 
 /// Regions given in order, each by a field: a point belongs to the first region whose field
-/// is negative there, and otherwise to `default` (DESIGN.md, "Regions"). A field that is NaN
-/// at a point does not claim it. `gradients` gives, per region pair `(a, b)` with `a < b`,
-/// a field whose gradient is normal to the surface between them (see
-/// [`RegionField::gradient`]).
+/// is negative there, and otherwise to `default` (DESIGN.md, "Regions"): one region, or the
+/// region a built-in region function says (such as [`PatchBlend`], which the formulas then
+/// trim or add to). A field that is NaN at a point does not claim it. `gradients` gives,
+/// per region pair `(a, b)` with `a < b`, a field whose gradient is normal to the surface
+/// between them (see [`RegionField::gradient`]); pairs without one take the built-in's.
 pub struct OrderedRegions {
     pub regions: Vec<(u32, Box<dyn Field>)>,
-    pub default: u32,
+    pub default: Otherwise,
     pub gradients: Vec<((u32, u32), Box<dyn Field>)>,
+}
+
+/// Where [`OrderedRegions`] puts a point that none of its fields claims.
+pub enum Otherwise {
+    /// Always this region.
+    Region(u32),
+    /// Whichever region this region function says.
+    Regions(Box<dyn RegionField>),
+}
+
+impl From<u32> for Otherwise {
+    fn from(id: u32) -> Self {
+        Otherwise::Region(id)
+    }
+}
+
+impl std::fmt::Debug for Otherwise {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Otherwise::Region(id) => write!(f, "Region({id})"),
+            Otherwise::Regions(r) => write!(f, "Regions({:?})", r.region_ids()),
+        }
+    }
 }
 
 impl RegionField for OrderedRegions {
     fn region(&self, p: DVec3) -> u32 {
-        self.regions.iter().find(|(_, f)| f.eval(p) < 0.0).map_or(self.default, |(id, _)| *id)
+        match self.regions.iter().find(|(_, f)| f.eval(p) < 0.0) {
+            Some((id, _)) => *id,
+            None => match &self.default {
+                Otherwise::Region(id) => *id,
+                Otherwise::Regions(r) => r.region(p),
+            },
+        }
     }
 
     fn region_many(&self, points: &[DVec3], out: &mut [u32]) {
         const BATCH: usize = 256;
         let mut values = [0.0f64; BATCH];
+        let mut rest = [0u32; BATCH];
         for (ps, os) in points.chunks(BATCH).zip(out.chunks_mut(BATCH)) {
             let mut open: Vec<usize> = (0..ps.len()).collect();
-            os.iter_mut().for_each(|o| *o = self.default);
             let mut pts = ps.to_vec();
             for (id, field) in &self.regions {
                 if open.is_empty() {
@@ -82,19 +112,37 @@ impl RegionField for OrderedRegions {
                 open = still;
                 pts = still_pts;
             }
+            match &self.default {
+                Otherwise::Region(id) => open.iter().for_each(|&i| os[i] = *id),
+                Otherwise::Regions(r) if !open.is_empty() => {
+                    let rest = &mut rest[..open.len()];
+                    r.region_many(&pts, rest);
+                    open.iter().zip(rest.iter()).for_each(|(&i, &id)| os[i] = id);
+                }
+                Otherwise::Regions(_) => {}
+            }
         }
     }
 
     fn region_ids(&self) -> Option<Vec<u32>> {
         let mut ids: Vec<u32> = self.regions.iter().map(|(id, _)| *id).collect();
-        ids.push(self.default);
+        match &self.default {
+            Otherwise::Region(id) => ids.push(*id),
+            Otherwise::Regions(r) => ids.extend(r.region_ids()?),
+        }
         ids.sort_unstable();
         ids.dedup();
         Some(ids)
     }
 
     fn gradient(&self, p: DVec3, pair: (u32, u32)) -> Option<DVec3> {
-        let g = self.gradients.iter().find(|(q, _)| *q == pair)?.1.gradient(p);
+        let Some((_, field)) = self.gradients.iter().find(|(q, _)| *q == pair) else {
+            return match &self.default {
+                Otherwise::Regions(r) => r.gradient(p, pair),
+                Otherwise::Region(_) => None,
+            };
+        };
+        let g = field.gradient(p);
         g.is_finite().then_some(g)
     }
 }
@@ -307,7 +355,7 @@ mod tests {
                 (1, Box::new(FnField(|p: DVec3| p.length() - 0.5))),
                 (2, Box::new(FnField(|p: DVec3| -p.z))),
             ],
-            default: 3,
+            default: 3.into(),
             gradients: vec![((1, 2), Box::new(FnField(|p: DVec3| p.z - p.length())))],
         };
         let pts: Vec<DVec3> = (0..1000)
@@ -331,6 +379,73 @@ mod tests {
         let g = r.gradient(DVec3::new(0.0, 0.6, 0.0), (1, 2)).unwrap();
         assert!((g - DVec3::new(0.0, -1.0, 1.0)).length() < 1e-6, "{g}");
         assert_eq!(r.gradient(DVec3::ZERO, (1, 3)), None);
+    }
+
+    /// The flat patch z = 0 over [-1, 1]², with the saucer's bump at its centre.
+    fn flat_blend() -> PatchBlend {
+        let control = std::array::from_fn(|i| {
+            std::array::from_fn(|j| {
+                DVec3::new(-1.0 + 2.0 * i as f64 / 3.0, -1.0 + 2.0 * j as f64 / 3.0, 0.0)
+            })
+        });
+        PatchBlend {
+            patch: BicubicPatch::new(control),
+            centre: DVec3::ZERO,
+            radius: 0.5,
+            height: 0.3,
+        }
+    }
+
+    #[test]
+    fn a_patch_blend_has_the_chapters_four_regions() {
+        let b = flat_blend();
+        assert_eq!(b.region(DVec3::new(0.0, 0.0, 0.1)), 1, "inside the bump");
+        assert_eq!(b.region(DVec3::new(0.0, 0.0, -0.1)), 1, "the bump is on both sides");
+        assert_eq!(b.region(DVec3::new(0.7, 0.0, 0.1)), 2, "above, past the bump");
+        assert_eq!(b.region(DVec3::new(0.7, 0.0, -0.1)), 3, "below");
+        assert_eq!(b.region(DVec3::new(1.2, 0.0, 0.1)), 0, "beyond the border");
+        // The normal is +z (Pₛ × Pₜ with s along x, t along y): region 2 is on its side.
+        assert_eq!(b.gradient(DVec3::new(0.7, 0.2, 0.1), (2, 3)), Some(DVec3::Z));
+        assert_eq!(b.gradient(DVec3::new(0.7, 0.2, 0.1), (0, 2)), None);
+    }
+
+    /// Formulas in front of a built-in region function: they claim first, the built-in
+    /// takes the rest (in batches too), its ids join theirs, and a formula gradient for a
+    /// pair replaces the built-in's.
+    #[test]
+    fn formulas_in_front_of_a_built_in() {
+        let ball = |p: DVec3| (p - DVec3::new(0.7, 0.0, 0.0)).length() - 0.2;
+        let r = OrderedRegions {
+            regions: vec![(4, Box::new(FnField(ball)))],
+            default: Otherwise::Regions(Box::new(flat_blend())),
+            gradients: vec![((3, 4), Box::new(FnField(ball)))],
+        };
+        assert_eq!(r.region(DVec3::new(0.7, 0.0, 0.1)), 4);
+        assert_eq!(r.region(DVec3::new(0.0, 0.0, 0.1)), 1);
+        assert_eq!(r.region(DVec3::new(0.0, 0.7, -0.1)), 3);
+        let pts: Vec<DVec3> = (0..600)
+            .map(|i| {
+                DVec3::new(
+                    (i % 10) as f64 * 0.27 - 1.3,
+                    (i / 10 % 10) as f64 * 0.27 - 1.3,
+                    (i / 100) as f64 * 0.1 - 0.3,
+                )
+            })
+            .collect();
+        let mut out = vec![99; pts.len()];
+        r.region_many(&pts, &mut out);
+        for (p, o) in pts.iter().zip(&out) {
+            assert_eq!(*o, r.region(*p), "{p}");
+        }
+        for id in 0..5 {
+            assert!(out.contains(&id), "no point in region {id}");
+        }
+        assert_eq!(r.region_ids(), Some(vec![0, 1, 2, 3, 4]));
+        let p = DVec3::new(0.7, 0.3, 0.0);
+        assert_eq!(r.gradient(p, (2, 3)), Some(DVec3::Z), "the built-in's");
+        let g = r.gradient(p, (3, 4)).unwrap();
+        assert!((g - DVec3::Y).length() < 1e-6, "the formula's: {g}");
+        assert_eq!(r.gradient(p, (0, 4)), None);
     }
 
     #[test]

@@ -314,8 +314,9 @@ fn same_mesh_on_any_thread_count() {
 /// The chapter's blend of a sphere to a bicubic patch (§4.8.4), with the patch
 /// `z = 0.15 (x² − y²) + 0.1 x` over [-1, 1]² (control points on a 4 × 4 lattice; the chapter
 /// does not give its patch) and the saucer's bump (height 0.35, radius 1/1.4) at the patch's
-/// centre. It is `examples/patch_blend.rs` of this crate; not a scene, as the region function
-/// needs the nearest point on the patch, which `skelform_field::region::PatchBlend` computes.
+/// centre, through the Rust API; `examples/nonmanifold/patch-blend.toml` is the same blend as
+/// a scene (`[regions.patch_blend]`), with a domain that keeps lattice planes off the patch's
+/// border and its saddle's level.
 fn patch_blend() -> skelform_field::region::PatchBlend {
     use skelform_field::region::{BicubicPatch, PatchBlend};
     let control = std::array::from_fn(|i| {

@@ -25,6 +25,7 @@
 //! The format is documented with examples in `docs/SCENES.md`.
 
 mod leaf;
+mod patch_blend;
 mod pose;
 mod regions;
 mod schema;

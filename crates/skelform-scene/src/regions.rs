@@ -14,12 +14,15 @@
 //! pair = [2, 3]                    # normal to that surface, for vertex normals
 //! formula = "z"
 //! ```
+//!
+//! In place of `default`, a built-in region function may take the points that no formula
+//! claims: `[regions.patch_blend]` (see `crate::patch_blend`).
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
 use serde::Deserialize;
-use skelform_field::region::OrderedRegions;
+use skelform_field::region::{OrderedRegions, Otherwise};
 use skelform_mesh::{RegionPair, RegionTriple};
 use toml::Spanned;
 
@@ -28,14 +31,17 @@ use crate::SceneError;
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct RegionsSection {
-    default: Spanned<i64>,
+    default: Option<Spanned<i64>>,
     interest: Option<Spanned<Vec<[i64; 2]>>>,
     curves: Option<Spanned<Vec<[i64; 3]>>>,
     parameters: Option<Spanned<BTreeMap<String, f64>>>,
     full_grid: Option<bool>,
     loops: Option<bool>,
+    #[serde(default)]
     region: Vec<RegionEntry>,
     gradient: Option<Vec<GradientEntry>>,
+    /// The chapter's blend to a bicubic patch, for the points no formula claims.
+    patch_blend: Option<Spanned<crate::patch_blend::PatchBlendSection>>,
 }
 
 #[derive(Deserialize)]
@@ -87,10 +93,11 @@ pub(crate) type Compile<'a> = dyn Fn(
 /// Checks the section and compiles its formulas; `at(offset, message)` makes a positioned
 /// error, `compile` compiles one formula with the parameters.
 pub(crate) fn build(
-    sec: &RegionsSection,
+    section: &Spanned<RegionsSection>,
     at: &dyn Fn(usize, String) -> SceneError,
     compile: &Compile<'_>,
 ) -> Result<Regions, SceneError> {
+    let sec = section.get_ref();
     let id = |v: &Spanned<i64>, what: &str| -> Result<u32, SceneError> {
         u32::try_from(*v.get_ref()).map_err(|_| {
             at(
@@ -103,33 +110,66 @@ pub(crate) fn build(
             )
         })
     };
-    let default = id(&sec.default, "the default region")?;
-    if sec.region.is_empty() {
-        return Err(at(
-            sec.default.span().start,
-            "[regions] lists no [[regions.region]]: a scene with one region has no surface".into(),
-        ));
-    }
+    // Where a point that no formula claims goes: the default region or the built-in.
+    let (default, mut ids) = match (&sec.default, &sec.patch_blend) {
+        (Some(d), Some(_)) => {
+            return Err(at(
+                d.span().start,
+                "'default' is never used with [regions.patch_blend]: a point that no \
+                 [[regions.region]] claims is in the patch blend's region (0 beyond, 1 bump, \
+                 2 above, 3 below)"
+                    .into(),
+            ));
+        }
+        (None, Some(p)) => (
+            Otherwise::Regions(Box::new(crate::patch_blend::build(p.get_ref(), at)?)),
+            crate::patch_blend::IDS.to_vec(),
+        ),
+        (Some(d), None) => {
+            let default = id(d, "the default region")?;
+            if sec.region.is_empty() {
+                return Err(at(
+                    d.span().start,
+                    "[regions] lists no [[regions.region]]: a scene with one region has no \
+                     surface"
+                        .into(),
+                ));
+            }
+            (Otherwise::Region(default), vec![default])
+        }
+        (None, None) => {
+            return Err(at(
+                section.span().start,
+                "[regions] needs a 'default' region (for the points no [[regions.region]] \
+                 claims) or a [regions.patch_blend]"
+                    .into(),
+            ));
+        }
+    };
+    let builtin = sec.patch_blend.is_some();
     let params: Vec<(String, f64)> = match &sec.parameters {
         Some(p) => p.get_ref().iter().map(|(k, v)| (k.clone(), *v)).collect(),
         None => Vec::new(),
     };
-    let mut ids = vec![default];
     let mut regions = Vec::with_capacity(sec.region.len());
+    let mut listed = Vec::new();
     for r in &sec.region {
         let rid = id(&r.id, "a region id")?;
-        if ids.contains(&rid) {
+        // A formula may add to a built-in's region (its points are claimed first).
+        if listed.contains(&rid) || (!builtin && ids.contains(&rid)) {
             return Err(at(
                 r.id.span().start,
                 format!("region {rid} is given twice (or is the default region)"),
             ));
         }
+        listed.push(rid);
         ids.push(rid);
         let formula =
             compile(&r.formula, &params, sec.parameters.as_ref().map(|p| p.span().start))?;
         regions.push((rid, Box::new(formula) as Box<dyn skelform_field::Field>));
     }
     ids.sort_unstable();
+    ids.dedup();
     let pair = |[a, b]: [i64; 2], offset: usize| -> Result<RegionPair, SceneError> {
         let known = |r: i64| u32::try_from(r).ok().filter(|r| ids.contains(r));
         match (known(a), known(b)) {
@@ -184,6 +224,9 @@ pub(crate) fn build(
         let formula =
             compile(&g.formula, &params, sec.parameters.as_ref().map(|p| p.span().start))?;
         gradients.push(((p.0, p.1), Box::new(formula)));
+    }
+    if builtin && sec.interest.is_none() {
+        interest = crate::patch_blend::INTEREST.to_vec();
     }
     interest.sort_unstable();
     interest.dedup();

@@ -262,11 +262,11 @@ pub(crate) fn build(
         }
     };
     let regions = match &file.regions {
-        Some(r) => Some(crate::regions::build(
-            r.get_ref(),
-            &|o, m| cx.at(o, m),
-            &|src, params, params_at| compile_formula(&cx, src, params, params_at),
-        )?),
+        Some(r) => {
+            Some(crate::regions::build(r, &|o, m| cx.at(o, m), &|src, params, params_at| {
+                compile_formula(&cx, src, params, params_at)
+            })?)
+        }
         None => None,
     };
     let leaf = match &file.leaf {
