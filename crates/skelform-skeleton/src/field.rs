@@ -272,6 +272,17 @@ struct Acc {
 struct Clique {
     plain: Vec<usize>,
     junctions: Vec<usize>,
+    /// With a shared sum ([`SharedSums`]): the groups whose sums make up `plain`.
+    parts: Vec<usize>,
+}
+
+/// For additive blends (convolution, sum) with several cliques: each group's elements are
+/// summed once per point and each clique adds up its groups' sums, instead of evaluating a
+/// group once for every clique it belongs to (the hand's palm and tendons are in six).
+#[derive(Clone, Debug)]
+struct SharedSums {
+    /// The plain elements of each group that has any.
+    groups: Vec<Vec<usize>>,
 }
 
 /// A skeleton's field: inside negative, exact gradients, deterministic.
@@ -292,6 +303,7 @@ pub struct SkeletonField {
     iso: f64,
     items: Vec<Item>,
     cliques: Vec<Clique>,
+    shared: Option<SharedSums>,
     junctions: Vec<PreparedJunction>,
     bounds: Aabb,
     seeds: Vec<DVec3>,
@@ -346,7 +358,17 @@ impl SkeletonField {
                 limb_of[l.element] = Some(j);
             }
         }
-        let cliques: Vec<Clique> = skeleton
+        // The plain (non-limb) elements of each group, in element order.
+        let mut by_group: std::collections::BTreeMap<crate::GroupId, Vec<usize>> =
+            Default::default();
+        for (i, e) in skeleton.elements().iter().enumerate() {
+            if limb_of[i].is_none() {
+                by_group.entry(e.group()).or_default().push(i);
+            }
+        }
+        let part_of: std::collections::BTreeMap<crate::GroupId, usize> =
+            by_group.keys().enumerate().map(|(n, g)| (*g, n)).collect();
+        let mut cliques: Vec<Clique> = skeleton
             .blend_cliques()
             .into_iter()
             .map(|groups| {
@@ -357,15 +379,23 @@ impl SkeletonField {
                 let mut js: Vec<usize> = members.iter().filter_map(|&i| limb_of[i]).collect();
                 js.sort_unstable();
                 js.dedup();
-                Clique { plain, junctions: js }
+                let parts = groups.iter().filter_map(|g| part_of.get(g).copied()).collect();
+                Clique { plain, junctions: js, parts }
             })
             .filter(|c| !(c.plain.is_empty() && c.junctions.is_empty()))
             .collect();
+        let additive = matches!(blend, Blend::Convolution(_) | Blend::Sum(_));
+        let shared = (additive && cliques.len() > 1)
+            .then(|| SharedSums { groups: by_group.into_values().collect() });
+        if shared.is_none() {
+            cliques.iter_mut().for_each(|c| c.parts.clear());
+        }
         Ok(SkeletonField {
             blend,
             iso: DEFAULT_ISO,
             items,
             cliques,
+            shared,
             junctions,
             bounds: bounds.ok_or(SkeletonError::Empty)?,
             seeds: skeleton.seed_points(),
@@ -650,15 +680,42 @@ impl SkeletonField {
         }
     }
 
+    /// Adds the influence of `elements` at each point to its accumulator.
+    fn accumulate_elements(
+        &self,
+        elements: &[usize],
+        pts: &[DVec3],
+        accs: &mut [Acc; CHUNK],
+        want_grad: bool,
+    ) {
+        for &e in elements {
+            let it = &self.items[e];
+            for (p, acc) in pts.iter().zip(accs.iter_mut()) {
+                if it.contains(*p) {
+                    self.accumulate(it, *p, acc, want_grad);
+                }
+            }
+        }
+    }
+
     /// Evaluates a batch; gradients too when `grads` is given.
     fn eval_batch(&self, points: &[DVec3], values: &mut [f64], mut grads: Option<&mut [DVec3]>) {
         let want_grad = grads.is_some();
         let init = self.acc_init();
+        let mut group_accs: Vec<[Acc; CHUNK]> = Vec::new();
         for start in (0..points.len()).step_by(CHUNK) {
             let end = (start + CHUNK).min(points.len());
             let pts = &points[start..end];
             let mut best = [(f64::INFINITY, DVec3::ZERO); CHUNK];
             let mut accs = [init; CHUNK];
+            // Each group's sum once, when the cliques share them.
+            if let Some(shared) = &self.shared {
+                group_accs.resize(shared.groups.len(), [init; CHUNK]);
+                for (elements, accs) in shared.groups.iter().zip(group_accs.iter_mut()) {
+                    accs[..pts.len()].fill(init);
+                    self.accumulate_elements(elements, pts, accs, want_grad);
+                }
+            }
             for clique in &self.cliques {
                 accs[..pts.len()].fill(init);
                 if let Blend::SuperElliptic { range, angle_scaled: true, .. } = self.blend {
@@ -666,13 +723,15 @@ impl SkeletonField {
                         self.angle_scale(&clique.plain, range, *p, acc);
                     }
                 }
-                for &e in &clique.plain {
-                    let it = &self.items[e];
-                    for (p, acc) in pts.iter().zip(accs.iter_mut()) {
-                        if it.contains(*p) {
-                            self.accumulate(it, *p, acc, want_grad);
+                if self.shared.is_some() {
+                    for &part in &clique.parts {
+                        for (acc, g) in accs.iter_mut().zip(&group_accs[part][..pts.len()]) {
+                            acc.v += g.v;
+                            acc.g += g.g;
                         }
                     }
+                } else {
+                    self.accumulate_elements(&clique.plain, pts, &mut accs, want_grad);
                 }
                 if let Blend::Convolution(k) = self.blend {
                     for &j in &clique.junctions {

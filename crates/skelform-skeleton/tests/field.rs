@@ -301,3 +301,42 @@ fn sinc_convolves_points_only() {
     let e = SkeletonField::new(&t, Blend::Convolution(Kernel::Sinc)).unwrap_err();
     assert!(e.to_string().contains("a polygon's convolution"), "{e}");
 }
+
+/// Groups shared by several cliques are summed once per point (additive blends); the field
+/// is still the minimum over cliques of each clique's field alone, with its gradient.
+#[test]
+fn shared_groups_give_each_clique_its_own_field() {
+    let r = 0.08;
+    let build = |fingers: &[usize]| {
+        let mut s = Skeleton::new();
+        let palm = s.add_group("palm").unwrap();
+        s.add_segment(DVec3::new(-0.5, -0.3, 0.0), DVec3::new(-0.5, 0.3, 0.0), 1.5 * r, palm)
+            .unwrap();
+        s.add_point(DVec3::new(-0.6, 0.0, 0.05), 1.2 * r, palm).unwrap();
+        for &k in fingers {
+            let g = s.add_group(&format!("finger{k}")).unwrap();
+            s.blend_groups(palm, g).unwrap();
+            let y = -0.2 + 0.2 * k as f64;
+            s.add_segment(DVec3::new(-0.45, y, 0.0), DVec3::new(0.3, y, 0.02), r, g).unwrap();
+        }
+        s
+    };
+    for blend in [Blend::Convolution(Kernel::Gaussian), Blend::Sum(Kernel::Wyvill)] {
+        let whole = SkeletonField::new(&build(&[0, 1, 2]), blend).unwrap();
+        assert_eq!(whole.clique_count(), 3);
+        let alone: Vec<SkeletonField> =
+            (0..3).map(|k| SkeletonField::new(&build(&[k]), blend).unwrap()).collect();
+        let mut seed = 7u64;
+        let mut next = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        for _ in 0..300 {
+            let p = DVec3::new(0.7 * next(), 0.5 * next(), 0.2 * next());
+            let expect = alone.iter().map(|f| f.eval(p)).fold(f64::INFINITY, f64::min);
+            assert!((whole.eval(p) - expect).abs() < 1e-12, "{blend:?} at {p}");
+            let best = alone.iter().min_by(|a, b| a.eval(p).total_cmp(&b.eval(p))).unwrap();
+            assert!((whole.gradient(p) - best.gradient(p)).length() < 1e-9, "{blend:?} at {p}");
+        }
+    }
+}
