@@ -51,7 +51,7 @@ pub enum Error {
     #[error("seed ({}, {}, {}): {why}", seed[0], seed[1], seed[2])]
     BadSeed { seed: [f64; 3], why: String },
     #[error(
-        "no surface found: a search of {samples} points (every {stride} cells) found no sign change; give a seed near the surface or a smaller search stride"
+        "no surface found: a search of {samples} points (every {stride} cells) found no sign change (or, for regions, no change between a pair of interest); give a seed near the surface or a smaller search stride"
     )]
     NoSurfaceFound { samples: u64, stride: usize },
     #[error("{0}")]
