@@ -139,21 +139,20 @@ pub fn run_scene(scene: &Scene, a: &RunArgs) -> Result<(Mesh, report::Run, Metho
             scene.origin
         )));
     }
+    let grid_options = grid::Options {
+        domain: scene.domain,
+        resolution,
+        refine,
+        tolerance,
+        normals,
+        max_memory: a.max_memory,
+        streaming: a.stream.into(),
+        control: control.clone(),
+    };
     let result = match method {
-        Method::Grid => {
-            let options = grid::Options {
-                domain: scene.domain,
-                resolution,
-                refine,
-                tolerance,
-                normals,
-                max_memory: a.max_memory,
-                streaming: a.stream.into(),
-                control,
-            };
-            pool.install(|| grid::polygonize(field, &options))
-                .map(|(m, s)| (m, report::Run::Grid(s)))
-        }
+        Method::Grid => pool
+            .install(|| grid::polygonize(field, &grid_options))
+            .map(|(m, s)| (m, report::Run::Grid(s))),
         Method::NonManifold => {
             let Some(setup) = scene.nonmanifold_regions() else {
                 return Err(input(anyhow!(
@@ -220,19 +219,13 @@ pub fn run_scene(scene: &Scene, a: &RunArgs) -> Result<(Mesh, report::Run, Metho
         Method::Healed => {
             let h = &scene.healed;
             let options = healed::Options {
-                domain: scene.domain,
-                resolution,
-                refine,
-                tolerance,
-                normals,
-                max_memory: a.max_memory,
+                grid: grid_options,
                 epsilon: match (h.epsilon, h.critical_cells) {
                     (Some(e), _) => healed::Epsilon::Absolute(e),
                     (None, Some(c)) => healed::Epsilon::Cells(c),
                     (None, None) => healed::Options::default().epsilon,
                 },
                 split_sheets: h.split_sheets,
-                control,
                 ..healed::Options::default()
             };
             pool.install(|| healed::polygonize(field, &options))

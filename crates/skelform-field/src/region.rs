@@ -217,6 +217,20 @@ impl BicubicPatch {
         patch
     }
 
+    /// The patch whose control points are `(x, y, height(x, y))` on the 4 × 4 lattice over
+    /// [-1, 1]² (s along x, t along y): a height field, the usual way to write one down.
+    pub fn over_square(height: impl Fn(f64, f64) -> f64) -> Self {
+        let at = |k: usize| -1.0 + 2.0 * k as f64 / 3.0;
+        BicubicPatch::new(std::array::from_fn(|i| {
+            std::array::from_fn(|j| DVec3::new(at(i), at(j), height(at(i), at(j))))
+        }))
+    }
+
+    /// The patch's centre, `P(½, ½)`: where the bump of a [`PatchBlend`] sits by default.
+    pub fn centre(&self) -> DVec3 {
+        self.eval(0.5, 0.5)[0]
+    }
+
     /// `[P, Pₛ, Pₜ]` at `(s, t)`.
     pub fn eval(&self, s: f64, t: f64) -> [DVec3; 3] {
         let basis = |u: f64| {
@@ -383,17 +397,9 @@ mod tests {
 
     /// The flat patch z = 0 over [-1, 1]², with the saucer's bump at its centre.
     fn flat_blend() -> PatchBlend {
-        let control = std::array::from_fn(|i| {
-            std::array::from_fn(|j| {
-                DVec3::new(-1.0 + 2.0 * i as f64 / 3.0, -1.0 + 2.0 * j as f64 / 3.0, 0.0)
-            })
-        });
-        PatchBlend {
-            patch: BicubicPatch::new(control),
-            centre: DVec3::ZERO,
-            radius: 0.5,
-            height: 0.3,
-        }
+        let patch = BicubicPatch::over_square(|_, _| 0.0);
+        assert_eq!(patch.centre(), DVec3::ZERO);
+        PatchBlend { patch, centre: DVec3::ZERO, radius: 0.5, height: 0.3 }
     }
 
     #[test]

@@ -18,7 +18,7 @@ use skelform_polygonize::healed::{
 };
 
 fn heal_with(field: &dyn Field, domain: Aabb, resolution: Resolution, o: Options) -> (Mesh, Stats) {
-    let opts = Options { domain, resolution, ..o };
+    let opts = Options { grid: grid::Options { domain, resolution, ..o.grid }, ..o };
     polygonize(field, &opts).expect("healed")
 }
 
@@ -576,13 +576,23 @@ fn bad_options_and_cancellation() {
         bad(Options { epsilon: Epsilon::Absolute(f64::NAN), ..Options::default() }),
         Error::BadOption(_)
     ));
-    assert!(matches!(bad(Options { tolerance: 2.0, ..Options::default() }), Error::BadOption(_)));
+    let tolerance = |tolerance| grid::Options { tolerance, ..grid::Options::default() };
     assert!(matches!(
-        bad(Options { resolution: Resolution::Samples(1), ..Options::default() }),
+        bad(Options { grid: tolerance(2.0), ..Options::default() }),
+        Error::BadOption(_)
+    ));
+    assert!(matches!(
+        bad(Options {
+            grid: grid::Options { resolution: Resolution::Samples(1), ..grid::Options::default() },
+            ..Options::default()
+        }),
         Error::Grid(_)
     ));
     assert!(matches!(
-        bad(Options { max_memory: 1000, ..Options::default() }),
+        bad(Options {
+            grid: grid::Options { max_memory: 1000, ..grid::Options::default() },
+            ..Options::default()
+        }),
         Error::TooMuchMemory { .. }
     ));
     // Cancelled in each phase.
@@ -590,7 +600,9 @@ fn bad_options_and_cancellation() {
         let control = Control::with_callback(move |p| {
             if p.phase == phase { ControlFlow::Break(()) } else { ControlFlow::Continue(()) }
         });
-        let o = Options { resolution: Resolution::Samples(40), control, ..Options::default() };
+        let grid =
+            grid::Options { resolution: Resolution::Samples(40), control, ..Default::default() };
+        let o = Options { grid, ..Options::default() };
         assert_eq!(polygonize(&field, &o).unwrap_err(), Error::Cancelled, "{phase}");
     }
 }

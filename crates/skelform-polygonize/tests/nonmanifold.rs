@@ -319,15 +319,8 @@ fn same_mesh_on_any_thread_count() {
 /// border and its saddle's level.
 fn patch_blend() -> skelform_field::region::PatchBlend {
     use skelform_field::region::{BicubicPatch, PatchBlend};
-    let control = std::array::from_fn(|i| {
-        std::array::from_fn(|j| {
-            let (x, y) = (-1.0 + 2.0 * i as f64 / 3.0, -1.0 + 2.0 * j as f64 / 3.0);
-            DVec3::new(x, y, 0.15 * (x * x - y * y) + 0.1 * x)
-        })
-    });
-    let patch = BicubicPatch::new(control);
-    let centre = patch.eval(0.5, 0.5)[0];
-    PatchBlend { patch, centre, radius: 1.0 / 1.4, height: 0.35 }
+    let patch = BicubicPatch::over_square(|x, y| 0.15 * (x * x - y * y) + 0.1 * x);
+    PatchBlend { centre: patch.centre(), patch, radius: 1.0 / 1.4, height: 0.35 }
 }
 
 #[test]

@@ -94,7 +94,7 @@ pub(crate) fn build(
             }
             p
         }
-        None => patch.eval(0.5, 0.5)[0],
+        None => patch.centre(),
     };
     let positive = |v: &Option<Spanned<f64>>, name: &str, default: f64| match v {
         Some(x) if !(x.get_ref().is_finite() && *x.get_ref() > 0.0) => Err(at(

@@ -13,15 +13,8 @@ use skelform_scene::{Scene, SceneError};
 /// The example's patch through the Rust API: control points `(x, y, 0.15 (x² − y²) + 0.1 x)`
 /// on a 4 × 4 lattice over [-1, 1]², the saucer's bump at the patch's centre.
 fn rust_blend() -> PatchBlend {
-    let control = std::array::from_fn(|i| {
-        std::array::from_fn(|j| {
-            let (x, y) = (-1.0 + 2.0 * i as f64 / 3.0, -1.0 + 2.0 * j as f64 / 3.0);
-            DVec3::new(x, y, 0.15 * (x * x - y * y) + 0.1 * x)
-        })
-    });
-    let patch = BicubicPatch::new(control);
-    let centre = patch.eval(0.5, 0.5)[0];
-    PatchBlend { patch, centre, radius: 1.0 / 1.4, height: 0.35 }
+    let patch = BicubicPatch::over_square(|x, y| 0.15 * (x * x - y * y) + 0.1 * x);
+    PatchBlend { centre: patch.centre(), patch, radius: 1.0 / 1.4, height: 0.35 }
 }
 
 /// Points through the domain, a little off any lattice.

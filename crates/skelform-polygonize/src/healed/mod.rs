@@ -95,7 +95,6 @@ use std::time::{Duration, Instant};
 use glam::DVec3;
 use rayon::prelude::*;
 use rustc_hash::{FxHashMap, FxHashSet};
-use skelform_field::Aabb;
 use skelform_field::Field;
 use skelform_field::control::{Control, Progress};
 use skelform_field::grid::{Grid, Volume, sample};
@@ -105,7 +104,7 @@ use crate::Error;
 use crate::grid::cell::case_of;
 use crate::grid::cube::{EDGES, FACES, edge_between, other_axes};
 use crate::grid::table::table;
-use crate::grid::{self, GridVertex, Place, Resolution, extract};
+use crate::grid::{self, GridVertex, Place, extract};
 use crate::refine::face_normals;
 use config::ThesisClass;
 use local::{Probe, sym_eigen};
@@ -132,17 +131,10 @@ pub enum Epsilon {
 /// Settings of the healed polygonizer.
 #[derive(Clone, Debug)]
 pub struct Options {
-    /// The box to sample; the lattice covers it (grown to whole cells, centred).
-    pub domain: Aabb,
-    pub resolution: Resolution,
-    /// Move vertices onto the surface by root finding (else linear interpolation).
-    pub refine: bool,
-    /// Root-finding tolerance, as a fraction of the cell.
-    pub tolerance: f64,
-    /// Compute per-vertex normals from the gradient.
-    pub normals: bool,
-    /// Refuse, before allocating, work that would need more memory than this (bytes).
-    pub max_memory: u64,
+    /// The lattice, refinement, normals, memory limit and progress, as for the grid
+    /// polygonizer. Its `streaming` is not read: healing looks at the samples around every
+    /// critical cube, so the whole volume is kept.
+    pub grid: grid::Options,
     /// The critical-vertex test.
     pub epsilon: Epsilon,
     /// Give each sheet its own copy of each self-intersection vertex (its own normal), so that
@@ -151,22 +143,15 @@ pub struct Options {
     /// Most cubes all healed regions together may have; beyond it nothing is healed (and the
     /// regions are reported).
     pub max_healed_cubes: usize,
-    pub control: Control,
 }
 
 impl Default for Options {
     fn default() -> Self {
         Self {
-            domain: Aabb::cube(1.0),
-            resolution: Resolution::Samples(128),
-            refine: true,
-            tolerance: 1e-4,
-            normals: true,
-            max_memory: 4 << 30,
+            grid: grid::Options::default(),
             epsilon: Epsilon::Cells(2.0),
             split_sheets: false,
             max_healed_cubes: 1_000_000,
-            control: Control::default(),
         }
     }
 }
@@ -282,27 +267,27 @@ fn report(control: &Control, phase: &'static str, done: u64, total: u64) -> Resu
 ///
 /// ```
 /// use skelform_field::{Aabb, FnField, DVec3};
-/// use skelform_polygonize::grid::Resolution;
+/// use skelform_polygonize::grid::{self, Resolution};
 /// use skelform_polygonize::healed::{polygonize, Options};
 /// // Two planes crossing along the x axis.
 /// let f = FnField(|p: DVec3| p.y * p.z);
-/// let opts = Options { domain: Aabb::cube(1.0), resolution: Resolution::Samples(12), ..Options::default() };
+/// let grid = grid::Options { domain: Aabb::cube(1.0), resolution: Resolution::Samples(12), ..Default::default() };
+/// let opts = Options { grid, ..Options::default() };
 /// let (mesh, stats) = polygonize(&f, &opts).unwrap();
 /// assert!(stats.curve_edges > 0);
 /// assert_eq!(mesh.curves.len(), stats.curve_edges);
 /// ```
 pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats), Error> {
     check_options(options)?;
-    let control = &options.control;
-    let gopts = grid::Options {
-        domain: options.domain,
-        resolution: options.resolution,
-        ..grid::Options::default()
-    };
-    let grid = grid::grid_for(&gopts)?;
+    let control = &options.grid.control;
+    let grid = grid::grid_for(&options.grid)?;
     let needed = grid::memory_needed(&grid, false);
-    if needed > options.max_memory {
-        return Err(Error::TooMuchMemory { needed, limit: options.max_memory, dims: grid.dims });
+    if needed > options.grid.max_memory {
+        return Err(Error::TooMuchMemory {
+            needed,
+            limit: options.grid.max_memory,
+            dims: grid.dims,
+        });
     }
     let h = grid.cell;
     let mut stats = Stats { grid_dims: grid.dims, cell: h, ..Stats::default() };
@@ -323,7 +308,7 @@ pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats),
 
     let t = Instant::now();
     let (positions, evals) =
-        grid::place_extracted(field, &volume, &ex, options.refine, options.tolerance);
+        grid::place_extracted(field, &volume, &ex, options.grid.refine, options.grid.tolerance);
     stats.refine_evaluations = evals;
     stats.refinement = t.elapsed();
     if control.is_cancelled() {
@@ -534,7 +519,7 @@ pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats),
         .iter()
         .map(|c| CurveEdge { v: c.map(|v| remap[v as usize]), label: SELF_INTERSECTION })
         .collect();
-    if options.normals && !mesh.triangles.is_empty() {
+    if options.grid.normals && !mesh.triangles.is_empty() {
         let mut n: Vec<DVec3> =
             (0..used.len()).filter(|&i| used[i]).map(|i| normals_all[i]).collect();
         if n.iter().any(|x| *x == DVec3::ZERO || !x.is_finite()) {
@@ -588,10 +573,10 @@ pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats),
 }
 
 fn check_options(o: &Options) -> Result<(), Error> {
-    if !(o.tolerance > 0.0 && o.tolerance < 1.0) {
+    if !(o.grid.tolerance > 0.0 && o.grid.tolerance < 1.0) {
         return Err(Error::BadOption(format!(
             "tolerance must be between 0 and 1 (got {})",
-            o.tolerance
+            o.grid.tolerance
         )));
     }
     match o.epsilon {
