@@ -129,10 +129,12 @@ impl FormulaError {
     }
 
     /// Marks the position the message cites, so that [`FormulaError::message_mapped`] can
-    /// translate it. The message must contain it as `line L, column C`.
+    /// translate it. The mark is kept only where the message cites it as `line L, column C`:
+    /// an error that replaced the intended message (the lexer's, say) cites nothing.
     pub(crate) fn with_related(mut self, line: usize, column: usize) -> Self {
-        debug_assert!(self.message.contains(&position_text(line, column)));
-        self.related = Some((line, column));
+        if self.message.contains(&position_text(line, column)) {
+            self.related = Some((line, column));
+        }
         self
     }
 

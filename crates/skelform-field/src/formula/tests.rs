@@ -886,3 +886,15 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn an_unclosed_paren_before_a_bad_token_reports_the_token() {
+    // The lexer's error wins over "expected ')'", and it cites no second position.
+    for s in ["(2 $", "(x @", "(1 + (y ?"] {
+        let e = err(s);
+        assert_eq!(e.related(), None, "{s:?}: {e}");
+        assert!(!e.to_string().contains("opened at"), "{s:?}: {e}");
+    }
+    let e = err("(x 1");
+    assert_eq!(e.related(), Some((1, 1)), "{e}");
+}
