@@ -48,6 +48,7 @@ proptest! {
             prop_assert!(r.is_closed_manifold(), "{:?}\n{}", inner, r);
             prop_assert_eq!(r.outward, Some(true));
             prop_assert_eq!(r.faces_with_repeated_vertex, 0);
+            prop_assert_eq!(r.unreferenced_vertices, 0);
         }
     }
 }

@@ -1,11 +1,13 @@
 //! Marching cubes over a sampled [`Volume`], in parallel z-slabs with a deterministic merge.
 //!
 //! Each slab owns the edge vertices on its own sample layers (the last slab also owns the top
-//! layer), creates them the first time a cube asks, and refers to the vertices on the layer
-//! above it by edge. The merge offsets each slab's vertices by the counts of the slabs before
-//! it and resolves the references through the next slab's map of its bottom layer. Slab
-//! boundaries depend only on the grid, never on the thread count, so the output is the same
-//! bit for bit on any number of threads.
+//! layer) and creates them the first time a cube asks. The crossed edges of the layer two
+//! slabs share are numbered in a fixed order computed from that layer's signs alone
+//! ([`LayerNumbering`]): the slab above gives its bottom-layer vertices those numbers as local
+//! indices, and the slab below refers to them by number. The merge then offsets each slab's
+//! vertices by the counts of the slabs before it, and a reference to the layer above by the
+//! next slab's offset: no lookup. Slab boundaries depend only on the grid, never on the
+//! thread count, so the output is the same bit for bit on any number of threads.
 
 use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -21,7 +23,10 @@ use super::cube::{CORNERS, EDGES, edge_axis};
 pub const SLAB: usize = 8;
 
 const BORROWED: u32 = 1 << 31;
-const NONE: u32 = u32::MAX;
+/// An empty edge-map slot. Slots hold `!index` (an index is never `u32::MAX`), so that a
+/// new map is zeroed memory, which the system hands out untouched: pages are only made as
+/// the surface reaches them.
+const NONE: u32 = 0;
 
 /// Where a mesh vertex lies, relative to lattice point `base`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -128,35 +133,94 @@ impl Default for GridVertex {
     }
 }
 
+/// One slab's part of the mesh. Its first vertices are those of its bottom layer's crossed
+/// x- and y-edges, at their [`LayerNumbering`] numbers; a triangle index `BORROWED | n` is
+/// number `n` of the layer above, that is, a vertex of the next slab.
 struct Slab<V> {
     vertices: Vec<V>,
     triangles: Vec<[u32; 3]>,
-    /// Edges on the layer above that triangles refer to (index `BORROWED | i`).
-    borrowed: Vec<u32>,
-    /// The edges of this slab's bottom layer that have a vertex, with its local index,
-    /// sorted by edge: the slab below resolves its borrowed references here.
-    bottom: Vec<(u32, u32)>,
     ambiguous_faces: u64,
     tunnels: u64,
 }
 
-impl<V> Slab<V> {
-    fn bottom_vertex(&self, edge: u32) -> u32 {
-        match self.bottom.binary_search_by_key(&edge, |&(e, _)| e) {
-            Ok(at) => self.bottom[at].1,
-            // The cubes of a slab's first layer make every vertex of its bottom layer that
-            // the slab below refers to; a miss would be a bug in the slab bookkeeping.
-            Err(_) => unreachable!("edge {edge} on a slab boundary has no vertex"),
+/// The crossed x- and y-edges of one sample layer (corners of both signs), numbered row by
+/// row: in each row its x-edges, then the y-edges to the next row, each by x. The numbers
+/// come from the layer's sign words alone, so the two slabs that share a layer agree on them
+/// without looking at each other's work, as Flying Edges numbers its edges by counting.
+#[derive(Default)]
+struct LayerNumbering {
+    words: usize,
+    /// Per row and word: the crossed edges (bit `i`: the edge from sample `64·w + i`) and
+    /// how many crossed edges come before the word in the numbering.
+    x_bits: Vec<u64>,
+    x_before: Vec<u32>,
+    y_bits: Vec<u64>,
+    y_before: Vec<u32>,
+    total: u32,
+}
+
+impl LayerNumbering {
+    /// Numbers the edges of a layer of `ny` rows of sign words (see [`layer_signs`]).
+    fn build(&mut self, signs: &[u64], nx: usize, ny: usize, words: usize) {
+        let cells = ny * words;
+        for v in [&mut self.x_bits, &mut self.y_bits] {
+            v.clear();
+            v.resize(cells, 0);
         }
+        for v in [&mut self.x_before, &mut self.y_before] {
+            v.clear();
+            v.resize(cells, 0);
+        }
+        self.words = words;
+        // Bits of word `w` that stand for a sample (`samples`) or an x-edge (`cubes`).
+        let mask = |w: usize, count: usize| -> u64 {
+            let n = count.saturating_sub(w * 64).min(64);
+            if n == 64 { u64::MAX } else { (1u64 << n) - 1 }
+        };
+        let mut count = 0u32;
+        for j in 0..ny {
+            let row = &signs[j * words..(j + 1) * words];
+            for w in 0..words {
+                let next = if w + 1 < words { row[w + 1] & 1 } else { 0 };
+                let bits = (row[w] ^ ((row[w] >> 1) | (next << 63))) & mask(w, nx - 1);
+                self.x_bits[j * words + w] = bits;
+                self.x_before[j * words + w] = count;
+                count += bits.count_ones();
+            }
+            if j + 1 < ny {
+                let up = &signs[(j + 1) * words..(j + 2) * words];
+                for w in 0..words {
+                    let bits = (row[w] ^ up[w]) & mask(w, nx);
+                    self.y_bits[j * words + w] = bits;
+                    self.y_before[j * words + w] = count;
+                    count += bits.count_ones();
+                }
+            }
+        }
+        self.total = count;
+    }
+
+    /// The number of the crossed x (`axis` 0) or y edge from sample `(i, j)`.
+    #[inline]
+    fn number(&self, axis: usize, i: usize, j: usize) -> u32 {
+        let (bits, before) =
+            if axis == 0 { (&self.x_bits, &self.x_before) } else { (&self.y_bits, &self.y_before) };
+        let at = j * self.words + i / 64;
+        let below = bits[at] & ((1u64 << (i % 64)) - 1);
+        debug_assert!(bits[at] >> (i % 64) & 1 == 1, "edge ({axis}, {i}, {j}) is not crossed");
+        before[at] + below.count_ones()
     }
 }
 
 /// What a worker keeps from one slab to the next: the edge maps (cleared through their
-/// lists of set slots, never reallocated) and the previous slab's output sizes, to reserve.
+/// lists of set slots, never reallocated), the sign words and edge numberings of the layers
+/// it works on, and the previous slab's output sizes, to reserve.
 struct Worker {
     maps: EdgeMaps,
     below: Vec<u64>,
     above: Vec<u64>,
+    bottom_numbers: LayerNumbering,
+    top_numbers: LayerNumbering,
     last_sizes: (usize, usize),
     /// The sample layers of the slab, when they are streamed from a [`LayerSource`].
     layers: Vec<f32>,
@@ -169,6 +233,8 @@ impl Worker {
             maps: EdgeMaps::new(nx, ny),
             below: vec![0; ny * words],
             above: vec![0; ny * words],
+            bottom_numbers: LayerNumbering::default(),
+            top_numbers: LayerNumbering::default(),
             last_sizes: (0, 0),
             layers: Vec::new(),
         }
@@ -214,6 +280,7 @@ fn extract_as<V: SlabVertex>(
     let new_worker = || Worker::new(nx, ny);
     let outputs: Vec<Slab<V>> = (0..slabs)
         .into_par_iter()
+        .with_max_len(1)
         .map_init(new_worker, |worker, s| {
             let z0 = s * SLAB;
             let z1 = (z0 + SLAB).min(cube_layers);
@@ -281,6 +348,7 @@ pub fn extract_streamed<V: SlabVertex, S: LayerSource>(
     type Part<V> = (Slab<V>, u64, (f32, f32), std::time::Duration, std::time::Duration);
     let outputs: Vec<Part<V>> = (0..slabs)
         .into_par_iter()
+        .with_max_len(1)
         .map_init(
             || Worker::new(nx, ny),
             |worker, s| {
@@ -357,8 +425,7 @@ fn split_lengths<T>(mut all: &mut [T], lengths: impl Iterator<Item = usize>) -> 
 }
 
 /// Joins the slabs in order, in parallel: each slab's vertices are offset by the counts of
-/// the slabs before it, and its references to the layer above are resolved through the next
-/// slab's bottom layer.
+/// the slabs before it, and its references to the layer above by the next slab's offset.
 fn merge<V: SlabVertex>(outputs: &[Slab<V>]) -> Extracted<V> {
     let mut bases = Vec::with_capacity(outputs.len());
     let mut total = 0u32;
@@ -373,14 +440,8 @@ fn merge<V: SlabVertex>(outputs: &[Slab<V>]) -> Extracted<V> {
     vertex_pieces.into_par_iter().zip(triangle_pieces).enumerate().for_each(|(s, (vs, ts))| {
         let o = &outputs[s];
         vs.copy_from_slice(&o.vertices);
-        let resolve = |i: u32| {
-            if i & BORROWED == 0 {
-                bases[s] + i
-            } else {
-                let edge = o.borrowed[(i & !BORROWED) as usize];
-                bases[s + 1] + outputs[s + 1].bottom_vertex(edge)
-            }
-        };
+        let resolve =
+            |i: u32| if i & BORROWED == 0 { bases[s] + i } else { bases[s + 1] + (i & !BORROWED) };
         for (out, t) in ts.iter_mut().zip(&o.triangles) {
             *out = t.map(resolve);
         }
@@ -445,16 +506,6 @@ impl EdgeMaps {
         }
     }
 
-    /// The slot of the lower layer's x (`axis` 0) or y edge at `cell`; and the key the slab
-    /// boundary bookkeeping uses for it (`axis·layer + cell`, independent of the planes).
-    fn lower_key(&self, slot: usize) -> u32 {
-        (slot - 2 * self.pair(false) * self.layer) as u32
-    }
-
-    fn upper_key(&self, slot: usize) -> u32 {
-        (slot - 2 * self.pair(true) * self.layer) as u32
-    }
-
     fn clear(&mut self, list: usize) {
         for &s in &self.set[list] {
             self.slots[s as usize] = NONE;
@@ -476,16 +527,6 @@ impl EdgeMaps {
         self.clear(2);
         self.flipped = !self.flipped;
         self.place_edges();
-    }
-
-    /// The lower layer's vertices, as `(key, vertex)` sorted by key.
-    fn lower_vertices(&self) -> Vec<(u32, u32)> {
-        let mut v: Vec<(u32, u32)> = self.set[self.pair(false)]
-            .iter()
-            .map(|&s| (self.lower_key(s as usize), self.slots[s as usize]))
-            .collect();
-        v.sort_unstable();
-        v
     }
 }
 
@@ -601,17 +642,8 @@ fn extract_slab<V: SlabVertex>(
     let [nx, ny, nz] = grid.dims;
     let layer = nx * ny;
     let last = z1 == nz - 1;
-    let Worker { maps, below, above, last_sizes, .. } = worker;
+    let Worker { maps, below, above, bottom_numbers, top_numbers, last_sizes, .. } = worker;
     maps.reset();
-    // Neighbouring slabs of a smooth surface make about as many vertices and triangles.
-    let mut slab = Slab {
-        vertices: Vec::with_capacity(last_sizes.0 + last_sizes.0 / 8),
-        triangles: Vec::with_capacity(last_sizes.1 + last_sizes.1 / 8),
-        borrowed: Vec::new(),
-        bottom: Vec::new(),
-        ambiguous_faces: 0,
-        tunnels: 0,
-    };
     let local = |k: usize| &vals[(k - z0) * layer..(k - z0 + 1) * layer];
     let offsets: [usize; 8] = CORNERS.map(|[x, y, z]| x + nx * y + layer * z);
     // Sign bits of the sample layers below and above the current layer of cubes: a cube has
@@ -619,6 +651,17 @@ fn extract_slab<V: SlabVertex>(
     // reduce to a few word operations; only those cubes are visited.
     let words = nx.div_ceil(64);
     layer_signs(local(z0), nx, words, below);
+    bottom_numbers.build(below, nx, ny, words);
+    // Neighbouring slabs of a smooth surface make about as many vertices and triangles. The
+    // bottom layer's vertices come first, at their numbers.
+    let mut vertices = Vec::with_capacity(last_sizes.0 + last_sizes.0 / 8);
+    vertices.resize(bottom_numbers.total as usize, V::default());
+    let mut slab = Slab {
+        vertices,
+        triangles: Vec::with_capacity(last_sizes.1 + last_sizes.1 / 8),
+        ambiguous_faces: 0,
+        tunnels: 0,
+    };
     // Cubes are i < nx - 1: mask out the last sample's bit and everything past it.
     let valid = |w: usize| -> u64 {
         let first = w * 64;
@@ -631,8 +674,11 @@ fn extract_slab<V: SlabVertex>(
         }
         layer_signs(local(k + 1), nx, words, above);
         // The x- and y-edges on the slab's top layer belong to the slab above (except for
-        // the last slab, which owns the volume's top): refer to them by key.
+        // the last slab, which owns the volume's top): refer to them by number.
         let top_borrows = k + 1 == z1 && !last;
+        if top_borrows {
+            top_numbers.build(above, nx, ny, words);
+        }
         for j in 0..ny - 1 {
             let rows = cube_rows(below, above, j, words);
             for w in 0..words {
@@ -652,17 +698,14 @@ fn extract_slab<V: SlabVertex>(
                         grid,
                         at: [i, j, k],
                         cell: i + nx * j,
-                        borrows: top_borrows,
+                        bottom: (k == z0).then_some(&*bottom_numbers),
+                        top: top_borrows.then_some(&*top_numbers),
                     };
                     let outcome = polygonize_case(case, &v, &mut sink);
                     slab.ambiguous_faces += outcome.ambiguous_faces as u64;
                     slab.tunnels += outcome.tunnel as u64;
                 }
             }
-        }
-        if k == z0 {
-            // Every vertex on the slab's bottom layer is made by its first layer of cubes.
-            slab.bottom = maps.lower_vertices();
         }
         maps.advance();
         std::mem::swap(below, above);
@@ -689,8 +732,11 @@ struct SlabSink<'a, V> {
     at: [usize; 3],
     /// The cube's index within its layer, `i + nx·j`.
     cell: usize,
-    /// Whether the upper layer's x/y-edges belong to the slab above.
-    borrows: bool,
+    /// The numbering of the slab's bottom layer, while the cube is on it.
+    bottom: Option<&'a LayerNumbering>,
+    /// The numbering of the slab's top layer, while the cube is under it and its x/y-edges
+    /// belong to the slab above.
+    top: Option<&'a LayerNumbering>,
 }
 
 impl<V: SlabVertex> CubeSink for SlabSink<'_, V> {
@@ -700,24 +746,39 @@ impl<V: SlabVertex> CubeSink for SlabSink<'_, V> {
         let slot = self.cell + maps.offset[e];
         let known = maps.slots[slot];
         if known != NONE {
-            return known;
+            return !known;
         }
         let [c0, _] = EDGES[e];
         let [dx, dy, dz] = CORNERS[c0];
         let axis = edge_axis(e);
-        let id = if axis != 2 && dz == 1 && self.borrows {
-            self.slab.borrowed.push(maps.upper_key(slot));
-            BORROWED | (self.slab.borrowed.len() as u32 - 1)
-        } else {
-            let [i, j, k] = self.at;
-            let v = GridVertex {
-                base: [(i + dx) as u32, (j + dy) as u32, (k + dz) as u32],
-                place: Place::Edge { dir: 1 << axis, t: crossing(ends[0], ends[1]) },
-            };
-            self.slab.vertices.push(V::make(self.grid, v, ends));
-            self.slab.vertices.len() as u32 - 1
+        let [i, j, k] = self.at;
+        let numbering = match (axis, dz) {
+            (2, _) => None,
+            (_, 0) => self.bottom,
+            _ => self.top,
         };
-        maps.slots[slot] = id;
+        let id = match numbering {
+            Some(top) if dz == 1 => BORROWED | top.number(axis, i + dx, j + dy),
+            _ => {
+                let v = GridVertex {
+                    base: [(i + dx) as u32, (j + dy) as u32, (k + dz) as u32],
+                    place: Place::Edge { dir: 1 << axis, t: crossing(ends[0], ends[1]) },
+                };
+                let v = V::make(self.grid, v, ends);
+                match numbering {
+                    Some(bottom) => {
+                        let n = bottom.number(axis, i + dx, j + dy);
+                        self.slab.vertices[n as usize] = v;
+                        n
+                    }
+                    None => {
+                        self.slab.vertices.push(v);
+                        self.slab.vertices.len() as u32 - 1
+                    }
+                }
+            }
+        };
+        maps.slots[slot] = !id;
         maps.set[maps.list[e] as usize].push(slot as u32);
         id
     }
@@ -731,5 +792,90 @@ impl<V: SlabVertex> CubeSink for SlabSink<'_, V> {
 
     fn triangle(&mut self, t: [u32; 3]) {
         self.slab.triangles.push(t);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DVec3;
+
+    /// Samples in (-1, 1) from a small deterministic generator, with some exact zeros.
+    fn noise(n: usize, seed: u64) -> Vec<f32> {
+        let mut s = seed;
+        (0..n)
+            .map(|_| {
+                s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                let v = ((s >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0;
+                if v.abs() < 0.05 { 0.0 } else { v }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn layer_numbers_are_the_crossed_edges_in_row_order() {
+        let (nx, ny) = (70, 5);
+        let values = noise(nx * ny, 7);
+        let words = nx.div_ceil(64);
+        let mut signs = vec![0; ny * words];
+        layer_signs(&values, nx, words, &mut signs);
+        let mut numbers = LayerNumbering::default();
+        numbers.build(&signs, nx, ny, words);
+        let inside = |i: usize, j: usize| values[i + nx * j] < 0.0;
+        let mut expected = 0;
+        for j in 0..ny {
+            for i in 0..nx - 1 {
+                if inside(i, j) != inside(i + 1, j) {
+                    assert_eq!(numbers.number(0, i, j), expected, "x-edge ({i}, {j})");
+                    expected += 1;
+                }
+            }
+            if j + 1 == ny {
+                continue;
+            }
+            for i in 0..nx {
+                if inside(i, j) != inside(i, j + 1) {
+                    assert_eq!(numbers.number(1, i, j), expected, "y-edge ({i}, {j})");
+                    expected += 1;
+                }
+            }
+        }
+        assert_eq!(numbers.total, expected);
+    }
+
+    /// Noise over several slabs: every vertex is used, lies on a crossed lattice edge and is
+    /// the only one there, whatever slab made it; no edge has more than two triangles.
+    #[test]
+    fn slabs_share_their_boundary_vertices() {
+        let dims = [67, 6, 3 * SLAB + 4];
+        let grid = Grid { origin: DVec3::ZERO, cell: 1.0, dims };
+        let volume = Volume::from_values(grid, noise(dims.iter().product(), 11));
+        let x = extract(&volume, &Control::default()).unwrap_or_else(|_| unreachable!());
+        let mut used = vec![false; x.vertices.len()];
+        let mut edges = std::collections::HashMap::new();
+        for t in &x.triangles {
+            for k in 0..3 {
+                used[t[k] as usize] = true;
+                let (a, b) = (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3]));
+                *edges.entry((a, b)).or_insert(0) += 1;
+            }
+        }
+        assert!(used.iter().all(|&u| u), "a vertex no triangle uses");
+        assert!(edges.values().all(|&n| n <= 2), "an edge of more than two triangles");
+        let mut places = std::collections::HashSet::new();
+        let at = |p: [u32; 3]| {
+            volume.values[p[0] as usize + dims[0] * (p[1] as usize + dims[1] * p[2] as usize)]
+        };
+        for v in &x.vertices {
+            if let Place::Edge { dir, .. } = v.place {
+                let tip = v.tip().unwrap_or_else(|| unreachable!());
+                assert_ne!(
+                    at(v.base) < 0.0,
+                    at(tip) < 0.0,
+                    "{v:?} is on an edge the surface does not cross"
+                );
+                assert!(places.insert((v.base, dir)), "two vertices on the edge of {v:?}");
+            }
+        }
     }
 }
