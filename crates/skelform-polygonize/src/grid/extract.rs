@@ -172,17 +172,12 @@ impl LayerNumbering {
             v.resize(cells, 0);
         }
         self.words = words;
-        // Bits of word `w` that stand for a sample (`samples`) or an x-edge (`cubes`).
-        let mask = |w: usize, count: usize| -> u64 {
-            let n = count.saturating_sub(w * 64).min(64);
-            if n == 64 { u64::MAX } else { (1u64 << n) - 1 }
-        };
         let mut count = 0u32;
         for j in 0..ny {
             let row = &signs[j * words..(j + 1) * words];
             for w in 0..words {
                 let next = if w + 1 < words { row[w + 1] & 1 } else { 0 };
-                let bits = (row[w] ^ ((row[w] >> 1) | (next << 63))) & mask(w, nx - 1);
+                let bits = (row[w] ^ ((row[w] >> 1) | (next << 63))) & word_mask(w, nx - 1);
                 self.x_bits[j * words + w] = bits;
                 self.x_before[j * words + w] = count;
                 count += bits.count_ones();
@@ -190,7 +185,7 @@ impl LayerNumbering {
             if j + 1 < ny {
                 let up = &signs[(j + 1) * words..(j + 2) * words];
                 for w in 0..words {
-                    let bits = (row[w] ^ up[w]) & mask(w, nx);
+                    let bits = (row[w] ^ up[w]) & word_mask(w, nx);
                     self.y_bits[j * words + w] = bits;
                     self.y_before[j * words + w] = count;
                     count += bits.count_ones();
@@ -530,6 +525,14 @@ impl EdgeMaps {
     }
 }
 
+/// The bits of word `w` of a row that stand for the items `0..count` of the row (samples,
+/// or cubes and x-edges, which are one fewer).
+#[inline]
+fn word_mask(w: usize, count: usize) -> u64 {
+    let n = count.saturating_sub(w * 64).min(64);
+    if n == 64 { u64::MAX } else { (1u64 << n) - 1 }
+}
+
 /// Bit `i` of the row words: whether sample `i` of the row is inside (`f < 0`).
 fn row_signs(values: &[f32], out: &mut [u64]) {
     for (w, chunk) in out.iter_mut().zip(values.chunks(64)) {
@@ -607,10 +610,6 @@ pub fn surface_cubes(volume: &Volume) -> u64 {
     let [nx, ny, nz] = volume.grid.dims;
     let layer = nx * ny;
     let words = nx.div_ceil(64);
-    let valid = |w: usize| -> u64 {
-        let cubes = (nx - 1).saturating_sub(w * 64).min(64);
-        if cubes == 64 { u64::MAX } else { (1u64 << cubes) - 1 }
-    };
     (0..nz - 1)
         .into_par_iter()
         .map(|k| {
@@ -621,7 +620,7 @@ pub fn surface_cubes(volume: &Volume) -> u64 {
             for j in 0..ny - 1 {
                 let rows = cube_rows(&below, &above, j, words);
                 for w in 0..words {
-                    count += (mixed_cubes(&rows, w) & valid(w)).count_ones() as u64;
+                    count += (mixed_cubes(&rows, w) & word_mask(w, nx - 1)).count_ones() as u64;
                 }
             }
             count
@@ -662,12 +661,6 @@ fn extract_slab<V: SlabVertex>(
         ambiguous_faces: 0,
         tunnels: 0,
     };
-    // Cubes are i < nx - 1: mask out the last sample's bit and everything past it.
-    let valid = |w: usize| -> u64 {
-        let first = w * 64;
-        let cubes = (nx - 1).saturating_sub(first).min(64);
-        if cubes == 64 { u64::MAX } else { (1u64 << cubes) - 1 }
-    };
     for k in z0..z1 {
         if control.is_cancelled() {
             return Err(Cancelled);
@@ -682,7 +675,8 @@ fn extract_slab<V: SlabVertex>(
         for j in 0..ny - 1 {
             let rows = cube_rows(below, above, j, words);
             for w in 0..words {
-                let mut mixed = mixed_cubes(&rows, w) & valid(w);
+                // Cubes are i < nx - 1: the last sample's bit and those past it are masked out.
+                let mut mixed = mixed_cubes(&rows, w) & word_mask(w, nx - 1);
                 while mixed != 0 {
                     let i = w * 64 + mixed.trailing_zeros() as usize;
                     mixed &= mixed - 1;
