@@ -9,7 +9,7 @@
 //! next slab's offset: no lookup. Slab boundaries depend only on the grid, never on the
 //! thread count, so the output is the same bit for bit on any number of threads.
 
-use std::ops::ControlFlow;
+use std::ops::{ControlFlow, Range};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use rayon::prelude::*;
@@ -133,14 +133,41 @@ impl Default for GridVertex {
     }
 }
 
-/// One slab's part of the mesh. Its first vertices are those of its bottom layer's crossed
-/// x- and y-edges, at their [`LayerNumbering`] numbers; a triangle index `BORROWED | n` is
+/// Where one slab's part of the mesh is: ranges of the output arrays of the worker that ran
+/// it. Its first vertices are those of its bottom layer's crossed x- and y-edges, at their
+/// [`LayerNumbering`] numbers; its triangles index its vertices from 0, and `BORROWED | n` is
 /// number `n` of the layer above, that is, a vertex of the next slab.
-struct Slab<V> {
-    vertices: Vec<V>,
-    triangles: Vec<[u32; 3]>,
+struct Slab {
+    worker: usize,
+    vertices: Range<usize>,
+    triangles: Range<usize>,
     ambiguous_faces: u64,
     tunnels: u64,
+}
+
+/// A worker's output: the vertices and triangles of every slab it ran, one slab after
+/// another, in arrays that grow by doubling and are backed by huge pages where the system
+/// allows ([`super::pages`]), so that fresh output memory costs few page faults.
+struct Output<V> {
+    vertices: Vec<V>,
+    triangles: Vec<[u32; 3]>,
+}
+
+impl<V> Default for Output<V> {
+    fn default() -> Self {
+        Output { vertices: Vec::new(), triangles: Vec::new() }
+    }
+}
+
+/// Makes room for at least `more` elements past the end of `v`, and for a few huge pages'
+/// worth: room costs address space only until it is written, and growing by small steps
+/// would copy into memory the kernel has not been asked to back with huge pages.
+fn make_room<T>(v: &mut Vec<T>, more: usize) {
+    if v.capacity() - v.len() < more {
+        let step = super::pages::ROOM / std::mem::size_of::<T>().max(1);
+        v.reserve(more.max(v.capacity()).max(step));
+        super::pages::advise_huge(v.spare_capacity_mut());
+    }
 }
 
 /// The crossed x- and y-edges of one sample layer (corners of both signs), numbered row by
@@ -210,7 +237,10 @@ impl LayerNumbering {
 /// What a worker keeps from one slab to the next: the edge maps (cleared through their
 /// lists of set slots, never reallocated), the sign words and edge numberings of the layers
 /// it works on, and the previous slab's output sizes, to reserve.
-struct Worker {
+struct Worker<V> {
+    /// The worker's index among the pool's, which [`Slab::worker`] refers to.
+    index: usize,
+    out: Output<V>,
     maps: EdgeMaps,
     below: Vec<u64>,
     above: Vec<u64>,
@@ -221,10 +251,12 @@ struct Worker {
     layers: Vec<f32>,
 }
 
-impl Worker {
-    fn new(nx: usize, ny: usize) -> Self {
+impl<V> Worker<V> {
+    fn new(index: usize, nx: usize, ny: usize) -> Self {
         let words = nx.div_ceil(64);
         Worker {
+            index,
+            out: Output::default(),
             maps: EdgeMaps::new(nx, ny),
             below: vec![0; ny * words],
             above: vec![0; ny * words],
@@ -233,6 +265,39 @@ impl Worker {
             last_sizes: (0, 0),
             layers: Vec::new(),
         }
+    }
+}
+
+/// One [`Worker`] per thread of the pool, kept for the whole extraction. (Rayon's
+/// `map_init` makes one per job, and with a job per slab that would be new edge maps, and
+/// new pages to fault in, for every slab.)
+struct Workers<V> {
+    nx: usize,
+    ny: usize,
+    slots: Vec<std::sync::Mutex<Option<Worker<V>>>>,
+}
+
+impl<V> Workers<V> {
+    /// For the current pool (call it inside the pool that runs the slabs).
+    fn new(nx: usize, ny: usize) -> Self {
+        let slots = (0..rayon::current_num_threads()).map(|_| Default::default()).collect();
+        Workers { nx, ny, slots }
+    }
+
+    /// Runs `f` with the calling thread's worker. Each thread has its own slot, so the lock
+    /// is never contended.
+    fn with<R>(&self, f: impl FnOnce(&mut Worker<V>) -> R) -> R {
+        let i = rayon::current_thread_index().unwrap_or(0) % self.slots.len();
+        let mut slot = self.slots[i].lock().unwrap_or_else(|e| e.into_inner());
+        f(slot.get_or_insert_with(|| Worker::new(i, self.nx, self.ny)))
+    }
+
+    /// The workers' outputs, by index.
+    fn into_outputs(self) -> Vec<Output<V>> {
+        let worker = |m: std::sync::Mutex<Option<Worker<V>>>| {
+            m.into_inner().unwrap_or_else(|e| e.into_inner())
+        };
+        self.slots.into_iter().map(|m| worker(m).map(|w| w.out).unwrap_or_default()).collect()
     }
 }
 
@@ -272,24 +337,26 @@ fn extract_as<V: SlabVertex>(
     let cube_layers = grid.dims[2] - 1;
     let slabs = cube_layers.div_ceil(SLAB);
     let done = AtomicU64::new(0);
-    let new_worker = || Worker::new(nx, ny);
-    let outputs: Vec<Slab<V>> = (0..slabs)
+    let workers = Workers::new(nx, ny);
+    let outputs: Vec<Slab> = (0..slabs)
         .into_par_iter()
         .with_max_len(1)
-        .map_init(new_worker, |worker, s| {
-            let z0 = s * SLAB;
-            let z1 = (z0 + SLAB).min(cube_layers);
-            let vals = &volume.values[z0 * nx * ny..];
-            let slab = extract_slab(&grid, vals, z0, z1, worker, control)?;
-            let d = done.fetch_add((z1 - z0) as u64, Ordering::Relaxed) + (z1 - z0) as u64;
-            let p = Progress { phase: "extracting", done: d, total: Some(cube_layers as u64) };
-            match control.report(p) {
-                ControlFlow::Continue(()) => Ok(slab),
-                ControlFlow::Break(()) => Err(Cancelled),
-            }
+        .map(|s| {
+            workers.with(|worker| {
+                let z0 = s * SLAB;
+                let z1 = (z0 + SLAB).min(cube_layers);
+                let vals = &volume.values[z0 * nx * ny..];
+                let slab = extract_slab(&grid, vals, z0, z1, worker, control)?;
+                let d = done.fetch_add((z1 - z0) as u64, Ordering::Relaxed) + (z1 - z0) as u64;
+                let p = Progress { phase: "extracting", done: d, total: Some(cube_layers as u64) };
+                match control.report(p) {
+                    ControlFlow::Continue(()) => Ok(slab),
+                    ControlFlow::Break(()) => Err(Cancelled),
+                }
+            })
         })
         .collect::<Result<_, _>>()?;
-    Ok(merge(&outputs))
+    Ok(merge(&outputs, &workers.into_outputs()))
 }
 
 /// Where streamed extraction gets its samples from, one `z` layer at a time (`nx·ny` values,
@@ -340,13 +407,13 @@ pub fn extract_streamed<V: SlabVertex, S: LayerSource>(
     let cube_layers = nz - 1;
     let slabs = cube_layers.div_ceil(SLAB);
     let done = AtomicU64::new(0);
-    type Part<V> = (Slab<V>, u64, (f32, f32), std::time::Duration, std::time::Duration);
-    let outputs: Vec<Part<V>> = (0..slabs)
+    type Part = (Slab, u64, (f32, f32), std::time::Duration, std::time::Duration);
+    let workers = Workers::new(nx, ny);
+    let outputs: Vec<Part> = (0..slabs)
         .into_par_iter()
         .with_max_len(1)
-        .map_init(
-            || Worker::new(nx, ny),
-            |worker, s| {
+        .map(|s| {
+            workers.with(|worker| {
                 let z0 = s * SLAB;
                 let z1 = (z0 + SLAB).min(cube_layers);
                 let last = z1 == cube_layers;
@@ -384,8 +451,8 @@ pub fn extract_streamed<V: SlabVertex, S: LayerSource>(
                     ControlFlow::Continue(()) => Ok((slab, non_finite, range, sourced, extracted)),
                     ControlFlow::Break(()) => Err(StreamError::Cancelled),
                 }
-            },
-        )
+            })
+        })
         .collect::<Result<_, _>>()?;
     let mut stats = StreamStats {
         min_sample: f32::INFINITY,
@@ -402,7 +469,7 @@ pub fn extract_streamed<V: SlabVertex, S: LayerSource>(
         stats.extract_time += extracted;
         slabs.push(slab);
     }
-    let (vertices, triangles, ambiguous_faces, tunnels) = merge(&slabs);
+    let (vertices, triangles, ambiguous_faces, tunnels) = merge(&slabs, &workers.into_outputs());
     stats.ambiguous_faces = ambiguous_faces;
     stats.tunnels = tunnels;
     Ok(Streamed { vertices, triangles, stats })
@@ -421,23 +488,25 @@ fn split_lengths<T>(mut all: &mut [T], lengths: impl Iterator<Item = usize>) -> 
 
 /// Joins the slabs in order, in parallel: each slab's vertices are offset by the counts of
 /// the slabs before it, and its references to the layer above by the next slab's offset.
-fn merge<V: SlabVertex>(outputs: &[Slab<V>]) -> Extracted<V> {
+fn merge<V: SlabVertex>(outputs: &[Slab], arrays: &[Output<V>]) -> Extracted<V> {
     let mut bases = Vec::with_capacity(outputs.len());
     let mut total = 0u32;
     for o in outputs {
         bases.push(total);
         total += o.vertices.len() as u32;
     }
-    let mut vertices = vec![V::default(); total as usize];
-    let mut triangles = vec![[0u32; 3]; outputs.iter().map(|o| o.triangles.len()).sum()];
+    let mut vertices = super::pages::zeroed_vec::<V>(total as usize);
+    let mut triangles =
+        super::pages::zeroed_vec::<[u32; 3]>(outputs.iter().map(|o| o.triangles.len()).sum());
     let vertex_pieces = split_lengths(&mut vertices, outputs.iter().map(|o| o.vertices.len()));
     let triangle_pieces = split_lengths(&mut triangles, outputs.iter().map(|o| o.triangles.len()));
     vertex_pieces.into_par_iter().zip(triangle_pieces).enumerate().for_each(|(s, (vs, ts))| {
         let o = &outputs[s];
-        vs.copy_from_slice(&o.vertices);
+        let out = &arrays[o.worker];
+        vs.copy_from_slice(&out.vertices[o.vertices.clone()]);
         let resolve =
             |i: u32| if i & BORROWED == 0 { bases[s] + i } else { bases[s + 1] + (i & !BORROWED) };
-        for (out, t) in ts.iter_mut().zip(&o.triangles) {
+        for (out, t) in ts.iter_mut().zip(&out.triangles[o.triangles.clone()]) {
             *out = t.map(resolve);
         }
     });
@@ -635,13 +704,14 @@ fn extract_slab<V: SlabVertex>(
     vals: &[f32],
     z0: usize,
     z1: usize,
-    worker: &mut Worker,
+    worker: &mut Worker<V>,
     control: &Control,
-) -> Result<Slab<V>, Cancelled> {
+) -> Result<Slab, Cancelled> {
     let [nx, ny, nz] = grid.dims;
     let layer = nx * ny;
     let last = z1 == nz - 1;
-    let Worker { maps, below, above, bottom_numbers, top_numbers, last_sizes, .. } = worker;
+    let Worker { index, out, maps, below, above, bottom_numbers, top_numbers, last_sizes, .. } =
+        worker;
     maps.reset();
     let local = |k: usize| &vals[(k - z0) * layer..(k - z0 + 1) * layer];
     let offsets: [usize; 8] = CORNERS.map(|[x, y, z]| x + nx * y + layer * z);
@@ -653,14 +723,11 @@ fn extract_slab<V: SlabVertex>(
     bottom_numbers.build(below, nx, ny, words);
     // Neighbouring slabs of a smooth surface make about as many vertices and triangles. The
     // bottom layer's vertices come first, at their numbers.
-    let mut vertices = Vec::with_capacity(last_sizes.0 + last_sizes.0 / 8);
-    vertices.resize(bottom_numbers.total as usize, V::default());
-    let mut slab = Slab {
-        vertices,
-        triangles: Vec::with_capacity(last_sizes.1 + last_sizes.1 / 8),
-        ambiguous_faces: 0,
-        tunnels: 0,
-    };
+    make_room(&mut out.vertices, 2 * last_sizes.0);
+    make_room(&mut out.triangles, 2 * last_sizes.1);
+    let (first_vertex, first_triangle) = (out.vertices.len(), out.triangles.len());
+    out.vertices.resize(first_vertex + bottom_numbers.total as usize, V::default());
+    let (mut ambiguous_faces, mut tunnels) = (0, 0);
     for k in z0..z1 {
         if control.is_cancelled() {
             return Err(Cancelled);
@@ -687,7 +754,8 @@ fn extract_slab<V: SlabVertex>(
                         | two_bits(rows[2], i) << 4
                         | two_bits(rows[3], i) << 6;
                     let mut sink = SlabSink {
-                        slab: &mut slab,
+                        out: &mut *out,
+                        first_vertex,
                         maps: &mut *maps,
                         grid,
                         at: [i, j, k],
@@ -696,14 +764,21 @@ fn extract_slab<V: SlabVertex>(
                         top: top_borrows.then_some(&*top_numbers),
                     };
                     let outcome = polygonize_case(case, &v, &mut sink);
-                    slab.ambiguous_faces += outcome.ambiguous_faces as u64;
-                    slab.tunnels += outcome.tunnel as u64;
+                    ambiguous_faces += outcome.ambiguous_faces as u64;
+                    tunnels += outcome.tunnel as u64;
                 }
             }
         }
         maps.advance();
         std::mem::swap(below, above);
     }
+    let slab = Slab {
+        worker: *index,
+        vertices: first_vertex..out.vertices.len(),
+        triangles: first_triangle..out.triangles.len(),
+        ambiguous_faces,
+        tunnels,
+    };
     *last_sizes = (slab.vertices.len(), slab.triangles.len());
     Ok(slab)
 }
@@ -720,7 +795,9 @@ fn two_bits(row: &[u64], i: usize) -> usize {
 
 /// The slab's side of [`CubeSink`]: edge vertices keyed by lattice edge in dense maps.
 struct SlabSink<'a, V> {
-    slab: &'a mut Slab<V>,
+    /// The worker's output, and where the slab's vertices start in it.
+    out: &'a mut Output<V>,
+    first_vertex: usize,
     maps: &'a mut EdgeMaps,
     grid: &'a Grid,
     at: [usize; 3],
@@ -733,12 +810,20 @@ struct SlabSink<'a, V> {
     top: Option<&'a LayerNumbering>,
 }
 
+impl<V> SlabSink<'_, V> {
+    /// Adds a vertex that is not on the bottom layer; its index within the slab.
+    #[inline]
+    fn push(&mut self, v: V) -> u32 {
+        self.out.vertices.push(v);
+        (self.out.vertices.len() - self.first_vertex - 1) as u32
+    }
+}
+
 impl<V: SlabVertex> CubeSink for SlabSink<'_, V> {
     #[inline]
     fn edge_vertex(&mut self, e: usize, ends: [f32; 2]) -> u32 {
-        let maps = &mut *self.maps;
-        let slot = self.cell + maps.offset[e];
-        let known = maps.slots[slot];
+        let slot = self.cell + self.maps.offset[e];
+        let known = self.maps.slots[slot];
         if known != NONE {
             return !known;
         }
@@ -762,16 +847,14 @@ impl<V: SlabVertex> CubeSink for SlabSink<'_, V> {
                 match numbering {
                     Some(bottom) => {
                         let n = bottom.number(axis, i + dx, j + dy);
-                        self.slab.vertices[n as usize] = v;
+                        self.out.vertices[self.first_vertex + n as usize] = v;
                         n
                     }
-                    None => {
-                        self.slab.vertices.push(v);
-                        self.slab.vertices.len() as u32 - 1
-                    }
+                    None => self.push(v),
                 }
             }
         };
+        let maps = &mut *self.maps;
         maps.slots[slot] = !id;
         maps.set[maps.list[e] as usize].push(slot as u32);
         id
@@ -780,12 +863,11 @@ impl<V: SlabVertex> CubeSink for SlabSink<'_, V> {
     fn cell_vertex(&mut self, offset: [f64; 3]) -> u32 {
         let [i, j, k] = self.at;
         let v = GridVertex { base: [i as u32, j as u32, k as u32], place: Place::Cell { offset } };
-        self.slab.vertices.push(V::make(self.grid, v, [0.0; 2]));
-        self.slab.vertices.len() as u32 - 1
+        self.push(V::make(self.grid, v, [0.0; 2]))
     }
 
     fn triangle(&mut self, t: [u32; 3]) {
-        self.slab.triangles.push(t);
+        self.out.triangles.push(t);
     }
 }
 

@@ -14,6 +14,7 @@ pub mod cell;
 pub mod cube;
 pub mod extract;
 pub mod interior;
+mod pages;
 pub mod table;
 
 use std::time::{Duration, Instant};
