@@ -87,9 +87,7 @@ fn saucer_and_square_is_a_closed_non_manifold_complex() {
         if *d == 1 {
             let (pa, pb) = (a.map(f32::from_bits), b.map(f32::from_bits));
             let on_side = |p: [f32; 3]| p[0].abs() > 0.95 || p[1].abs() > 0.95;
-            if !(on_side(pa) || on_side(pb)) {
-                eprintln!("open edge inside the cube at {pa:?}-{pb:?}");
-            }
+            assert!(on_side(pa) || on_side(pb), "open edge inside the cube at {pa:?}-{pb:?}");
         }
         assert!(
             *d <= 3,
