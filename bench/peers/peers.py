@@ -5,8 +5,11 @@ zero level set; we time the extraction call alone (for skelform, the time it rep
 extraction, after reading the file). Sampling plus extraction: each tool evaluates the field
 its fastest way (NumPy for the Python tools, skelform's compiled formulas) and extracts.
 Each tool, field and size runs in a fresh process (imports made once, outside the timings),
-which also gives its peak memory; skelform and fast-surface-nets run as child processes of it,
-once per run. Medians of --runs runs. Writes a Markdown table to bench/results/latest.md and prints it.
+which also gives its peak memory, and makes all its runs there: the first finds a cold
+process, the others a warm one, as in a program that calls the library. skelform and
+fast-surface-nets extract in one child process that repeats the extraction (`extract
+--repeat`); skelform's sampling + extraction (`mesh`) is a new process per run. Medians of
+--runs runs; the first-run (cold) times of skelform's extraction are in a table of their own. Writes a Markdown table to bench/results/latest.md and prints it.
 """
 
 import argparse
@@ -95,8 +98,17 @@ def volume_file(field, n):
 
 # ---- worker mode: the measurements of one tool, field and size in a fresh process -------
 
+# Tools that run as child processes and can repeat an extraction in one process themselves.
+REPEATING = ("skelform-1", "skelform-all", "fast-surface-nets")
+
+
 def worker(tool, field, n, mode, runs):
-    """`runs` measurements in this process; peak memory is the largest of any of them."""
+    """`runs` measurements in this process (the Python tools) or in one child process (the
+    others, which repeat the extraction themselves): either way every tool's runs after the
+    first find a warm process, as a program that calls the library does. Peak memory is the
+    largest of any of them."""
+    if mode == "extract" and tool in REPEATING:
+        return repeated_extraction(tool, field, n, runs)
     results = []
     for _ in range(runs):
         r = one_run(tool, field, n, mode)
@@ -104,6 +116,26 @@ def worker(tool, field, n, mode, runs):
             return None
         results.append(r)
     return results
+
+
+def repeated_extraction(tool, field, n, runs):
+    """`runs` extractions in one child process: skelform `extract --repeat`, or the
+    fast-surface-nets peer with a repeat count."""
+    with tempfile.TemporaryDirectory() as d:
+        if tool == "fast-surface-nets":
+            cmd = [str(FSN), str(volume_file(field, n)), str(n), str(n), str(n), str(runs)]
+        else:
+            threads = "1" if tool == "skelform-1" else str(os.cpu_count())
+            cmd = [str(SKELFORM), "extract", str(volume_file(field, n)), "--dims", f"{n},{n},{n}",
+                   "-o", f"{d}/m.ply", "--json", "--threads", threads, "--repeat", str(runs)]
+            if n >= STREAM_FROM:
+                # Read the file slab by slab: the time then includes reading it.
+                cmd.append("--stream")
+        j = json.loads(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout)
+    seconds = j["seconds"] if tool == "fast-surface-nets" else j["seconds"]["extractions"]
+    peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
+    return [{"seconds": t, "vertices": j["vertices"], "triangles": j["triangles"], "peak_mib": peak}
+            for t in seconds]
 
 
 def one_run(tool, field, n, mode):
@@ -196,8 +228,8 @@ def measure(tool, field, n, mode, runs):
     if samples is None:
         return None
     med = statistics.median(s["seconds"] for s in samples)
-    return {"seconds": med, "vertices": samples[0]["vertices"], "triangles": samples[0]["triangles"],
-            "peak_mib": max(s["peak_mib"] for s in samples)}
+    return {"seconds": med, "first": samples[0]["seconds"], "vertices": samples[0]["vertices"],
+            "triangles": samples[0]["triangles"], "peak_mib": max(s["peak_mib"] for s in samples)}
 
 
 def machine():
@@ -232,7 +264,8 @@ def main():
     fields = a.fields.split(",")
     lines = [f"# skelform against its peers", "",
              f"One run of `bench/peers/run.sh` on {time.strftime('%Y-%m-%d')}: {machine()}.",
-             f"Medians of {a.runs} runs, a fresh process per tool, field and size; ratio = peer time / skelform single-threaded time",
+             f"Medians of {a.runs} runs in one fresh process per tool, field and size (the first cold, the others warm);",
+             "ratio = peer time / skelform single-threaded time",
              "(above 1: skelform is faster). Peak memory is the process's maximum resident set.", ""]
     started = time.time()
     # Volumes are made in a child process: a worker's peak memory would otherwise include
@@ -240,6 +273,7 @@ def main():
     for field in fields:
         for n in sizes:
             subprocess.run([sys.executable, __file__, "--generate", field, str(n)], check=True)
+    threads = {}  # (field, n) -> {tool: (first, median)} for skelform's extraction
     for mode, title in [("extract", "Extraction only, from the same float32 volume"),
                         ("both", "Sampling plus extraction, each tool evaluating the field its fastest way")]:
         lines += [f"## {title}", "",
@@ -254,11 +288,23 @@ def main():
                         continue
                     if tool == "skelform-1":
                         base = r["seconds"]
+                    if mode == "extract" and tool.startswith("skelform"):
+                        threads.setdefault((field, n), {})[tool] = (r["first"], r["seconds"])
                     ratio = "" if tool.startswith("skelform-1") else f"{r['seconds'] / base:.2f}"
                     lines.append(f"| {field} | {n}³ | {tool} | {r['seconds'] * 1000:.1f} | {ratio} | "
                                  f"{r['vertices']:,} | {r['triangles']:,} | {r['peak_mib']:.0f} |")
                     print(lines[-1], flush=True)
         lines.append("")
+        if mode == "extract":
+            lines += ["## skelform's extraction on all cores against one, cold and warm", "",
+                      f"Cold: the first extraction in a new process; warm: the median of {a.runs}.", "",
+                      "| field | samples | 1 thread, cold | all, cold | speed-up | 1 thread, warm | all, warm | speed-up |",
+                      "|---|---|---|---|---|---|---|---|"]
+            for (field, n), t in threads.items():
+                (c1, w1), (ca, wa) = t["skelform-1"], t["skelform-all"]
+                lines.append(f"| {field} | {n}³ | {c1 * 1000:.1f} | {ca * 1000:.1f} | {c1 / ca:.2f} | "
+                             f"{w1 * 1000:.1f} | {wa * 1000:.1f} | {w1 / wa:.2f} |")
+            lines.append("")
     lines.append(f"Total benchmark time: {time.time() - started:.0f} s.")
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text("\n".join(lines) + "\n")

@@ -60,6 +60,10 @@ pub struct ExtractArgs {
     /// follows the thread count, not the volume (the time then includes reading).
     #[arg(long)]
     stream: bool,
+    /// Extract this many times in this process and report the median time (the JSON lists
+    /// each): for benchmarks, the way a program that links the library sees it.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    repeat: u32,
 }
 
 /// A raw float32 file read one z layer at a time, for `--stream`.
@@ -136,20 +140,26 @@ pub fn extract(a: ExtractArgs) -> Result<(), Failure> {
     // clock starts so that the reported time is the extraction's, comparable with tools whose
     // tables are compiled in.
     skelform_polygonize::grid::table::table();
-    let (mesh, extraction, non_finite) = if a.stream {
+    let mut times = Vec::new();
+    let (mesh, non_finite) = if a.stream {
         let file = std::fs::File::open(&a.volume)
             .map_err(|e| input(anyhow!("{}: {e}", a.volume.display())))?;
         let source =
             RawLayers { file: std::sync::Mutex::new(file), layer: a.dims[0] * a.dims[1], iso };
-        let t = Instant::now();
-        let Streamed { vertices: positions, triangles, stats } = pool
-            .install(|| extract_streamed::<[f32; 3], _>(&source, &grid, &Control::default()))
-            .map_err(|e| match e {
-                StreamError::Source(e) => runtime(anyhow!("{}: {e}", a.volume.display())),
-                StreamError::Cancelled => runtime(anyhow!("cancelled")),
-            })?;
-        let mesh = Mesh { positions, triangles, ..Mesh::default() };
-        (mesh, t.elapsed(), stats.non_finite)
+        let mut last = None;
+        for _ in 0..a.repeat {
+            drop(last.take());
+            let t = Instant::now();
+            let Streamed { vertices: positions, triangles, stats } = pool
+                .install(|| extract_streamed::<[f32; 3], _>(&source, &grid, &Control::default()))
+                .map_err(|e| match e {
+                    StreamError::Source(e) => runtime(anyhow!("{}: {e}", a.volume.display())),
+                    StreamError::Cancelled => runtime(anyhow!("cancelled")),
+                })?;
+            times.push(t.elapsed());
+            last = Some((Mesh { positions, triangles, ..Mesh::default() }, stats.non_finite));
+        }
+        last.ok_or_else(|| runtime(anyhow!("--repeat must be at least 1")))?
     } else {
         let raw =
             std::fs::read(&a.volume).map_err(|e| input(anyhow!("{}: {e}", a.volume.display())))?;
@@ -159,9 +169,22 @@ pub fn extract(a: ExtractArgs) -> Result<(), Failure> {
             .collect();
         drop(raw);
         let volume = Volume::from_values(grid, values);
-        let t = Instant::now();
-        let mesh = pool.install(|| extract_mesh(&volume, &Control::default())).map_err(runtime)?;
-        (mesh, t.elapsed(), volume.non_finite)
+        let mut last = None;
+        for _ in 0..a.repeat {
+            drop(last.take());
+            let t = Instant::now();
+            let mesh =
+                pool.install(|| extract_mesh(&volume, &Control::default())).map_err(runtime)?;
+            times.push(t.elapsed());
+            last = Some(mesh);
+        }
+        let mesh = last.ok_or_else(|| runtime(anyhow!("--repeat must be at least 1")))?;
+        (mesh, volume.non_finite)
+    };
+    let extraction = {
+        let mut sorted = times.clone();
+        sorted.sort();
+        sorted[sorted.len() / 2]
     };
     if mesh.is_empty() {
         return Err(runtime(anyhow!(
@@ -185,7 +208,11 @@ pub fn extract(a: ExtractArgs) -> Result<(), Failure> {
                 "streamed": a.stream,
                 "vertices": mesh.vertex_count(),
                 "triangles": mesh.triangle_count(),
-                "seconds": { "extraction": extraction.as_secs_f64(), "writing": writing.as_secs_f64() },
+                "seconds": {
+                    "extraction": extraction.as_secs_f64(),
+                    "extractions": times.iter().map(|t| t.as_secs_f64()).collect::<Vec<_>>(),
+                    "writing": writing.as_secs_f64(),
+                },
             })
         );
     } else if !a.quiet {

@@ -1,8 +1,9 @@
 //! A peer for `bench/peers`: Naive Surface Nets from the `fast-surface-nets` crate on a raw
 //! float32 volume (x fastest), timing the extraction alone.
 //!
-//! `cargo run --release -p skelform-polygonize --example fsn_peer -- VOLUME NX NY NZ`
-//! prints `{"seconds": …, "vertices": …, "triangles": …}`.
+//! `cargo run --release -p skelform-polygonize --example fsn_peer -- VOLUME NX NY NZ [REPEAT]`
+//! prints `{"seconds": […], "vertices": …, "triangles": …}`: the time of each of REPEAT
+//! extractions (default 1) in this process, each into a new buffer.
 
 use std::time::Instant;
 
@@ -11,8 +12,12 @@ use fast_surface_nets::{SurfaceNetsBuffer, surface_nets};
 
 fn main() -> Result<(), String> {
     let args: Vec<String> = std::env::args().collect();
-    let [_, path, nx, ny, nz] = args.as_slice() else {
-        return Err("usage: fsn_peer VOLUME NX NY NZ".into());
+    let (path, nx, ny, nz, repeat) = match args.as_slice() {
+        [_, path, nx, ny, nz] => (path, nx, ny, nz, 1),
+        [_, path, nx, ny, nz, r] => {
+            (path, nx, ny, nz, r.parse::<usize>().map_err(|e| e.to_string())?)
+        }
+        _ => return Err("usage: fsn_peer VOLUME NX NY NZ [REPEAT]".into()),
     };
     let dims: Vec<u32> = [nx, ny, nz]
         .iter()
@@ -25,12 +30,17 @@ fn main() -> Result<(), String> {
         return Err(format!("{path}: size does not match {dims:?}"));
     }
     let shape = RuntimeShape::<u32, 3>::new([dims[0], dims[1], dims[2]]);
+    let mut seconds = Vec::new();
     let mut buffer = SurfaceNetsBuffer::default();
-    let t = Instant::now();
-    surface_nets(&sdf, &shape, [0; 3], [dims[0] - 1, dims[1] - 1, dims[2] - 1], &mut buffer);
-    let seconds = t.elapsed().as_secs_f64();
+    for _ in 0..repeat.max(1) {
+        buffer = SurfaceNetsBuffer::default();
+        let t = Instant::now();
+        surface_nets(&sdf, &shape, [0; 3], [dims[0] - 1, dims[1] - 1, dims[2] - 1], &mut buffer);
+        seconds.push(t.elapsed().as_secs_f64().to_string());
+    }
     println!(
-        "{{\"seconds\": {seconds}, \"vertices\": {}, \"triangles\": {}}}",
+        "{{\"seconds\": [{}], \"vertices\": {}, \"triangles\": {}}}",
+        seconds.join(", "),
         buffer.positions.len(),
         buffer.indices.len() / 3
     );
