@@ -9,7 +9,8 @@ which also gives its peak memory, and makes all its runs there: the first finds 
 process, the others a warm one, as in a program that calls the library. skelform and
 fast-surface-nets extract in one child process that repeats the extraction (`extract
 --repeat`); skelform's sampling + extraction (`mesh`) is a new process per run. Medians of
---runs runs; the first-run (cold) times of skelform's extraction are in a table of their own. Writes a Markdown table to bench/results/latest.md and prints it.
+--runs runs; the first-run (cold) times of skelform's extraction are in a table of their own.
+Writes the tables to bench/results/latest.md and prints them.
 """
 
 import argparse

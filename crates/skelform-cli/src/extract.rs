@@ -6,7 +6,7 @@
 //! refine on) and no normals.
 
 use std::path::PathBuf;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use anyhow::anyhow;
 use clap::Args;
@@ -90,6 +90,27 @@ impl LayerSource for RawLayers {
     }
 }
 
+/// Runs `work` `n` times (at least once), timing each run into `times`, and returns the last
+/// result; each earlier result is dropped before the next run, as a program would.
+fn repeated<T>(
+    n: u32,
+    times: &mut Vec<Duration>,
+    mut work: impl FnMut() -> Result<T, Failure>,
+) -> Result<T, Failure> {
+    let mut run = |times: &mut Vec<Duration>| {
+        let t = Instant::now();
+        let out = work();
+        times.push(t.elapsed());
+        out
+    };
+    let mut last = run(times)?;
+    for _ in 1..n {
+        drop(last);
+        last = run(times)?;
+    }
+    Ok(last)
+}
+
 fn parse_dims(s: &str) -> Result<[usize; 3], String> {
     let parts: Vec<Option<usize>> = s.split(',').map(|p| p.trim().parse().ok()).collect();
     match parts.as_slice() {
@@ -146,20 +167,15 @@ pub fn extract(a: ExtractArgs) -> Result<(), Failure> {
             .map_err(|e| input(anyhow!("{}: {e}", a.volume.display())))?;
         let source =
             RawLayers { file: std::sync::Mutex::new(file), layer: a.dims[0] * a.dims[1], iso };
-        let mut last = None;
-        for _ in 0..a.repeat {
-            drop(last.take());
-            let t = Instant::now();
+        repeated(a.repeat, &mut times, || {
             let Streamed { vertices: positions, triangles, stats } = pool
                 .install(|| extract_streamed::<[f32; 3], _>(&source, &grid, &Control::default()))
                 .map_err(|e| match e {
                     StreamError::Source(e) => runtime(anyhow!("{}: {e}", a.volume.display())),
                     StreamError::Cancelled => runtime(anyhow!("cancelled")),
                 })?;
-            times.push(t.elapsed());
-            last = Some((Mesh { positions, triangles, ..Mesh::default() }, stats.non_finite));
-        }
-        last.ok_or_else(|| runtime(anyhow!("--repeat must be at least 1")))?
+            Ok((Mesh { positions, triangles, ..Mesh::default() }, stats.non_finite))
+        })?
     } else {
         let raw =
             std::fs::read(&a.volume).map_err(|e| input(anyhow!("{}: {e}", a.volume.display())))?;
@@ -169,16 +185,9 @@ pub fn extract(a: ExtractArgs) -> Result<(), Failure> {
             .collect();
         drop(raw);
         let volume = Volume::from_values(grid, values);
-        let mut last = None;
-        for _ in 0..a.repeat {
-            drop(last.take());
-            let t = Instant::now();
-            let mesh =
-                pool.install(|| extract_mesh(&volume, &Control::default())).map_err(runtime)?;
-            times.push(t.elapsed());
-            last = Some(mesh);
-        }
-        let mesh = last.ok_or_else(|| runtime(anyhow!("--repeat must be at least 1")))?;
+        let mesh = repeated(a.repeat, &mut times, || {
+            pool.install(|| extract_mesh(&volume, &Control::default())).map_err(runtime)
+        })?;
         (mesh, volume.non_finite)
     };
     let extraction = {

@@ -31,12 +31,17 @@ fn main() -> Result<(), String> {
     }
     let shape = RuntimeShape::<u32, 3>::new([dims[0], dims[1], dims[2]]);
     let mut seconds = Vec::new();
-    let mut buffer = SurfaceNetsBuffer::default();
-    for _ in 0..repeat.max(1) {
-        buffer = SurfaceNetsBuffer::default();
+    let mut extract = || {
+        let mut buffer = SurfaceNetsBuffer::default();
         let t = Instant::now();
         surface_nets(&sdf, &shape, [0; 3], [dims[0] - 1, dims[1] - 1, dims[2] - 1], &mut buffer);
         seconds.push(t.elapsed().as_secs_f64().to_string());
+        buffer
+    };
+    let mut buffer = extract();
+    for _ in 1..repeat {
+        drop(buffer);
+        buffer = extract();
     }
     println!(
         "{{\"seconds\": [{}], \"vertices\": {}, \"triangles\": {}}}",
