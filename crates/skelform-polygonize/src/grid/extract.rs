@@ -1,13 +1,15 @@
 //! Marching cubes over a sampled [`Volume`], in parallel z-slabs with a deterministic merge.
 //!
-//! Each slab owns the edge vertices on its own sample layers (the last slab also owns the top
-//! layer) and creates them the first time a cube asks. The crossed edges of the layer two
-//! slabs share are numbered in a fixed order computed from that layer's signs alone
-//! ([`LayerNumbering`]): the slab above gives its bottom-layer vertices those numbers as local
-//! indices, and the slab below refers to them by number. The merge then offsets each slab's
-//! vertices by the counts of the slabs before it, and a reference to the layer above by the
-//! next slab's offset: no lookup. Slab boundaries depend only on the grid, never on the
-//! thread count, so the output is the same bit for bit on any number of threads.
+//! Vertices are named as in Flying Edges: the crossed edges of each sample layer, and those
+//! between two layers, are numbered in a fixed order computed from the layers' sign bits
+//! alone ([`LayerNumbering`], [`ZNumbering`]), so a cube finds the vertex on its edge by a
+//! population count, with no map to look it up in, and each edge vertex is made once, in
+//! number order. Each slab owns the edge vertices on its own sample layers (the last slab
+//! also owns the top layer); the slab below refers to the layer it shares with the slab
+//! above by those numbers. The merge offsets each slab's vertices by the counts of the
+//! slabs before it, and a reference to the layer above by the next slab's offset. Slab
+//! boundaries depend only on the grid, never on the thread count, so the output is the same
+//! bit for bit on any number of threads.
 
 use std::ops::{ControlFlow, Range};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -17,16 +19,12 @@ use skelform_field::control::{Control, Progress};
 use skelform_field::grid::{Grid, Volume};
 
 use super::cell::{CubeSink, crossing, polygonize_case};
-use super::cube::{CORNERS, EDGES, edge_axis};
+use super::cube::CORNERS;
 
 /// Cube layers per slab. A constant, so that results never depend on the thread count.
 pub const SLAB: usize = 8;
 
 const BORROWED: u32 = 1 << 31;
-/// An empty edge-map slot. Slots hold `!index` (an index is never `u32::MAX`), so that a
-/// new map is zeroed memory, which the system hands out untouched: pages are only made as
-/// the surface reaches them.
-const NONE: u32 = 0;
 
 /// Where a mesh vertex lies, relative to lattice point `base`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -170,6 +168,23 @@ fn make_room<T>(v: &mut Vec<T>, more: usize) {
     }
 }
 
+/// One word of a row of edges: the crossed ones (bit `i`: the edge from sample `64·w + i`)
+/// and how many crossed edges come before the word in their numbering.
+#[derive(Clone, Copy, Default)]
+struct Counted {
+    bits: u64,
+    before: u32,
+}
+
+impl Counted {
+    /// The number of crossed edge `i % 64` of the word.
+    #[inline]
+    fn number(&self, i: usize) -> u32 {
+        debug_assert!(self.bits >> (i % 64) & 1 == 1, "edge {i} is not crossed");
+        self.before + (self.bits & ((1u64 << (i % 64)) - 1)).count_ones()
+    }
+}
+
 /// The crossed x- and y-edges of one sample layer (corners of both signs), numbered row by
 /// row: in each row its x-edges, then the y-edges to the next row, each by x. The numbers
 /// come from the layer's sign words alone, so the two slabs that share a layer agree on them
@@ -177,44 +192,42 @@ fn make_room<T>(v: &mut Vec<T>, more: usize) {
 #[derive(Default)]
 struct LayerNumbering {
     words: usize,
-    /// Per row and word: the crossed edges (bit `i`: the edge from sample `64·w + i`) and
-    /// how many crossed edges come before the word in the numbering.
-    x_bits: Vec<u64>,
-    x_before: Vec<u32>,
-    y_bits: Vec<u64>,
-    y_before: Vec<u32>,
+    /// Per row and word, the crossed x- and y-edges.
+    x: Vec<Counted>,
+    y: Vec<Counted>,
     total: u32,
+    /// The slab-local number of the layer's first vertex, or [`BORROWED`] when the layer's
+    /// vertices are the next slab's.
+    offset: u32,
 }
 
 impl LayerNumbering {
     /// Numbers the edges of a layer of `ny` rows of sign words (see [`layer_signs`]).
     fn build(&mut self, signs: &[u64], nx: usize, ny: usize, words: usize) {
-        let cells = ny * words;
-        for v in [&mut self.x_bits, &mut self.y_bits] {
-            v.clear();
-            v.resize(cells, 0);
-        }
-        for v in [&mut self.x_before, &mut self.y_before] {
-            v.clear();
-            v.resize(cells, 0);
-        }
         self.words = words;
+        self.x.resize(ny * words, Counted::default());
+        self.y.resize(ny * words, Counted::default());
+        let (x_last, y_last) = (word_mask(words - 1, nx - 1), word_mask(words - 1, nx));
         let mut count = 0u32;
         for j in 0..ny {
-            let row = &signs[j * words..(j + 1) * words];
+            let row = &signs[j * words..][..words];
+            let xs = &mut self.x[j * words..][..words];
             for w in 0..words {
-                let next = if w + 1 < words { row[w + 1] & 1 } else { 0 };
-                let bits = (row[w] ^ ((row[w] >> 1) | (next << 63))) & word_mask(w, nx - 1);
-                self.x_bits[j * words + w] = bits;
-                self.x_before[j * words + w] = count;
+                let (bits, mask) = match row.get(w + 1) {
+                    Some(next) => (row[w] ^ ((row[w] >> 1) | (next << 63)), u64::MAX),
+                    None => (row[w] ^ (row[w] >> 1), x_last),
+                };
+                let bits = bits & mask;
+                xs[w] = Counted { bits, before: count };
                 count += bits.count_ones();
             }
             if j + 1 < ny {
-                let up = &signs[(j + 1) * words..(j + 2) * words];
+                let up = &signs[(j + 1) * words..][..words];
+                let ys = &mut self.y[j * words..][..words];
                 for w in 0..words {
-                    let bits = (row[w] ^ up[w]) & word_mask(w, nx);
-                    self.y_bits[j * words + w] = bits;
-                    self.y_before[j * words + w] = count;
+                    let mask = if w + 1 < words { u64::MAX } else { y_last };
+                    let bits = (row[w] ^ up[w]) & mask;
+                    ys[w] = Counted { bits, before: count };
                     count += bits.count_ones();
                 }
             }
@@ -222,31 +235,139 @@ impl LayerNumbering {
         self.total = count;
     }
 
+    /// The slab-local number (or `BORROWED |` number) of the crossed x (`axis` 0) or y edge
+    /// from sample `(i, j)`.
+    #[inline]
+    fn id(&self, axis: usize, i: usize, j: usize) -> u32 {
+        self.offset + self.number(axis, i, j)
+    }
+
+    /// Makes the layer's vertices in the order of their numbers, from the layer's samples
+    /// (`nx·ny`, x fastest); `k` is the layer's index.
+    fn emit<V: SlabVertex>(
+        &self,
+        grid: &Grid,
+        vals: &[f32],
+        k: usize,
+        store: &mut impl SlabStore<V>,
+    ) {
+        let [nx, ny, _] = grid.dims;
+        for j in 0..ny {
+            let row = j * self.words..(j + 1) * self.words;
+            for_each_bit(&self.x[row.clone()], |i| {
+                let at = i + nx * j;
+                store.push_vertex(edge_record(grid, [i, j, k], 0, [vals[at], vals[at + 1]]));
+            });
+            if j + 1 < ny {
+                for_each_bit(&self.y[row], |i| {
+                    let at = i + nx * j;
+                    store.push_vertex(edge_record(grid, [i, j, k], 1, [vals[at], vals[at + nx]]));
+                });
+            }
+        }
+    }
+
     /// The number of the crossed x (`axis` 0) or y edge from sample `(i, j)`.
     #[inline]
     fn number(&self, axis: usize, i: usize, j: usize) -> u32 {
-        let (bits, before) =
-            if axis == 0 { (&self.x_bits, &self.x_before) } else { (&self.y_bits, &self.y_before) };
-        let at = j * self.words + i / 64;
-        let below = bits[at] & ((1u64 << (i % 64)) - 1);
-        debug_assert!(bits[at] >> (i % 64) & 1 == 1, "edge ({axis}, {i}, {j}) is not crossed");
-        before[at] + below.count_ones()
+        let words = if axis == 0 { &self.x } else { &self.y };
+        words[j * self.words + i / 64].number(i)
     }
 }
 
-/// What a worker keeps from one slab to the next: the edge maps (cleared through their
-/// lists of set slots, never reallocated), the sign words and edge numberings of the layers
-/// it works on, and the previous slab's output sizes, to reserve.
+/// The crossed z-edges between two sample layers, numbered row by row like
+/// [`LayerNumbering`]'s edges.
+#[derive(Default)]
+struct ZNumbering {
+    words: usize,
+    edges: Vec<Counted>,
+    /// The slab-local number of the first of them.
+    offset: u32,
+}
+
+impl ZNumbering {
+    fn build(&mut self, lower: &[u64], upper: &[u64], nx: usize, words: usize) {
+        self.words = words;
+        self.edges.resize(lower.len(), Counted::default());
+        let last = word_mask(words - 1, nx);
+        let mut count = 0u32;
+        for (at, z) in self.edges.iter_mut().enumerate() {
+            let mask = if at % words + 1 < words { u64::MAX } else { last };
+            let bits = (lower[at] ^ upper[at]) & mask;
+            *z = Counted { bits, before: count };
+            count += bits.count_ones();
+        }
+    }
+
+    #[inline]
+    fn id(&self, i: usize, j: usize) -> u32 {
+        self.offset + self.edges[j * self.words + i / 64].number(i)
+    }
+
+    /// Makes the vertices in the order of their numbers; `lower` and `upper` are the two
+    /// layers' samples, `k` the lower one's index.
+    fn emit<V: SlabVertex>(
+        &self,
+        grid: &Grid,
+        lower: &[f32],
+        upper: &[f32],
+        k: usize,
+        store: &mut impl SlabStore<V>,
+    ) {
+        let nx = grid.dims[0];
+        for (j, row) in self.edges.chunks(self.words).enumerate() {
+            for_each_bit(row, |i| {
+                let at = i + nx * j;
+                store.push_vertex(edge_record(grid, [i, j, k], 2, [lower[at], upper[at]]));
+            });
+        }
+    }
+}
+
+/// Calls `f(i)` for each crossed edge `i` of a row, in order.
+#[inline]
+fn for_each_bit(words: &[Counted], mut f: impl FnMut(usize)) {
+    for (w, word) in words.iter().enumerate() {
+        let mut bits = word.bits;
+        while bits != 0 {
+            f(w * 64 + bits.trailing_zeros() as usize);
+            bits &= bits - 1;
+        }
+    }
+}
+
+/// The record of the vertex where the surface crosses the lattice edge from sample `base`
+/// along `axis`, whose end samples are `ends`.
+#[inline]
+fn edge_record<V: SlabVertex>(grid: &Grid, base: [usize; 3], axis: usize, ends: [f32; 2]) -> V {
+    let v = GridVertex {
+        base: base.map(|x| x as u32),
+        place: Place::Edge { dir: 1 << axis, t: crossing(ends[0], ends[1]) },
+    };
+    V::make(grid, v, ends)
+}
+
+/// What a worker keeps from one slab to the next: its output arrays, the previous slab's
+/// output sizes, to reserve, and its [`Scratch`].
 struct Worker<V> {
     /// The worker's index among the pool's, which [`Slab::worker`] refers to.
     index: usize,
     out: Output<V>,
-    maps: EdgeMaps,
+    last_sizes: (usize, usize),
+    scratch: Scratch,
+}
+
+/// A worker's working memory, reused for every slab it runs: the edge maps (cleared through
+/// their lists of set slots, never reallocated), the sign words and edge numberings of the
+/// layers it works on, and the sample layers of a streamed slab.
+struct Scratch {
+    /// Sign words of the sample layers below and above the current layer of cubes.
     below: Vec<u64>,
     above: Vec<u64>,
-    bottom_numbers: LayerNumbering,
-    top_numbers: LayerNumbering,
-    last_sizes: (usize, usize),
+    /// The numbered x/y-edges of those two layers, and the z-edges between them.
+    lower: LayerNumbering,
+    upper: LayerNumbering,
+    z: ZNumbering,
     /// The sample layers of the slab, when they are streamed from a [`LayerSource`].
     layers: Vec<f32>,
 }
@@ -257,13 +378,15 @@ impl<V> Worker<V> {
         Worker {
             index,
             out: Output::default(),
-            maps: EdgeMaps::new(nx, ny),
-            below: vec![0; ny * words],
-            above: vec![0; ny * words],
-            bottom_numbers: LayerNumbering::default(),
-            top_numbers: LayerNumbering::default(),
             last_sizes: (0, 0),
-            layers: Vec::new(),
+            scratch: Scratch {
+                below: vec![0; ny * words],
+                above: vec![0; ny * words],
+                lower: LayerNumbering::default(),
+                upper: LayerNumbering::default(),
+                z: ZNumbering::default(),
+                layers: Vec::new(),
+            },
         }
     }
 }
@@ -346,17 +469,50 @@ fn extract_as<V: SlabVertex>(
                 let z0 = s * SLAB;
                 let z1 = (z0 + SLAB).min(cube_layers);
                 let vals = &volume.values[z0 * nx * ny..];
-                let slab = extract_slab(&grid, vals, z0, z1, worker, control)?;
-                let d = done.fetch_add((z1 - z0) as u64, Ordering::Relaxed) + (z1 - z0) as u64;
-                let p = Progress { phase: "extracting", done: d, total: Some(cube_layers as u64) };
-                match control.report(p) {
-                    ControlFlow::Continue(()) => Ok(slab),
-                    ControlFlow::Break(()) => Err(Cancelled),
-                }
+                let slab = extract_grown(&grid, vals, (z0, z1), worker, control)?;
+                slab_done(control, &done, z1 - z0, cube_layers, "extracting").map(|()| slab)
             })
         })
         .collect::<Result<_, _>>()?;
-    Ok(merge(&outputs, &workers.into_outputs()))
+    Ok(merge(&outputs, workers.into_outputs()))
+}
+
+/// Adds a slab's `layers` cube layers to the progress count and reports it.
+fn slab_done(
+    control: &Control,
+    done: &AtomicU64,
+    layers: usize,
+    total: usize,
+    phase: &'static str,
+) -> Result<(), Cancelled> {
+    let d = done.fetch_add(layers as u64, Ordering::Relaxed) + layers as u64;
+    match control.report(Progress { phase, done: d, total: Some(total as u64) }) {
+        ControlFlow::Continue(()) => Ok(()),
+        ControlFlow::Break(()) => Err(Cancelled),
+    }
+}
+
+/// [`extract_slab`] appending to the worker's own output arrays, for [`merge`].
+fn extract_grown<V: SlabVertex>(
+    grid: &Grid,
+    vals: &[f32],
+    (z0, z1): (usize, usize),
+    worker: &mut Worker<V>,
+    control: &Control,
+) -> Result<Slab, Cancelled> {
+    let first_triangle = worker.out.triangles.len();
+    let mut store = Growing { out: &mut worker.out, hint: worker.last_sizes, first_vertex: 0 };
+    let (ambiguous_faces, tunnels) =
+        extract_slab(grid, vals, (z0, z1), &mut worker.scratch, &mut store, control)?;
+    let slab = Slab {
+        worker: worker.index,
+        vertices: store.first_vertex..worker.out.vertices.len(),
+        triangles: first_triangle..worker.out.triangles.len(),
+        ambiguous_faces,
+        tunnels,
+    };
+    worker.last_sizes = (slab.vertices.len(), slab.triangles.len());
+    Ok(slab)
 }
 
 /// Where streamed extraction gets its samples from, one `z` layer at a time (`nx·ny` values,
@@ -418,7 +574,7 @@ pub fn extract_streamed<V: SlabVertex, S: LayerSource>(
                 let z1 = (z0 + SLAB).min(cube_layers);
                 let last = z1 == cube_layers;
                 let t = Instant::now();
-                let mut layers = std::mem::take(&mut worker.layers);
+                let mut layers = std::mem::take(&mut worker.scratch.layers);
                 layers.resize((z1 - z0 + 1) * layer, 0.0);
                 let mut non_finite = 0;
                 for (n, out) in layers.chunks_mut(layer).enumerate() {
@@ -437,20 +593,13 @@ pub fn extract_streamed<V: SlabVertex, S: LayerSource>(
                     });
                 let sourced = t.elapsed();
                 let t = Instant::now();
-                let slab = extract_slab(grid, &layers, z0, z1, worker, control)
+                let slab = extract_grown(grid, &layers, (z0, z1), worker, control)
                     .map_err(|_| StreamError::Cancelled)?;
-                worker.layers = layers;
+                worker.scratch.layers = layers;
                 let extracted = t.elapsed();
-                let d = done.fetch_add((z1 - z0) as u64, Ordering::Relaxed) + (z1 - z0) as u64;
-                let p = Progress {
-                    phase: "sampling and extracting",
-                    done: d,
-                    total: Some(cube_layers as u64),
-                };
-                match control.report(p) {
-                    ControlFlow::Continue(()) => Ok((slab, non_finite, range, sourced, extracted)),
-                    ControlFlow::Break(()) => Err(StreamError::Cancelled),
-                }
+                slab_done(control, &done, z1 - z0, cube_layers, "sampling and extracting")
+                    .map_err(|_| StreamError::Cancelled)?;
+                Ok((slab, non_finite, range, sourced, extracted))
             })
         })
         .collect::<Result<_, _>>()?;
@@ -469,7 +618,7 @@ pub fn extract_streamed<V: SlabVertex, S: LayerSource>(
         stats.extract_time += extracted;
         slabs.push(slab);
     }
-    let (vertices, triangles, ambiguous_faces, tunnels) = merge(&slabs, &workers.into_outputs());
+    let (vertices, triangles, ambiguous_faces, tunnels) = merge(&slabs, workers.into_outputs());
     stats.ambiguous_faces = ambiguous_faces;
     stats.tunnels = tunnels;
     Ok(Streamed { vertices, triangles, stats })
@@ -486,112 +635,81 @@ fn split_lengths<T>(mut all: &mut [T], lengths: impl Iterator<Item = usize>) -> 
     pieces
 }
 
-/// Joins the slabs in order, in parallel: each slab's vertices are offset by the counts of
-/// the slabs before it, and its references to the layer above by the next slab's offset.
-fn merge<V: SlabVertex>(outputs: &[Slab], arrays: &[Output<V>]) -> Extracted<V> {
-    let mut bases = Vec::with_capacity(outputs.len());
-    let mut total = 0u32;
-    for o in outputs {
-        bases.push(total);
-        total += o.vertices.len() as u32;
-    }
-    let mut vertices = super::pages::zeroed_vec::<V>(total as usize);
-    let mut triangles =
-        super::pages::zeroed_vec::<[u32; 3]>(outputs.iter().map(|o| o.triangles.len()).sum());
-    let vertex_pieces = split_lengths(&mut vertices, outputs.iter().map(|o| o.vertices.len()));
-    let triangle_pieces = split_lengths(&mut triangles, outputs.iter().map(|o| o.triangles.len()));
-    vertex_pieces.into_par_iter().zip(triangle_pieces).enumerate().for_each(|(s, (vs, ts))| {
-        let o = &outputs[s];
-        let out = &arrays[o.worker];
-        vs.copy_from_slice(&out.vertices[o.vertices.clone()]);
-        let resolve =
-            |i: u32| if i & BORROWED == 0 { bases[s] + i } else { bases[s + 1] + (i & !BORROWED) };
-        for (out, t) in ts.iter_mut().zip(&out.triangles[o.triangles.clone()]) {
-            *out = t.map(resolve);
+/// Joins the slabs in order: each slab's vertices are offset by the counts of the slabs
+/// before it, and its references to the layer above by the next slab's offset.
+///
+/// The slabs that the worker of slab 0 ran first, one after another (on one thread: all of
+/// them), are already in mesh order at the start of its arrays: those arrays become the
+/// mesh, their triangles are renumbered in place, and only the other slabs are copied in.
+fn merge<V: SlabVertex>(slabs: &[Slab], mut arrays: Vec<Output<V>>) -> Extracted<V> {
+    let starts = |len: fn(&Slab) -> usize| {
+        let mut at = Vec::with_capacity(slabs.len() + 1);
+        at.push(0);
+        for o in slabs {
+            at.push(at[at.len() - 1] + len(o));
         }
-    });
-    let ambiguous_faces = outputs.iter().map(|o| o.ambiguous_faces).sum();
-    let tunnels = outputs.iter().map(|o| o.tunnels).sum();
-    (vertices, triangles, ambiguous_faces, tunnels)
-}
-
-/// Edge vertex maps for one layer of cubes, in one array of five planes of `nx·ny` slots:
-/// the x- and y-edges of the two sample layers (planes 0–1 and 2–3, which swap roles as
-/// the layer of cubes moves up) and the z-edges between them (plane 4). A cube's edge `e`
-/// is at the cube's cell index plus a per-edge offset that depends only on the layer, so a
-/// lookup is one add and one load. Entries are reset through lists of the slots set, so the
-/// cost of clearing follows the number of vertices, not the size of the layer.
-struct EdgeMaps {
-    nx: usize,
-    layer: usize,
-    slots: Vec<u32>,
-    /// Slots set, per plane pair: `[first layer pair, second layer pair, z]`.
-    set: [Vec<u32>; 3],
-    /// Whether planes 2–3 (rather than 0–1) hold the lower sample layer.
-    flipped: bool,
-    /// Per cube edge: the slot offset from the cube's cell index, and the set list it goes to.
-    offset: [usize; 12],
-    list: [u8; 12],
-}
-
-impl EdgeMaps {
-    fn new(nx: usize, ny: usize) -> Self {
-        let layer = nx * ny;
-        let mut maps = EdgeMaps {
-            nx,
-            layer,
-            slots: vec![NONE; 5 * layer],
-            set: [Vec::new(), Vec::new(), Vec::new()],
-            flipped: false,
-            offset: [0; 12],
-            list: [0; 12],
-        };
-        maps.place_edges();
-        maps
-    }
-
-    /// The first plane of the lower (`upper = false`) or upper sample layer's x/y-edges.
-    fn pair(&self, upper: bool) -> usize {
-        usize::from(upper != self.flipped)
-    }
-
-    fn place_edges(&mut self) {
-        for (e, &[c0, _]) in EDGES.iter().enumerate() {
-            let [dx, dy, dz] = CORNERS[c0];
-            let axis = edge_axis(e);
-            let (plane, list) = if axis == 2 {
-                (4, 2)
-            } else {
-                let pair = self.pair(dz == 1);
-                (2 * pair + axis, pair)
-            };
-            self.offset[e] = plane * self.layer + dx + self.nx * dy;
-            self.list[e] = list as u8;
-        }
-    }
-
-    fn clear(&mut self, list: usize) {
-        for &s in &self.set[list] {
-            self.slots[s as usize] = NONE;
-        }
-        self.set[list].clear();
-    }
-
-    /// Clears every map, for the next slab.
-    fn reset(&mut self) {
-        (0..3).for_each(|l| self.clear(l));
-        self.flipped = false;
-        self.place_edges();
-    }
-
-    /// Moves up one layer: the upper sample layer becomes the lower, the new upper and the
-    /// z-edges are cleared.
-    fn advance(&mut self) {
-        self.clear(self.pair(false));
-        self.clear(2);
-        self.flipped = !self.flipped;
-        self.place_edges();
-    }
+        at
+    };
+    let vertex_at = starts(|o| o.vertices.len());
+    let triangle_at = starts(|o| o.triangles.len());
+    let first = slabs.first().map_or(0, |o| o.worker);
+    let run = slabs
+        .iter()
+        .enumerate()
+        .take_while(|(s, o)| {
+            o.worker == first
+                && o.vertices.start == vertex_at[*s]
+                && o.triangles.start == triangle_at[*s]
+        })
+        .count();
+    let (run_vertices, run_triangles) = (vertex_at[run], triangle_at[run]);
+    let mut mesh = std::mem::take(&mut arrays[first]);
+    // What the first worker made after its run, moved out of the way of the mesh.
+    arrays[first] = Output {
+        vertices: mesh.vertices.split_off(run_vertices),
+        triangles: mesh.triangles.split_off(run_triangles),
+    };
+    let shift = |o: &Slab| if o.worker == first { (run_vertices, run_triangles) } else { (0, 0) };
+    let (vertices, triangles) = (&mut mesh.vertices, &mut mesh.triangles);
+    vertices.resize(vertex_at[slabs.len()], V::default());
+    triangles.resize(triangle_at[slabs.len()], [0; 3]);
+    let vertex_pieces =
+        split_lengths(&mut vertices[run_vertices..], slabs[run..].iter().map(|o| o.vertices.len()));
+    let triangle_pieces = split_lengths(triangles, slabs.iter().map(|o| o.triangles.len()));
+    let bases: Vec<u32> = vertex_at.iter().map(|&v| v as u32).collect();
+    let arrays = &arrays;
+    rayon::join(
+        || {
+            vertex_pieces.into_par_iter().zip(&slabs[run..]).for_each(|(vs, o)| {
+                let (dv, _) = shift(o);
+                vs.copy_from_slice(
+                    &arrays[o.worker].vertices[o.vertices.start - dv..o.vertices.end - dv],
+                );
+            })
+        },
+        || {
+            triangle_pieces.into_par_iter().enumerate().for_each(|(s, ts)| {
+                let (base, next) = (bases[s], bases[s + 1]);
+                if s < run {
+                    ts.iter_mut().for_each(|t| *t = t.map(|i| resolve(i, base, next)));
+                } else {
+                    let o = &slabs[s];
+                    let (_, dt) = shift(o);
+                    let from =
+                        &arrays[o.worker].triangles[o.triangles.start - dt..o.triangles.end - dt];
+                    for (t, f) in ts.iter_mut().zip(from) {
+                        *t = f.map(|i| resolve(i, base, next));
+                    }
+                }
+            })
+        },
+    );
+    let ambiguous_faces = slabs.iter().map(|o| o.ambiguous_faces).sum();
+    let tunnels = slabs.iter().map(|o| o.tunnels).sum();
+    // The arrays grew by doubling; give back what the mesh does not use.
+    mesh.vertices.shrink_to_fit();
+    mesh.triangles.shrink_to_fit();
+    (mesh.vertices, mesh.triangles, ambiguous_faces, tunnels)
 }
 
 /// The bits of word `w` of a row that stand for the items `0..count` of the row (samples,
@@ -602,8 +720,10 @@ fn word_mask(w: usize, count: usize) -> u64 {
     if n == 64 { u64::MAX } else { (1u64 << n) - 1 }
 }
 
-/// Bit `i` of the row words: whether sample `i` of the row is inside (`f < 0`).
-fn row_signs(values: &[f32], out: &mut [u64]) {
+/// Bit `i` of the row words: whether sample `i` of the row is inside (`f < 0`), with
+/// `signs64` for each whole word.
+#[inline(always)]
+fn row_signs(values: &[f32], out: &mut [u64], signs64: impl Fn(&[f32]) -> u64) {
     for (w, chunk) in out.iter_mut().zip(values.chunks(64)) {
         *w = if chunk.len() == 64 { signs64(chunk) } else { signs_scalar(chunk) };
     }
@@ -621,6 +741,7 @@ fn signs_scalar(chunk: &[f32]) -> u64 {
 /// sixteen compares and mask extractions instead of 64 compares, shifts and ors. `v < 0`
 /// exactly as the scalar form (false for −0 and NaN).
 #[cfg(target_arch = "x86_64")]
+#[inline(always)]
 fn signs64(chunk: &[f32]) -> u64 {
     use std::arch::x86_64::{_mm_cmplt_ps, _mm_loadu_ps, _mm_movemask_ps, _mm_setzero_ps};
     assert_eq!(chunk.len(), 64);
@@ -642,10 +763,53 @@ fn signs64(chunk: &[f32]) -> u64 {
     signs_scalar(chunk)
 }
 
+/// Sign words with AVX2 where the CPU has it: eight samples per compare. The sign pass
+/// reads every sample of the volume, so its instruction count matters as much as memory.
+#[cfg(target_arch = "x86_64")]
+mod wide {
+    pub(super) fn available() -> bool {
+        std::arch::is_x86_feature_detected!("avx2")
+    }
+
+    /// [`super::signs64`] eight samples at a time (`_CMP_LT_OQ`: false for NaN and −0, as
+    /// `v < 0`).
+    #[target_feature(enable = "avx2")]
+    fn signs64(chunk: &[f32]) -> u64 {
+        use std::arch::x86_64::{
+            _CMP_LT_OQ, _mm256_cmp_ps, _mm256_loadu_ps, _mm256_movemask_ps, _mm256_setzero_ps,
+        };
+        assert_eq!(chunk.len(), 64);
+        let mut bits = 0u64;
+        for q in 0..8 {
+            // SAFETY: `8 * q + 7 < 64 == chunk.len()` (asserted above), so the unaligned
+            // load reads inside the slice.
+            let v = unsafe { _mm256_loadu_ps(chunk.as_ptr().add(8 * q)) };
+            let m = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(v, _mm256_setzero_ps()));
+            bits |= (m as u32 as u64) << (8 * q);
+        }
+        bits
+    }
+
+    /// # Safety
+    /// The CPU must support AVX2 ([`available`]).
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn layer_signs(layer: &[f32], nx: usize, words: usize, out: &mut [u64]) {
+        for (row, o) in layer.chunks(nx).zip(out.chunks_mut(words)) {
+            super::row_signs(row, o, |c| signs64(c));
+        }
+    }
+}
+
 /// Sign words of every row of layer `k`: `ny` rows of `words` words.
 fn layer_signs(layer: &[f32], nx: usize, words: usize, out: &mut [u64]) {
+    #[cfg(target_arch = "x86_64")]
+    if wide::available() {
+        // SAFETY: AVX2 was detected at run time.
+        unsafe { wide::layer_signs(layer, nx, words, out) };
+        return;
+    }
     for (row, o) in layer.chunks(nx).zip(out.chunks_mut(words)) {
-        row_signs(row, o);
+        row_signs(row, o, signs64);
     }
 }
 
@@ -697,90 +861,107 @@ pub fn surface_cubes(volume: &Volume) -> u64 {
         .sum()
 }
 
+/// Calls `f(i, j, case)` for every cube of a layer of cubes whose corners have both signs,
+/// in row order, given the sign words of the sample layers below and above it.
+#[inline(always)]
+fn for_each_mixed_cube(
+    below: &[u64],
+    above: &[u64],
+    nx: usize,
+    ny: usize,
+    mut f: impl FnMut(usize, usize, usize),
+) {
+    let words = nx.div_ceil(64);
+    for j in 0..ny - 1 {
+        let rows = cube_rows(below, above, j, words);
+        for w in 0..words {
+            // Cubes are i < nx - 1: the last sample's bit and those past it are masked out.
+            let mut mixed = mixed_cubes(&rows, w) & word_mask(w, nx - 1);
+            while mixed != 0 {
+                let i = w * 64 + mixed.trailing_zeros() as usize;
+                mixed &= mixed - 1;
+                let case = two_bits(rows[0], i)
+                    | two_bits(rows[1], i) << 2
+                    | two_bits(rows[2], i) << 4
+                    | two_bits(rows[3], i) << 6;
+                f(i, j, case);
+            }
+        }
+    }
+}
+
 /// Marching cubes over the cube layers `z0..z1`; `vals` holds the sample layers
-/// `z0..=z1` (and possibly more), starting with layer `z0`.
+/// `z0..=z1` (and possibly more), starting with layer `z0`. The slab's vertices and
+/// triangles go to `store`; returns the ambiguous faces decided and the tunnels made.
+///
+/// Flying Edges' way of naming vertices: the crossed edges of each sample layer and
+/// between two layers are numbered by counting sign changes, so a cube finds the vertex on
+/// its edge by a population count, and every edge vertex is made once, in number order,
+/// before the cubes that use it. Order in the slab: the bottom layer's x/y-edges, then per
+/// layer of cubes the x/y-edges of the layer above (unless they are the next slab's), the
+/// z-edges, and the vertices inside the cubes.
 fn extract_slab<V: SlabVertex>(
     grid: &Grid,
     vals: &[f32],
-    z0: usize,
-    z1: usize,
-    worker: &mut Worker<V>,
+    (z0, z1): (usize, usize),
+    scratch: &mut Scratch,
+    store: &mut impl SlabStore<V>,
     control: &Control,
-) -> Result<Slab, Cancelled> {
+) -> Result<(u64, u64), Cancelled> {
     let [nx, ny, nz] = grid.dims;
     let layer = nx * ny;
     let last = z1 == nz - 1;
-    let Worker { index, out, maps, below, above, bottom_numbers, top_numbers, last_sizes, .. } =
-        worker;
-    maps.reset();
+    let Scratch { below, above, lower, upper, z, .. } = scratch;
     let local = |k: usize| &vals[(k - z0) * layer..(k - z0 + 1) * layer];
     let offsets: [usize; 8] = CORNERS.map(|[x, y, z]| x + nx * y + layer * z);
-    // Sign bits of the sample layers below and above the current layer of cubes: a cube has
-    // the surface in it when its eight bits are not all equal, which 64 cubes at a time
-    // reduce to a few word operations; only those cubes are visited.
+    // Sign bits of the sample layers: a cube has the surface in it when its eight bits are
+    // not all equal, which 64 cubes at a time reduce to a few word operations; only those
+    // cubes are visited.
     let words = nx.div_ceil(64);
     layer_signs(local(z0), nx, words, below);
-    bottom_numbers.build(below, nx, ny, words);
-    // Neighbouring slabs of a smooth surface make about as many vertices and triangles. The
-    // bottom layer's vertices come first, at their numbers.
-    make_room(&mut out.vertices, 2 * last_sizes.0);
-    make_room(&mut out.triangles, 2 * last_sizes.1);
-    let (first_vertex, first_triangle) = (out.vertices.len(), out.triangles.len());
-    out.vertices.resize(first_vertex + bottom_numbers.total as usize, V::default());
+    lower.build(below, nx, ny, words);
+    store.begin();
+    lower.offset = 0;
+    lower.emit(grid, local(z0), z0, store);
     let (mut ambiguous_faces, mut tunnels) = (0, 0);
     for k in z0..z1 {
         if control.is_cancelled() {
             return Err(Cancelled);
         }
         layer_signs(local(k + 1), nx, words, above);
+        upper.build(above, nx, ny, words);
         // The x- and y-edges on the slab's top layer belong to the slab above (except for
         // the last slab, which owns the volume's top): refer to them by number.
-        let top_borrows = k + 1 == z1 && !last;
-        if top_borrows {
-            top_numbers.build(above, nx, ny, words);
+        if k + 1 == z1 && !last {
+            upper.offset = BORROWED;
+        } else {
+            upper.offset = store.made();
+            upper.emit(grid, local(k + 1), k + 1, store);
         }
-        for j in 0..ny - 1 {
-            let rows = cube_rows(below, above, j, words);
-            for w in 0..words {
-                // Cubes are i < nx - 1: the last sample's bit and those past it are masked out.
-                let mut mixed = mixed_cubes(&rows, w) & word_mask(w, nx - 1);
-                while mixed != 0 {
-                    let i = w * 64 + mixed.trailing_zeros() as usize;
-                    mixed &= mixed - 1;
-                    let base = nx * j + layer * (k - z0) + i;
-                    let v: [f32; 8] = offsets.map(|o| vals[base + o]);
-                    let case = two_bits(rows[0], i)
-                        | two_bits(rows[1], i) << 2
-                        | two_bits(rows[2], i) << 4
-                        | two_bits(rows[3], i) << 6;
-                    let mut sink = SlabSink {
-                        out: &mut *out,
-                        first_vertex,
-                        maps: &mut *maps,
-                        grid,
-                        at: [i, j, k],
-                        cell: i + nx * j,
-                        bottom: (k == z0).then_some(&*bottom_numbers),
-                        top: top_borrows.then_some(&*top_numbers),
-                    };
-                    let outcome = polygonize_case(case, &v, &mut sink);
-                    ambiguous_faces += outcome.ambiguous_faces as u64;
-                    tunnels += outcome.tunnel as u64;
-                }
-            }
-        }
-        maps.advance();
+        z.build(below, above, nx, words);
+        z.offset = store.made();
+        z.emit(grid, local(k), local(k + 1), k, store);
+        let mut sink = SlabSink {
+            store: &mut *store,
+            lower: &*lower,
+            upper: &*upper,
+            z: &*z,
+            grid,
+            at: [0, 0, k],
+            _vertex: std::marker::PhantomData,
+        };
+        for_each_mixed_cube(below, above, nx, ny, |i, j, case| {
+            let base = nx * j + layer * (k - z0) + i;
+            let v: [f32; 8] = offsets.map(|o| vals[base + o]);
+            sink.at = [i, j, k];
+            let outcome = polygonize_case(case, &v, &mut sink);
+            ambiguous_faces += outcome.ambiguous_faces as u64;
+            tunnels += outcome.tunnel as u64;
+        });
         std::mem::swap(below, above);
+        std::mem::swap(lower, upper);
     }
-    let slab = Slab {
-        worker: *index,
-        vertices: first_vertex..out.vertices.len(),
-        triangles: first_triangle..out.triangles.len(),
-        ambiguous_faces,
-        tunnels,
-    };
-    *last_sizes = (slab.vertices.len(), slab.triangles.len());
-    Ok(slab)
+    Ok((ambiguous_faces, tunnels))
 }
 
 /// Bits `i` and `i + 1` of a row of sign words: the inside flags of a cube's two corners
@@ -793,81 +974,93 @@ fn two_bits(row: &[u64], i: usize) -> usize {
     bits as usize
 }
 
-/// The slab's side of [`CubeSink`]: edge vertices keyed by lattice edge in dense maps.
-struct SlabSink<'a, V> {
-    /// The worker's output, and where the slab's vertices start in it.
-    out: &'a mut Output<V>,
-    first_vertex: usize,
-    maps: &'a mut EdgeMaps,
-    grid: &'a Grid,
-    at: [usize; 3],
-    /// The cube's index within its layer, `i + nx·j`.
-    cell: usize,
-    /// The numbering of the slab's bottom layer, while the cube is on it.
-    bottom: Option<&'a LayerNumbering>,
-    /// The numbering of the slab's top layer, while the cube is under it and its x/y-edges
-    /// belong to the slab above.
-    top: Option<&'a LayerNumbering>,
+/// Where one slab's vertices and triangles go. Vertices are numbered from 0 in the order
+/// they are pushed; triangles come with those slab-local numbers, and `BORROWED | n` for
+/// number `n` of the layer above, that is, of the next slab.
+trait SlabStore<V> {
+    /// Starts a slab.
+    fn begin(&mut self);
+    /// How many vertices the slab has made.
+    fn made(&self) -> u32;
+    fn push_vertex(&mut self, v: V);
+    fn push_triangle(&mut self, t: [u32; 3]);
 }
 
-impl<V> SlabSink<'_, V> {
-    /// Adds a vertex that is not on the bottom layer; its index within the slab.
+/// A slab appended to a worker's growing [`Output`]; [`merge`] places it in the mesh later.
+struct Growing<'a, V> {
+    out: &'a mut Output<V>,
+    /// The sizes of the worker's previous slab: neighbouring slabs of a smooth surface make
+    /// about as many vertices and triangles.
+    hint: (usize, usize),
+    first_vertex: usize,
+}
+
+impl<V: SlabVertex> SlabStore<V> for Growing<'_, V> {
+    fn begin(&mut self) {
+        make_room(&mut self.out.vertices, 2 * self.hint.0);
+        make_room(&mut self.out.triangles, 2 * self.hint.1);
+        self.first_vertex = self.out.vertices.len();
+    }
+
     #[inline]
-    fn push(&mut self, v: V) -> u32 {
+    fn made(&self) -> u32 {
+        (self.out.vertices.len() - self.first_vertex) as u32
+    }
+
+    #[inline]
+    fn push_vertex(&mut self, v: V) {
         self.out.vertices.push(v);
-        (self.out.vertices.len() - self.first_vertex - 1) as u32
+    }
+
+    #[inline]
+    fn push_triangle(&mut self, t: [u32; 3]) {
+        self.out.triangles.push(t);
     }
 }
 
-impl<V: SlabVertex> CubeSink for SlabSink<'_, V> {
+/// The mesh index of slab-local vertex number `i` of a slab whose vertices start at `base`,
+/// the next slab's at `next`.
+#[inline]
+fn resolve(i: u32, base: u32, next: u32) -> u32 {
+    if i & BORROWED == 0 { base + i } else { next + (i & !BORROWED) }
+}
+
+/// The slab's side of [`CubeSink`]: a cube's edge vertices by their numbers.
+struct SlabSink<'a, V, S> {
+    store: &'a mut S,
+    /// The numbered edges of the sample layers below and above the cube, and between them.
+    lower: &'a LayerNumbering,
+    upper: &'a LayerNumbering,
+    z: &'a ZNumbering,
+    grid: &'a Grid,
+    at: [usize; 3],
+    _vertex: std::marker::PhantomData<V>,
+}
+
+impl<V: SlabVertex, S: SlabStore<V>> CubeSink for SlabSink<'_, V, S> {
     #[inline]
-    fn edge_vertex(&mut self, e: usize, ends: [f32; 2]) -> u32 {
-        let slot = self.cell + self.maps.offset[e];
-        let known = self.maps.slots[slot];
-        if known != NONE {
-            return !known;
+    fn edge_vertex(&mut self, e: usize, _: [f32; 2]) -> u32 {
+        // Edge 4·a + u + 2·v runs along axis a at offsets u, v on the other two axes.
+        let [i, j, _] = self.at;
+        let (u, v) = (e & 1, (e >> 1) & 1);
+        let side = if v == 0 { self.lower } else { self.upper };
+        match e >> 2 {
+            0 => side.id(0, i, j + u),
+            1 => side.id(1, i + u, j),
+            _ => self.z.id(i + u, j + v),
         }
-        let [c0, _] = EDGES[e];
-        let [dx, dy, dz] = CORNERS[c0];
-        let axis = edge_axis(e);
-        let [i, j, k] = self.at;
-        let numbering = match (axis, dz) {
-            (2, _) => None,
-            (_, 0) => self.bottom,
-            _ => self.top,
-        };
-        let id = match numbering {
-            Some(top) if dz == 1 => BORROWED | top.number(axis, i + dx, j + dy),
-            _ => {
-                let v = GridVertex {
-                    base: [(i + dx) as u32, (j + dy) as u32, (k + dz) as u32],
-                    place: Place::Edge { dir: 1 << axis, t: crossing(ends[0], ends[1]) },
-                };
-                let v = V::make(self.grid, v, ends);
-                match numbering {
-                    Some(bottom) => {
-                        let n = bottom.number(axis, i + dx, j + dy);
-                        self.out.vertices[self.first_vertex + n as usize] = v;
-                        n
-                    }
-                    None => self.push(v),
-                }
-            }
-        };
-        let maps = &mut *self.maps;
-        maps.slots[slot] = !id;
-        maps.set[maps.list[e] as usize].push(slot as u32);
-        id
     }
 
     fn cell_vertex(&mut self, offset: [f64; 3]) -> u32 {
         let [i, j, k] = self.at;
         let v = GridVertex { base: [i as u32, j as u32, k as u32], place: Place::Cell { offset } };
-        self.push(V::make(self.grid, v, [0.0; 2]))
+        let id = self.store.made();
+        self.store.push_vertex(V::make(self.grid, v, [0.0; 2]));
+        id
     }
 
     fn triangle(&mut self, t: [u32; 3]) {
-        self.out.triangles.push(t);
+        self.store.push_triangle(t);
     }
 }
 
@@ -886,6 +1079,30 @@ mod tests {
                 if v.abs() < 0.05 { 0.0 } else { v }
             })
             .collect()
+    }
+
+    /// The vector sign words (AVX2 where the CPU has it, else SSE2) say `v < 0` exactly as
+    /// the scalar form, for rows that end mid-word and for −0, NaN and infinities.
+    #[test]
+    fn sign_words_match_the_scalar_test() {
+        let (nx, ny) = (141, 3);
+        let mut values = noise(nx * ny, 3);
+        for (i, v) in [-0.0, f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -f32::MIN_POSITIVE]
+            .into_iter()
+            .enumerate()
+        {
+            values[17 * i + 5] = v;
+        }
+        let words = nx.div_ceil(64);
+        let mut signs = vec![0; ny * words];
+        layer_signs(&values, nx, words, &mut signs);
+        for j in 0..ny {
+            for w in 0..words {
+                let row = &values[j * nx..(j + 1) * nx];
+                let chunk = &row[64 * w..(64 * w + 64).min(nx)];
+                assert_eq!(signs[j * words + w], signs_scalar(chunk), "row {j}, word {w}");
+            }
+        }
     }
 
     #[test]

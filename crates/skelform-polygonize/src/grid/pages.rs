@@ -4,22 +4,14 @@
 //! 4 KiB page costs a page fault: on the virtual machines these benchmarks run on, about 3 µs,
 //! which for the megabytes of a 256³ extraction is a fifth of the time. Asking the kernel for
 //! 2 MiB pages on such arrays (`madvise(MADV_HUGEPAGE)`, honoured where transparent huge pages
-//! are set to `madvise` or `always`) makes the same memory cost a few faults. Elsewhere this
-//! is a plain zeroed vector.
+//! are set to `madvise` or `always`) makes the same memory cost a few faults. Elsewhere the
+//! advice is skipped.
 
 /// Huge pages are 2 MiB on x86-64 and on most aarch64 kernels.
 const HUGE: usize = 2 << 20;
 
 /// Room worth keeping ahead in a growing output array: a few huge pages.
 pub(crate) const ROOM: usize = 4 * HUGE;
-
-/// `len` copies of `T::default()` (all-zero bits, so the allocator hands out fresh,
-/// untouched pages for large sizes), with the kernel asked to back the array with huge pages.
-pub(crate) fn zeroed_vec<T: Default + Clone>(len: usize) -> Vec<T> {
-    let mut v = vec![T::default(); len];
-    advise_huge(&mut v);
-    v
-}
 
 /// Asks for huge pages on the 2 MiB-aligned part of `v`'s memory; pages already touched stay
 /// as they are. A hint: failure changes nothing but speed.
