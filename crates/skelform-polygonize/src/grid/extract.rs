@@ -624,6 +624,29 @@ pub fn extract_streamed<V: SlabVertex, S: LayerSource>(
     Ok(Streamed { vertices, triangles, stats })
 }
 
+/// Appends `pieces` to `out` in order, element `x` of piece `s` as `map(s, x)`, each piece
+/// written to its place by its own task, into memory no one has touched: with no pass that
+/// fills the new length first (as `resize` would, on one thread), new pages are faulted in
+/// by all threads.
+fn append_pieces<T: Copy + Send + Sync>(
+    out: &mut Vec<T>,
+    pieces: &[&[T]],
+    map: impl Fn(usize, &T) -> T + Sync,
+) {
+    let (len, extra) = (out.len(), pieces.iter().map(|p| p.len()).sum::<usize>());
+    out.reserve_exact(extra);
+    let targets =
+        split_lengths(&mut out.spare_capacity_mut()[..extra], pieces.iter().map(|p| p.len()));
+    targets.into_par_iter().zip(pieces).enumerate().for_each(|(s, (to, from))| {
+        for (t, x) in to.iter_mut().zip(from.iter()) {
+            t.write(map(s, x));
+        }
+    });
+    // SAFETY: the targets are consecutive, as long as the pieces (which sum to `extra`), so
+    // they cover the first `extra` elements past `len` exactly, and each was written above.
+    unsafe { out.set_len(len + extra) };
+}
+
 /// Cuts `all` into consecutive pieces of the given lengths.
 fn split_lengths<T>(mut all: &mut [T], lengths: impl Iterator<Item = usize>) -> Vec<&mut [T]> {
     let mut pieces = Vec::new();
@@ -663,47 +686,43 @@ fn merge<V: SlabVertex>(slabs: &[Slab], mut arrays: Vec<Output<V>>) -> Extracted
         })
         .count();
     let (run_vertices, run_triangles) = (vertex_at[run], triangle_at[run]);
-    let mut mesh = std::mem::take(&mut arrays[first]);
-    // What the first worker made after its run, moved out of the way of the mesh.
+    let Output { mut vertices, mut triangles } = std::mem::take(&mut arrays[first]);
+    // What the first worker made after its run, moved out of the way of the mesh (in
+    // parallel: it can be a quarter of the mesh).
     arrays[first] = Output {
-        vertices: mesh.vertices.split_off(run_vertices),
-        triangles: mesh.triangles.split_off(run_triangles),
+        vertices: vertices[run_vertices..].par_iter().copied().collect(),
+        triangles: triangles[run_triangles..].par_iter().copied().collect(),
     };
-    let shift = |o: &Slab| if o.worker == first { (run_vertices, run_triangles) } else { (0, 0) };
-    let (vertices, triangles) = (&mut mesh.vertices, &mut mesh.triangles);
-    vertices.resize(vertex_at[slabs.len()], V::default());
-    triangles.resize(triangle_at[slabs.len()], [0; 3]);
-    let vertex_pieces =
-        split_lengths(&mut vertices[run_vertices..], slabs[run..].iter().map(|o| o.vertices.len()));
-    let triangle_pieces = split_lengths(triangles, slabs.iter().map(|o| o.triangles.len()));
+    vertices.truncate(run_vertices);
+    triangles.truncate(run_triangles);
     let bases: Vec<u32> = vertex_at.iter().map(|&v| v as u32).collect();
-    let arrays = &arrays;
-    rayon::join(
-        || {
-            vertex_pieces.into_par_iter().zip(&slabs[run..]).for_each(|(vs, o)| {
-                let (dv, _) = shift(o);
-                vs.copy_from_slice(
-                    &arrays[o.worker].vertices[o.vertices.start - dv..o.vertices.end - dv],
-                );
-            })
-        },
-        || {
-            triangle_pieces.into_par_iter().enumerate().for_each(|(s, ts)| {
-                let (base, next) = (bases[s], bases[s + 1]);
-                if s < run {
-                    ts.iter_mut().for_each(|t| *t = t.map(|i| resolve(i, base, next)));
-                } else {
-                    let o = &slabs[s];
-                    let (_, dt) = shift(o);
-                    let from =
-                        &arrays[o.worker].triangles[o.triangles.start - dt..o.triangles.end - dt];
-                    for (t, f) in ts.iter_mut().zip(from) {
-                        *t = f.map(|i| resolve(i, base, next));
-                    }
-                }
-            })
-        },
-    );
+    let (run_part, rest) = slabs.split_at(run);
+    // The run's triangles get their mesh indices in place.
+    let pieces = split_lengths(&mut triangles[..], run_part.iter().map(|o| o.triangles.len()));
+    pieces.into_par_iter().enumerate().for_each(|(s, ts)| {
+        let (base, next) = (bases[s], bases[s + 1]);
+        ts.iter_mut().for_each(|t| *t = t.map(|i| resolve(i, base, next)));
+    });
+    // The other slabs are copied in behind the run.
+    let shift = |o: &Slab| if o.worker == first { (run_vertices, run_triangles) } else { (0, 0) };
+    let vertex_pieces: Vec<&[V]> = rest
+        .iter()
+        .map(|o| {
+            &arrays[o.worker].vertices[o.vertices.start - shift(o).0..o.vertices.end - shift(o).0]
+        })
+        .collect();
+    let triangle_pieces: Vec<&[[u32; 3]]> = rest
+        .iter()
+        .map(|o| {
+            &arrays[o.worker].triangles
+                [o.triangles.start - shift(o).1..o.triangles.end - shift(o).1]
+        })
+        .collect();
+    append_pieces(&mut vertices, &vertex_pieces, |_, v| *v);
+    append_pieces(&mut triangles, &triangle_pieces, |s, t| {
+        t.map(|i| resolve(i, bases[run + s], bases[run + s + 1]))
+    });
+    let mut mesh = Output { vertices, triangles };
     let ambiguous_faces = slabs.iter().map(|o| o.ambiguous_faces).sum();
     let tunnels = slabs.iter().map(|o| o.tunnels).sum();
     // The arrays grew by doubling; give back what the mesh does not use.
