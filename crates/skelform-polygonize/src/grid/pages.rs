@@ -10,8 +10,10 @@
 /// Huge pages are 2 MiB on x86-64 and on most aarch64 kernels.
 const HUGE: usize = 2 << 20;
 
-/// Room worth keeping ahead in a growing output array: a few huge pages.
-pub(crate) const ROOM: usize = 4 * HUGE;
+/// Room worth keeping ahead in a growing output array: sixteen huge pages. Only what is
+/// written costs memory; the more room, the smaller the share of the array before its first
+/// huge-page boundary, which is made of small pages, each its own fault.
+pub(crate) const ROOM: usize = 16 * HUGE;
 
 /// Asks for huge pages on the 2 MiB-aligned part of `v`'s memory; pages already touched stay
 /// as they are. A hint: failure changes nothing but speed.
