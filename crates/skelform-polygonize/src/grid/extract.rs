@@ -11,6 +11,7 @@
 //! boundaries depend only on the grid, never on the thread count, so the output is the same
 //! bit for bit on any number of threads.
 
+use std::mem::MaybeUninit;
 use std::ops::{ControlFlow, Range};
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -624,26 +625,23 @@ pub fn extract_streamed<V: SlabVertex, S: LayerSource>(
     Ok(Streamed { vertices, triangles, stats })
 }
 
-/// Appends `pieces` to `out` in order, element `x` of piece `s` as `map(s, x)`, each piece
-/// written to its place by its own task, into memory no one has touched: with no pass that
-/// fills the new length first (as `resize` would, on one thread), new pages are faulted in
-/// by all threads.
+/// Appends `pieces` to `out` in order, each written to its place by `fill(s, piece, place)`
+/// in its own task, into memory no one has touched: with no pass that fills the new length
+/// first (as `resize` would, on one thread), all threads share the copying and the first
+/// touches of the new pages.
 fn append_pieces<T: Copy + Send + Sync>(
     out: &mut Vec<T>,
     pieces: &[&[T]],
-    map: impl Fn(usize, &T) -> T + Sync,
+    fill: impl Fn(usize, &[T], &mut [MaybeUninit<T>]) + Sync,
 ) {
     let (len, extra) = (out.len(), pieces.iter().map(|p| p.len()).sum::<usize>());
     out.reserve_exact(extra);
     let targets =
         split_lengths(&mut out.spare_capacity_mut()[..extra], pieces.iter().map(|p| p.len()));
-    targets.into_par_iter().zip(pieces).enumerate().for_each(|(s, (to, from))| {
-        for (t, x) in to.iter_mut().zip(from.iter()) {
-            t.write(map(s, x));
-        }
-    });
+    targets.into_par_iter().zip(pieces).enumerate().for_each(|(s, (to, from))| fill(s, from, to));
     // SAFETY: the targets are consecutive, as long as the pieces (which sum to `extra`), so
-    // they cover the first `extra` elements past `len` exactly, and each was written above.
+    // they cover the first `extra` elements past `len` exactly, and `fill` writes every
+    // element of its target (both callers below do).
     unsafe { out.set_len(len + extra) };
 }
 
@@ -718,9 +716,14 @@ fn merge<V: SlabVertex>(slabs: &[Slab], mut arrays: Vec<Output<V>>) -> Extracted
                 [o.triangles.start - shift(o).1..o.triangles.end - shift(o).1]
         })
         .collect();
-    append_pieces(&mut vertices, &vertex_pieces, |_, v| *v);
-    append_pieces(&mut triangles, &triangle_pieces, |s, t| {
-        t.map(|i| resolve(i, bases[run + s], bases[run + s + 1]))
+    append_pieces(&mut vertices, &vertex_pieces, |_, from, to| {
+        to.write_copy_of_slice(from);
+    });
+    append_pieces(&mut triangles, &triangle_pieces, |s, from, to| {
+        let (base, next) = (bases[run + s], bases[run + s + 1]);
+        for (t, x) in to.iter_mut().zip(from) {
+            t.write(x.map(|i| resolve(i, base, next)));
+        }
     });
     let mut mesh = Output { vertices, triangles };
     let ambiguous_faces = slabs.iter().map(|o| o.ambiguous_faces).sum();
