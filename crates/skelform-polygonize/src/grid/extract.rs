@@ -717,7 +717,9 @@ fn merge<V: SlabVertex>(slabs: &[Slab], mut arrays: Vec<Output<V>>) -> Extracted
         })
         .collect();
     append_pieces(&mut vertices, &vertex_pieces, |_, from, to| {
-        to.write_copy_of_slice(from);
+        for (t, x) in to.iter_mut().zip(from) {
+            t.write(*x);
+        }
     });
     append_pieces(&mut triangles, &triangle_pieces, |s, from, to| {
         let (base, next) = (bases[run + s], bases[run + s + 1]);
@@ -795,18 +797,23 @@ mod wide {
 
     /// [`super::signs64`] eight samples at a time (`_CMP_LT_OQ`: false for NaN and −0, as
     /// `v < 0`).
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 ([`available`]).
     #[target_feature(enable = "avx2")]
-    fn signs64(chunk: &[f32]) -> u64 {
+    unsafe fn signs64(chunk: &[f32]) -> u64 {
         use std::arch::x86_64::{
             _CMP_LT_OQ, _mm256_cmp_ps, _mm256_loadu_ps, _mm256_movemask_ps, _mm256_setzero_ps,
         };
         assert_eq!(chunk.len(), 64);
         let mut bits = 0u64;
         for q in 0..8 {
-            // SAFETY: `8 * q + 7 < 64 == chunk.len()` (asserted above), so the unaligned
-            // load reads inside the slice.
-            let v = unsafe { _mm256_loadu_ps(chunk.as_ptr().add(8 * q)) };
-            let m = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(v, _mm256_setzero_ps()));
+            // SAFETY: AVX2 is there (the caller's promise), and `8 * q + 7 < 64 ==
+            // chunk.len()` (asserted above), so the unaligned load reads inside the slice.
+            let m = unsafe {
+                let v = _mm256_loadu_ps(chunk.as_ptr().add(8 * q));
+                _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(v, _mm256_setzero_ps()))
+            };
             bits |= (m as u32 as u64) << (8 * q);
         }
         bits
@@ -817,7 +824,8 @@ mod wide {
     #[target_feature(enable = "avx2")]
     pub(super) unsafe fn layer_signs(layer: &[f32], nx: usize, words: usize, out: &mut [u64]) {
         for (row, o) in layer.chunks(nx).zip(out.chunks_mut(words)) {
-            super::row_signs(row, o, |c| signs64(c));
+            // SAFETY: AVX2 is there: the caller's promise.
+            super::row_signs(row, o, |c| unsafe { signs64(c) });
         }
     }
 }
