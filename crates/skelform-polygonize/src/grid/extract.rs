@@ -358,9 +358,8 @@ struct Worker<V> {
     scratch: Scratch,
 }
 
-/// A worker's working memory, reused for every slab it runs: the edge maps (cleared through
-/// their lists of set slots, never reallocated), the sign words and edge numberings of the
-/// layers it works on, and the sample layers of a streamed slab.
+/// A worker's working memory, reused for every slab it runs: the sign words and edge
+/// numberings of the layers it works on, and the sample layers of a streamed slab.
 struct Scratch {
     /// Sign words of the sample layers below and above the current layer of cubes.
     below: Vec<u64>,
@@ -393,8 +392,8 @@ impl<V> Worker<V> {
 }
 
 /// One [`Worker`] per thread of the pool, kept for the whole extraction. (Rayon's
-/// `map_init` makes one per job, and with a job per slab that would be new edge maps, and
-/// new pages to fault in, for every slab.)
+/// `map_init` makes one per job, and with a job per slab that would be new output arrays,
+/// and new pages to fault in, for every slab.)
 struct Workers<V> {
     nx: usize,
     ny: usize,
