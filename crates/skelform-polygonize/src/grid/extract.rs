@@ -702,19 +702,16 @@ fn merge<V: SlabVertex>(slabs: &[Slab], mut arrays: Vec<Output<V>>) -> Extracted
     });
     // The other slabs are copied in behind the run.
     let shift = |o: &Slab| if o.worker == first { (run_vertices, run_triangles) } else { (0, 0) };
-    let vertex_pieces: Vec<&[V]> = rest
+    let (vertex_pieces, triangle_pieces): (Vec<&[V]>, Vec<&[[u32; 3]]>) = rest
         .iter()
         .map(|o| {
-            &arrays[o.worker].vertices[o.vertices.start - shift(o).0..o.vertices.end - shift(o).0]
+            let ((dv, dt), from) = (shift(o), &arrays[o.worker]);
+            (
+                &from.vertices[o.vertices.start - dv..o.vertices.end - dv],
+                &from.triangles[o.triangles.start - dt..o.triangles.end - dt],
+            )
         })
-        .collect();
-    let triangle_pieces: Vec<&[[u32; 3]]> = rest
-        .iter()
-        .map(|o| {
-            &arrays[o.worker].triangles
-                [o.triangles.start - shift(o).1..o.triangles.end - shift(o).1]
-        })
-        .collect();
+        .unzip();
     append_pieces(&mut vertices, &vertex_pieces, |_, from, to| {
         for (t, x) in to.iter_mut().zip(from) {
             t.write(*x);
@@ -726,13 +723,12 @@ fn merge<V: SlabVertex>(slabs: &[Slab], mut arrays: Vec<Output<V>>) -> Extracted
             t.write(x.map(|i| resolve(i, base, next)));
         }
     });
-    let mut mesh = Output { vertices, triangles };
+    // The arrays grew by doubling; give back what the mesh does not use.
+    vertices.shrink_to_fit();
+    triangles.shrink_to_fit();
     let ambiguous_faces = slabs.iter().map(|o| o.ambiguous_faces).sum();
     let tunnels = slabs.iter().map(|o| o.tunnels).sum();
-    // The arrays grew by doubling; give back what the mesh does not use.
-    mesh.vertices.shrink_to_fit();
-    mesh.triangles.shrink_to_fit();
-    (mesh.vertices, mesh.triangles, ambiguous_faces, tunnels)
+    (vertices, triangles, ambiguous_faces, tunnels)
 }
 
 /// The bits of word `w` of a row that stand for the items `0..count` of the row (samples,
