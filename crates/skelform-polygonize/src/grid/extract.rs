@@ -224,13 +224,7 @@ impl LayerNumbering {
             }
             if j + 1 < ny {
                 let up = &signs[(j + 1) * words..][..words];
-                let ys = &mut self.y[j * words..][..words];
-                for w in 0..words {
-                    let mask = if w + 1 < words { u64::MAX } else { y_last };
-                    let bits = (row[w] ^ up[w]) & mask;
-                    ys[w] = Counted { bits, before: count };
-                    count += bits.count_ones();
-                }
+                count_across(row, up, y_last, &mut self.y[j * words..][..words], &mut count);
             }
         }
         self.total = count;
@@ -292,11 +286,9 @@ impl ZNumbering {
         self.edges.resize(lower.len(), Counted::default());
         let last = word_mask(words - 1, nx);
         let mut count = 0u32;
-        for (at, z) in self.edges.iter_mut().enumerate() {
-            let mask = if at % words + 1 < words { u64::MAX } else { last };
-            let bits = (lower[at] ^ upper[at]) & mask;
-            *z = Counted { bits, before: count };
-            count += bits.count_ones();
+        let rows = lower.chunks_exact(words).zip(upper.chunks_exact(words));
+        for ((a, b), out) in rows.zip(self.edges.chunks_exact_mut(words)) {
+            count_across(a, b, last, out, &mut count);
         }
     }
 
@@ -322,6 +314,20 @@ impl ZNumbering {
                 store.push_vertex(edge_record(grid, [i, j, k], 2, [lower[at], upper[at]]));
             });
         }
+    }
+}
+
+/// Numbers the crossed edges from each sample of row `a` to the same sample of row `b` (the
+/// next row, or the row above in the next layer) into `out`, continuing from `count`; `last`
+/// masks the samples past the row's end in its last word.
+#[inline]
+fn count_across(a: &[u64], b: &[u64], last: u64, out: &mut [Counted], count: &mut u32) {
+    let words = out.len();
+    for (w, o) in out.iter_mut().enumerate() {
+        let mask = if w + 1 < words { u64::MAX } else { last };
+        let bits = (a[w] ^ b[w]) & mask;
+        *o = Counted { bits, before: *count };
+        *count += bits.count_ones();
     }
 }
 
