@@ -1,4 +1,4 @@
-//! Marching cubes over a sampled [`Volume`], in parallel z-slabs with a deterministic merge.
+//! Marching cubes over a sampled [`Volume`], in parallel z-slabs joined in a fixed order.
 //!
 //! Vertices are named as in Flying Edges: the crossed edges of each sample layer, and those
 //! between two layers, are numbered in a fixed order computed from the layers' sign bits
@@ -6,19 +6,21 @@
 //! population count, with no map to look it up in, and each edge vertex is made once, in
 //! number order. Each slab owns the edge vertices on its own sample layers (the last slab
 //! also owns the top layer); the slab below refers to the layer it shares with the slab
-//! above by those numbers. The merge offsets each slab's vertices by the counts of the
-//! slabs before it, and a reference to the layer above by the next slab's offset. Slab
-//! boundaries depend only on the grid, never on the thread count, so the output is the same
-//! bit for bit on any number of threads.
+//! above by those numbers, which land on the next slab's first vertices. The mesh is the
+//! slabs in order ([`run_slabs`]), each placed as soon as the slabs below it are counted.
+//! Slab boundaries depend only on the grid, never on the thread count, so the output is the
+//! same bit for bit on any number of threads.
 
-use std::mem::MaybeUninit;
-use std::ops::{ControlFlow, Range};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::ops::ControlFlow;
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 
 use rayon::prelude::*;
+
 use skelform_field::control::{Control, Progress};
 use skelform_field::grid::{Grid, Volume};
 
+use super::assembly::Assembly;
 use super::cell::{CubeSink, crossing, polygonize_case};
 use super::cube::CORNERS;
 
@@ -132,30 +134,12 @@ impl Default for GridVertex {
     }
 }
 
-/// Where one slab's part of the mesh is: ranges of the output arrays of the worker that ran
-/// it. Its first vertices are those of its bottom layer's crossed x- and y-edges, at their
-/// [`LayerNumbering`] numbers; its triangles index its vertices from 0, and `BORROWED | n` is
-/// number `n` of the layer above, that is, a vertex of the next slab.
-struct Slab {
-    worker: usize,
-    vertices: Range<usize>,
-    triangles: Range<usize>,
-    ambiguous_faces: u64,
-    tunnels: u64,
-}
-
-/// A worker's output: the vertices and triangles of every slab it ran, one slab after
-/// another, in arrays that grow by doubling and are backed by huge pages where the system
-/// allows ([`super::pages`]), so that fresh output memory costs few page faults.
+/// Vertices and triangles, appended to by [`SlabStore`]: the mesh itself when one thread
+/// runs every slab, else a thread's buffer for the slab it is running.
+#[derive(Default)]
 struct Output<V> {
     vertices: Vec<V>,
     triangles: Vec<[u32; 3]>,
-}
-
-impl<V> Default for Output<V> {
-    fn default() -> Self {
-        Output { vertices: Vec::new(), triangles: Vec::new() }
-    }
 }
 
 /// Makes room for at least `more` elements past the end of `v`, and for a few huge pages'
@@ -197,8 +181,8 @@ struct LayerNumbering {
     x: Vec<Counted>,
     y: Vec<Counted>,
     total: u32,
-    /// The slab-local number of the layer's first vertex, or [`BORROWED`] when the layer's
-    /// vertices are the next slab's.
+    /// The number of the layer's first vertex in its slab's output, or [`BORROWED`] when
+    /// the layer's vertices are the next slab's.
     offset: u32,
 }
 
@@ -230,7 +214,7 @@ impl LayerNumbering {
         self.total = count;
     }
 
-    /// The slab-local number (or `BORROWED |` number) of the crossed x (`axis` 0) or y edge
+    /// The output number (or `BORROWED |` number) of the crossed x (`axis` 0) or y edge
     /// from sample `(i, j)`.
     #[inline]
     fn id(&self, axis: usize, i: usize, j: usize) -> u32 {
@@ -244,7 +228,7 @@ impl LayerNumbering {
         grid: &Grid,
         vals: &[f32],
         k: usize,
-        store: &mut impl SlabStore<V>,
+        store: &mut SlabStore<'_, V>,
     ) {
         let [nx, ny, _] = grid.dims;
         for j in 0..ny {
@@ -276,7 +260,7 @@ impl LayerNumbering {
 struct ZNumbering {
     words: usize,
     edges: Vec<Counted>,
-    /// The slab-local number of the first of them.
+    /// The output number of the first of them.
     offset: u32,
 }
 
@@ -305,7 +289,7 @@ impl ZNumbering {
         lower: &[f32],
         upper: &[f32],
         k: usize,
-        store: &mut impl SlabStore<V>,
+        store: &mut SlabStore<'_, V>,
     ) {
         let nx = grid.dims[0];
         for (j, row) in self.edges.chunks(self.words).enumerate() {
@@ -354,17 +338,7 @@ fn edge_record<V: SlabVertex>(grid: &Grid, base: [usize; 3], axis: usize, ends: 
     V::make(grid, v, ends)
 }
 
-/// What a worker keeps from one slab to the next: its output arrays, the previous slab's
-/// output sizes, to reserve, and its [`Scratch`].
-struct Worker<V> {
-    /// The worker's index among the pool's, which [`Slab::worker`] refers to.
-    index: usize,
-    out: Output<V>,
-    last_sizes: (usize, usize),
-    scratch: Scratch,
-}
-
-/// A worker's working memory, reused for every slab it runs: the sign words and edge
+/// A thread's working memory, reused for every slab it runs: the sign words and edge
 /// numberings of the layers it works on, and the sample layers of a streamed slab.
 struct Scratch {
     /// Sign words of the sample layers below and above the current layer of cubes.
@@ -378,55 +352,17 @@ struct Scratch {
     layers: Vec<f32>,
 }
 
-impl<V> Worker<V> {
-    fn new(index: usize, nx: usize, ny: usize) -> Self {
-        let words = nx.div_ceil(64);
-        Worker {
-            index,
-            out: Output::default(),
-            last_sizes: (0, 0),
-            scratch: Scratch {
-                below: vec![0; ny * words],
-                above: vec![0; ny * words],
-                lower: LayerNumbering::default(),
-                upper: LayerNumbering::default(),
-                z: ZNumbering::default(),
-                layers: Vec::new(),
-            },
-        }
-    }
-}
-
-/// One [`Worker`] per thread of the pool, kept for the whole extraction. (Rayon's
-/// `map_init` makes one per job, and with a job per slab that would be new output arrays,
-/// and new pages to fault in, for every slab.)
-struct Workers<V> {
-    nx: usize,
-    ny: usize,
-    slots: Vec<std::sync::Mutex<Option<Worker<V>>>>,
-}
-
-impl<V> Workers<V> {
-    /// For the current pool (call it inside the pool that runs the slabs).
+impl Scratch {
     fn new(nx: usize, ny: usize) -> Self {
-        let slots = (0..rayon::current_num_threads()).map(|_| Default::default()).collect();
-        Workers { nx, ny, slots }
-    }
-
-    /// Runs `f` with the calling thread's worker. Each thread has its own slot, so the lock
-    /// is never contended.
-    fn with<R>(&self, f: impl FnOnce(&mut Worker<V>) -> R) -> R {
-        let i = rayon::current_thread_index().unwrap_or(0) % self.slots.len();
-        let mut slot = self.slots[i].lock().unwrap_or_else(|e| e.into_inner());
-        f(slot.get_or_insert_with(|| Worker::new(i, self.nx, self.ny)))
-    }
-
-    /// The workers' outputs, by index.
-    fn into_outputs(self) -> Vec<Output<V>> {
-        let worker = |m: std::sync::Mutex<Option<Worker<V>>>| {
-            m.into_inner().unwrap_or_else(|e| e.into_inner())
-        };
-        self.slots.into_iter().map(|m| worker(m).map(|w| w.out).unwrap_or_default()).collect()
+        let words = nx.div_ceil(64);
+        Scratch {
+            below: vec![0; ny * words],
+            above: vec![0; ny * words],
+            lower: LayerNumbering::default(),
+            upper: LayerNumbering::default(),
+            z: ZNumbering::default(),
+            layers: Vec::new(),
+        }
     }
 }
 
@@ -464,23 +400,17 @@ fn extract_as<V: SlabVertex>(
     let grid = volume.grid;
     let [nx, ny, _] = grid.dims;
     let cube_layers = grid.dims[2] - 1;
-    let slabs = cube_layers.div_ceil(SLAB);
     let done = AtomicU64::new(0);
-    let workers = Workers::new(nx, ny);
-    let outputs: Vec<Slab> = (0..slabs)
-        .into_par_iter()
-        .with_max_len(1)
-        .map(|s| {
-            workers.with(|worker| {
-                let z0 = s * SLAB;
-                let z1 = (z0 + SLAB).min(cube_layers);
-                let vals = &volume.values[z0 * nx * ny..];
-                let slab = extract_grown(&grid, vals, (z0, z1), worker, control)?;
-                slab_done(control, &done, z1 - z0, cube_layers, "extracting").map(|()| slab)
-            })
-        })
-        .collect::<Result<_, _>>()?;
-    Ok(merge(&outputs, workers.into_outputs()))
+    let (vertices, triangles, counts) =
+        run_slabs(cube_layers.div_ceil(SLAB), [nx, ny], |s, scratch, store| {
+            let z0 = s * SLAB;
+            let z1 = (z0 + SLAB).min(cube_layers);
+            let vals = &volume.values[z0 * nx * ny..];
+            let counts = extract_slab(&grid, vals, (z0, z1), scratch, store, control)?;
+            slab_done(control, &done, z1 - z0, cube_layers, "extracting").map(|()| counts)
+        })?;
+    let (ambiguous_faces, tunnels) = counts.iter().fold((0, 0), |(a, t), c| (a + c.0, t + c.1));
+    Ok((vertices, triangles, ambiguous_faces, tunnels))
 }
 
 /// Adds a slab's `layers` cube layers to the progress count and reports it.
@@ -496,29 +426,6 @@ fn slab_done(
         ControlFlow::Continue(()) => Ok(()),
         ControlFlow::Break(()) => Err(Cancelled),
     }
-}
-
-/// [`extract_slab`] appending to the worker's own output arrays, for [`merge`].
-fn extract_grown<V: SlabVertex>(
-    grid: &Grid,
-    vals: &[f32],
-    (z0, z1): (usize, usize),
-    worker: &mut Worker<V>,
-    control: &Control,
-) -> Result<Slab, Cancelled> {
-    let first_triangle = worker.out.triangles.len();
-    let mut store = Growing { out: &mut worker.out, hint: worker.last_sizes, first_vertex: 0 };
-    let (ambiguous_faces, tunnels) =
-        extract_slab(grid, vals, (z0, z1), &mut worker.scratch, &mut store, control)?;
-    let slab = Slab {
-        worker: worker.index,
-        vertices: store.first_vertex..worker.out.vertices.len(),
-        triangles: first_triangle..worker.out.triangles.len(),
-        ambiguous_faces,
-        tunnels,
-    };
-    worker.last_sizes = (slab.vertices.len(), slab.triangles.len());
-    Ok(slab)
 }
 
 /// Where streamed extraction gets its samples from, one `z` layer at a time (`nx·ny` values,
@@ -569,172 +476,206 @@ pub fn extract_streamed<V: SlabVertex, S: LayerSource>(
     let cube_layers = nz - 1;
     let slabs = cube_layers.div_ceil(SLAB);
     let done = AtomicU64::new(0);
-    type Part = (Slab, u64, (f32, f32), std::time::Duration, std::time::Duration);
-    let workers = Workers::new(nx, ny);
-    let outputs: Vec<Part> = (0..slabs)
-        .into_par_iter()
-        .with_max_len(1)
-        .map(|s| {
-            workers.with(|worker| {
-                let z0 = s * SLAB;
-                let z1 = (z0 + SLAB).min(cube_layers);
-                let last = z1 == cube_layers;
-                let t = Instant::now();
-                let mut layers = std::mem::take(&mut worker.scratch.layers);
-                layers.resize((z1 - z0 + 1) * layer, 0.0);
-                let mut non_finite = 0;
-                for (n, out) in layers.chunks_mut(layer).enumerate() {
-                    if control.is_cancelled() {
-                        return Err(StreamError::Cancelled);
-                    }
-                    let bad = source.layer(z0 + n, out).map_err(StreamError::Source)?;
-                    // The top layer is counted by the slab above, unless there is none.
-                    if z0 + n < z1 || last {
-                        non_finite += bad;
-                    }
+    type Part = ((u64, u64), u64, (f32, f32), std::time::Duration, std::time::Duration);
+    let (vertices, triangles, parts) =
+        run_slabs(slabs, [nx, ny], |s, scratch, store| -> Result<Part, _> {
+            let z0 = s * SLAB;
+            let z1 = (z0 + SLAB).min(cube_layers);
+            let last = z1 == cube_layers;
+            let t = Instant::now();
+            let mut layers = std::mem::take(&mut scratch.layers);
+            layers.resize((z1 - z0 + 1) * layer, 0.0);
+            let mut non_finite = 0;
+            for (n, out) in layers.chunks_mut(layer).enumerate() {
+                if control.is_cancelled() {
+                    return Err(StreamError::Cancelled);
                 }
-                let range =
-                    layers.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
-                        (lo.min(v), hi.max(v))
-                    });
-                let sourced = t.elapsed();
-                let t = Instant::now();
-                let slab = extract_grown(grid, &layers, (z0, z1), worker, control)
-                    .map_err(|_| StreamError::Cancelled)?;
-                worker.scratch.layers = layers;
-                let extracted = t.elapsed();
-                slab_done(control, &done, z1 - z0, cube_layers, "sampling and extracting")
-                    .map_err(|_| StreamError::Cancelled)?;
-                Ok((slab, non_finite, range, sourced, extracted))
-            })
-        })
-        .collect::<Result<_, _>>()?;
+                let bad = source.layer(z0 + n, out).map_err(StreamError::Source)?;
+                // The top layer is counted by the slab above, unless there is none.
+                if z0 + n < z1 || last {
+                    non_finite += bad;
+                }
+            }
+            let range = layers
+                .iter()
+                .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+            let sourced = t.elapsed();
+            let t = Instant::now();
+            let counts = extract_slab(grid, &layers, (z0, z1), scratch, store, control)
+                .map_err(|_| StreamError::Cancelled)?;
+            scratch.layers = layers;
+            let extracted = t.elapsed();
+            slab_done(control, &done, z1 - z0, cube_layers, "sampling and extracting")
+                .map_err(|_| StreamError::Cancelled)?;
+            Ok((counts, non_finite, range, sourced, extracted))
+        })?;
     let mut stats = StreamStats {
         min_sample: f32::INFINITY,
         max_sample: f32::NEG_INFINITY,
         samples_read: (cube_layers + slabs) as u64 * layer as u64,
         ..StreamStats::default()
     };
-    let mut slabs = Vec::with_capacity(outputs.len());
-    for (slab, non_finite, (lo, hi), sourced, extracted) in outputs {
+    for ((ambiguous_faces, tunnels), non_finite, (lo, hi), sourced, extracted) in parts {
         stats.non_finite += non_finite;
         stats.min_sample = stats.min_sample.min(lo);
         stats.max_sample = stats.max_sample.max(hi);
         stats.source_time += sourced;
         stats.extract_time += extracted;
-        slabs.push(slab);
+        stats.ambiguous_faces += ambiguous_faces;
+        stats.tunnels += tunnels;
     }
-    let (vertices, triangles, ambiguous_faces, tunnels) = merge(&slabs, workers.into_outputs());
-    stats.ambiguous_faces = ambiguous_faces;
-    stats.tunnels = tunnels;
     Ok(Streamed { vertices, triangles, stats })
 }
 
-/// Appends `pieces` to `out` in order, each written to its place by `fill(s, piece, place)`
-/// in its own task, into memory no one has touched: with no pass that fills the new length
-/// first (as `resize` would, on one thread), all threads share the copying and the first
-/// touches of the new pages.
-fn append_pieces<T: Copy + Send + Sync>(
-    out: &mut Vec<T>,
-    pieces: &[&[T]],
-    fill: impl Fn(usize, &[T], &mut [MaybeUninit<T>]) + Sync,
-) {
-    let (len, extra) = (out.len(), pieces.iter().map(|p| p.len()).sum::<usize>());
-    out.reserve_exact(extra);
-    let targets =
-        split_lengths(&mut out.spare_capacity_mut()[..extra], pieces.iter().map(|p| p.len()));
-    targets.into_par_iter().zip(pieces).enumerate().for_each(|(s, (to, from))| fill(s, from, to));
-    // SAFETY: the targets are consecutive, as long as the pieces (which sum to `extra`), so
-    // they cover the first `extra` elements past `len` exactly, and `fill` writes every
-    // element of its target (both callers below do).
-    unsafe { out.set_len(len + extra) };
-}
+/// What [`run_slabs`] returns: the mesh's vertices and triangles, and each slab's result in
+/// slab order.
+type Assembled<V, T> = (Vec<V>, Vec<[u32; 3]>, Vec<T>);
 
-/// Cuts `all` into consecutive pieces of the given lengths.
-fn split_lengths<T>(mut all: &mut [T], lengths: impl Iterator<Item = usize>) -> Vec<&mut [T]> {
-    let mut pieces = Vec::new();
-    for n in lengths {
-        let (head, tail) = all.split_at_mut(n);
-        pieces.push(head);
-        all = tail;
-    }
-    pieces
-}
-
-/// Joins the slabs in order: each slab's vertices are offset by the counts of the slabs
-/// before it, and its references to the layer above by the next slab's offset.
+/// Runs `slab` on every slab and joins their pieces into one mesh, in slab order.
 ///
-/// The slabs that the worker of slab 0 ran first, one after another (on one thread: all of
-/// them), are already in mesh order at the start of its arrays: those arrays become the
-/// mesh, their triangles are renumbered in place, and only the other slabs are copied in.
-fn merge<V: SlabVertex>(slabs: &[Slab], mut arrays: Vec<Output<V>>) -> Extracted<V> {
-    let starts = |len: fn(&Slab) -> usize| {
-        let mut at = Vec::with_capacity(slabs.len() + 1);
-        at.push(0);
-        for o in slabs {
-            at.push(at[at.len() - 1] + len(o));
+/// On one thread the slabs run in order straight into the mesh's arrays. On more, each
+/// thread claims the lowest slab no one has claimed, runs it into a buffer of its own and
+/// hands it over; a slab is placed in the mesh (an [`Assembly`]) as soon as every slab below
+/// it has been handed over, by the thread that completes that chain, so no thread ever waits
+/// for another, and every byte of the mesh is written once into fresh memory. A slab's
+/// vertices go after all those of the slabs below it, its triangles' numbers shifted by as
+/// many (a reference to the layer above, numbered just past the slab's own vertices, lands on
+/// the next slab's first ones).
+fn run_slabs<V, T, E>(
+    slabs: usize,
+    [nx, ny]: [usize; 2],
+    slab: impl Fn(usize, &mut Scratch, &mut SlabStore<V>) -> Result<T, E> + Sync,
+) -> Result<Assembled<V, T>, E>
+where
+    V: SlabVertex,
+    T: Send,
+    E: Send,
+{
+    let threads = rayon::current_num_threads().min(slabs);
+    if threads <= 1 {
+        let (mut out, mut scratch) = (Output::default(), Scratch::new(nx, ny));
+        let (mut hint, mut results) = ((0, 0), Vec::with_capacity(slabs));
+        for k in 0..slabs {
+            let before = (out.vertices.len(), out.triangles.len());
+            results.push(slab(k, &mut scratch, &mut SlabStore::new(&mut out, hint))?);
+            hint = (out.vertices.len() - before.0, out.triangles.len() - before.1);
         }
-        at
+        out.vertices.shrink_to_fit();
+        out.triangles.shrink_to_fit();
+        return Ok((out.vertices, out.triangles, results));
+    }
+    let chain = Mutex::new(Chain::new(slabs));
+    let lock = || chain.lock().unwrap_or_else(|e| e.into_inner());
+    let (next, stop) = (AtomicUsize::new(0), AtomicBool::new(false));
+    let (vertices, triangles) = (Assembly::new(), Assembly::new());
+    let work = || {
+        let mut scratch = Scratch::new(nx, ny);
+        let mut hint = (0, 0);
+        while !stop.load(Ordering::Relaxed) {
+            let k = next.fetch_add(1, Ordering::Relaxed);
+            if k >= slabs {
+                break;
+            }
+            let mut out = lock().spare.pop().unwrap_or_default();
+            out.vertices.clear();
+            out.triangles.clear();
+            let result = slab(k, &mut scratch, &mut SlabStore::new(&mut out, hint));
+            hint = (out.vertices.len(), out.triangles.len());
+            let (ready, [nv, nt], placed) = match result {
+                Ok(r) => lock().hand_over(k, r, out),
+                Err(e) => {
+                    lock().fail(k, e);
+                    stop.store(true, Ordering::Relaxed);
+                    break;
+                }
+            };
+            if !ready.is_empty() {
+                // Room for the placed slabs, and for the rest if they are like them, with a
+                // margin: growing copies what has been placed, unless the allocator can
+                // remap it.
+                let guess = |n: usize| n + n / placed * (slabs - placed + 1) * 5 / 4;
+                vertices.reserve(nv, guess(nv));
+                triangles.reserve(nt, guess(nt));
+            }
+            for (o, [v0, t0], _) in &ready {
+                vertices.place(*v0, &o.vertices, |v| v);
+                let shift = *v0 as u32;
+                triangles.place(*t0, &o.triangles, |t| t.map(|i| i + shift));
+            }
+            lock().spare.extend(ready.into_iter().map(|(o, _, _)| o));
+        }
     };
-    let vertex_at = starts(|o| o.vertices.len());
-    let triangle_at = starts(|o| o.triangles.len());
-    let first = slabs.first().map_or(0, |o| o.worker);
-    let run = slabs
-        .iter()
-        .enumerate()
-        .take_while(|(s, o)| {
-            o.worker == first
-                && o.vertices.start == vertex_at[*s]
-                && o.triangles.start == triangle_at[*s]
-        })
-        .count();
-    let (run_vertices, run_triangles) = (vertex_at[run], triangle_at[run]);
-    let Output { mut vertices, mut triangles } = std::mem::take(&mut arrays[first]);
-    // What the first worker made after its run, moved out of the way of the mesh (in
-    // parallel: it can be a quarter of the mesh).
-    arrays[first] = Output {
-        vertices: vertices[run_vertices..].par_iter().copied().collect(),
-        triangles: triangles[run_triangles..].par_iter().copied().collect(),
-    };
-    vertices.truncate(run_vertices);
-    triangles.truncate(run_triangles);
-    let bases: Vec<u32> = vertex_at.iter().map(|&v| v as u32).collect();
-    let (run_part, rest) = slabs.split_at(run);
-    // The run's triangles get their mesh indices in place.
-    let pieces = split_lengths(&mut triangles[..], run_part.iter().map(|o| o.triangles.len()));
-    pieces.into_par_iter().enumerate().for_each(|(s, ts)| {
-        let (base, next) = (bases[s], bases[s + 1]);
-        ts.iter_mut().for_each(|t| *t = t.map(|i| resolve(i, base, next)));
-    });
-    // The other slabs are copied in behind the run.
-    let shift = |o: &Slab| if o.worker == first { (run_vertices, run_triangles) } else { (0, 0) };
-    let (vertex_pieces, triangle_pieces): (Vec<&[V]>, Vec<&[[u32; 3]]>) = rest
-        .iter()
-        .map(|o| {
-            let ((dv, dt), from) = (shift(o), &arrays[o.worker]);
-            (
-                &from.vertices[o.vertices.start - dv..o.vertices.end - dv],
-                &from.triangles[o.triangles.start - dt..o.triangles.end - dt],
-            )
-        })
-        .unzip();
-    append_pieces(&mut vertices, &vertex_pieces, |_, from, to| {
-        for (t, x) in to.iter_mut().zip(from) {
-            t.write(*x);
+    rayon::scope(|s| {
+        for _ in 0..threads {
+            s.spawn(|_| work());
         }
     });
-    append_pieces(&mut triangles, &triangle_pieces, |s, from, to| {
-        let (base, next) = (bases[run + s], bases[run + s + 1]);
-        for (t, x) in to.iter_mut().zip(from) {
-            t.write(x.map(|i| resolve(i, base, next)));
+    let chain = chain.into_inner().unwrap_or_else(|e| e.into_inner());
+    if let Some((_, e)) = chain.error {
+        return Err(e);
+    }
+    assert_eq!(chain.placed, slabs, "a slab was never placed");
+    let [nv, nt] = chain.end;
+    // SAFETY: every slab was placed: slab k wrote vertices and triangles from the ends of
+    // slab k − 1's, as many as it has, so together they cover 0..nv and 0..nt.
+    let (vertices, triangles) = unsafe { (vertices.into_vec(nv), triangles.into_vec(nt)) };
+    let results = chain.results.into_iter().flatten().collect();
+    Ok((vertices, triangles, results))
+}
+
+/// Which slabs have been handed over and placed, for [`run_slabs`].
+struct Chain<V, T, E> {
+    /// The slabs below this one are placed.
+    placed: usize,
+    /// Where the next slab to place starts: its first vertex and first triangle.
+    end: [usize; 2],
+    /// Handed-over slabs not yet placed, by index.
+    waiting: Vec<Option<Output<V>>>,
+    results: Vec<Option<T>>,
+    /// The failure of the lowest slab that failed.
+    error: Option<(usize, E)>,
+    /// Buffers of placed slabs, for the next slabs to run.
+    spare: Vec<Output<V>>,
+}
+
+/// Slabs ready to be placed: each slab's output, with where its vertices and triangles start
+/// and end.
+type Ready<V> = Vec<(Output<V>, [usize; 2], [usize; 2])>;
+
+impl<V, T, E> Chain<V, T, E> {
+    fn new(slabs: usize) -> Self {
+        Chain {
+            placed: 0,
+            end: [0, 0],
+            waiting: (0..slabs).map(|_| None).collect(),
+            results: (0..slabs).map(|_| None).collect(),
+            error: None,
+            spare: Vec::new(),
         }
-    });
-    // The arrays grew by doubling; give back what the mesh does not use.
-    vertices.shrink_to_fit();
-    triangles.shrink_to_fit();
-    let ambiguous_faces = slabs.iter().map(|o| o.ambiguous_faces).sum();
-    let tunnels = slabs.iter().map(|o| o.tunnels).sum();
-    (vertices, triangles, ambiguous_faces, tunnels)
+    }
+
+    /// Takes slab `k`'s output; returns the slabs that can now be placed (`k` and those
+    /// after it, if all before it are placed), the end of the last of them, and how many
+    /// slabs are then placed.
+    fn hand_over(&mut self, k: usize, result: T, out: Output<V>) -> (Ready<V>, [usize; 2], usize) {
+        self.results[k] = Some(result);
+        self.waiting[k] = Some(out);
+        let mut ready = Vec::new();
+        while let Some(o) = self.waiting.get_mut(self.placed).and_then(Option::take) {
+            let start = self.end;
+            self.end = [start[0] + o.vertices.len(), start[1] + o.triangles.len()];
+            self.placed += 1;
+            ready.push((o, start, self.end));
+        }
+        (ready, self.end, self.placed)
+    }
+
+    /// Records slab `k`'s failure; the lowest slab's failure is the one reported.
+    fn fail(&mut self, k: usize, e: E) {
+        if self.error.as_ref().is_none_or(|(at, _)| k < *at) {
+            self.error = Some((k, e));
+        }
+    }
 }
 
 /// The bits of word `w` of a row that stand for the items `0..count` of the row (samples,
@@ -936,7 +877,7 @@ fn extract_slab<V: SlabVertex>(
     vals: &[f32],
     (z0, z1): (usize, usize),
     scratch: &mut Scratch,
-    store: &mut impl SlabStore<V>,
+    store: &mut SlabStore<'_, V>,
     control: &Control,
 ) -> Result<(u64, u64), Cancelled> {
     let [nx, ny, nz] = grid.dims;
@@ -952,7 +893,7 @@ fn extract_slab<V: SlabVertex>(
     layer_signs(local(z0), nx, words, below);
     lower.build(below, nx, ny, words);
     store.begin();
-    lower.offset = 0;
+    lower.offset = store.made();
     lower.emit(grid, local(z0), z0, store);
     let (mut ambiguous_faces, mut tunnels) = (0, 0);
     for k in z0..z1 {
@@ -965,6 +906,7 @@ fn extract_slab<V: SlabVertex>(
         // the last slab, which owns the volume's top): refer to them by number.
         if k + 1 == z1 && !last {
             upper.offset = BORROWED;
+            store.borrow_top();
         } else {
             upper.offset = store.made();
             upper.emit(grid, local(k + 1), k + 1, store);
@@ -992,6 +934,7 @@ fn extract_slab<V: SlabVertex>(
         std::mem::swap(below, above);
         std::mem::swap(lower, upper);
     }
+    store.finish();
     Ok((ambiguous_faces, tunnels))
 }
 
@@ -1005,37 +948,34 @@ fn two_bits(row: &[u64], i: usize) -> usize {
     bits as usize
 }
 
-/// Where one slab's vertices and triangles go. Vertices are numbered from 0 in the order
-/// they are pushed; triangles come with those slab-local numbers, and `BORROWED | n` for
-/// number `n` of the layer above, that is, of the next slab.
-trait SlabStore<V> {
-    /// Starts a slab.
-    fn begin(&mut self);
-    /// How many vertices the slab has made.
-    fn made(&self) -> u32;
-    fn push_vertex(&mut self, v: V);
-    fn push_triangle(&mut self, t: [u32; 3]);
-}
-
-/// A slab appended to a worker's growing [`Output`]; [`merge`] places it in the mesh later.
-struct Growing<'a, V> {
+/// Where a slab's vertices and triangles go: the end of an [`Output`]. A vertex's number is
+/// its index there; a triangle may name vertex `n` of the layer above, which the next slab
+/// makes, as `BORROWED | n` until [`SlabStore::finish`] numbers it.
+struct SlabStore<'a, V> {
     out: &'a mut Output<V>,
-    /// The sizes of the worker's previous slab: neighbouring slabs of a smooth surface make
+    /// The sizes of the thread's previous slab: neighbouring slabs of a smooth surface make
     /// about as many vertices and triangles.
     hint: (usize, usize),
-    first_vertex: usize,
+    /// The first triangle that may refer to the layer above.
+    borrowing: usize,
 }
 
-impl<V: SlabVertex> SlabStore<V> for Growing<'_, V> {
+impl<'a, V: SlabVertex> SlabStore<'a, V> {
+    fn new(out: &'a mut Output<V>, hint: (usize, usize)) -> Self {
+        let borrowing = usize::MAX;
+        SlabStore { out, hint, borrowing }
+    }
+
     fn begin(&mut self) {
         make_room(&mut self.out.vertices, 2 * self.hint.0);
         make_room(&mut self.out.triangles, 2 * self.hint.1);
-        self.first_vertex = self.out.vertices.len();
+        debug_assert!(self.out.vertices.len() < BORROWED as usize);
     }
 
+    /// The number of the next vertex.
     #[inline]
     fn made(&self) -> u32 {
-        (self.out.vertices.len() - self.first_vertex) as u32
+        self.out.vertices.len() as u32
     }
 
     #[inline]
@@ -1047,18 +987,27 @@ impl<V: SlabVertex> SlabStore<V> for Growing<'_, V> {
     fn push_triangle(&mut self, t: [u32; 3]) {
         self.out.triangles.push(t);
     }
-}
 
-/// The mesh index of slab-local vertex number `i` of a slab whose vertices start at `base`,
-/// the next slab's at `next`.
-#[inline]
-fn resolve(i: u32, base: u32, next: u32) -> u32 {
-    if i & BORROWED == 0 { base + i } else { next + (i & !BORROWED) }
+    /// Triangles from now on may refer to the layer above.
+    fn borrow_top(&mut self) {
+        self.borrowing = self.out.triangles.len();
+    }
+
+    /// Ends the slab: the next slab's vertices will be numbered from here, its bottom
+    /// layer's first, so `BORROWED | n` becomes the number `n` past the slab's last vertex.
+    fn finish(&mut self) {
+        let next = self.made();
+        if let Some(ts) = self.out.triangles.get_mut(self.borrowing..) {
+            for t in ts {
+                *t = t.map(|i| if i & BORROWED == 0 { i } else { next + (i & !BORROWED) });
+            }
+        }
+    }
 }
 
 /// The slab's side of [`CubeSink`]: a cube's edge vertices by their numbers.
-struct SlabSink<'a, V, S> {
-    store: &'a mut S,
+struct SlabSink<'a, 's, V> {
+    store: &'a mut SlabStore<'s, V>,
     /// The numbered edges of the sample layers below and above the cube, and between them.
     lower: &'a LayerNumbering,
     upper: &'a LayerNumbering,
@@ -1068,7 +1017,7 @@ struct SlabSink<'a, V, S> {
     _vertex: std::marker::PhantomData<V>,
 }
 
-impl<V: SlabVertex, S: SlabStore<V>> CubeSink for SlabSink<'_, V, S> {
+impl<V: SlabVertex> CubeSink for SlabSink<'_, '_, V> {
     #[inline]
     fn edge_vertex(&mut self, e: usize, _: [f32; 2]) -> u32 {
         // Edge 4·a + u + 2·v runs along axis a at offsets u, v on the other two axes.
@@ -1165,6 +1114,60 @@ mod tests {
             }
         }
         assert_eq!(numbers.total, expected);
+    }
+
+    /// Slabs of very different sizes (empty ones, then dense noise) finish out of order on
+    /// four threads and are placed by whichever thread completes the chain; the mesh is the
+    /// one thread's, bit for bit.
+    #[test]
+    fn slabs_placed_out_of_order_make_the_one_thread_mesh() {
+        let dims = [40, 30, 9 * SLAB + 3];
+        let grid = Grid { origin: DVec3::ZERO, cell: 1.0, dims };
+        let mut values = noise(dims.iter().product(), 5);
+        let empty = dims[0] * dims[1] * 4 * SLAB;
+        values[..empty].iter_mut().for_each(|v| *v = 1.0);
+        let volume = Volume::from_values(grid, values);
+        let run = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build();
+            let pool = pool.unwrap_or_else(|e| panic!("{e}"));
+            let x = pool.install(|| extract(&volume, &Control::default()));
+            x.unwrap_or_else(|_| unreachable!())
+        };
+        let one = run(1);
+        assert!(one.triangles.len() > 10_000);
+        for threads in [2, 4] {
+            let many = run(threads);
+            assert!(many.vertices == one.vertices, "vertices differ on {threads} threads");
+            assert!(many.triangles == one.triangles, "triangles differ on {threads} threads");
+            assert_eq!(many.tunnels, one.tunnels);
+        }
+    }
+
+    /// A source that fails part way stops every thread and its error comes back.
+    #[test]
+    fn a_failing_source_stops_the_run() {
+        struct Failing;
+        impl LayerSource for Failing {
+            type Error = usize;
+            fn layer(&self, k: usize, out: &mut [f32]) -> Result<u64, usize> {
+                if k >= 20 {
+                    return Err(k);
+                }
+                out.iter_mut().enumerate().for_each(|(i, v)| *v = (i % 7) as f32 - 3.5);
+                Ok(0)
+            }
+        }
+        let grid = Grid { origin: DVec3::ZERO, cell: 1.0, dims: [9, 8, 6 * SLAB] };
+        for threads in [1, 3] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build();
+            let pool = pool.unwrap_or_else(|e| panic!("{e}"));
+            let run = pool
+                .install(|| extract_streamed::<[f32; 3], _>(&Failing, &grid, &Control::default()));
+            match run {
+                Err(StreamError::Source(k)) => assert!(k >= 20, "layer {k} did not fail"),
+                _ => panic!("the source's failure was not reported ({threads} threads)"),
+            }
+        }
     }
 
     /// Noise over several slabs: every vertex is used, lies on a crossed lattice edge and is

@@ -10,6 +10,7 @@
 //! cell are found (sampling can miss them), and triangles never intersect (fans over strongly
 //! curved loops can fold).
 
+mod assembly;
 pub mod cell;
 pub mod cube;
 pub mod extract;
@@ -149,7 +150,7 @@ pub fn grid_for(options: &Options) -> Result<Grid, GridError> {
 }
 
 /// Bytes the run needs before any triangle exists: the sampled volume (or, streamed, each
-/// worker's slab of layers) and per-slab maps.
+/// thread's slab of layers) and per-thread edge numberings.
 pub fn memory_needed(grid: &Grid, streamed: bool) -> u64 {
     let layer = (grid.dims[0] * grid.dims[1]) as u64;
     let threads = rayon::current_num_threads() as u64;
