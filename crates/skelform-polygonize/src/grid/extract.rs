@@ -93,7 +93,7 @@ pub struct Cancelled;
 
 /// What a slab records for each vertex it makes: the lattice place ([`GridVertex`], for
 /// refinement on the field) or the interpolated position at once (extraction only).
-pub trait SlabVertex: Copy + Default + Send + Sync {
+pub trait SlabVertex: Copy + Default + Send + Sync + 'static {
     /// The record of vertex `v`; `ends` are the samples at the two ends of its lattice
     /// segment (zero for vertices inside a cell).
     fn make(grid: &Grid, v: GridVertex, ends: [f32; 2]) -> Self;
@@ -576,7 +576,7 @@ where
             if k >= slabs {
                 break;
             }
-            let mut out = lock().spare.pop().unwrap_or_default();
+            let mut out = kept::take().or_else(|| lock().spare.pop()).unwrap_or_default();
             out.vertices.clear();
             out.triangles.clear();
             let result = slab(k, &mut scratch, &mut SlabStore::new(&mut out, hint));
@@ -604,6 +604,9 @@ where
             }
             lock().spare.extend(ready.into_iter().map(|(o, _, _)| o));
         }
+        if let Some(out) = lock().spare.pop() {
+            kept::keep(out);
+        }
     };
     rayon::scope(|s| {
         for _ in 0..threads {
@@ -621,6 +624,40 @@ where
     let (vertices, triangles) = unsafe { (vertices.into_vec(nv), triangles.into_vec(nt)) };
     let results = chain.results.into_iter().flatten().collect();
     Ok((vertices, triangles, results))
+}
+
+/// A slab buffer that each thread keeps from one extraction to the next, so that a program
+/// that extracts again (frames of an animation, a benchmark's runs) does not fault in fresh
+/// pages for it every time: memory the size of one slab's mesh per thread.
+mod kept {
+    use super::Output;
+    use std::any::Any;
+    use std::cell::RefCell;
+
+    thread_local! {
+        static KEPT: RefCell<Vec<Box<dyn Any>>> = const { RefCell::new(Vec::new()) };
+    }
+
+    /// The thread's kept buffer for vertices of type `V`, if it has one.
+    pub(super) fn take<V: 'static>() -> Option<Output<V>> {
+        KEPT.try_with(|k| {
+            let mut k = k.try_borrow_mut().ok()?;
+            let at = k.iter().position(|b| b.is::<Output<V>>())?;
+            k.swap_remove(at).downcast().ok().map(|b| *b)
+        })
+        .ok()
+        .flatten()
+    }
+
+    /// Keeps `out` for the thread's next extraction (one buffer per vertex type).
+    pub(super) fn keep<V: 'static>(out: Output<V>) {
+        let _ = KEPT.try_with(|k| {
+            if let Ok(mut k) = k.try_borrow_mut() {
+                k.retain(|b| !b.is::<Output<V>>());
+                k.push(Box::new(out));
+            }
+        });
+    }
 }
 
 /// Which slabs have been handed over and placed, for [`run_slabs`].
@@ -1117,8 +1154,8 @@ mod tests {
     }
 
     /// Slabs of very different sizes (empty ones, then dense noise) finish out of order on
-    /// four threads and are placed by whichever thread completes the chain; the mesh is the
-    /// one thread's, bit for bit.
+    /// several threads and are placed by whichever thread completes the chain; the mesh is
+    /// the one thread's, bit for bit, also when the threads extract again.
     #[test]
     fn slabs_placed_out_of_order_make_the_one_thread_mesh() {
         let dims = [40, 30, 9 * SLAB + 3];
@@ -1127,19 +1164,22 @@ mod tests {
         let empty = dims[0] * dims[1] * 4 * SLAB;
         values[..empty].iter_mut().for_each(|v| *v = 1.0);
         let volume = Volume::from_values(grid, values);
+        // Twice on each pool: the second run reuses the slab buffers its threads kept.
         let run = |threads| {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build();
             let pool = pool.unwrap_or_else(|e| panic!("{e}"));
-            let x = pool.install(|| extract(&volume, &Control::default()));
-            x.unwrap_or_else(|_| unreachable!())
+            let once = || extract(&volume, &Control::default()).unwrap_or_else(|_| unreachable!());
+            pool.install(|| [once(), once()])
         };
-        let one = run(1);
+        let [one, _] = run(1);
         assert!(one.triangles.len() > 10_000);
         for threads in [2, 4] {
-            let many = run(threads);
-            assert!(many.vertices == one.vertices, "vertices differ on {threads} threads");
-            assert!(many.triangles == one.triangles, "triangles differ on {threads} threads");
-            assert_eq!(many.tunnels, one.tunnels);
+            for (n, many) in run(threads).iter().enumerate() {
+                let what = format!("run {n} on {threads} threads");
+                assert!(many.vertices == one.vertices, "vertices differ, {what}");
+                assert!(many.triangles == one.triangles, "triangles differ, {what}");
+                assert_eq!(many.tunnels, one.tunnels);
+            }
         }
     }
 
