@@ -26,6 +26,21 @@ pub trait Field: Send + Sync {
         }
     }
 
+    /// Values at the points of a lattice layer: `out[i + xs.len()·j] = f((xs[i], ys[j], z))`,
+    /// `out.len()` being `xs.len()·ys.len()`. Grid polygonizers sample through it. The
+    /// default evaluates the rows with [`Field::eval_many`]; a field whose terms depend on
+    /// fewer axes (the compiled formulas) can compute those once per layer, row or column.
+    /// The values must be [`Field::eval`]'s.
+    fn eval_layer(&self, xs: &[f64], ys: &[f64], z: f64, out: &mut [f64]) {
+        debug_assert_eq!(xs.len() * ys.len(), out.len());
+        let mut points = Vec::with_capacity(xs.len());
+        for (&y, row) in ys.iter().zip(out.chunks_mut(xs.len().max(1))) {
+            points.clear();
+            points.extend(xs.iter().map(|&x| DVec3::new(x, y, z)));
+            self.eval_many(&points, row);
+        }
+    }
+
     /// The gradient at one point. The default takes central differences with step
     /// [`Field::gradient_step`]; fields with a closed form should override it.
     fn gradient(&self, p: DVec3) -> DVec3 {
@@ -71,6 +86,9 @@ macro_rules! forward_field {
             }
             fn eval_many(&self, points: &[DVec3], out: &mut [f64]) {
                 (**self).eval_many(points, out)
+            }
+            fn eval_layer(&self, xs: &[f64], ys: &[f64], z: f64, out: &mut [f64]) {
+                (**self).eval_layer(xs, ys, z, out)
             }
             fn gradient(&self, p: DVec3) -> DVec3 {
                 (**self).gradient(p)
@@ -125,6 +143,10 @@ impl<F: Field> Field for Iso<F> {
         self.field.eval_many(points, out);
         out.iter_mut().for_each(|v| *v -= self.iso);
     }
+    fn eval_layer(&self, xs: &[f64], ys: &[f64], z: f64, out: &mut [f64]) {
+        self.field.eval_layer(xs, ys, z, out);
+        out.iter_mut().for_each(|v| *v -= self.iso);
+    }
     fn gradient(&self, p: DVec3) -> DVec3 {
         self.field.gradient(p)
     }
@@ -153,6 +175,10 @@ impl<F: Field> Field for Negate<F> {
     }
     fn eval_many(&self, points: &[DVec3], out: &mut [f64]) {
         self.0.eval_many(points, out);
+        out.iter_mut().for_each(|v| *v = -*v);
+    }
+    fn eval_layer(&self, xs: &[f64], ys: &[f64], z: f64, out: &mut [f64]) {
+        self.0.eval_layer(xs, ys, z, out);
         out.iter_mut().for_each(|v| *v = -*v);
     }
     fn gradient(&self, p: DVec3) -> DVec3 {

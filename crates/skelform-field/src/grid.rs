@@ -145,9 +145,12 @@ impl Volume {
 
     /// The smallest and largest sample: a surface needs one of each sign.
     pub fn value_range(&self) -> (f32, f32) {
+        let range = |(lo, hi): (f32, f32), &v: &f32| (lo.min(v), hi.max(v));
+        let none = (f32::INFINITY, f32::NEG_INFINITY);
         self.values
-            .iter()
-            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)))
+            .par_chunks(1 << 16)
+            .map(|chunk| chunk.iter().fold(none, range))
+            .reduce(|| none, |a, b| (a.0.min(b.0), a.1.max(b.1)))
     }
 
     /// Bytes a volume of this grid takes.
@@ -179,13 +182,18 @@ fn to_f32(v: f64) -> f32 {
 /// [`sample`] does, without sanitizing. For callers that stream a volume layer by layer.
 pub fn sample_layer(field: &dyn Field, grid: &Grid, k: usize, out: &mut [f32]) {
     let [nx, ny, _] = grid.dims;
-    let mut points = Vec::with_capacity(nx);
-    let mut row = vec![0f64; nx];
-    for j in 0..ny {
-        points.clear();
-        points.extend((0..nx).map(|i| grid.point(i, j, k)));
-        field.eval_many(&points, &mut row);
-        for (o, &v) in out[j * nx..(j + 1) * nx].iter_mut().zip(&row) {
+    // The coordinates as `grid.point` computes them (each axis on its own).
+    let xs: Vec<f64> = (0..nx).map(|i| grid.point(i, 0, k).x).collect();
+    let ys: Vec<f64> = (0..ny).map(|j| grid.point(0, j, k).y).collect();
+    let z = grid.point(0, 0, k).z;
+    // A few rows at a time: a small buffer, and enough points per call to share the work
+    // done once per call (the terms that vary along x only).
+    let rows = (1usize << 14).div_ceil(nx.max(1));
+    let mut values = vec![0f64; rows.min(ny) * nx];
+    for (ys, out) in ys.chunks(rows).zip(out.chunks_mut(rows * nx)) {
+        let values = &mut values[..ys.len() * nx];
+        field.eval_layer(&xs, ys, z, values);
+        for (o, &v) in out.iter_mut().zip(values.iter()) {
             *o = to_f32(v);
         }
     }
@@ -197,17 +205,29 @@ pub fn sample_layer(field: &dyn Field, grid: &Grid, k: usize, out: &mut [f32]) {
 pub fn sample(field: &dyn Field, grid: &Grid, control: &Control) -> Result<Volume, GridError> {
     let [nx, ny, nz] = grid.dims;
     let layer = nx * ny;
-    let mut values = vec![0f32; layer * nz];
+    let mut values: Vec<f32> = Vec::with_capacity(layer * nz);
+    crate::pages::advise_huge(values.spare_capacity_mut());
     let done = AtomicU64::new(0);
-    values.par_chunks_mut(layer).enumerate().try_for_each(|(k, out)| {
-        sample_layer(field, grid, k, out);
-        let d = done.fetch_add(1, Ordering::Relaxed) + 1;
-        match control.report(Progress { phase: "sampling", done: d, total: Some(nz as u64) }) {
-            ControlFlow::Continue(()) => Ok(()),
-            ControlFlow::Break(()) => Err(GridError::Cancelled),
-        }
-    })?;
-    let non_finite = sanitize(&mut values);
+    // Each layer is written where it lies, by the thread that samples it (a zeroing pass
+    // first would touch all the fresh memory on one thread), and sanitized while in cache.
+    let non_finite = values.spare_capacity_mut()[..layer * nz]
+        .par_chunks_mut(layer)
+        .enumerate()
+        .map(|(k, out)| {
+            out.fill(std::mem::MaybeUninit::new(0.0));
+            // SAFETY: every element was just initialised, and MaybeUninit<f32> has f32's layout.
+            let out = unsafe { &mut *(out as *mut [std::mem::MaybeUninit<f32>] as *mut [f32]) };
+            sample_layer(field, grid, k, out);
+            let bad = sanitize(out);
+            let d = done.fetch_add(1, Ordering::Relaxed) + 1;
+            match control.report(Progress { phase: "sampling", done: d, total: Some(nz as u64) }) {
+                ControlFlow::Continue(()) => Ok(bad),
+                ControlFlow::Break(()) => Err(GridError::Cancelled),
+            }
+        })
+        .try_reduce(|| 0, |a, b| Ok(a + b))?;
+    // SAFETY: the layers cover the first `layer·nz` elements, all written above.
+    unsafe { values.set_len(layer * nz) };
     Ok(Volume { grid: *grid, values, non_finite })
 }
 

@@ -26,6 +26,7 @@ pub mod control;
 pub mod field;
 pub mod formula;
 pub mod grid;
+pub mod pages;
 pub mod region;
 
 pub use aabb::Aabb;

@@ -702,6 +702,15 @@ impl Field for Combined {
         }
     }
 
+    fn eval_layer(&self, xs: &[f64], ys: &[f64], z: f64, out: &mut [f64]) {
+        let mut other = vec![0.0; out.len()];
+        self.skeleton.eval_layer(xs, ys, z, out);
+        self.formula.eval_layer(xs, ys, z, &mut other);
+        for (o, f) in out.iter_mut().zip(other) {
+            *o = self.pick(*o, f).0;
+        }
+    }
+
     fn gradient(&self, p: DVec3) -> DVec3 {
         let (s, f) = (self.skeleton.eval(p), self.formula.eval(p));
         match self.pick(s, f) {

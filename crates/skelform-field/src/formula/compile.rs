@@ -317,24 +317,39 @@ impl fmt::Display for Tape {
     }
 }
 
+/// A node's operands: the first `n` of the array.
+fn operands(node: &Node) -> ([Id; 3], usize) {
+    match *node {
+        Node::Var(_) | Node::Const(_) => ([0; 3], 0),
+        Node::Unary(_, a) => ([a, 0, 0], 1),
+        Node::Binary(_, a, b) => ([a, b, 0], 2),
+        Node::SMin(a, b, k) => ([a, b, k], 3),
+    }
+}
+
 /// Turns the nodes that `root` depends on into a tape.
 pub(crate) fn compile(nodes: &[Node], root: Id) -> Tape {
+    compile_with_slots(nodes, root, &[])
+}
+
+/// [`compile`], except that the nodes in `slots` are not computed: their values are loaded
+/// by the caller, slot `s` into register `FIRST_CONST_REG + consts.len() + s`, like
+/// constants that change between calls.
+fn compile_with_slots(nodes: &[Node], root: Id, slots: &[Id]) -> Tape {
     let n = nodes.len();
     let root = root as usize;
-    let operands = |node: &Node| -> ([Id; 3], usize) {
-        match *node {
-            Node::Var(_) | Node::Const(_) => ([0; 3], 0),
-            Node::Unary(_, a) => ([a, 0, 0], 1),
-            Node::Binary(_, a, b) => ([a, b, 0], 2),
-            Node::SMin(a, b, k) => ([a, b, k], 3),
-        }
-    };
+    let mut slot = vec![false; n];
+    for &id in slots {
+        slot[id as usize] = true;
+    }
+    // Nodes whose registers the instructions do not write.
+    let fixed = |i: usize| slot[i] || matches!(nodes[i], Node::Var(_) | Node::Const(_));
 
     // Liveness: nodes only refer to earlier ones, so one backward sweep marks what is needed.
     let mut live = vec![false; n];
     live[root] = true;
     for i in (0..=root).rev() {
-        if live[i] {
+        if live[i] && !slot[i] {
             let (ops, k) = operands(&nodes[i]);
             for &o in &ops[..k] {
                 live[o as usize] = true;
@@ -347,7 +362,7 @@ pub(crate) fn compile(nodes: &[Node], root: Id) -> Tape {
     let mut uses = [false; 3];
     let mut consts = Vec::new();
     for i in 0..=root {
-        if !live[i] {
+        if !live[i] || slot[i] {
             continue;
         }
         match nodes[i] {
@@ -363,10 +378,14 @@ pub(crate) fn compile(nodes: &[Node], root: Id) -> Tape {
         }
     }
 
+    for (s, &id) in slots.iter().enumerate() {
+        reg[id as usize] = (FIRST_CONST_REG + consts.len() + s) as u32;
+    }
+
     // Last reader of each node.
     let mut last_use = vec![usize::MAX; n];
     for i in 0..=root {
-        if live[i] {
+        if live[i] && !slot[i] {
             let (ops, k) = operands(&nodes[i]);
             for &o in &ops[..k] {
                 last_use[o as usize] = i;
@@ -377,10 +396,10 @@ pub(crate) fn compile(nodes: &[Node], root: Id) -> Tape {
     // Linear scan over temporaries. The result register is taken before the operands that
     // die here are released, so an instruction never overwrites its own inputs.
     let mut free: Vec<u32> = Vec::new();
-    let mut next = (FIRST_CONST_REG + consts.len()) as u32;
+    let mut next = (FIRST_CONST_REG + consts.len() + slots.len()) as u32;
     let mut instrs = Vec::new();
     for i in 0..=root {
-        if !live[i] || matches!(nodes[i], Node::Var(_) | Node::Const(_)) {
+        if !live[i] || fixed(i) {
             continue;
         }
         let out = free.pop().unwrap_or_else(|| {
@@ -398,12 +417,94 @@ pub(crate) fn compile(nodes: &[Node], root: Id) -> Tape {
         let (ops, k) = operands(&nodes[i]);
         for (j, &o) in ops[..k].iter().enumerate() {
             let o = o as usize;
-            let temp = !matches!(nodes[o], Node::Var(_) | Node::Const(_));
-            if temp && last_use[o] == i && !ops[..j].contains(&(o as Id)) {
+            if !fixed(o) && last_use[o] == i && !ops[..j].contains(&(o as Id)) {
                 free.push(reg[o]);
             }
         }
     }
     debug_assert!(instrs.iter().all(|ins| (ins.out() as usize) < next as usize));
     Tape { instrs, consts, n_regs: next as usize, result: reg[root], uses }
+}
+
+/// Which of a lattice layer's points a value changes between.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Varies {
+    /// None: it depends on `z` alone (or on nothing).
+    Layer,
+    /// Rows: it depends on `y` (and maybe `z`), not on `x`.
+    Row,
+    /// Columns: it depends on `x` alone.
+    Column,
+}
+
+/// A value computed apart from the points, and loaded into a slot of [`Lattice::point`].
+#[derive(Clone, Debug)]
+pub(crate) struct Slot {
+    pub(crate) varies: Varies,
+    pub(crate) tape: Tape,
+}
+
+/// A formula split for evaluation over a lattice layer (fixed `z`, rows of fixed `y`, `x`
+/// along a row). A term that does not depend on both `x` and another axis takes the same
+/// value all along a row, or down a column, so it is computed once per layer, row or
+/// column instead of once per point: on the gyroid, `sin(x)`, `cos(y)`, ... leave the
+/// points, which keep three products and two sums. The same operations on the same
+/// inputs: the values are the point-by-point ones, bit for bit.
+#[derive(Clone, Debug)]
+pub(crate) struct Lattice {
+    /// The per-point part; slot `s` is [`Lattice::slots`]`[s]`.
+    pub(crate) point: Tape,
+    pub(crate) slots: Vec<Slot>,
+}
+
+/// Splits the formula rooted at `root` for lattice evaluation.
+pub(crate) fn lattice(nodes: &[Node], root: Id) -> Lattice {
+    let root = root as usize;
+    let mut axes = vec![0u8; root + 1];
+    for i in 0..=root {
+        axes[i] = match nodes[i] {
+            Node::Var(axis) => 1 << axis,
+            _ => {
+                let (ops, k) = operands(&nodes[i]);
+                ops[..k].iter().fold(0, |m, &o| m | axes[o as usize])
+            }
+        };
+    }
+    let per_point = |i: usize| axes[i] & 1 != 0 && axes[i] & 6 != 0;
+    let leaf = |i: usize| matches!(nodes[i], Node::Var(_) | Node::Const(_));
+    // From the root down through per-point nodes; the first other node on each path is a
+    // slot (what it depends on is the slot's own business).
+    let mut reached = vec![false; root + 1];
+    let mut slots = Vec::new();
+    reached[root] = true;
+    for i in (0..=root).rev() {
+        if !reached[i] || leaf(i) {
+            continue;
+        }
+        if !per_point(i) {
+            slots.push(i as Id);
+            continue;
+        }
+        let (ops, k) = operands(&nodes[i]);
+        for &o in &ops[..k] {
+            reached[o as usize] = true;
+        }
+    }
+    slots.reverse();
+    let point = compile_with_slots(nodes, root as Id, &slots);
+    let slots = slots
+        .iter()
+        .map(|&id| {
+            let a = axes[id as usize];
+            let varies = if a & 1 != 0 {
+                Varies::Column
+            } else if a & 2 != 0 {
+                Varies::Row
+            } else {
+                Varies::Layer
+            };
+            Slot { varies, tape: compile(nodes, id) }
+        })
+        .collect();
+    Lattice { point, slots }
 }

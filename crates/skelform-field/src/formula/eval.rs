@@ -12,7 +12,7 @@ use std::thread::LocalKey;
 
 use glam::DVec3;
 
-use super::compile::{BinOp, FIRST_CONST_REG, Instr, Tape, UnOp};
+use super::compile::{BinOp, FIRST_CONST_REG, Instr, Lattice, Tape, UnOp, Varies};
 
 /// Lanes per batch for values: 128 × 8 bytes = 1 KiB per register.
 pub(crate) const LANES: usize = 128;
@@ -753,6 +753,60 @@ pub(crate) fn eval_batch(tape: &Tape, points: &[DVec3], out: &mut [f64]) {
             }
             run_values_batch(tape, regs, n);
             outs.copy_from_slice(&regs[result][..n]);
+        }
+    })
+}
+
+/// Values on a lattice layer, `out[i + xs.len()·j] = f(xs[i], ys[j], z)`, with the terms
+/// that depend on fewer axes computed once per layer, row or column ([`Lattice`]).
+pub(crate) fn eval_layer(lattice: &Lattice, xs: &[f64], ys: &[f64], z: f64, out: &mut [f64]) {
+    let nx = xs.len();
+    let (Some(&x0), Some(&y0)) = (xs.first(), ys.first()) else { return };
+    // Down a column the value is the same, so the first row's points will do.
+    let columns: Vec<Vec<f64>> = lattice
+        .slots
+        .iter()
+        .map(|slot| match slot.varies {
+            Varies::Column => {
+                let points: Vec<DVec3> = xs.iter().map(|&x| DVec3::new(x, y0, z)).collect();
+                let mut values = vec![0.0; nx];
+                eval_batch(&slot.tape, &points, &mut values);
+                values
+            }
+            Varies::Layer | Varies::Row => Vec::new(),
+        })
+        .collect();
+    let point = &lattice.point;
+    let first_slot = FIRST_CONST_REG + point.consts.len();
+    with_scratch(&VALUE_SCRATCH, point.n_regs, [0.0; LANES], |regs| {
+        for (r, &c) in regs[FIRST_CONST_REG..].iter_mut().zip(&point.consts) {
+            *r = [c; LANES];
+        }
+        regs[2] = [z; LANES];
+        let scalar = |tape: &Tape, y: f64| [eval_point(tape, DVec3::new(x0, y, z)); LANES];
+        for (s, slot) in lattice.slots.iter().enumerate() {
+            if slot.varies == Varies::Layer {
+                regs[first_slot + s] = scalar(&slot.tape, y0);
+            }
+        }
+        for (&y, row) in ys.iter().zip(out.chunks_mut(nx)) {
+            regs[1] = [y; LANES];
+            for (s, slot) in lattice.slots.iter().enumerate() {
+                if slot.varies == Varies::Row {
+                    regs[first_slot + s] = scalar(&slot.tape, y);
+                }
+            }
+            for (at, outs) in (0..nx).step_by(LANES).zip(row.chunks_mut(LANES)) {
+                let n = outs.len();
+                regs[0][..n].copy_from_slice(&xs[at..at + n]);
+                for (s, column) in columns.iter().enumerate() {
+                    if !column.is_empty() {
+                        regs[first_slot + s][..n].copy_from_slice(&column[at..at + n]);
+                    }
+                }
+                run_values_batch(point, regs, n);
+                outs.copy_from_slice(&regs[point.result as usize][..n]);
+            }
         }
     })
 }

@@ -367,6 +367,41 @@ fn batches_are_bit_identical_to_points() {
     }
 }
 
+/// Lattice layers (terms that depend on fewer axes computed once per layer, row or column)
+/// give every point's value bit for bit, for formulas of every mix of axes.
+#[test]
+fn lattice_layers_are_bit_identical_to_points() {
+    let mut formulas = batch_formulas();
+    formulas.extend(
+        [
+            "z",
+            "y * z - 1",
+            "sin(z) * 2",
+            "exp(-2*(x-0.1)^2) * exp(-2*(y-0.2)^2) * exp(-2*(z+0.3)^2) - 0.5",
+            "exp(-3*((x-0.1)^2 + (y-0.2)^2 + (z+0.3)^2)) + x*y*z",
+            "smin(x^2, y^2 + z, 0.3) + smin(z, y, x)",
+        ]
+        .map(String::from),
+    );
+    let mut rng = Rng(5);
+    for src in formulas {
+        let f = parse(&src);
+        for (nx, ny) in [(1, 1), (7, 3), (130, 2), (300, 1)] {
+            let xs: Vec<f64> = (0..nx).map(|_| rng.uniform(-1.5, 1.5)).collect();
+            let ys: Vec<f64> = (0..ny).map(|_| rng.uniform(-1.5, 1.5)).collect();
+            let z = rng.uniform(-1.5, 1.5);
+            let mut out = vec![f64::NAN; nx * ny];
+            f.eval_layer(&xs, &ys, z, &mut out);
+            for (j, &y) in ys.iter().enumerate() {
+                for (i, &x) in xs.iter().enumerate() {
+                    let (got, want) = (out[i + nx * j], f.eval(DVec3::new(x, y, z)));
+                    assert!(same(got, want), "{src:?} at ({x}, {y}, {z}): {got} vs {want}");
+                }
+            }
+        }
+    }
+}
+
 #[test]
 fn batches_of_nothing_and_alternating_formulas() {
     let small = parse("x + y");
@@ -883,6 +918,15 @@ proptest! {
             let got = f.eval(*p);
             prop_assert!(same(got, want), "{}\nat {}: got {}, want {}\n{}", src, p, got, want, f.tape());
             prop_assert!(same(*b, got));
+        }
+        // The same points' coordinates as a lattice layer.
+        let xs: Vec<f64> = pts.iter().map(|p| p.x).collect();
+        let ys: Vec<f64> = pts.iter().map(|p| p.y).collect();
+        let mut layer = vec![0.0; xs.len() * ys.len()];
+        f.eval_layer(&xs, &ys, pts[0].z, &mut layer);
+        for (k, v) in layer.iter().enumerate() {
+            let p = DVec3::new(xs[k % xs.len()], ys[k / xs.len()], pts[0].z);
+            prop_assert!(same(*v, f.eval(p)), "{}\nlayer at {}: {} vs {}", src, p, v, f.eval(p));
         }
     }
 }

@@ -54,7 +54,7 @@ impl<T> Drop for Block<T> {
 
 impl<T: Copy + Send + Sync> Assembly<T> {
     pub(crate) fn new() -> Self {
-        Self::with_least(super::pages::ROOM / size_of::<T>())
+        Self::with_least(skelform_field::pages::ROOM / size_of::<T>())
     }
 
     fn with_least(least: usize) -> Self {
@@ -66,7 +66,7 @@ impl<T: Copy + Send + Sync> Assembly<T> {
     /// Makes the array hold at least `needed` elements, `wanted` if it has to grow (a guess
     /// at the final size saves growing again), keeping what has been written.
     ///
-    /// The array is never smaller than [`ROOM`](super::pages::ROOM) bytes: blocks that large are
+    /// The array is never smaller than [`ROOM`](skelform_field::pages::ROOM) bytes: blocks that large are
     /// mapped pages of their own, which `realloc` moves to a larger range by remapping them,
     /// with no copy (glibc; other allocators copy), and which cost nothing until written.
     pub(crate) fn reserve(&self, needed: usize, wanted: usize) {
@@ -99,7 +99,7 @@ impl<T: Copy + Send + Sync> Assembly<T> {
                 capacity - old,
             )
         };
-        super::pages::advise_huge(new_part);
+        skelform_field::pages::advise_huge(new_part);
     }
 
     /// Writes `f` of each of `from`, in order, at elements `at..at + from.len()`.

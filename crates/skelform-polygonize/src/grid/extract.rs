@@ -147,9 +147,9 @@ struct Output<V> {
 /// would copy into memory the kernel has not been asked to back with huge pages.
 fn make_room<T>(v: &mut Vec<T>, more: usize) {
     if v.capacity() - v.len() < more {
-        let step = super::pages::ROOM / std::mem::size_of::<T>().max(1);
+        let step = skelform_field::pages::ROOM / std::mem::size_of::<T>().max(1);
         v.reserve(more.max(v.capacity()).max(step));
-        super::pages::advise_huge(v.spare_capacity_mut());
+        skelform_field::pages::advise_huge(v.spare_capacity_mut());
     }
 }
 

@@ -15,7 +15,6 @@ pub mod cell;
 pub mod cube;
 pub mod extract;
 pub mod interior;
-mod pages;
 pub mod table;
 
 use std::time::{Duration, Instant};

@@ -1,8 +1,9 @@
-//! Large output arrays backed by transparent huge pages where the system allows it.
+//! Large arrays backed by transparent huge pages where the system allows it.
 //!
-//! A new mesh array is memory the process has never touched, and the first write to each
-//! 4 KiB page costs a page fault: on the virtual machines these benchmarks run on, about 3 µs,
-//! which for the megabytes of a 256³ extraction is a fifth of the time. Asking the kernel for
+//! A sampled volume or a new mesh array is memory the process has never touched, and the
+//! first write to each 4 KiB page costs a page fault: on the virtual machines these
+//! benchmarks run on, about 3 µs, which for the megabytes of a 256³ extraction is a fifth of
+//! the time. Asking the kernel for
 //! 2 MiB pages on such arrays (`madvise(MADV_HUGEPAGE)`, honoured where transparent huge pages
 //! are set to `madvise` or `always`) makes the same memory cost a few faults. Elsewhere the
 //! advice is skipped.
@@ -13,11 +14,11 @@ const HUGE: usize = 2 << 20;
 /// Room worth keeping ahead in a growing output array: sixteen huge pages. Only what is
 /// written costs memory; the more room, the smaller the share of the array before its first
 /// huge-page boundary, which is made of small pages, each its own fault.
-pub(crate) const ROOM: usize = 16 * HUGE;
+pub const ROOM: usize = 16 * HUGE;
 
 /// Asks for huge pages on the 2 MiB-aligned part of `v`'s memory; pages already touched stay
 /// as they are. A hint: failure changes nothing but speed.
-pub(crate) fn advise_huge<T>(v: &mut [T]) {
+pub fn advise_huge<T>(v: &mut [T]) {
     let bytes = std::mem::size_of_val(v);
     #[cfg(target_os = "linux")]
     {
