@@ -188,7 +188,7 @@ pub fn sample_layer(field: &dyn Field, grid: &Grid, k: usize, out: &mut [f32]) {
     let z = grid.point(0, 0, k).z;
     // A few rows at a time: a small buffer, and enough points per call to share the work
     // done once per call (the terms that vary along x only).
-    let rows = (1usize << 14).div_ceil(nx.max(1));
+    let rows = (1usize << 13).div_ceil(nx.max(1));
     let mut values = vec![0f64; rows.min(ny) * nx];
     for (ys, out) in ys.chunks(rows).zip(out.chunks_mut(rows * nx)) {
         let values = &mut values[..ys.len() * nx];

@@ -778,34 +778,46 @@ pub(crate) fn eval_layer(lattice: &Lattice, xs: &[f64], ys: &[f64], z: f64, out:
         .collect();
     let point = &lattice.point;
     let first_slot = FIRST_CONST_REG + point.consts.len();
+    // The row terms, one value per row and slot.
+    let rows: Vec<Vec<f64>> = lattice
+        .slots
+        .iter()
+        .map(|slot| match slot.varies {
+            Varies::Row => {
+                ys.iter().map(|&y| eval_point(&slot.tape, DVec3::new(x0, y, z))).collect()
+            }
+            Varies::Layer | Varies::Column => Vec::new(),
+        })
+        .collect();
     with_scratch(&VALUE_SCRATCH, point.n_regs, [0.0; LANES], |regs| {
         for (r, &c) in regs[FIRST_CONST_REG..].iter_mut().zip(&point.consts) {
             *r = [c; LANES];
         }
         regs[2] = [z; LANES];
-        let scalar = |tape: &Tape, y: f64| [eval_point(tape, DVec3::new(x0, y, z)); LANES];
         for (s, slot) in lattice.slots.iter().enumerate() {
             if slot.varies == Varies::Layer {
-                regs[first_slot + s] = scalar(&slot.tape, y0);
+                regs[first_slot + s] = [eval_point(&slot.tape, DVec3::new(x0, y0, z)); LANES];
             }
         }
-        for (&y, row) in ys.iter().zip(out.chunks_mut(nx)) {
-            regs[1] = [y; LANES];
-            for (s, slot) in lattice.slots.iter().enumerate() {
-                if slot.varies == Varies::Row {
-                    regs[first_slot + s] = scalar(&slot.tape, y);
+        // A stretch of columns at a time, down all the rows: the column terms are loaded
+        // once per stretch, the row terms (a broadcast) once per row.
+        for at in (0..nx).step_by(LANES) {
+            let n = LANES.min(nx - at);
+            regs[0][..n].copy_from_slice(&xs[at..at + n]);
+            for (s, column) in columns.iter().enumerate() {
+                if !column.is_empty() {
+                    regs[first_slot + s][..n].copy_from_slice(&column[at..at + n]);
                 }
             }
-            for (at, outs) in (0..nx).step_by(LANES).zip(row.chunks_mut(LANES)) {
-                let n = outs.len();
-                regs[0][..n].copy_from_slice(&xs[at..at + n]);
-                for (s, column) in columns.iter().enumerate() {
-                    if !column.is_empty() {
-                        regs[first_slot + s][..n].copy_from_slice(&column[at..at + n]);
+            for (j, &y) in ys.iter().enumerate() {
+                regs[1] = [y; LANES];
+                for (s, row) in rows.iter().enumerate() {
+                    if !row.is_empty() {
+                        regs[first_slot + s] = [row[j]; LANES];
                     }
                 }
                 run_values_batch(point, regs, n);
-                outs.copy_from_slice(&regs[point.result as usize][..n]);
+                out[j * nx + at..][..n].copy_from_slice(&regs[point.result as usize][..n]);
             }
         }
     })
