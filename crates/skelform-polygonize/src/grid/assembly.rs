@@ -66,28 +66,35 @@ impl<T: Copy + Send + Sync> Assembly<T> {
     /// Makes the array hold at least `needed` elements, `wanted` if it has to grow (a guess
     /// at the final size saves growing again), keeping what has been written.
     ///
-    /// The array is never smaller than [`ROOM`](skelform_field::pages::ROOM) bytes: blocks that large are
-    /// mapped pages of their own, which `realloc` moves to a larger range by remapping them,
-    /// with no copy (glibc; other allocators copy), and which cost nothing until written.
+    /// The array is never smaller than [`ROOM`](skelform_field::pages::ROOM) bytes: blocks
+    /// that large are mapped pages of their own, which `realloc` moves to a larger range by
+    /// remapping them, with no copy (glibc; other allocators copy), and which cost nothing
+    /// until written.
     pub(crate) fn reserve(&self, needed: usize, wanted: usize) {
         let mut block = self.memory.write().unwrap_or_else(|e| e.into_inner());
         if block.capacity >= needed {
             return;
         }
-        let capacity = wanted.max(needed).max(block.capacity + block.capacity / 2).max(self.least);
-        let layout = Block::<T>::layout(capacity);
-        // SAFETY: `layout` has a non-zero size (T is not zero-sized and capacity > 0). The
+        let generous = wanted.max(needed).max(block.capacity + block.capacity / 2).max(self.least);
+        // SAFETY: the layout has a non-zero size (T is not zero-sized and capacity > 0). The
         // old block, when there is one, was allocated with `layout(block.capacity)`; realloc
-        // keeps its bytes, written or not, as the start of the new block.
-        let fresh = unsafe {
-            if block.capacity == 0 {
+        // keeps its bytes, written or not, as the start of the new block, and on failure
+        // leaves the old block as it was.
+        let grow = |capacity: usize| unsafe {
+            let layout = Block::<T>::layout(capacity);
+            let fresh = if block.capacity == 0 {
                 alloc(layout)
             } else {
                 let old = Block::<T>::layout(block.capacity);
                 realloc(block.start.as_ptr().cast(), old, layout.size())
-            }
+            };
+            NonNull::new(fresh.cast::<T>()).map(|start| (start, capacity))
         };
-        let Some(start) = NonNull::new(fresh.cast::<T>()) else { handle_alloc_error(layout) };
+        // A guess can be far too large (a dense first slab, the rest empty): when the
+        // system refuses it, the size needed is enough.
+        let Some((start, capacity)) = grow(generous).or_else(|| grow(needed)) else {
+            handle_alloc_error(Block::<T>::layout(needed))
+        };
         let old = block.capacity;
         // Field by field: the old block's memory is the new one's now, not to be freed.
         (block.start, block.capacity) = (start, capacity);
