@@ -145,18 +145,21 @@ impl Volume {
 
     /// The smallest and largest sample: a surface needs one of each sign.
     pub fn value_range(&self) -> (f32, f32) {
-        let range = |(lo, hi): (f32, f32), &v: &f32| (lo.min(v), hi.max(v));
-        let none = (f32::INFINITY, f32::NEG_INFINITY);
         self.values
             .par_chunks(1 << 16)
-            .map(|chunk| chunk.iter().fold(none, range))
-            .reduce(|| none, |a, b| (a.0.min(b.0), a.1.max(b.1)))
+            .map(value_range)
+            .reduce(|| value_range(&[]), |a, b| (a.0.min(b.0), a.1.max(b.1)))
     }
 
     /// Bytes a volume of this grid takes.
     pub fn bytes_for(grid: &Grid) -> u64 {
         grid.sample_count() * std::mem::size_of::<f32>() as u64
     }
+}
+
+/// The smallest and largest of `values` (`(∞, −∞)` for none).
+pub fn value_range(values: &[f32]) -> (f32, f32) {
+    values.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)))
 }
 
 /// Replaces non-finite samples so that extraction can compare them: NaN and +∞ become the

@@ -659,6 +659,16 @@ pub(crate) struct Combined {
 }
 
 impl Combined {
+    /// `eval(field, out)` of both fields, combined into `out`.
+    fn pick_all(&self, out: &mut [f64], eval: impl Fn(&dyn Field, &mut [f64])) {
+        let mut other = vec![0.0; out.len()];
+        eval(&*self.skeleton, out);
+        eval(&*self.formula, &mut other);
+        for (o, f) in out.iter_mut().zip(other) {
+            *o = self.pick(*o, f).0;
+        }
+    }
+
     /// The combined value and which operand it came from (true: the skeleton).
     #[inline]
     fn pick(&self, s: f64, f: f64) -> (f64, bool) {
@@ -694,21 +704,11 @@ impl Field for Combined {
     }
 
     fn eval_many(&self, points: &[DVec3], out: &mut [f64]) {
-        let mut other = vec![0.0; points.len()];
-        self.skeleton.eval_many(points, out);
-        self.formula.eval_many(points, &mut other);
-        for (o, f) in out.iter_mut().zip(other) {
-            *o = self.pick(*o, f).0;
-        }
+        self.pick_all(out, |f, out| f.eval_many(points, out));
     }
 
     fn eval_layer(&self, xs: &[f64], ys: &[f64], z: f64, out: &mut [f64]) {
-        let mut other = vec![0.0; out.len()];
-        self.skeleton.eval_layer(xs, ys, z, out);
-        self.formula.eval_layer(xs, ys, z, &mut other);
-        for (o, f) in out.iter_mut().zip(other) {
-            *o = self.pick(*o, f).0;
-        }
+        self.pick_all(out, |f, out| f.eval_layer(xs, ys, z, out));
     }
 
     fn gradient(&self, p: DVec3) -> DVec3 {

@@ -496,9 +496,7 @@ pub fn extract_streamed<V: SlabVertex, S: LayerSource>(
                     non_finite += bad;
                 }
             }
-            let range = layers
-                .iter()
-                .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+            let range = skelform_field::grid::value_range(&layers);
             let sourced = t.elapsed();
             let t = Instant::now();
             let counts = extract_slab(grid, &layers, (z0, z1), scratch, store, control)
