@@ -595,12 +595,12 @@ where
                 vertices.reserve(nv, guess(nv));
                 triangles.reserve(nt, guess(nt));
             }
-            for (o, [v0, t0], _) in &ready {
+            for (o, [v0, t0]) in &ready {
                 vertices.place(*v0, &o.vertices, |v| v);
                 let shift = *v0 as u32;
                 triangles.place(*t0, &o.triangles, |t| t.map(|i| i + shift));
             }
-            lock().spare.extend(ready.into_iter().map(|(o, _, _)| o));
+            lock().spare.extend(ready.into_iter().map(|(o, _)| o));
         }
         if let Some(out) = lock().spare.pop() {
             kept::keep(out);
@@ -673,9 +673,8 @@ struct Chain<V, T, E> {
     spare: Vec<Output<V>>,
 }
 
-/// Slabs ready to be placed: each slab's output, with where its vertices and triangles start
-/// and end.
-type Ready<V> = Vec<(Output<V>, [usize; 2], [usize; 2])>;
+/// Slabs ready to be placed: each slab's output, with where its vertices and triangles start.
+type Ready<V> = Vec<(Output<V>, [usize; 2])>;
 
 impl<V, T, E> Chain<V, T, E> {
     fn new(slabs: usize) -> Self {
@@ -700,7 +699,7 @@ impl<V, T, E> Chain<V, T, E> {
             let start = self.end;
             self.end = [start[0] + o.vertices.len(), start[1] + o.triangles.len()];
             self.placed += 1;
-            ready.push((o, start, self.end));
+            ready.push((o, start));
         }
         (ready, self.end, self.placed)
     }
