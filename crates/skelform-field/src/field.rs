@@ -1,5 +1,7 @@
 //! The `Field` trait: what every polygonizer evaluates.
 
+use std::ops::Range;
+
 use glam::DVec3;
 
 use crate::Aabb;
@@ -39,6 +41,15 @@ pub trait Field: Send + Sync {
             points.extend(xs.iter().map(|&x| DVec3::new(x, y, z)));
             self.eval_many(&points, row);
         }
+    }
+
+    /// A sampler of the layers of one lattice (`x` in `xs`, `y` in `ys`, any `z`), for
+    /// callers that fill many layers: a field may do at its creation, once, the work that
+    /// is the same on every layer (the compiled formulas compute their terms of `x` and `y`
+    /// alone). The default samples each layer with [`Field::eval_layer`]. The values must
+    /// be [`Field::eval`]'s.
+    fn sampler<'a>(&'a self, xs: &[f64], ys: &[f64]) -> Box<dyn LayerSampler + 'a> {
+        Box::new(EachLayer { field: self, xs: xs.to_vec(), ys: ys.to_vec() })
     }
 
     /// The gradient at one point. The default takes central differences with step
@@ -90,6 +101,9 @@ macro_rules! forward_field {
             fn eval_layer(&self, xs: &[f64], ys: &[f64], z: f64, out: &mut [f64]) {
                 (**self).eval_layer(xs, ys, z, out)
             }
+            fn sampler<'a>(&'a self, xs: &[f64], ys: &[f64]) -> Box<dyn LayerSampler + 'a> {
+                (**self).sampler(xs, ys)
+            }
             fn gradient(&self, p: DVec3) -> DVec3 {
                 (**self).gradient(p)
             }
@@ -110,6 +124,40 @@ macro_rules! forward_field {
 }
 
 forward_field!(&F, Box<F>, std::sync::Arc<F>);
+
+/// Values on the layers of one lattice, from [`Field::sampler`]; shared by the threads that
+/// sample the layers.
+pub trait LayerSampler: Send + Sync {
+    /// The values at rows `rows` of the layer at `z`: `out[i + nx·(j − rows.start)]` is the
+    /// value at `(xs[i], ys[j], z)` for `j` in `rows` (`out.len()` = `nx·rows.len()`).
+    fn layer(&self, z: f64, rows: Range<usize>, out: &mut [f64]);
+}
+
+/// [`Field::sampler`]'s default: [`Field::eval_layer`] on each layer.
+struct EachLayer<'a, F: ?Sized> {
+    field: &'a F,
+    xs: Vec<f64>,
+    ys: Vec<f64>,
+}
+
+impl<F: Field + ?Sized> LayerSampler for EachLayer<'_, F> {
+    fn layer(&self, z: f64, rows: Range<usize>, out: &mut [f64]) {
+        self.field.eval_layer(&self.xs, &self.ys[rows], z, out)
+    }
+}
+
+/// Another sampler's values, each changed by a function (for [`Iso`] and [`Negate`]).
+struct MapSampler<'a, M> {
+    inner: Box<dyn LayerSampler + 'a>,
+    map: M,
+}
+
+impl<M: Fn(f64) -> f64 + Send + Sync> LayerSampler for MapSampler<'_, M> {
+    fn layer(&self, z: f64, rows: Range<usize>, out: &mut [f64]) {
+        self.inner.layer(z, rows, out);
+        out.iter_mut().for_each(|v| *v = (self.map)(*v));
+    }
+}
 
 /// A field from a closure, for tests and quick experiments.
 ///
@@ -147,6 +195,10 @@ impl<F: Field> Field for Iso<F> {
         self.field.eval_layer(xs, ys, z, out);
         out.iter_mut().for_each(|v| *v -= self.iso);
     }
+    fn sampler<'a>(&'a self, xs: &[f64], ys: &[f64]) -> Box<dyn LayerSampler + 'a> {
+        let iso = self.iso;
+        Box::new(MapSampler { inner: self.field.sampler(xs, ys), map: move |v| v - iso })
+    }
     fn gradient(&self, p: DVec3) -> DVec3 {
         self.field.gradient(p)
     }
@@ -180,6 +232,9 @@ impl<F: Field> Field for Negate<F> {
     fn eval_layer(&self, xs: &[f64], ys: &[f64], z: f64, out: &mut [f64]) {
         self.0.eval_layer(xs, ys, z, out);
         out.iter_mut().for_each(|v| *v = -*v);
+    }
+    fn sampler<'a>(&'a self, xs: &[f64], ys: &[f64]) -> Box<dyn LayerSampler + 'a> {
+        Box::new(MapSampler { inner: self.0.sampler(xs, ys), map: |v: f64| -v })
     }
     fn gradient(&self, p: DVec3) -> DVec3 {
         -self.0.gradient(p)

@@ -8,7 +8,7 @@ use rayon::prelude::*;
 use thiserror::Error;
 
 use crate::control::{Control, Progress};
-use crate::{Aabb, Field};
+use crate::{Aabb, Field, LayerSampler};
 
 /// The most samples along one axis (indices must fit `u32` edge numbering downstream).
 pub const MAX_SAMPLES_PER_AXIS: usize = 1 << 15;
@@ -157,9 +157,25 @@ impl Volume {
     }
 }
 
-/// The smallest and largest of `values` (`(∞, −∞)` for none).
+/// The smallest and largest of `values` (`(∞, −∞)` for none; NaNs are passed over).
 pub fn value_range(values: &[f32]) -> (f32, f32) {
-    values.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)))
+    // Sixteen running minima and maxima, so that the loop vectorises.
+    const W: usize = 16;
+    let (mut lo, mut hi) = ([f32::INFINITY; W], [f32::NEG_INFINITY; W]);
+    let chunks = values.chunks_exact(W);
+    let rest = chunks.remainder();
+    for c in chunks {
+        for i in 0..W {
+            lo[i] = if c[i] < lo[i] { c[i] } else { lo[i] };
+            hi[i] = if c[i] > hi[i] { c[i] } else { hi[i] };
+        }
+    }
+    lo.iter()
+        .chain(rest)
+        .zip(hi.iter().chain(rest))
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(l, h), (&a, &b)| {
+            (if a < l { a } else { l }, if b > h { b } else { h })
+        })
 }
 
 /// Replaces non-finite samples so that extraction can compare them: NaN and +∞ become the
@@ -167,38 +183,64 @@ pub fn value_range(values: &[f32]) -> (f32, f32) {
 /// were replaced.
 pub fn sanitize(values: &mut [f32]) -> u64 {
     let mut bad = 0;
+    // Without branches, so that it vectorises: most volumes have no bad value at all.
     for v in values {
-        if !v.is_finite() {
-            bad += 1;
-            *v = if *v == f32::NEG_INFINITY { -f32::MAX } else { f32::MAX };
-        }
+        let finite = v.is_finite();
+        bad += u64::from(!finite);
+        let far = if *v == f32::NEG_INFINITY { -f32::MAX } else { f32::MAX };
+        *v = if finite { *v } else { far };
     }
     bad
 }
 
-fn to_f32(v: f64) -> f32 {
-    // Clamp before the cast so huge finite values stay finite in f32.
-    if v.is_nan() { f32::NAN } else { v.clamp(-f32::MAX as f64, f32::MAX as f64) as f32 }
+/// Field values as samples: clamped into `f32`'s finite range (huge finite values stay
+/// finite, ±∞ become ±`f32::MAX`), NaN replaced as [`sanitize`] does. Returns how many were
+/// NaN.
+fn store_samples(values: &[f64], out: &mut [f32]) -> u64 {
+    let mut bad = 0;
+    for (o, &v) in out.iter_mut().zip(values) {
+        let nan = v.is_nan();
+        bad += u64::from(nan);
+        let clamped = v.clamp(-f32::MAX as f64, f32::MAX as f64) as f32;
+        *o = if nan { f32::MAX } else { clamped };
+    }
+    bad
 }
 
-/// Samples `field` on lattice layer `k` into `out` (`nx·ny` values, x fastest), exactly as
-/// [`sample`] does, without sanitizing. For callers that stream a volume layer by layer.
-pub fn sample_layer(field: &dyn Field, grid: &Grid, k: usize, out: &mut [f32]) {
-    let [nx, ny, _] = grid.dims;
-    // The coordinates as `grid.point` computes them (each axis on its own).
-    let xs: Vec<f64> = (0..nx).map(|i| grid.point(i, 0, k).x).collect();
-    let ys: Vec<f64> = (0..ny).map(|j| grid.point(0, j, k).y).collect();
-    let z = grid.point(0, 0, k).z;
-    // A few rows at a time: a small buffer, and enough points per call to share the work
-    // done once per call (the terms that vary along x only).
-    let rows = (1usize << 13).div_ceil(nx.max(1));
-    let mut values = vec![0f64; rows.min(ny) * nx];
-    for (ys, out) in ys.chunks(rows).zip(out.chunks_mut(rows * nx)) {
-        let values = &mut values[..ys.len() * nx];
-        field.eval_layer(&xs, ys, z, values);
-        for (o, &v) in out.iter_mut().zip(values.iter()) {
-            *o = to_f32(v);
+/// Samples a field on the layers of one lattice, in any order and from any thread, exactly
+/// as [`sample`] does: for callers that stream a volume layer by layer.
+/// Work that is the same on every layer is done once, when it is made ([`Field::sampler`]).
+pub struct LayerSampling<'a> {
+    grid: Grid,
+    sampler: Box<dyn LayerSampler + 'a>,
+}
+
+impl<'a> LayerSampling<'a> {
+    pub fn new(field: &'a dyn Field, grid: &Grid) -> Self {
+        let [nx, ny, _] = grid.dims;
+        // The coordinates as `grid.point` computes them (each axis on its own).
+        let xs: Vec<f64> = (0..nx).map(|i| grid.point(i, 0, 0).x).collect();
+        let ys: Vec<f64> = (0..ny).map(|j| grid.point(0, j, 0).y).collect();
+        LayerSampling { grid: *grid, sampler: field.sampler(&xs, &ys) }
+    }
+
+    /// Samples layer `k` into `out` (`nx·ny` values, x fastest), non-finite values replaced
+    /// as [`sanitize`] does; returns how many were.
+    pub fn layer(&self, k: usize, out: &mut [f32]) -> u64 {
+        let [nx, ny, _] = self.grid.dims;
+        let z = self.grid.point(0, 0, k).z;
+        // A few rows at a time: a small buffer, and enough points per call to share the work
+        // done once per call (the terms that vary along x only).
+        let rows = (1usize << 13).div_ceil(nx.max(1));
+        let mut values = vec![0f64; rows.min(ny) * nx];
+        let mut bad = 0;
+        for (at, out) in (0..ny).step_by(rows.max(1)).zip(out.chunks_mut(rows * nx)) {
+            let end = (at + rows).min(ny);
+            let values = &mut values[..(end - at) * nx];
+            self.sampler.layer(z, at..end, values);
+            bad += store_samples(values, out);
         }
+        bad
     }
 }
 
@@ -211,8 +253,9 @@ pub fn sample(field: &dyn Field, grid: &Grid, control: &Control) -> Result<Volum
     let mut values: Vec<f32> = Vec::with_capacity(layer * nz);
     crate::pages::advise_huge(values.spare_capacity_mut());
     let done = AtomicU64::new(0);
+    let sampling = LayerSampling::new(field, grid);
     // Each layer is written where it lies, by the thread that samples it (a zeroing pass
-    // first would touch all the fresh memory on one thread), and sanitized while in cache.
+    // first would touch all the fresh memory on one thread).
     let non_finite = values.spare_capacity_mut()[..layer * nz]
         .par_chunks_mut(layer)
         .enumerate()
@@ -220,8 +263,7 @@ pub fn sample(field: &dyn Field, grid: &Grid, control: &Control) -> Result<Volum
             out.fill(std::mem::MaybeUninit::new(0.0));
             // SAFETY: every element was just initialised, and MaybeUninit<f32> has f32's layout.
             let out = unsafe { &mut *(out as *mut [std::mem::MaybeUninit<f32>] as *mut [f32]) };
-            sample_layer(field, grid, k, out);
-            let bad = sanitize(out);
+            let bad = sampling.layer(k, out);
             let d = done.fetch_add(1, Ordering::Relaxed) + 1;
             match control.report(Progress { phase: "sampling", done: d, total: Some(nz as u64) }) {
                 ControlFlow::Continue(()) => Ok(bad),

@@ -30,6 +30,6 @@ pub mod pages;
 pub mod region;
 
 pub use aabb::Aabb;
-pub use field::{Field, FnField, Iso, Negate};
+pub use field::{Field, FnField, Iso, LayerSampler, Negate};
 pub use glam::DVec3;
 pub use region::RegionField;

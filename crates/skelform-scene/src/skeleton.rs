@@ -21,7 +21,7 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 
 use serde::Deserialize;
-use skelform_field::{Aabb, DVec3, Field};
+use skelform_field::{Aabb, DVec3, Field, LayerSampler};
 use skelform_skeleton::{
     Blend, CubicCurve, DEFAULT_IMAGE_RESOLUTION, Element, Falloff, GroupId, Kernel,
     MAX_IMAGE_RESOLUTION, Polygon, PolygonMethod, Segment, Shape, Skeleton, SkeletonError,
@@ -661,40 +661,68 @@ pub(crate) struct Combined {
 impl Combined {
     /// `eval(field, out)` of both fields, combined into `out`.
     fn pick_all(&self, out: &mut [f64], eval: impl Fn(&dyn Field, &mut [f64])) {
-        let mut other = vec![0.0; out.len()];
-        eval(&*self.skeleton, out);
-        eval(&*self.formula, &mut other);
-        for (o, f) in out.iter_mut().zip(other) {
-            *o = self.pick(*o, f).0;
-        }
+        pick_all(self.op, out, |skeleton, out| {
+            eval(if skeleton { &*self.skeleton } else { &*self.formula }, out)
+        });
     }
 
-    /// The combined value and which operand it came from (true: the skeleton).
-    #[inline]
     fn pick(&self, s: f64, f: f64) -> (f64, bool) {
-        match self.op {
-            Combine::Union => {
-                if f < s {
-                    (f, false)
-                } else {
-                    (s, true)
-                }
-            }
-            Combine::Intersection => {
-                if f > s {
-                    (f, false)
-                } else {
-                    (s, true)
-                }
-            }
-            Combine::Difference => {
-                if -f > s {
-                    (-f, false)
-                } else {
-                    (s, true)
-                }
+        pick(self.op, s, f)
+    }
+}
+
+/// Both operands' values (`eval(true, out)`: the skeleton's), combined by `op` into `out`.
+fn pick_all(op: Combine, out: &mut [f64], eval: impl Fn(bool, &mut [f64])) {
+    let mut other = vec![0.0; out.len()];
+    eval(true, out);
+    eval(false, &mut other);
+    for (o, f) in out.iter_mut().zip(other) {
+        *o = pick(op, *o, f).0;
+    }
+}
+
+/// The combined value of skeleton value `s` and formula value `f`, and which operand it came
+/// from (true: the skeleton).
+#[inline]
+fn pick(op: Combine, s: f64, f: f64) -> (f64, bool) {
+    match op {
+        Combine::Union => {
+            if f < s {
+                (f, false)
+            } else {
+                (s, true)
             }
         }
+        Combine::Intersection => {
+            if f > s {
+                (f, false)
+            } else {
+                (s, true)
+            }
+        }
+        Combine::Difference => {
+            if -f > s {
+                (-f, false)
+            } else {
+                (s, true)
+            }
+        }
+    }
+}
+
+/// [`Combined`]'s sampler: both operands' samplers, combined.
+struct CombinedSampler<'a> {
+    skeleton: Box<dyn LayerSampler + 'a>,
+    formula: Box<dyn LayerSampler + 'a>,
+    op: Combine,
+}
+
+impl LayerSampler for CombinedSampler<'_> {
+    fn layer(&self, z: f64, rows: std::ops::Range<usize>, out: &mut [f64]) {
+        pick_all(self.op, out, |skeleton, out| {
+            let s = if skeleton { &self.skeleton } else { &self.formula };
+            s.layer(z, rows.clone(), out)
+        });
     }
 }
 
@@ -709,6 +737,14 @@ impl Field for Combined {
 
     fn eval_layer(&self, xs: &[f64], ys: &[f64], z: f64, out: &mut [f64]) {
         self.pick_all(out, |f, out| f.eval_layer(xs, ys, z, out));
+    }
+
+    fn sampler<'a>(&'a self, xs: &[f64], ys: &[f64]) -> Box<dyn LayerSampler + 'a> {
+        Box::new(CombinedSampler {
+            skeleton: self.skeleton.sampler(xs, ys),
+            formula: self.formula.sampler(xs, ys),
+            op: self.op,
+        })
     }
 
     fn gradient(&self, p: DVec3) -> DVec3 {

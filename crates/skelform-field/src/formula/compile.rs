@@ -433,8 +433,11 @@ pub(crate) enum Varies {
     Layer,
     /// Rows: it depends on `y` (and maybe `z`), not on `x`.
     Row,
-    /// Columns: it depends on `x` alone.
+    /// Columns: it depends on `x` (and maybe `z`), not on `y`.
     Column,
+    /// Every point of a layer, but not the layer: it depends on `x` and `y`, not on `z`.
+    /// Only a [`Planar`] split has such slots.
+    Plane,
 }
 
 /// A value computed apart from the points, and loaded into a slot of [`Lattice::point`].
@@ -445,11 +448,11 @@ pub(crate) struct Slot {
 }
 
 /// A formula split for evaluation over a lattice layer (fixed `z`, rows of fixed `y`, `x`
-/// along a row). A term that does not depend on both `x` and another axis takes the same
-/// value all along a row, or down a column, so it is computed once per layer, row or
-/// column instead of once per point: on the gyroid, `sin(x)`, `cos(y)`, ... leave the
-/// points, which keep three products and two sums. The same operations on the same
-/// inputs: the values are the point-by-point ones, bit for bit.
+/// along a row). A term that does not depend on both `x` and `y` takes the same value all
+/// along a row, or down a column, so it is computed once per layer, row or column instead
+/// of once per point: on the gyroid, `sin(x)`, `cos(y)`, `sin(z)·cos(x)` ... leave the
+/// points, which keep one product and two sums. The same operations on the same inputs:
+/// the values are the point-by-point ones, bit for bit.
 #[derive(Clone, Debug)]
 pub(crate) struct Lattice {
     /// The per-point part; slot `s` is [`Lattice::slots`]`[s]`.
@@ -457,9 +460,19 @@ pub(crate) struct Lattice {
     pub(crate) slots: Vec<Slot>,
 }
 
-/// Splits the formula rooted at `root` for lattice evaluation.
-pub(crate) fn lattice(nodes: &[Node], root: Id) -> Lattice {
-    let root = root as usize;
+/// A formula split for evaluation over many layers of one lattice: besides [`Lattice`]'s
+/// slots, terms of `x` and `y` alone (the torus's `(sqrt(x² + y²) − R)²`) are computed once
+/// for all layers, at every point of the plane.
+#[derive(Clone, Debug)]
+pub(crate) struct Planar {
+    /// Its [`Varies::Plane`] slots are filled from a cache of the plane's values.
+    pub(crate) lattice: Lattice,
+    /// How to compute each [`Varies::Plane`] slot over the plane, in slot order.
+    pub(crate) planes: Vec<Lattice>,
+}
+
+/// The axes (bit 0: x, 1: y, 2: z) each node up to `root` depends on.
+fn axes_of(nodes: &[Node], root: usize) -> Vec<u8> {
     let mut axes = vec![0u8; root + 1];
     for i in 0..=root {
         axes[i] = match nodes[i] {
@@ -470,10 +483,37 @@ pub(crate) fn lattice(nodes: &[Node], root: Id) -> Lattice {
             }
         };
     }
-    let per_point = |i: usize| axes[i] & 1 != 0 && axes[i] & 6 != 0;
+    axes
+}
+
+/// Splits the formula rooted at `root` for lattice evaluation, one layer at a time.
+pub(crate) fn lattice(nodes: &[Node], root: Id) -> Lattice {
+    split(nodes, root, false).0
+}
+
+/// Splits the formula rooted at `root` for many layers of one lattice; `None` when no term
+/// depends on `x` and `y` alone (then [`lattice`]'s split does as well).
+pub(crate) fn planar(nodes: &[Node], root: Id) -> Option<Planar> {
+    let (lattice, ids) = split(nodes, root, true);
+    let planes: Vec<Lattice> = lattice
+        .slots
+        .iter()
+        .zip(ids)
+        .filter(|(slot, _)| slot.varies == Varies::Plane)
+        .map(|(_, id)| split(nodes, id, false).0)
+        .collect();
+    (!planes.is_empty()).then_some(Planar { lattice, planes })
+}
+
+/// From the root down through per-point nodes; the first other node on each path is a slot
+/// (what it depends on is the slot's own business). Per point: what depends on `x` and `y`
+/// (and, with `planes`, on `z` too).
+fn slot_roots(nodes: &[Node], root: usize, axes: &[u8], planes: bool) -> Vec<Id> {
+    let per_point = |i: usize| {
+        let a = axes[i];
+        a & 3 == 3 && (!planes || a & 4 != 0)
+    };
     let leaf = |i: usize| matches!(nodes[i], Node::Var(_) | Node::Const(_));
-    // From the root down through per-point nodes; the first other node on each path is a
-    // slot (what it depends on is the slot's own business).
     let mut reached = vec![false; root + 1];
     let mut slots = Vec::new();
     reached[root] = true;
@@ -491,20 +531,26 @@ pub(crate) fn lattice(nodes: &[Node], root: Id) -> Lattice {
         }
     }
     slots.reverse();
-    let point = compile_with_slots(nodes, root as Id, &slots);
-    let slots = slots
+    slots
+}
+
+/// The split, and the node of each slot.
+fn split(nodes: &[Node], root: Id, planes: bool) -> (Lattice, Vec<Id>) {
+    let axes = axes_of(nodes, root as usize);
+    let ids = slot_roots(nodes, root as usize, &axes, planes);
+    let point = compile_with_slots(nodes, root, &ids);
+    let slots = ids
         .iter()
         .map(|&id| {
             let a = axes[id as usize];
-            let varies = if a & 1 != 0 {
-                Varies::Column
-            } else if a & 2 != 0 {
-                Varies::Row
-            } else {
-                Varies::Layer
+            let varies = match (a & 1 != 0, a & 2 != 0) {
+                (true, true) => Varies::Plane,
+                (true, false) => Varies::Column,
+                (false, true) => Varies::Row,
+                (false, false) => Varies::Layer,
             };
             Slot { varies, tape: compile(nodes, id) }
         })
         .collect();
-    Lattice { point, slots }
+    (Lattice { point, slots }, ids)
 }

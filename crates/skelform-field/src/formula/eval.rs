@@ -8,11 +8,13 @@
 //! stack (single points) or in a per-thread cache (batches).
 
 use std::cell::RefCell;
+use std::ops::Range;
 use std::thread::LocalKey;
 
 use glam::DVec3;
 
-use super::compile::{BinOp, FIRST_CONST_REG, Instr, Lattice, Tape, UnOp, Varies};
+use super::compile::{BinOp, FIRST_CONST_REG, Instr, Lattice, Planar, Tape, UnOp, Varies};
+use crate::LayerSampler;
 
 /// Lanes per batch for values: 128 × 8 bytes = 1 KiB per register.
 pub(crate) const LANES: usize = 128;
@@ -760,60 +762,72 @@ pub(crate) fn eval_batch(tape: &Tape, points: &[DVec3], out: &mut [f64]) {
 /// Values on a lattice layer, `out[i + xs.len()·j] = f(xs[i], ys[j], z)`, with the terms
 /// that depend on fewer axes computed once per layer, row or column ([`Lattice`]).
 pub(crate) fn eval_layer(lattice: &Lattice, xs: &[f64], ys: &[f64], z: f64, out: &mut [f64]) {
+    run_layer(lattice, xs, ys, z, &[], out)
+}
+
+/// [`eval_layer`] for a split with [`Varies::Plane`] slots: `planes[p]` holds the `p`-th
+/// such slot's values at the same points (`xs.len()·ys.len()` each, rows as in `out`).
+pub(crate) fn run_layer(
+    lattice: &Lattice,
+    xs: &[f64],
+    ys: &[f64],
+    z: f64,
+    planes: &[&[f64]],
+    out: &mut [f64],
+) {
     let nx = xs.len();
     let (Some(&x0), Some(&y0)) = (xs.first(), ys.first()) else { return };
-    // Down a column the value is the same, so the first row's points will do.
-    let columns: Vec<Vec<f64>> = lattice
+    let mut planes = planes.iter();
+    // Where each slot's values come from. Down a column the value is the same, so the first
+    // row's points will do; along a row, the first column's.
+    let loads: Vec<Load> = lattice
         .slots
         .iter()
         .map(|slot| match slot.varies {
+            Varies::Layer => Load::Layer(eval_point(&slot.tape, DVec3::new(x0, y0, z))),
+            Varies::Row => Load::Row(
+                ys.iter().map(|&y| eval_point(&slot.tape, DVec3::new(x0, y, z))).collect(),
+            ),
             Varies::Column => {
                 let points: Vec<DVec3> = xs.iter().map(|&x| DVec3::new(x, y0, z)).collect();
                 let mut values = vec![0.0; nx];
                 eval_batch(&slot.tape, &points, &mut values);
-                values
+                Load::Column(values)
             }
-            Varies::Layer | Varies::Row => Vec::new(),
+            Varies::Plane => Load::Plane(planes.next().expect("a plane's values for each slot")),
         })
         .collect();
     let point = &lattice.point;
     let first_slot = FIRST_CONST_REG + point.consts.len();
-    // The row terms, one value per row and slot.
-    let rows: Vec<Vec<f64>> = lattice
-        .slots
-        .iter()
-        .map(|slot| match slot.varies {
-            Varies::Row => {
-                ys.iter().map(|&y| eval_point(&slot.tape, DVec3::new(x0, y, z))).collect()
-            }
-            Varies::Layer | Varies::Column => Vec::new(),
-        })
-        .collect();
     with_scratch(&VALUE_SCRATCH, point.n_regs, [0.0; LANES], |regs| {
         for (r, &c) in regs[FIRST_CONST_REG..].iter_mut().zip(&point.consts) {
             *r = [c; LANES];
         }
         regs[2] = [z; LANES];
-        for (s, slot) in lattice.slots.iter().enumerate() {
-            if slot.varies == Varies::Layer {
-                regs[first_slot + s] = [eval_point(&slot.tape, DVec3::new(x0, y0, z)); LANES];
+        for (s, load) in loads.iter().enumerate() {
+            if let Load::Layer(v) = *load {
+                regs[first_slot + s] = [v; LANES];
             }
         }
         // A stretch of columns at a time, down all the rows: the column terms are loaded
-        // once per stretch, the row terms (a broadcast) once per row.
+        // once per stretch, the row terms (a broadcast) and plane terms once per row.
         for at in (0..nx).step_by(LANES) {
             let n = LANES.min(nx - at);
             regs[0][..n].copy_from_slice(&xs[at..at + n]);
-            for (s, column) in columns.iter().enumerate() {
-                if !column.is_empty() {
+            for (s, load) in loads.iter().enumerate() {
+                if let Load::Column(column) = load {
                     regs[first_slot + s][..n].copy_from_slice(&column[at..at + n]);
                 }
             }
             for (j, &y) in ys.iter().enumerate() {
                 regs[1] = [y; LANES];
-                for (s, row) in rows.iter().enumerate() {
-                    if !row.is_empty() {
-                        regs[first_slot + s] = [row[j]; LANES];
+                for (s, load) in loads.iter().enumerate() {
+                    match load {
+                        Load::Row(row) => regs[first_slot + s] = [row[j]; LANES],
+                        Load::Plane(plane) => {
+                            regs[first_slot + s][..n].copy_from_slice(&plane[j * nx + at..][..n])
+                        }
+                        Load::Layer(_) | Load::Column(_) => {}
                     }
                 }
                 run_values_batch(point, regs, n);
@@ -821,6 +835,53 @@ pub(crate) fn eval_layer(lattice: &Lattice, xs: &[f64], ys: &[f64], z: f64, out:
             }
         }
     })
+}
+
+/// The layers of one lattice, the plane slots' values computed once.
+pub(crate) struct Sampler<'a> {
+    lattice: &'a Lattice,
+    xs: Vec<f64>,
+    ys: Vec<f64>,
+    /// Per [`Varies::Plane`] slot, its values at every `(x, y)`, x fastest.
+    planes: Vec<Vec<f64>>,
+}
+
+impl<'a> Sampler<'a> {
+    pub(crate) fn with_planes(planar: &'a Planar, xs: Vec<f64>, ys: Vec<f64>) -> Self {
+        let planes = planar
+            .planes
+            .iter()
+            .map(|plane| {
+                let mut values = vec![0.0; xs.len() * ys.len()];
+                // The term does not depend on z: any layer gives its values.
+                eval_layer(plane, &xs, &ys, 0.0, &mut values);
+                values
+            })
+            .collect();
+        Sampler { lattice: &planar.lattice, xs, ys, planes }
+    }
+
+    /// For a split without plane slots ([`Lattice`]).
+    pub(crate) fn without_planes(lattice: &'a Lattice, xs: Vec<f64>, ys: Vec<f64>) -> Self {
+        Sampler { lattice, xs, ys, planes: Vec::new() }
+    }
+}
+
+impl LayerSampler for Sampler<'_> {
+    fn layer(&self, z: f64, rows: Range<usize>, out: &mut [f64]) {
+        let nx = self.xs.len();
+        let planes: Vec<&[f64]> =
+            self.planes.iter().map(|p| &p[rows.start * nx..rows.end * nx]).collect();
+        run_layer(self.lattice, &self.xs, &self.ys[rows], z, &planes, out)
+    }
+}
+
+/// Where a lattice slot's values come from, in [`run_layer`].
+enum Load<'a> {
+    Layer(f64),
+    Row(Vec<f64>),
+    Column(Vec<f64>),
+    Plane(&'a [f64]),
 }
 
 /// Seeds the inputs (`∂x/∂x = 1`, ...) and constants (zero partials) of dual registers.

@@ -103,7 +103,7 @@ use std::fmt;
 use glam::DVec3;
 use thiserror::Error;
 
-use crate::Field;
+use crate::{Field, LayerSampler};
 
 pub use compile::Tape;
 
@@ -178,7 +178,13 @@ pub struct Formula {
     tape: Tape,
     /// The same formula split for sampling lattice layers.
     lattice: compile::Lattice,
+    /// And for sampling many layers of one lattice, when it has terms of `x` and `y` alone.
+    planar: Option<compile::Planar>,
 }
+
+/// The most bytes of plane values ([`Field::sampler`]) a formula's sampler keeps; past it,
+/// the terms of `x` and `y` alone are computed on every layer.
+const PLANE_CACHE_MAX: usize = 64 << 20;
 
 impl Formula {
     /// Parses and compiles a formula (see the [module documentation](self) for the language).
@@ -203,7 +209,8 @@ impl Formula {
         let (builder, root) = parser::parse(text, constants)?;
         let tape = compile::compile(builder.nodes(), root);
         let lattice = compile::lattice(builder.nodes(), root);
-        Ok(Formula { source: text.to_string(), tape, lattice })
+        let planar = compile::planar(builder.nodes(), root);
+        Ok(Formula { source: text.to_string(), tape, lattice, planar })
     }
 
     /// The text the formula was parsed from.
@@ -258,6 +265,19 @@ impl Field for Formula {
     fn eval_layer(&self, xs: &[f64], ys: &[f64], z: f64, out: &mut [f64]) {
         debug_assert_eq!(xs.len() * ys.len(), out.len());
         eval::eval_layer(&self.lattice, xs, ys, z, out)
+    }
+
+    /// Computes the terms of `x` and `y` alone once, at every point of the plane (unless
+    /// that would take more than 64 MiB); bit-identical to [`Formula::eval`] at every point.
+    fn sampler<'a>(&'a self, xs: &[f64], ys: &[f64]) -> Box<dyn LayerSampler + 'a> {
+        let (xs, ys) = (xs.to_vec(), ys.to_vec());
+        let plane_bytes = |p: &compile::Planar| p.planes.len() * xs.len() * ys.len() * 8;
+        Box::new(match &self.planar {
+            Some(planar) if plane_bytes(planar) <= PLANE_CACHE_MAX => {
+                eval::Sampler::with_planes(planar, xs, ys)
+            }
+            _ => eval::Sampler::without_planes(&self.lattice, xs, ys),
+        })
     }
 
     fn gradient(&self, p: DVec3) -> DVec3 {

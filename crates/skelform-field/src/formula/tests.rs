@@ -392,14 +392,48 @@ fn lattice_layers_are_bit_identical_to_points() {
             let z = rng.uniform(-1.5, 1.5);
             let mut out = vec![f64::NAN; nx * ny];
             f.eval_layer(&xs, &ys, z, &mut out);
-            for (j, &y) in ys.iter().enumerate() {
-                for (i, &x) in xs.iter().enumerate() {
-                    let (got, want) = (out[i + nx * j], f.eval(DVec3::new(x, y, z)));
-                    assert!(same(got, want), "{src:?} at ({x}, {y}, {z}): {got} vs {want}");
+            let check = |out: &[f64], rows: std::ops::Range<usize>, z: f64, how: &str| {
+                for (j, &y) in ys[rows.clone()].iter().enumerate() {
+                    for (i, &x) in xs.iter().enumerate() {
+                        let (got, want) = (out[i + nx * j], f.eval(DVec3::new(x, y, z)));
+                        assert!(
+                            same(got, want),
+                            "{src:?} {how} at ({x}, {y}, {z}): {got} vs {want}"
+                        );
+                    }
                 }
+            };
+            check(&out, 0..ny, z, "layer");
+            // A sampler of the same lattice (terms of x and y alone computed once), on
+            // several layers and on a part of the rows.
+            let sampler = f.sampler(&xs, &ys);
+            for z in [z, rng.uniform(-1.5, 1.5)] {
+                out.fill(f64::NAN);
+                sampler.layer(z, 0..ny, &mut out);
+                check(&out, 0..ny, z, "sampler");
+                let rows = ny / 2..ny;
+                let mut part = vec![f64::NAN; nx * rows.len()];
+                sampler.layer(z, rows.clone(), &mut part);
+                check(&part, rows, z, "sampler rows");
             }
         }
     }
+}
+
+/// Sampling a lattice leaves per point only what depends on x, y and z together: the
+/// torus keeps a sum and a difference, the gyroid two sums (its `sin(x)·cos(y)` computed
+/// once for all layers, `sin(y)·cos(z)` once per row, `sin(z)·cos(x)` once per column).
+#[test]
+fn lattice_sampling_hoists_terms_of_fewer_axes() {
+    let per_point = |src: &str| {
+        let f = parse(src);
+        let planar = f.planar.as_ref().map(|p| p.lattice.point.instruction_count());
+        (f.lattice.point.instruction_count(), planar)
+    };
+    assert_eq!(per_point("(sqrt(x^2 + y^2) - 0.6)^2 + z^2 - 0.0625"), (6, Some(2)));
+    assert_eq!(per_point("sin(x)*cos(y) + sin(y)*cos(z) + sin(z)*cos(x)"), (3, Some(2)));
+    // Nothing of x and y alone: one layer at a time does as well.
+    assert_eq!(per_point("x*z + y*z").1, None);
 }
 
 #[test]
@@ -924,9 +958,12 @@ proptest! {
         let ys: Vec<f64> = pts.iter().map(|p| p.y).collect();
         let mut layer = vec![0.0; xs.len() * ys.len()];
         f.eval_layer(&xs, &ys, pts[0].z, &mut layer);
-        for (k, v) in layer.iter().enumerate() {
+        let mut sampled = vec![0.0; xs.len() * ys.len()];
+        f.sampler(&xs, &ys).layer(pts[0].z, 0..ys.len(), &mut sampled);
+        for (k, (v, s)) in layer.iter().zip(&sampled).enumerate() {
             let p = DVec3::new(xs[k % xs.len()], ys[k / xs.len()], pts[0].z);
             prop_assert!(same(*v, f.eval(p)), "{}\nlayer at {}: {} vs {}", src, p, v, f.eval(p));
+            prop_assert!(same(*s, f.eval(p)), "{}\nsampler at {}: {} vs {}", src, p, s, f.eval(p));
         }
     }
 }

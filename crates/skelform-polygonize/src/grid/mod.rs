@@ -23,7 +23,7 @@ use glam::DVec3;
 use skelform_field::Aabb;
 use skelform_field::Field;
 use skelform_field::control::Control;
-use skelform_field::grid::{Grid, GridError, Volume, sample};
+use skelform_field::grid::{Grid, GridError, LayerSampling, Volume, sample};
 use skelform_mesh::Mesh;
 
 use crate::Error;
@@ -162,16 +162,12 @@ pub fn memory_needed(grid: &Grid, streamed: bool) -> u64 {
 }
 
 /// Samples of a field, one layer at a time, for streamed extraction.
-struct FieldLayers<'a> {
-    field: &'a dyn Field,
-    grid: &'a Grid,
-}
+struct FieldLayers<'a>(LayerSampling<'a>);
 
 impl LayerSource for FieldLayers<'_> {
     type Error = std::convert::Infallible;
     fn layer(&self, k: usize, out: &mut [f32]) -> Result<u64, Self::Error> {
-        skelform_field::grid::sample_layer(self.field, self.grid, k, out);
-        Ok(skelform_field::grid::sanitize(out))
+        Ok(self.0.layer(k, out))
     }
 }
 
@@ -262,7 +258,7 @@ fn polygonize_streamed(
     mut stats: Stats,
 ) -> Result<(Mesh, Stats), Error> {
     let t = Instant::now();
-    let source = FieldLayers { field, grid };
+    let source = FieldLayers(LayerSampling::new(field, grid));
     let extract::Streamed { vertices: sampled, triangles, stats: s } =
         extract::extract_streamed::<SampledVertex, _>(&source, grid, &options.control)
             .map_err(|_| Error::Cancelled)?;
