@@ -227,22 +227,38 @@ impl<'a> LayerSampling<'a> {
     /// Samples layer `k` into `out` (`nx·ny` values, x fastest), non-finite values replaced
     /// as [`sanitize`] does; returns how many were.
     pub fn layer(&self, k: usize, out: &mut [f32]) -> u64 {
+        let mut bad = [0];
+        self.layers(k, out, &mut bad);
+        bad[0]
+    }
+
+    /// Samples layers `first..first + bad.len()` into `out` (one after the other), with
+    /// `bad[n]` how many values of the `n`-th were not finite and were replaced. A block of
+    /// rows is sampled on every layer before the next block, so that what the sampler keeps
+    /// for all layers (a formula's terms of `x` and `y`) is read from cache, not memory.
+    pub fn layers(&self, first: usize, out: &mut [f32], bad: &mut [u64]) {
         let [nx, ny, _] = self.grid.dims;
-        let z = self.grid.point(0, 0, k).z;
-        // A few rows at a time: a small buffer, and enough points per call to share the work
-        // done once per call (the terms that vary along x only).
-        let rows = (1usize << 13).div_ceil(nx.max(1));
-        let mut values = vec![0f64; rows.min(ny) * nx];
-        let mut bad = 0;
-        for (at, out) in (0..ny).step_by(rows.max(1)).zip(out.chunks_mut(rows * nx)) {
+        let layer = nx * ny;
+        debug_assert_eq!(out.len(), layer * bad.len());
+        bad.fill(0);
+        // Rows a few at a time: a small buffer, and enough points per call to share the
+        // work done once per call (the terms that vary along x only).
+        let rows = (1usize << 13).div_ceil(nx.max(1)).min(ny.max(1));
+        let mut values = vec![0f64; rows * nx];
+        for at in (0..ny).step_by(rows) {
             let end = (at + rows).min(ny);
             let values = &mut values[..(end - at) * nx];
-            self.sampler.layer(z, at..end, values);
-            bad += store_samples(values, out);
+            for (n, bad) in bad.iter_mut().enumerate() {
+                let z = self.grid.point(0, 0, first + n).z;
+                self.sampler.layer(z, at..end, values);
+                *bad += store_samples(values, &mut out[n * layer + at * nx..][..values.len()]);
+            }
         }
-        bad
     }
 }
+
+/// Layers sampled together by [`sample`]: a block shares the sampler's cached rows.
+const LAYER_BLOCK: usize = 8;
 
 /// Samples `field` at every lattice point, in parallel over z-layers.
 ///
@@ -251,22 +267,24 @@ pub fn sample(field: &dyn Field, grid: &Grid, control: &Control) -> Result<Volum
     let [nx, ny, nz] = grid.dims;
     let layer = nx * ny;
     let mut values: Vec<f32> = Vec::with_capacity(layer * nz);
-    crate::pages::advise_huge(values.spare_capacity_mut());
+    crate::pages::advise_huge(values.as_ptr(), values.capacity());
     let done = AtomicU64::new(0);
     let sampling = LayerSampling::new(field, grid);
-    // Each layer is written where it lies, by the thread that samples it (a zeroing pass
-    // first would touch all the fresh memory on one thread).
+    // Each block of layers is written where it lies, by the thread that samples it (a
+    // zeroing pass first would touch all the fresh memory on one thread).
     let non_finite = values.spare_capacity_mut()[..layer * nz]
-        .par_chunks_mut(layer)
+        .par_chunks_mut(layer * LAYER_BLOCK)
         .enumerate()
-        .map(|(k, out)| {
+        .map(|(b, out)| {
             out.fill(std::mem::MaybeUninit::new(0.0));
             // SAFETY: every element was just initialised, and MaybeUninit<f32> has f32's layout.
             let out = unsafe { &mut *(out as *mut [std::mem::MaybeUninit<f32>] as *mut [f32]) };
-            let bad = sampling.layer(k, out);
-            let d = done.fetch_add(1, Ordering::Relaxed) + 1;
+            let mut bad = [0; LAYER_BLOCK];
+            let bad = &mut bad[..out.len() / layer];
+            sampling.layers(b * LAYER_BLOCK, out, bad);
+            let d = done.fetch_add(bad.len() as u64, Ordering::Relaxed) + bad.len() as u64;
             match control.report(Progress { phase: "sampling", done: d, total: Some(nz as u64) }) {
-                ControlFlow::Continue(()) => Ok(bad),
+                ControlFlow::Continue(()) => Ok(bad.iter().sum::<u64>()),
                 ControlFlow::Break(()) => Err(GridError::Cancelled),
             }
         })

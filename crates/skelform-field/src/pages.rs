@@ -16,21 +16,41 @@ const HUGE: usize = 2 << 20;
 /// huge-page boundary, which is made of small pages, each its own fault.
 pub const ROOM: usize = 16 * HUGE;
 
-/// Asks for huge pages on the 2 MiB-aligned part of `v`'s memory; pages already touched stay
-/// as they are. A hint: failure changes nothing but speed.
-pub fn advise_huge<T>(v: &mut [T]) {
-    let bytes = std::mem::size_of_val(v);
+/// Asks for huge pages on the whole allocation `start..start + bytes` (a `Vec`'s buffer, all
+/// of its capacity). A hint: failure changes nothing but speed, and pages already touched
+/// stay as they are.
+///
+/// The advice covers every page the allocation touches, its first and last included. A
+/// large block from the allocator is a mapping of its own, and advice on only a part of it
+/// would split the mapping in two, which `mremap` cannot move as one: `realloc` would then
+/// copy the block instead of remapping it (glibc falls back to copying when `mremap` fails).
+/// Pages shared with neighbouring small allocations get the hint too, which changes nothing
+/// for them but how the kernel may back them.
+pub fn advise_huge<T>(start: *const T, capacity: usize) {
+    let bytes = capacity.saturating_mul(std::mem::size_of::<T>());
     #[cfg(target_os = "linux")]
-    {
-        let start = (v.as_mut_ptr() as usize).next_multiple_of(HUGE);
-        let end = (v.as_mut_ptr() as usize + bytes) / HUGE * HUGE;
-        if end > start {
-            // SAFETY: [start, end) lies inside `v`'s allocation, which we hold mutably;
-            // MADV_HUGEPAGE only changes how the kernel backs those pages, never their
-            // contents or the mapping's validity.
-            unsafe {
-                libc::madvise(start as *mut libc::c_void, end - start, libc::MADV_HUGEPAGE);
-            }
+    if bytes >= HUGE {
+        let page = page_size();
+        let first = (start as usize) / page * page;
+        let end = (start as usize).saturating_add(bytes).next_multiple_of(page);
+        // SAFETY: MADV_HUGEPAGE changes only how the kernel backs pages, never their
+        // contents or any mapping's validity; on unmapped addresses madvise fails (ENOMEM)
+        // and does nothing else.
+        unsafe {
+            libc::madvise(first as *mut libc::c_void, end - first, libc::MADV_HUGEPAGE);
         }
     }
+    #[cfg(not(target_os = "linux"))]
+    let _ = (start, bytes);
+}
+
+/// The system's page size (4 KiB where it cannot be asked).
+#[cfg(target_os = "linux")]
+fn page_size() -> usize {
+    static PAGE: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
+    // SAFETY: sysconf only reads a system setting.
+    *PAGE.get_or_init(|| match unsafe { libc::sysconf(libc::_SC_PAGESIZE) } {
+        n if n > 0 => n as usize,
+        _ => 4096,
+    })
 }

@@ -95,18 +95,9 @@ impl<T: Copy + Send + Sync> Assembly<T> {
         let Some((start, capacity)) = grow(generous).or_else(|| grow(needed)) else {
             handle_alloc_error(Block::<T>::layout(needed))
         };
-        let old = block.capacity;
         // Field by field: the old block's memory is the new one's now, not to be freed.
         (block.start, block.capacity) = (start, capacity);
-        // SAFETY: elements `old..capacity` are inside the block, which the write lock keeps
-        // to this thread, and seen as `MaybeUninit` they may hold anything.
-        let new_part = unsafe {
-            std::slice::from_raw_parts_mut(
-                start.as_ptr().add(old).cast::<MaybeUninit<T>>(),
-                capacity - old,
-            )
-        };
-        skelform_field::pages::advise_huge(new_part);
+        skelform_field::pages::advise_huge(start.as_ptr(), capacity);
     }
 
     /// Writes `f` of each of `from`, in order, at elements `at..at + from.len()`.

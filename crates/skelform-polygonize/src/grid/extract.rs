@@ -149,7 +149,7 @@ fn make_room<T>(v: &mut Vec<T>, more: usize) {
     if v.capacity() - v.len() < more {
         let step = skelform_field::pages::ROOM / std::mem::size_of::<T>().max(1);
         v.reserve(more.max(v.capacity()).max(step));
-        skelform_field::pages::advise_huge(v.spare_capacity_mut());
+        skelform_field::pages::advise_huge(v.as_ptr(), v.capacity());
     }
 }
 
@@ -435,6 +435,17 @@ pub trait LayerSource: Sync {
     /// Fills `out` with sample layer `k`; returns how many of its samples were not finite
     /// (NaN, ±∞) and were replaced as [`skelform_field::grid::sanitize`] does.
     fn layer(&self, k: usize, out: &mut [f32]) -> Result<u64, Self::Error>;
+
+    /// Fills `out` with layers `first..first + bad.len()`, one after the other, and `bad[n]`
+    /// with the count [`LayerSource::layer`] returns for the `n`-th. The default fetches one
+    /// layer at a time; a source that shares work between layers can do better.
+    fn layers(&self, first: usize, out: &mut [f32], bad: &mut [u64]) -> Result<(), Self::Error> {
+        let layer = out.len() / bad.len().max(1);
+        for (n, (out, bad)) in out.chunks_mut(layer.max(1)).zip(bad).enumerate() {
+            *bad = self.layer(first + n, out)?;
+        }
+        Ok(())
+    }
 }
 
 /// Why streamed extraction stopped.
@@ -485,17 +496,14 @@ pub fn extract_streamed<V: SlabVertex, S: LayerSource>(
             let t = Instant::now();
             let mut layers = std::mem::take(&mut scratch.layers);
             layers.resize((z1 - z0 + 1) * layer, 0.0);
-            let mut non_finite = 0;
-            for (n, out) in layers.chunks_mut(layer).enumerate() {
-                if control.is_cancelled() {
-                    return Err(StreamError::Cancelled);
-                }
-                let bad = source.layer(z0 + n, out).map_err(StreamError::Source)?;
-                // The top layer is counted by the slab above, unless there is none.
-                if z0 + n < z1 || last {
-                    non_finite += bad;
-                }
+            if control.is_cancelled() {
+                return Err(StreamError::Cancelled);
             }
+            let mut bad = [0; SLAB + 1];
+            let bad = &mut bad[..=z1 - z0];
+            source.layers(z0, &mut layers, bad).map_err(StreamError::Source)?;
+            // The top layer is counted by the slab above, unless there is none.
+            let non_finite: u64 = bad[..z1 - z0 + usize::from(last)].iter().sum();
             let range = skelform_field::grid::value_range(&layers);
             let sourced = t.elapsed();
             let t = Instant::now();

@@ -169,6 +169,10 @@ impl LayerSource for FieldLayers<'_> {
     fn layer(&self, k: usize, out: &mut [f32]) -> Result<u64, Self::Error> {
         Ok(self.0.layer(k, out))
     }
+    fn layers(&self, first: usize, out: &mut [f32], bad: &mut [u64]) -> Result<(), Self::Error> {
+        self.0.layers(first, out, bad);
+        Ok(())
+    }
 }
 
 /// Polygonizes `field` (zero set, inside negative) on a lattice over the domain.
