@@ -129,7 +129,7 @@ pub fn print(run: &Run, writing: Duration, total: Duration) {
             println!("grid          {nx} × {ny} × {nz} samples, cell {:.6}", s.cell);
             if s.streamed {
                 println!(
-                    "samples       {} (streamed in slabs: the layer between two slabs is sampled twice)",
+                    "samples       {} (streamed in slabs: a layer between slabs run on different threads is sampled twice)",
                     s.samples
                 );
             } else {

@@ -121,6 +121,12 @@ pub struct SampledVertex {
     pub ends: [f32; 2],
 }
 
+impl std::borrow::Borrow<GridVertex> for SampledVertex {
+    fn borrow(&self) -> &GridVertex {
+        &self.vertex
+    }
+}
+
 impl SlabVertex for SampledVertex {
     #[inline]
     fn make(_: &Grid, vertex: GridVertex, ends: [f32; 2]) -> Self {
@@ -350,6 +356,9 @@ struct Scratch {
     z: ZNumbering,
     /// The sample layers of the slab, when they are streamed from a [`LayerSource`].
     layers: Vec<f32>,
+    /// Which layer the last of `layers` is, and how many of its samples were not finite:
+    /// the next slab starts with it, if this thread runs that slab.
+    top: Option<(usize, u64)>,
 }
 
 impl Scratch {
@@ -362,6 +371,7 @@ impl Scratch {
             upper: LayerNumbering::default(),
             z: ZNumbering::default(),
             layers: Vec::new(),
+            top: None,
         }
     }
 }
@@ -464,7 +474,8 @@ pub struct StreamStats {
     pub non_finite: u64,
     pub min_sample: f32,
     pub max_sample: f32,
-    /// Layer reads (or evaluations) including the layer that two slabs share.
+    /// Samples read (or evaluated): each layer once, and a layer that two slabs share twice
+    /// when they ran on different threads.
     pub samples_read: u64,
     /// Time spent in the source and in extraction, summed over the workers.
     pub source_time: std::time::Duration,
@@ -473,9 +484,9 @@ pub struct StreamStats {
 
 /// Marching cubes over a volume that is never held whole: each worker fetches the `SLAB + 1`
 /// sample layers of one slab from `source`, extracts it and drops them, so memory follows the
-/// number of threads, not the volume. The layer between two slabs is fetched by both (one
-/// extra layer per slab). The mesh is identical to [`extract`]'s on the same samples, on any
-/// number of threads.
+/// number of threads, not the volume. The layer between two slabs is fetched once when one
+/// thread runs both (on one thread, always), by each otherwise. The mesh is identical to
+/// [`extract`]'s on the same samples, on any number of threads.
 pub fn extract_streamed<V: SlabVertex, S: LayerSource>(
     source: &S,
     grid: &Grid,
@@ -487,7 +498,7 @@ pub fn extract_streamed<V: SlabVertex, S: LayerSource>(
     let cube_layers = nz - 1;
     let slabs = cube_layers.div_ceil(SLAB);
     let done = AtomicU64::new(0);
-    type Part = ((u64, u64), u64, (f32, f32), std::time::Duration, std::time::Duration);
+    type Part = ((u64, u64), u64, (f32, f32), u64, std::time::Duration, std::time::Duration);
     let (vertices, triangles, parts) =
         run_slabs(slabs, [nx, ny], |s, scratch, store| -> Result<Part, _> {
             let z0 = s * SLAB;
@@ -495,15 +506,30 @@ pub fn extract_streamed<V: SlabVertex, S: LayerSource>(
             let last = z1 == cube_layers;
             let t = Instant::now();
             let mut layers = std::mem::take(&mut scratch.layers);
-            layers.resize((z1 - z0 + 1) * layer, 0.0);
             if control.is_cancelled() {
                 return Err(StreamError::Cancelled);
             }
             let mut bad = [0; SLAB + 1];
             let bad = &mut bad[..=z1 - z0];
-            source.layers(z0, &mut layers, bad).map_err(StreamError::Source)?;
+            // The slab below's top layer is this slab's first: when this thread ran that
+            // slab, the layer is still here (always so on one thread).
+            let first = match scratch.top.take() {
+                Some((z, b)) if z == z0 => {
+                    let len = layers.len();
+                    layers.copy_within(len - layer.., 0);
+                    bad[0] = b;
+                    1
+                }
+                _ => 0,
+            };
+            layers.resize((z1 - z0 + 1) * layer, 0.0);
+            source
+                .layers(z0 + first, &mut layers[first * layer..], &mut bad[first..])
+                .map_err(StreamError::Source)?;
+            scratch.top = Some((z1, bad[z1 - z0]));
             // The top layer is counted by the slab above, unless there is none.
             let non_finite: u64 = bad[..z1 - z0 + usize::from(last)].iter().sum();
+            let fetched = (z1 - z0 + 1 - first) as u64;
             let range = skelform_field::grid::value_range(&layers);
             let sourced = t.elapsed();
             let t = Instant::now();
@@ -513,15 +539,15 @@ pub fn extract_streamed<V: SlabVertex, S: LayerSource>(
             let extracted = t.elapsed();
             slab_done(control, &done, z1 - z0, cube_layers, "sampling and extracting")
                 .map_err(|_| StreamError::Cancelled)?;
-            Ok((counts, non_finite, range, sourced, extracted))
+            Ok((counts, non_finite, range, fetched, sourced, extracted))
         })?;
     let mut stats = StreamStats {
         min_sample: f32::INFINITY,
         max_sample: f32::NEG_INFINITY,
-        samples_read: (cube_layers + slabs) as u64 * layer as u64,
         ..StreamStats::default()
     };
-    for ((ambiguous_faces, tunnels), non_finite, (lo, hi), sourced, extracted) in parts {
+    for ((ambiguous_faces, tunnels), non_finite, (lo, hi), fetched, sourced, extracted) in parts {
+        stats.samples_read += fetched * layer as u64;
         stats.non_finite += non_finite;
         stats.min_sample = stats.min_sample.min(lo);
         stats.max_sample = stats.max_sample.max(hi);

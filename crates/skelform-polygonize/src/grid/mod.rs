@@ -17,6 +17,7 @@ pub mod extract;
 pub mod interior;
 pub mod table;
 
+use std::borrow::Borrow;
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
@@ -65,9 +66,9 @@ pub struct Options {
 /// Whether the grid polygonizer keeps the whole sampled volume.
 ///
 /// Streaming samples each slab of [`extract::SLAB`] cube layers as it is extracted, so memory
-/// follows the thread count instead of the volume (a 512³ volume is 512 MiB of samples); it
-/// evaluates the layer between two slabs twice (one layer in `SLAB` more). The mesh is the
-/// same either way, bit for bit.
+/// follows the thread count instead of the volume (a 512³ volume is 512 MiB of samples); the
+/// layer between two slabs is evaluated twice when the slabs run on different threads (at
+/// most one layer in `SLAB` more). The mesh is the same either way, bit for bit.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Streaming {
     /// Stream when the volume would take more than [`STREAM_ABOVE`] bytes.
@@ -279,10 +280,9 @@ fn polygonize_streamed(
     stats.tunnels = s.tunnels;
 
     let t = Instant::now();
-    let vertices: Vec<GridVertex> = sampled.iter().map(|v| v.vertex).collect();
     let how = Placement::for_grid(options.refine, options.tolerance);
     let ends = |i: usize| sampled[i].ends.map(f64::from);
-    let (positions, evals) = place_vertices(field, grid, &vertices, ends, &how);
+    let (positions, evals) = place_vertices(field, grid, &sampled, ends, &how);
     stats.refine_evaluations = evals;
     stats.refinement = t.elapsed();
     if options.control.is_cancelled() {
@@ -315,17 +315,19 @@ impl Placement {
 pub(crate) fn place_vertices(
     field: &dyn Field,
     grid: &Grid,
-    vertices: &[GridVertex],
+    vertices: &[impl Borrow<GridVertex>],
     ends: impl Fn(usize) -> [f64; 2],
     how: &Placement,
 ) -> (Vec<DVec3>, u64) {
-    let mut positions: Vec<DVec3> = vertices.iter().map(|v| v.position(grid)).collect();
+    let vertex = |i: usize| -> &GridVertex { vertices[i].borrow() };
+    let mut positions: Vec<DVec3> = (0..vertices.len()).map(|i| vertex(i).position(grid)).collect();
     if !how.refine {
         return (positions, 0);
     }
     let at = |p: [u32; 3]| grid.point(p[0] as usize, p[1] as usize, p[2] as usize);
     let (mut edge, mut brackets, mut cell) = (Vec::new(), Vec::new(), Vec::new());
-    for (i, v) in vertices.iter().enumerate() {
+    for i in 0..vertices.len() {
+        let v = vertex(i);
         match (v.place, v.tip()) {
             (Place::Edge { t, .. }, Some(tip)) => {
                 edge.push(i);
@@ -344,7 +346,7 @@ pub(crate) fn place_vertices(
         let boxes: Vec<(DVec3, DVec3)> = cell
             .iter()
             .map(|&i| {
-                let lo = at(vertices[i].base);
+                let lo = at(vertex(i).base);
                 (lo, lo + DVec3::splat(grid.cell))
             })
             .collect();
