@@ -179,10 +179,13 @@ pub fn extract(a: ExtractArgs) -> Result<(), Failure> {
     } else {
         let raw =
             std::fs::read(&a.volume).map_err(|e| input(anyhow!("{}: {e}", a.volume.display())))?;
-        let values: Vec<f32> = raw
-            .chunks_exact(4)
-            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]) - iso)
-            .collect();
+        // On huge pages where the system has them: extraction streams through the whole
+        // volume, and fewer pages mean fewer TLB misses on the way.
+        let mut values: Vec<f32> = Vec::with_capacity(raw.len() / 4);
+        skelform_field::pages::advise_huge(values.as_ptr(), values.capacity());
+        values.extend(
+            raw.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]) - iso),
+        );
         drop(raw);
         let volume = Volume::from_values(grid, values);
         let mesh = repeated(a.repeat, &mut times, || {

@@ -608,7 +608,8 @@ where
             if k >= slabs {
                 break;
             }
-            let mut out = kept::take().or_else(|| lock().spare.pop()).unwrap_or_default();
+            let spare = lock().spare.pop();
+            let mut out = spare.or_else(kept::take).unwrap_or_default();
             out.vertices.clear();
             out.triangles.clear();
             let result = slab(k, &mut scratch, &mut SlabStore::new(&mut out, hint));
@@ -636,16 +637,14 @@ where
             }
             lock().spare.extend(ready.into_iter().map(|(o, _)| o));
         }
-        if let Some(out) = lock().spare.pop() {
-            kept::keep(out);
-        }
     };
     rayon::scope(|s| {
         for _ in 0..threads {
             s.spawn(|_| work());
         }
     });
-    let chain = chain.into_inner().unwrap_or_else(|e| e.into_inner());
+    let mut chain = chain.into_inner().unwrap_or_else(|e| e.into_inner());
+    kept::keep(std::mem::take(&mut chain.spare), 2 * threads);
     if let Some((_, e)) = chain.error {
         return Err(e);
     }
@@ -658,37 +657,29 @@ where
     Ok((vertices, triangles, results))
 }
 
-/// A slab buffer that each thread keeps from one extraction to the next, so that a program
-/// that extracts again (frames of an animation, a benchmark's runs) does not fault in fresh
-/// pages for it every time: memory the size of one slab's mesh per thread.
+/// Slab buffers kept from one extraction to the next, so that a program that extracts again
+/// (frames of an animation, a benchmark's runs) does not fault in fresh pages for them every
+/// time: memory the size of a few slabs' meshes per thread.
 mod kept {
     use super::Output;
     use std::any::Any;
-    use std::cell::RefCell;
+    use std::sync::Mutex;
 
-    thread_local! {
-        static KEPT: RefCell<Vec<Box<dyn Any>>> = const { RefCell::new(Vec::new()) };
+    static KEPT: Mutex<Vec<Box<dyn Any + Send>>> = Mutex::new(Vec::new());
+
+    /// A kept buffer for vertices of type `V`, if there is one.
+    pub(super) fn take<V: Send + 'static>() -> Option<Output<V>> {
+        let mut kept = KEPT.lock().unwrap_or_else(|e| e.into_inner());
+        let at = kept.iter().position(|b| b.is::<Output<V>>())?;
+        kept.swap_remove(at).downcast().ok().map(|b| *b)
     }
 
-    /// The thread's kept buffer for vertices of type `V`, if it has one.
-    pub(super) fn take<V: 'static>() -> Option<Output<V>> {
-        KEPT.try_with(|k| {
-            let mut k = k.try_borrow_mut().ok()?;
-            let at = k.iter().position(|b| b.is::<Output<V>>())?;
-            k.swap_remove(at).downcast().ok().map(|b| *b)
-        })
-        .ok()
-        .flatten()
-    }
-
-    /// Keeps `out` for the thread's next extraction (one buffer per vertex type).
-    pub(super) fn keep<V: 'static>(out: Output<V>) {
-        let _ = KEPT.try_with(|k| {
-            if let Ok(mut k) = k.try_borrow_mut() {
-                k.retain(|b| !b.is::<Output<V>>());
-                k.push(Box::new(out));
-            }
-        });
+    /// Keeps `buffers` for the next extraction, and no more than `most` of their type.
+    pub(super) fn keep<V: Send + 'static>(buffers: Vec<Output<V>>, most: usize) {
+        let mut kept = KEPT.lock().unwrap_or_else(|e| e.into_inner());
+        let held = kept.iter().filter(|b| b.is::<Output<V>>()).count();
+        let room = most.saturating_sub(held);
+        kept.extend(buffers.into_iter().take(room).map(|b| Box::new(b) as Box<dyn Any + Send>));
     }
 }
 
