@@ -251,6 +251,14 @@ def machine():
     return f"{cpu}, {os.cpu_count()} cores, {platform.system()} {platform.release()}, Python {platform.python_version()}"
 
 
+def make_volumes(fields, sizes):
+    """Writes the sample volumes that are not cached yet, each in a child process: a worker's
+    peak memory would otherwise include this process's, inherited when it starts the worker."""
+    for field in fields:
+        for n in sizes:
+            subprocess.run([sys.executable, __file__, "--generate", field, str(n)], check=True)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--worker", nargs=5, metavar=("TOOL", "FIELD", "N", "MODE", "RUNS"), help=argparse.SUPPRESS)
@@ -259,6 +267,8 @@ def main():
     ap.add_argument("--fields", default="sphere,torus,gyroid,blobs")
     ap.add_argument("--runs", type=int, default=5)
     ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "latest.md"))
+    ap.add_argument("--prepare", action="store_true",
+                    help="only write the sample volumes of these sizes and fields, and stop")
     a = ap.parse_args()
     if a.generate:
         volume_file(a.generate[0], int(a.generate[1]))
@@ -269,17 +279,16 @@ def main():
         return
     sizes = [int(s) for s in a.sizes.split(",")]
     fields = a.fields.split(",")
+    if a.prepare:
+        make_volumes(fields, sizes)
+        return
     lines = [f"# skelform against its peers", "",
              f"One run of `bench/peers/run.sh` on {time.strftime('%Y-%m-%d')}: {machine()}.",
              f"Medians of {a.runs} runs in one fresh process per tool, field and size (the first cold, the others warm);",
              "ratio = peer time / skelform single-threaded time",
              "(above 1: skelform is faster). Peak memory is the process's maximum resident set.", ""]
     started = time.time()
-    # Volumes are made in a child process: a worker's peak memory would otherwise include
-    # this process's, inherited when it starts the worker.
-    for field in fields:
-        for n in sizes:
-            subprocess.run([sys.executable, __file__, "--generate", field, str(n)], check=True)
+    make_volumes(fields, sizes)
     threads = {}  # (field, n) -> {tool: (first, median)} for skelform's extraction
     for mode, title in [("extract", "Extraction only, from the same float32 volume"),
                         ("both", "Sampling plus extraction, each tool evaluating the field its fastest way")]:

@@ -6,9 +6,19 @@
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 root=$(cd "$here/../.." && pwd)
+started=$(date +%s)
+# The build runs while the Python side installs the peers and writes the sample volumes.
+(cd "$root" && cargo build --release --quiet --bin skelform \
+    && cargo build --release --quiet -p skelform-polygonize --example fsn_peer) &
+build=$!
 if [ ! -x "$here/.venv/bin/python" ]; then
     python3 -m venv "$here/.venv"
 fi
 "$here/.venv/bin/pip" install --quiet --disable-pip-version-check numpy scikit-image PyMCubes vtk
-(cd "$root" && cargo build --release --quiet --bin skelform && cargo build --release --quiet -p skelform-polygonize --example fsn_peer)
+"$here/.venv/bin/python" "$here/peers.py" --prepare "$@"
+if ! wait "$build"; then
+    echo "run.sh: building skelform failed" >&2
+    exit 1
+fi
+echo "run.sh: set up in $(( $(date +%s) - started )) s (environment, peers, build, volumes)" >&2
 exec "$here/.venv/bin/python" "$here/peers.py" "$@"

@@ -208,8 +208,8 @@ fn store_samples(values: &[f64], out: &mut [f32]) -> u64 {
 }
 
 /// Samples a field on the layers of one lattice, in any order and from any thread, exactly
-/// as [`sample`] does: for callers that stream a volume layer by layer.
-/// Work that is the same on every layer is done once, when it is made ([`Field::sampler`]).
+/// as [`sample`] does: for callers that stream a volume layer by layer. Work that is the same
+/// on every layer is done once, when it is made ([`Field::sampler`]).
 pub struct LayerSampling<'a> {
     grid: Grid,
     sampler: Box<dyn LayerSampler + 'a>,

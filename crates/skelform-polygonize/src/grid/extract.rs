@@ -505,10 +505,10 @@ pub fn extract_streamed<V: SlabVertex, S: LayerSource>(
             let z1 = (z0 + SLAB).min(cube_layers);
             let last = z1 == cube_layers;
             let t = Instant::now();
-            let mut layers = std::mem::take(&mut scratch.layers);
             if control.is_cancelled() {
                 return Err(StreamError::Cancelled);
             }
+            let mut layers = std::mem::take(&mut scratch.layers);
             let mut bad = [0; SLAB + 1];
             let bad = &mut bad[..=z1 - z0];
             // The slab below's top layer is this slab's first: when this thread ran that
