@@ -3,7 +3,8 @@
 Extraction only: every tool reads the same precomputed float32 volume and extracts the
 zero level set; we time the extraction call alone (for skelform, the time it reports for its
 extraction, after reading the file). Sampling plus extraction: each tool evaluates the field
-its fastest way (NumPy for the Python tools, skelform's compiled formulas) and extracts.
+its fastest way (NumPy for the Python tools, skelform's compiled formulas) and extracts, at
+the sizes up to 256³ unless told otherwise (--both-sizes).
 Each tool, field and size runs in a fresh process (imports made once, outside the timings),
 which also gives its peak memory, and makes all its runs there: the first finds a cold
 process, the others a warm one, as in a program that calls the library. skelform and
@@ -267,6 +268,10 @@ def main():
     ap.add_argument("--fields", default="sphere,torus,gyroid,blobs")
     ap.add_argument("--runs", type=int, default=5)
     ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "latest.md"))
+    ap.add_argument("--both-sizes", default=None,
+                    help="sizes of the sampling-plus-extraction table (default: those of --sizes up "
+                         "to 256³, or all of them when none is: at 384³ the Python peers' sampling "
+                         "alone would take minutes of the run)")
     ap.add_argument("--prepare", action="store_true",
                     help="only write the sample volumes of these sizes and fields, and stop")
     a = ap.parse_args()
@@ -279,6 +284,10 @@ def main():
         return
     sizes = [int(s) for s in a.sizes.split(",")]
     fields = a.fields.split(",")
+    if a.both_sizes:
+        both_sizes = [int(s) for s in a.both_sizes.split(",")]
+    else:
+        both_sizes = [n for n in sizes if n <= 256] or sizes
     if a.prepare:
         make_volumes(fields, sizes)
         return
@@ -296,7 +305,7 @@ def main():
                   "| field | samples | tool | ms | ratio | vertices | triangles | peak MiB |",
                   "|---|---|---|---|---|---|---|---|"]
         for field in fields:
-            for n in sizes:
+            for n in (sizes if mode == "extract" else both_sizes):
                 base = None
                 for tool in TOOLS:
                     r = measure(tool, field, n, mode, a.runs)
