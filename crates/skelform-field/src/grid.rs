@@ -1,5 +1,6 @@
 //! Regular lattices over a box, and sampling a field on them.
 
+use std::mem::MaybeUninit;
 use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -196,13 +197,13 @@ pub fn sanitize(values: &mut [f32]) -> u64 {
 /// Field values as samples: clamped into `f32`'s finite range (huge finite values stay
 /// finite, ±∞ become ±`f32::MAX`), NaN replaced as [`sanitize`] does. Returns how many were
 /// NaN.
-fn store_samples(values: &[f64], out: &mut [f32]) -> u64 {
+fn store_samples(values: &[f64], out: &mut [MaybeUninit<f32>]) -> u64 {
     let mut bad = 0;
     for (o, &v) in out.iter_mut().zip(values) {
         let nan = v.is_nan();
         bad += u64::from(nan);
         let clamped = v.clamp(-f32::MAX as f64, f32::MAX as f64) as f32;
-        *o = if nan { f32::MAX } else { clamped };
+        o.write(if nan { f32::MAX } else { clamped });
     }
     bad
 }
@@ -237,9 +238,19 @@ impl<'a> LayerSampling<'a> {
     /// rows is sampled on every layer before the next block, so that what the sampler keeps
     /// for all layers (a formula's terms of `x` and `y`) is read from cache, not memory.
     pub fn layers(&self, first: usize, out: &mut [f32], bad: &mut [u64]) {
+        // SAFETY: MaybeUninit<f32> has f32's layout, and `fill` writes initialised values
+        // only, so `out` stays initialised.
+        let out = unsafe { &mut *(out as *mut [f32] as *mut [MaybeUninit<f32>]) };
+        self.fill(first, out, bad);
+    }
+
+    /// [`LayerSampling::layers`] into memory not yet initialised: every element of `out` is
+    /// written.
+    fn fill(&self, first: usize, out: &mut [MaybeUninit<f32>], bad: &mut [u64]) {
         let [nx, ny, _] = self.grid.dims;
         let layer = nx * ny;
-        debug_assert_eq!(out.len(), layer * bad.len());
+        // What makes every element written (`sample` relies on it).
+        assert_eq!(out.len(), layer * bad.len(), "the output must hold the layers whole");
         bad.fill(0);
         // Rows a few at a time: a small buffer, and enough points per call to share the
         // work done once per call (the terms that vary along x only).
@@ -270,18 +281,15 @@ pub fn sample(field: &dyn Field, grid: &Grid, control: &Control) -> Result<Volum
     crate::pages::advise_huge(values.as_ptr(), values.capacity());
     let done = AtomicU64::new(0);
     let sampling = LayerSampling::new(field, grid);
-    // Each block of layers is written where it lies, by the thread that samples it (a
-    // zeroing pass first would touch all the fresh memory on one thread).
+    // Each block of layers is written where it lies, once, by the thread that samples it (a
+    // zeroing pass first would touch all the fresh memory on one thread, and write it twice).
     let non_finite = values.spare_capacity_mut()[..layer * nz]
         .par_chunks_mut(layer * LAYER_BLOCK)
         .enumerate()
         .map(|(b, out)| {
-            out.fill(std::mem::MaybeUninit::new(0.0));
-            // SAFETY: every element was just initialised, and MaybeUninit<f32> has f32's layout.
-            let out = unsafe { &mut *(out as *mut [std::mem::MaybeUninit<f32>] as *mut [f32]) };
             let mut bad = [0; LAYER_BLOCK];
             let bad = &mut bad[..out.len() / layer];
-            sampling.layers(b * LAYER_BLOCK, out, bad);
+            sampling.fill(b * LAYER_BLOCK, out, bad);
             let d = done.fetch_add(bad.len() as u64, Ordering::Relaxed) + bad.len() as u64;
             match control.report(Progress { phase: "sampling", done: d, total: Some(nz as u64) }) {
                 ControlFlow::Continue(()) => Ok(bad.iter().sum::<u64>()),
@@ -289,7 +297,7 @@ pub fn sample(field: &dyn Field, grid: &Grid, control: &Control) -> Result<Volum
             }
         })
         .try_reduce(|| 0, |a, b| Ok(a + b))?;
-    // SAFETY: the layers cover the first `layer·nz` elements, all written above.
+    // SAFETY: the blocks cover the first `layer·nz` elements, each written whole by `fill`.
     unsafe { values.set_len(layer * nz) };
     Ok(Volume { grid: *grid, values, non_finite })
 }
