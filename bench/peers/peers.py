@@ -103,8 +103,9 @@ def volume_file(field, n):
 
 # ---- worker mode: the measurements of one tool, field and size in a fresh process -------
 
-# Processes per thread count behind the speed-up table (alternating one thread and all).
-SPEEDUP_ROUNDS = 3
+# Rounds behind the speed-up table: in each, one process extracts with one thread and with
+# all, in turn (`skelform extract --threads 1,N`), milliseconds apart.
+SPEEDUP_ROUNDS = 21
 
 # Tools that run as child processes and can repeat an extraction in one process themselves.
 REPEATING = ("skelform-1", "skelform-all", "fast-surface-nets")
@@ -144,6 +145,22 @@ def repeated_extraction(tool, field, n, runs):
     peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
     return [{"seconds": t, "vertices": j["vertices"], "triangles": j["triangles"], "peak_mib": peak}
             for t in seconds]
+
+
+def paired_scaling(field, n, rounds):
+    """skelform's extraction alternately on one thread and on all, `rounds` times in one
+    process: each count's median time, the median of the rounds' speed-ups and their
+    quartiles."""
+    with tempfile.TemporaryDirectory() as d:
+        cmd = [str(SKELFORM), "extract", str(volume_file(field, n)), "--dims", f"{n},{n},{n}",
+               "-o", f"{d}/m.ply", "--json", "--threads", f"1,{os.cpu_count()}", "--repeat", str(rounds)]
+        if n >= STREAM_FROM:
+            cmd.append("--stream")
+        j = json.loads(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout)
+    one, every = j["scaling"]
+    ups = sorted(every["speedups"])
+    return {"one": one["extraction"], "all": every["extraction"], "speedup": every["speedup"],
+            "q1": ups[len(ups) // 4], "q3": ups[(3 * len(ups)) // 4]}
 
 
 def one_run(tool, field, n, mode):
@@ -321,23 +338,22 @@ def main():
                     print(lines[-1], flush=True)
         lines.append("")
         if mode == "extract":
-            lines += ["## skelform's extraction on all cores against one, cold and warm", "",
-                      f"Cold: the first extraction in a new process; warm: the median of {a.runs}. Each figure",
-                      f"is the best of {SPEEDUP_ROUNDS} processes, run alternately with one thread and with all",
-                      "(the first of them is the process of the table above): a shared machine's speed drifts",
-                      "within minutes, and two processes minutes apart would measure the drift.", "",
-                      "| field | samples | 1 thread, cold | all, cold | speed-up | 1 thread, warm | all, warm | speed-up |",
-                      "|---|---|---|---|---|---|---|---|"]
+            cores = os.cpu_count()
+            lines += ["## skelform's extraction on all cores against one", "",
+                      f"Warm: one process extracts {SPEEDUP_ROUNDS} rounds, each once with one thread and once with all {cores}",
+                      f"in turn (`skelform extract --threads 1,{cores} --repeat {SPEEDUP_ROUNDS}`); the speed-up is the median of",
+                      "the rounds' ratios, with their quartiles beside it, and the times are each thread count's",
+                      "medians. A shared machine's speed drifts by up to 2× within minutes; a round's two runs",
+                      "are milliseconds apart, so the drift cancels out of their ratio. Cold: the first",
+                      "extraction in a new process (the processes of the table above).", "",
+                      "| field | samples | 1 thread, cold | all, cold | speed-up | 1 thread, warm | all, warm | speed-up | quartiles |",
+                      "|---|---|---|---|---|---|---|---|---|"]
             for (field, n), t in threads.items():
-                rounds = {tool: [v] for tool, v in t.items()}
-                for _ in range(SPEEDUP_ROUNDS - 1):
-                    for tool in ("skelform-1", "skelform-all"):
-                        r = measure(tool, field, n, mode, a.runs)
-                        rounds[tool].append((r["first"], r["seconds"]))
-                (c1, w1), (ca, wa) = ((min(x[0] for x in rounds[tool]), min(x[1] for x in rounds[tool]))
-                                      for tool in ("skelform-1", "skelform-all"))
+                (c1, _), (ca, _) = t["skelform-1"], t["skelform-all"]
+                w = paired_scaling(field, n, SPEEDUP_ROUNDS)
                 lines.append(f"| {field} | {n}³ | {c1 * 1000:.1f} | {ca * 1000:.1f} | {c1 / ca:.2f} | "
-                             f"{w1 * 1000:.1f} | {wa * 1000:.1f} | {w1 / wa:.2f} |")
+                             f"{w['one'] * 1000:.1f} | {w['all'] * 1000:.1f} | {w['speedup']:.2f} | "
+                             f"{w['q1']:.2f}–{w['q3']:.2f} |")
                 print(lines[-1], flush=True)
             lines.append("")
     lines.append(f"Total benchmark time: {time.time() - started:.0f} s.")

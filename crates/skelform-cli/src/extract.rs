@@ -5,7 +5,7 @@
 //! `skelform mesh`, with vertices placed by linear interpolation (there is no field to
 //! refine on) and no normals.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::anyhow;
@@ -41,9 +41,13 @@ pub struct ExtractArgs {
     /// Distance between samples.
     #[arg(long, default_value_t = 1.0)]
     spacing: f64,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
-    threads: Option<usize>,
+    /// Worker threads (default: all cores). Several counts, comma-separated (`1,2`), measure
+    /// how the extraction scales: each `--repeat` round extracts once with every count, in
+    /// turn, and the report gives each count's times and its speed-up over the first count,
+    /// the median of the rounds' (a round's runs are milliseconds apart, so a shared
+    /// machine's drift cancels out of their ratio). The meshes must be identical.
+    #[arg(long, value_delimiter = ',', num_args = 1..)]
+    threads: Vec<usize>,
     /// Print statistics as JSON on standard output.
     #[arg(long)]
     json: bool,
@@ -60,8 +64,8 @@ pub struct ExtractArgs {
     /// follows the thread count, not the volume (the time then includes reading).
     #[arg(long)]
     stream: bool,
-    /// Extract this many times in this process and report the median time (the JSON lists
-    /// each): for benchmarks, the way a program that links the library sees it.
+    /// Extract this many times in this process (per thread count) and report the median time
+    /// (the JSON lists each): for benchmarks, the way a program that links the library sees it.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     repeat: u32,
 }
@@ -88,27 +92,6 @@ impl LayerSource for RawLayers {
         }
         Ok(sanitize(out))
     }
-}
-
-/// Runs `work` `n` times (at least once), timing each run into `times`, and returns the last
-/// result; each earlier result is dropped before the next run, as a program would.
-fn repeated<T>(
-    n: u32,
-    times: &mut Vec<Duration>,
-    mut work: impl FnMut() -> Result<T, Failure>,
-) -> Result<T, Failure> {
-    let mut run = |times: &mut Vec<Duration>| {
-        let t = Instant::now();
-        let out = work();
-        times.push(t.elapsed());
-        out
-    };
-    let mut last = run(times)?;
-    for _ in 1..n {
-        drop(last);
-        last = run(times)?;
-    }
-    Ok(last)
 }
 
 fn parse_dims(s: &str) -> Result<[usize; 3], String> {
@@ -153,51 +136,60 @@ pub fn extract(a: ExtractArgs) -> Result<(), Failure> {
     }
     let iso = a.iso as f32;
     let grid = Grid { origin: DVec3::from_array(a.origin), cell: a.spacing, dims: a.dims };
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(a.threads.unwrap_or(0))
-        .build()
-        .map_err(|e| runtime(anyhow!("cannot start the threads: {e}")))?;
+    let counts = if a.threads.is_empty() { vec![0] } else { a.threads.clone() };
+    let pools = counts
+        .iter()
+        .map(|&n| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .map_err(|e| runtime(anyhow!("cannot start {n} threads: {e}")))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let input = if a.stream {
+        let file = std::fs::File::open(&a.volume)
+            .map_err(|e| input(anyhow!("{}: {e}", a.volume.display())))?;
+        let layer = a.dims[0] * a.dims[1];
+        Samples::Streamed(RawLayers { file: std::sync::Mutex::new(file), layer, iso })
+    } else {
+        Samples::Whole(load_volume(&a.volume, grid, iso)?)
+    };
     // The case table is generated once per process (a few milliseconds); build it before the
     // clock starts so that the reported time is the extraction's, comparable with tools whose
     // tables are compiled in.
     skelform_polygonize::grid::table::table();
-    let mut times = Vec::new();
-    let (mesh, non_finite) = if a.stream {
-        let file = std::fs::File::open(&a.volume)
-            .map_err(|e| input(anyhow!("{}: {e}", a.volume.display())))?;
-        let source =
-            RawLayers { file: std::sync::Mutex::new(file), layer: a.dims[0] * a.dims[1], iso };
-        repeated(a.repeat, &mut times, || {
-            let Streamed { vertices: positions, triangles, stats } = pool
-                .install(|| extract_streamed::<[f32; 3], _>(&source, &grid, &Control::default()))
-                .map_err(|e| match e {
-                    StreamError::Source(e) => runtime(anyhow!("{}: {e}", a.volume.display())),
-                    StreamError::Cancelled => runtime(anyhow!("cancelled")),
-                })?;
-            Ok((Mesh { positions, triangles, ..Mesh::default() }, stats.non_finite))
-        })?
-    } else {
-        let raw =
-            std::fs::read(&a.volume).map_err(|e| input(anyhow!("{}: {e}", a.volume.display())))?;
-        // On huge pages where the system has them: extraction streams through the whole
-        // volume, and fewer pages mean fewer TLB misses on the way.
-        let mut values: Vec<f32> = Vec::with_capacity(raw.len() / 4);
-        skelform_field::pages::advise_huge(values.as_ptr(), values.capacity());
-        values.extend(
-            raw.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]) - iso),
-        );
-        drop(raw);
-        let volume = Volume::from_values(grid, values);
-        let mesh = repeated(a.repeat, &mut times, || {
-            pool.install(|| extract_mesh(&volume, &Control::default())).map_err(runtime)
-        })?;
-        (mesh, volume.non_finite)
-    };
-    let extraction = {
-        let mut sorted = times.clone();
-        sorted.sort();
-        sorted[sorted.len() / 2]
-    };
+    let mut times = vec![Vec::new(); pools.len()];
+    let mut last: Option<(Mesh, u64)> = None;
+    for round in 0..a.repeat as usize {
+        // Each round starts with the next count: none is always the first after a write.
+        let mut reference: Option<Mesh> = None;
+        for c in 0..pools.len() {
+            let p = (c + round) % pools.len();
+            // Each earlier result is dropped before the next run, as a program would.
+            if let Some((mesh, _)) = last.take()
+                && round == 0
+                && reference.is_none()
+                && pools.len() > 1
+            {
+                reference = Some(mesh);
+            }
+            let t = Instant::now();
+            let (mesh, non_finite) = input.extract(&pools[p], &grid, &a.volume)?;
+            times[p].push(t.elapsed());
+            if let Some(r) = &reference
+                && (r.positions != mesh.positions || r.triangles != mesh.triangles)
+            {
+                return Err(runtime(anyhow!(
+                    "{}: the mesh on {} threads differs from the one on {} (a bug: please report it)",
+                    a.volume.display(),
+                    pools[p].current_num_threads(),
+                    pools[round % pools.len()].current_num_threads()
+                )));
+            }
+            last = Some((mesh, non_finite));
+        }
+    }
+    let Some((mesh, non_finite)) = last else { unreachable!("--repeat is at least 1") };
     if mesh.is_empty() {
         return Err(runtime(anyhow!(
             "{}: no surface: no sample pair straddles the iso value {}",
@@ -209,32 +201,143 @@ pub fn extract(a: ExtractArgs) -> Result<(), Failure> {
     write_mesh(&a.output, &mesh, format, &WriteOptions { ascii: a.ascii, normals: false })
         .map_err(runtime)?;
     let writing = t.elapsed();
+    let scaling = Scaling::of(&pools, &times);
     if a.json {
-        println!(
-            "{}",
-            serde_json::json!({
-                "volume": a.volume.display().to_string(),
-                "dims": a.dims,
-                "threads": pool.current_num_threads(),
-                "non_finite_samples": non_finite,
-                "streamed": a.stream,
-                "vertices": mesh.vertex_count(),
-                "triangles": mesh.triangle_count(),
-                "seconds": {
-                    "extraction": extraction.as_secs_f64(),
-                    "extractions": times.iter().map(|t| t.as_secs_f64()).collect::<Vec<_>>(),
-                    "writing": writing.as_secs_f64(),
-                },
-            })
-        );
+        let mut j = serde_json::json!({
+            "volume": a.volume.display().to_string(),
+            "dims": a.dims,
+            "threads": pools[0].current_num_threads(),
+            "non_finite_samples": non_finite,
+            "streamed": a.stream,
+            "vertices": mesh.vertex_count(),
+            "triangles": mesh.triangle_count(),
+            "seconds": {
+                "extraction": scaling[0].median.as_secs_f64(),
+                "extractions": seconds(&times[0]),
+                "writing": writing.as_secs_f64(),
+            },
+        });
+        if pools.len() > 1 {
+            j["scaling"] = scaling
+                .iter()
+                .zip(&times)
+                .map(|(s, t)| {
+                    serde_json::json!({
+                        "threads": s.threads,
+                        "extraction": s.median.as_secs_f64(),
+                        "extractions": seconds(t),
+                        "speedup": s.speedup,
+                        "speedups": s.speedups,
+                    })
+                })
+                .collect();
+        }
+        println!("{j}");
     } else if !a.quiet {
         eprintln!(
             "wrote {} ({} vertices, {} triangles; extraction {:.3}s)",
             a.output.display(),
             mesh.vertex_count(),
             mesh.triangle_count(),
-            extraction.as_secs_f64()
+            scaling[0].median.as_secs_f64()
         );
+        for s in scaling.iter().skip(1) {
+            eprintln!(
+                "  on {} threads: {:.3}s, {:.2}× as fast as on {} (the median of {} rounds)",
+                s.threads,
+                s.median.as_secs_f64(),
+                s.speedup,
+                scaling[0].threads,
+                s.speedups.len()
+            );
+        }
     }
     Ok(())
+}
+
+fn seconds(times: &[Duration]) -> Vec<f64> {
+    times.iter().map(Duration::as_secs_f64).collect()
+}
+
+/// Reads a raw float32 volume into memory, relative to `iso`.
+fn load_volume(path: &Path, grid: Grid, iso: f32) -> Result<Volume, Failure> {
+    let raw = std::fs::read(path).map_err(|e| input(anyhow!("{}: {e}", path.display())))?;
+    // On huge pages where the system has them: extraction streams through the whole
+    // volume, and fewer pages mean fewer TLB misses on the way.
+    let mut values: Vec<f32> = Vec::with_capacity(raw.len() / 4);
+    skelform_field::pages::advise_huge(values.as_ptr(), values.capacity());
+    values.extend(raw.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]) - iso));
+    Ok(Volume::from_values(grid, values))
+}
+
+/// Where the samples come from: the file slab by slab (`--stream`) or memory.
+enum Samples {
+    Streamed(RawLayers),
+    Whole(Volume),
+}
+
+impl Samples {
+    /// One extraction on `pool`; the mesh and how many samples were not finite.
+    fn extract(
+        &self,
+        pool: &rayon::ThreadPool,
+        grid: &Grid,
+        path: &Path,
+    ) -> Result<(Mesh, u64), Failure> {
+        match self {
+            Samples::Streamed(source) => {
+                let Streamed { vertices: positions, triangles, stats } = pool
+                    .install(|| extract_streamed::<[f32; 3], _>(source, grid, &Control::default()))
+                    .map_err(|e| match e {
+                        StreamError::Source(e) => runtime(anyhow!("{}: {e}", path.display())),
+                        StreamError::Cancelled => runtime(anyhow!("cancelled")),
+                    })?;
+                Ok((Mesh { positions, triangles, ..Mesh::default() }, stats.non_finite))
+            }
+            Samples::Whole(volume) => {
+                let mesh =
+                    pool.install(|| extract_mesh(volume, &Control::default())).map_err(runtime)?;
+                Ok((mesh, volume.non_finite))
+            }
+        }
+    }
+}
+
+/// Each thread count's median time and its speed-up over the first count.
+struct Scaling {
+    threads: usize,
+    median: Duration,
+    /// Round by round: the first count's time over this count's.
+    speedups: Vec<f64>,
+    /// The median of `speedups`.
+    speedup: f64,
+}
+
+impl Scaling {
+    fn of(pools: &[rayon::ThreadPool], times: &[Vec<Duration>]) -> Vec<Scaling> {
+        pools
+            .iter()
+            .zip(times)
+            .map(|(pool, t)| {
+                let speedups: Vec<f64> = times[0]
+                    .iter()
+                    .zip(t)
+                    .map(|(a, b)| a.as_secs_f64() / b.as_secs_f64())
+                    .collect();
+                Scaling {
+                    threads: pool.current_num_threads(),
+                    median: median(t, |a, b| a.cmp(b)),
+                    speedup: median(&speedups, f64::total_cmp),
+                    speedups,
+                }
+            })
+            .collect()
+    }
+}
+
+/// The middle element (the upper one of an even count).
+fn median<T: Copy>(v: &[T], order: impl Fn(&T, &T) -> std::cmp::Ordering) -> T {
+    let mut sorted = v.to_vec();
+    sorted.sort_by(order);
+    sorted[sorted.len() / 2]
 }

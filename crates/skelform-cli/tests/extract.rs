@@ -87,6 +87,29 @@ fn streaming_the_file_gives_the_same_mesh() {
         assert!(times.contains(&j["seconds"]["extraction"]), "the median is one of the runs: {j}");
         assert!(again == whole, "a repeated extraction differs: {extra:?}");
     }
+    // Several thread counts: each round runs every count; each gets its times and its
+    // speed-ups over the first, round by round, and the mesh is the same.
+    for stream in [&[][..], &["--stream"][..]] {
+        let (again, j) =
+            run("scaling.ply", &[&["--threads", "1,3", "--repeat", "4"], stream].concat());
+        let scaling = j["scaling"].as_array().unwrap();
+        assert_eq!(scaling.len(), 2, "{j}");
+        assert_eq!(
+            (scaling[0]["threads"].as_u64(), scaling[1]["threads"].as_u64()),
+            (Some(1), Some(3))
+        );
+        for s in scaling {
+            assert_eq!(s["extractions"].as_array().unwrap().len(), 4, "{j}");
+            let ups: Vec<f64> =
+                s["speedups"].as_array().unwrap().iter().map(|u| u.as_f64().unwrap()).collect();
+            assert_eq!(ups.len(), 4, "{j}");
+            assert!(ups.iter().all(|u| u.is_finite() && *u > 0.0), "{j}");
+            assert!(ups.contains(&s["speedup"].as_f64().unwrap()), "the median is a round's: {j}");
+        }
+        assert!(scaling[0]["speedups"].as_array().unwrap().iter().all(|u| u == 1.0), "{j}");
+        assert_eq!(j["seconds"]["extractions"], scaling[0]["extractions"]);
+        assert!(again == whole, "the mesh of a scaling run differs");
+    }
 }
 
 #[test]
