@@ -9,7 +9,7 @@ root=$(cd "$here/../.." && pwd)
 started=$(date +%s)
 # The build runs while the Python side installs the peers and writes the sample volumes.
 (cd "$root" && cargo build --release --quiet --bin skelform \
-    && cargo build --release --quiet -p skelform-polygonize --example fsn_peer) &
+    && cargo build --release --quiet -p skelform-polygonize --example fsn_peer --example machine_ceiling) &
 build=$!
 if [ ! -x "$here/.venv/bin/python" ]; then
     python3 -m venv "$here/.venv"
