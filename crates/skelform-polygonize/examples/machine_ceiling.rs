@@ -24,7 +24,8 @@ fn main() -> Result<(), String> {
         None => 21,
     };
     let all = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let pool = |n| rayon::ThreadPoolBuilder::new().num_threads(n).build().map_err(|e| e.to_string());
+    let pool =
+        |n| rayon::ThreadPoolBuilder::new().num_threads(n).build().map_err(|e| e.to_string());
     let pools = [pool(1)?, pool(all)?];
     // Values of both signs, so that counting them cannot be folded away.
     let samples: Vec<f32> = (0..SAMPLES).map(|i| if i % 3 == 0 { -1.0 } else { 1.0 }).collect();
@@ -58,7 +59,11 @@ fn mix(seed: u64, steps: u64) -> u64 {
 
 /// Runs `work(threads)` on both pools each round, in turn (the order alternating), and
 /// returns the median and quartiles of the rounds' speed-ups as JSON.
-fn paired(pools: &[rayon::ThreadPool; 2], rounds: usize, work: impl Fn(usize) -> u64 + Sync) -> String {
+fn paired(
+    pools: &[rayon::ThreadPool; 2],
+    rounds: usize,
+    work: impl Fn(usize) -> u64 + Sync,
+) -> String {
     let mut ratios = Vec::with_capacity(rounds);
     let mut keep = 0u64;
     for r in 0..rounds.max(1) {
