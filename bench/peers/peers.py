@@ -105,8 +105,10 @@ def volume_file(field, n):
 # ---- worker mode: the measurements of one tool, field and size in a fresh process -------
 
 # Rounds behind the speed-up table: in each, one process extracts with one thread and with
-# all, in turn (`skelform extract --threads 1,N`), milliseconds apart.
-SPEEDUP_ROUNDS = 21
+# all, in turn (`skelform extract --threads 1,N`), milliseconds apart; the rounds of each
+# field and size are spread over the table's whole time, in passes over all of them.
+SPEEDUP_ROUNDS = 11
+SPEEDUP_PASSES = 3
 
 # Tools that run as child processes and can repeat an extraction in one process themselves.
 REPEATING = ("skelform-1", "skelform-all", "fast-surface-nets")
@@ -150,8 +152,7 @@ def repeated_extraction(tool, field, n, runs):
 
 def paired_scaling(field, n, rounds):
     """skelform's extraction alternately on one thread and on all, `rounds` times in one
-    process: each count's median time, the median of the rounds' speed-ups and their
-    quartiles."""
+    process: each count's times and the rounds' speed-ups."""
     with tempfile.TemporaryDirectory() as d:
         cmd = [str(SKELFORM), "extract", str(volume_file(field, n)), "--dims", f"{n},{n},{n}",
                "-o", f"{d}/m.ply", "--json", "--threads", f"1,{os.cpu_count()}", "--repeat", str(rounds)]
@@ -159,9 +160,21 @@ def paired_scaling(field, n, rounds):
             cmd.append("--stream")
         j = json.loads(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout)
     one, every = j["scaling"]
-    ups = sorted(every["speedups"])
-    return {"one": one["extraction"], "all": every["extraction"], "speedup": every["speedup"],
-            "q1": ups[len(ups) // 4], "q3": ups[(3 * len(ups)) // 4]}
+    return {"one": one["extractions"], "all": every["extractions"], "speedups": every["speedups"]}
+
+
+def machine_ceiling(rounds):
+    """`machine_ceiling`'s rounds: speed-ups of all cores over one for arithmetic alone and
+    for a read through memory."""
+    j = json.loads(subprocess.run([str(CEILING), str(rounds)], check=True, capture_output=True,
+                                  text=True).stdout)
+    return {"compute": j["compute"]["speedups"], "memory": j["memory"]["speedups"]}
+
+
+def middle(xs):
+    """Median and quartiles."""
+    xs = sorted(xs)
+    return xs[len(xs) // 2], xs[len(xs) // 4], xs[(3 * len(xs)) // 4]
 
 
 def one_run(tool, field, n, mode):
@@ -340,28 +353,38 @@ def main():
         lines.append("")
         if mode == "extract":
             cores = os.cpu_count()
-            ceiling = json.loads(subprocess.run([str(CEILING), str(SPEEDUP_ROUNDS)], check=True,
-                                                capture_output=True, text=True).stdout)
-            c, m = ceiling["compute"], ceiling["memory"]
+            rounds = SPEEDUP_ROUNDS * SPEEDUP_PASSES
+            pooled = {key: {"one": [], "all": [], "speedups": []} for key in threads}
+            ceiling = {"compute": [], "memory": []}
+            for _ in range(SPEEDUP_PASSES):
+                for key in threads:
+                    for k, v in paired_scaling(*key, SPEEDUP_ROUNDS).items():
+                        pooled[key][k] += v
+                for k, v in machine_ceiling(SPEEDUP_ROUNDS).items():
+                    ceiling[k] += v
+            (c, c1, c3), (m, m1, m3) = middle(ceiling["compute"]), middle(ceiling["memory"])
             lines += ["## skelform's extraction on all cores against one", "",
-                      f"Warm: one process extracts {SPEEDUP_ROUNDS} rounds, each once with one thread and once with all {cores}",
-                      f"in turn (`skelform extract --threads 1,{cores} --repeat {SPEEDUP_ROUNDS}`); the speed-up is the median of",
-                      "the rounds' ratios, with their quartiles beside it, and the times are each thread count's",
-                      "medians. A shared machine's speed drifts by up to 2× within minutes; a round's two runs",
-                      "are milliseconds apart, so the drift cancels out of their ratio. Cold: the first",
-                      "extraction in a new process (the processes of the table above).", "",
+                      f"Warm: {rounds} rounds, each extracting once with one thread and once with all {cores} in turn",
+                      f"(`skelform extract --threads 1,{cores} --repeat {SPEEDUP_ROUNDS}`, one such process per field and size in",
+                      f"each of {SPEEDUP_PASSES} passes over them all); the speed-up is the median of the rounds' ratios, with",
+                      "their quartiles beside it, and the times are each thread count's medians. A shared",
+                      "machine's speed drifts by up to 2× within minutes: a round's two runs are milliseconds",
+                      "apart, so the drift cancels out of their ratio, and the passes spread every field's",
+                      "rounds over the same minutes. Cold: the first extraction in a new process (the",
+                      "processes of the table above).", "",
                       "What the machine gave to more threads in the same minutes, measured the same way",
-                      "(`machine_ceiling`, an example of skelform-polygonize): a loop of arithmetic alone",
-                      f"{c['speedup']:.2f}× ({c['q1']:.2f}–{c['q3']:.2f}); a read through a 256 MiB array (extraction's sign pass",
-                      f"alone) {m['speedup']:.2f}× ({m['q1']:.2f}–{m['q3']:.2f}).", "",
+                      f"(`machine_ceiling`, an example of skelform-polygonize, once per pass): a loop of arithmetic",
+                      f"alone {c:.2f}× ({c1:.2f}–{c3:.2f}); a read through a 256 MiB array (extraction's sign pass alone)",
+                      f"{m:.2f}× ({m1:.2f}–{m3:.2f}).", "",
                       "| field | samples | 1 thread, cold | all, cold | speed-up | 1 thread, warm | all, warm | speed-up | quartiles |",
                       "|---|---|---|---|---|---|---|---|---|"]
             for (field, n), t in threads.items():
                 (c1, _), (ca, _) = t["skelform-1"], t["skelform-all"]
-                w = paired_scaling(field, n, SPEEDUP_ROUNDS)
+                w = pooled[(field, n)]
+                (one, _, _), (every, _, _) = middle(w["one"]), middle(w["all"])
+                up, q1, q3 = middle(w["speedups"])
                 lines.append(f"| {field} | {n}³ | {c1 * 1000:.1f} | {ca * 1000:.1f} | {c1 / ca:.2f} | "
-                             f"{w['one'] * 1000:.1f} | {w['all'] * 1000:.1f} | {w['speedup']:.2f} | "
-                             f"{w['q1']:.2f}–{w['q3']:.2f} |")
+                             f"{one * 1000:.1f} | {every * 1000:.1f} | {up:.2f} | {q1:.2f}–{q3:.2f} |")
                 print(lines[-1], flush=True)
             lines.append("")
     lines.append(f"Total benchmark time: {time.time() - started:.0f} s.")

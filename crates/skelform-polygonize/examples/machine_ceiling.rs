@@ -4,8 +4,9 @@
 //! `cargo run --release -p skelform-polygonize --example machine_ceiling -- [ROUNDS]` prints
 //! `{"threads": N, "compute": {…}, "memory": {…}}`: for a loop of arithmetic alone (no memory
 //! traffic, no sharing) and for a read through a 256 MiB array (the sign pass of extraction
-//! on its own), the speed-up of all N cores over one, each round once with one thread and
-//! once with all, in turn, as `skelform extract --threads 1,N` measures extraction. A virtual
+//! on its own), the speed-up of all N cores over one (median, quartiles and each round's),
+//! each round once with one thread and once with all, in turn, as `skelform extract
+//! --threads 1,N` measures extraction. A virtual
 //! machine's cores may be hyperthreads of one physical core, or be taken by other guests for
 //! a while; these figures bound what any program can gain from them in the same minutes.
 
@@ -58,7 +59,7 @@ fn mix(seed: u64, steps: u64) -> u64 {
 }
 
 /// Runs `work(threads)` on both pools each round, in turn (the order alternating), and
-/// returns the median and quartiles of the rounds' speed-ups as JSON.
+/// returns the median and quartiles of the rounds' speed-ups, and the speed-ups, as JSON.
 fn paired(
     pools: &[rayon::ThreadPool; 2],
     rounds: usize,
@@ -77,7 +78,14 @@ fn paired(
         ratios.push(seconds[0] / seconds[1]);
     }
     std::hint::black_box(keep);
+    let each: Vec<String> = ratios.iter().map(|r| format!("{r:.4}")).collect();
     ratios.sort_by(f64::total_cmp);
     let at = |q: usize| ratios[(q * ratios.len() / 4).min(ratios.len() - 1)];
-    format!(r#"{{"speedup": {:.3}, "q1": {:.3}, "q3": {:.3}}}"#, at(2), at(1), at(3))
+    format!(
+        r#"{{"speedup": {:.3}, "q1": {:.3}, "q3": {:.3}, "speedups": [{}]}}"#,
+        at(2),
+        at(1),
+        at(3),
+        each.join(", ")
+    )
 }
