@@ -71,6 +71,11 @@ impl<T: Copy + Send + Sync> Assembly<T> {
     /// remapping them, with no copy (glibc; other allocators copy), and which cost nothing
     /// until written.
     pub(crate) fn reserve(&self, needed: usize, wanted: usize) {
+        // Most calls find room: asking for the write lock would wait for the other threads'
+        // pieces being written (and hold back their next ones), so look first.
+        if self.memory.read().unwrap_or_else(|e| e.into_inner()).capacity >= needed {
+            return;
+        }
         let mut block = self.memory.write().unwrap_or_else(|e| e.into_inner());
         if block.capacity >= needed {
             return;
