@@ -161,11 +161,13 @@ pub fn extract(a: ExtractArgs) -> Result<(), Failure> {
     let mut times = vec![Vec::new(); pools.len()];
     let mut last: Option<(Mesh, u64)> = None;
     for round in 0..a.repeat as usize {
-        // Each round starts with the next count: none is always the first after a write.
+        // The counts take turns at running first in a round, so that none always runs
+        // right after the same one.
         let mut reference: Option<Mesh> = None;
         for c in 0..pools.len() {
             let p = (c + round) % pools.len();
-            // Each earlier result is dropped before the next run, as a program would.
+            // Each earlier result is dropped before the next run, as a program would; only
+            // the first round keeps its first mesh, to compare the other counts' with.
             if let Some((mesh, _)) = last.take()
                 && round == 0
                 && reference.is_none()

@@ -6,9 +6,9 @@
 //! traffic, no sharing) and for a read through a 256 MiB array (the sign pass of extraction
 //! on its own), the speed-up of all N cores over one (median, quartiles and each round's),
 //! each round once with one thread and once with all, in turn, as `skelform extract
-//! --threads 1,N` measures extraction. A virtual
-//! machine's cores may be hyperthreads of one physical core, or be taken by other guests for
-//! a while; these figures bound what any program can gain from them in the same minutes.
+//! --threads 1,N` measures extraction. A virtual machine's cores may be hyperthreads of one
+//! physical core, or be taken by other guests for a while; these figures bound what any
+//! program can gain from them in the same minutes.
 
 use std::time::Instant;
 
