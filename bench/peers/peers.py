@@ -362,7 +362,7 @@ def main():
                         pooled[key][k] += v
                 for k, v in machine_ceiling(SPEEDUP_ROUNDS).items():
                     ceiling[k] += v
-            (c, c1, c3), (m, m1, m3) = middle(ceiling["compute"]), middle(ceiling["memory"])
+            (cm, cq1, cq3), (mm, mq1, mq3) = middle(ceiling["compute"]), middle(ceiling["memory"])
             lines += ["## skelform's extraction on all cores against one", "",
                       f"Warm: {rounds} rounds, each extracting once with one thread and once with all {cores} in turn",
                       f"(`skelform extract --threads 1,{cores} --repeat {SPEEDUP_ROUNDS}`, one such process per field and size in",
@@ -374,8 +374,8 @@ def main():
                       "processes of the table above).", "",
                       "What the machine gave to more threads in the same minutes, measured the same way",
                       f"(`machine_ceiling`, an example of skelform-polygonize, once per pass): a loop of arithmetic",
-                      f"alone {c:.2f}× ({c1:.2f}–{c3:.2f}); a read through a 256 MiB array (extraction's sign pass alone)",
-                      f"{m:.2f}× ({m1:.2f}–{m3:.2f}).", "",
+                      f"alone {cm:.2f}× ({cq1:.2f}–{cq3:.2f}); a read through a 256 MiB array (extraction's sign pass alone)",
+                      f"{mm:.2f}× ({mq1:.2f}–{mq3:.2f}).", "",
                       "| field | samples | 1 thread, cold | all, cold | speed-up | 1 thread, warm | all, warm | speed-up | quartiles |",
                       "|---|---|---|---|---|---|---|---|---|"]
             for (field, n), t in threads.items():
