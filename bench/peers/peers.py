@@ -173,8 +173,8 @@ def machine_ceiling(rounds):
 
 def middle(xs):
     """Median and quartiles."""
-    xs = sorted(xs)
-    return xs[len(xs) // 2], xs[len(xs) // 4], xs[(3 * len(xs)) // 4]
+    q1, med, q3 = statistics.quantiles(xs, n=4)
+    return med, q1, q3
 
 
 def one_run(tool, field, n, mode):
