@@ -87,8 +87,8 @@ impl LayerSource for RawLayers {
             f.seek(SeekFrom::Start((k * self.layer * 4) as u64))?;
             f.read_exact(&mut bytes)?;
         }
-        for (o, b) in out.iter_mut().zip(bytes.chunks_exact(4)) {
-            *o = f32::from_le_bytes([b[0], b[1], b[2], b[3]]) - self.iso;
+        for (o, v) in out.iter_mut().zip(relative_samples(&bytes, self.iso)) {
+            *o = v;
         }
         Ok(sanitize(out))
     }
@@ -268,8 +268,13 @@ fn load_volume(path: &Path, grid: Grid, iso: f32) -> Result<Volume, Failure> {
     // volume, and fewer pages mean fewer TLB misses on the way.
     let mut values: Vec<f32> = Vec::with_capacity(raw.len() / 4);
     skelform_field::pages::advise_huge(values.as_ptr(), values.capacity());
-    values.extend(raw.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]) - iso));
+    values.extend(relative_samples(&raw, iso));
     Ok(Volume::from_values(grid, values))
+}
+
+/// The samples of raw little-endian float32 bytes, relative to `iso` (inside negative).
+fn relative_samples(bytes: &[u8], iso: f32) -> impl Iterator<Item = f32> + '_ {
+    bytes.chunks_exact(4).map(move |b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]) - iso)
 }
 
 /// Where the samples come from: the file slab by slab (`--stream`) or memory.
