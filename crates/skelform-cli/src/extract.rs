@@ -10,14 +10,11 @@ use std::time::{Duration, Instant};
 
 use anyhow::anyhow;
 use clap::Args;
-use skelform_field::DVec3;
-use skelform_field::control::Control;
-use skelform_field::grid::{Grid, Volume, sanitize};
-use skelform_mesh::Mesh;
-use skelform_mesh::io::{WriteOptions, write_mesh};
-use skelform_polygonize::grid::{
-    LayerSource, StreamError, Streamed, extract_mesh, extract_streamed,
+use skelform::mesh::io::{WriteOptions, write_mesh};
+use skelform::volume::{
+    Grid, LayerSource, StreamError, Streamed, Volume, extract_mesh, extract_streamed, sanitize,
 };
+use skelform::{Control, DVec3, Mesh};
 
 use crate::{Failure, input, output_format, run::parse_bytes, run::parse_point, runtime};
 
@@ -157,7 +154,7 @@ pub fn extract(a: ExtractArgs) -> Result<(), Failure> {
     // The case table is generated once per process (a few milliseconds); build it before the
     // clock starts so that the reported time is the extraction's, comparable with tools whose
     // tables are compiled in.
-    skelform_polygonize::grid::table::table();
+    skelform::volume::prepare();
     let mut times = vec![Vec::new(); pools.len()];
     let mut last: Option<(Mesh, u64)> = None;
     for round in 0..a.repeat as usize {
@@ -267,7 +264,7 @@ fn load_volume(path: &Path, grid: Grid, iso: f32) -> Result<Volume, Failure> {
     // On huge pages where the system has them: extraction streams through the whole
     // volume, and fewer pages mean fewer TLB misses on the way.
     let mut values: Vec<f32> = Vec::with_capacity(raw.len() / 4);
-    skelform_field::pages::advise_huge(values.as_ptr(), values.capacity());
+    skelform::field::pages::advise_huge(values.as_ptr(), values.capacity());
     values.extend(relative_samples(&raw, iso));
     Ok(Volume::from_values(grid, values))
 }

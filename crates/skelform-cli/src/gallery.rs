@@ -10,10 +10,10 @@ use std::path::{Component, Path, PathBuf};
 
 use anyhow::anyhow;
 use clap::Args;
-use skelform_render::{Renderer, Settings};
+use skelform::render::{Renderer, Settings};
 
 use crate::render::{failure, parse_size};
-use crate::{Failure, input, load_scene, report, run, runtime};
+use crate::{Failure, input, run, runtime};
 
 /// The first line of a generated page: a folder whose README.md starts with it is ours, so
 /// pictures there that no scene makes any more may be removed.
@@ -109,20 +109,19 @@ fn one(a: &GalleryArgs, settings: &Settings, scene_path: &Path) -> Entry {
         notes: Vec::new(),
     };
     let result = (|| -> Result<String, Failure> {
-        let scene = load_scene(scene_path)?;
+        let scene = run::load_scene(scene_path, None)?;
         if let Some(n) = &scene.name {
             entry.name = n.clone();
         }
         entry.figure = scene.figure.clone();
-        let (mesh, stats, method) = run::run_scene(&scene, &a.run)?;
-        entry.method = method.name().to_string();
-        entry.vertices = mesh.vertex_count();
-        entry.triangles = mesh.triangle_count();
-        entry.evaluations = stats.evaluations();
-        entry.notes = report::warnings(&stats);
-        if mesh.is_empty() {
-            return Err(runtime(report::no_surface(&scene, &stats)));
-        }
+        let meshed = run::run_scene(&scene, &a.run)?;
+        entry.method = meshed.method.name().to_string();
+        entry.vertices = meshed.mesh.vertex_count();
+        entry.triangles = meshed.mesh.triangle_count();
+        entry.evaluations = meshed.stats.evaluations();
+        entry.notes = meshed.stats.warnings();
+        run::surface(&scene, &meshed, true)?;
+        let mesh = meshed.mesh;
         // Coarse meshes show their edges: the cells are what figures like 3.12 are about.
         let settings =
             Settings { wireframe: mesh.triangle_count() <= WIREFRAME_UP_TO, ..settings.clone() };

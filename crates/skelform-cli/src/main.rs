@@ -17,9 +17,7 @@ use std::time::Instant;
 
 use anyhow::anyhow;
 use clap::{Args, Parser, Subcommand};
-use skelform_mesh::io::{Format, WriteOptions, read_mesh, write_mesh};
-use skelform_polygonize::grid;
-use skelform_scene::Scene;
+use skelform::mesh::io::{Format, WriteOptions, read_mesh, write_mesh};
 
 #[derive(Parser)]
 #[command(name = "skelform", version, about = "Implicit surfaces, skeletal forms and their meshes")]
@@ -31,7 +29,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Polygonize a scene and write the mesh (PLY, OBJ or STL, by the output's extension).
+    /// Polygonize a scene (grid, continuation, tetra, healed or nonmanifold method) and write
+    /// the mesh (PLY, OBJ, STL or glTF binary, by the output's extension).
     Mesh(MeshArgs),
     /// Report a mesh's topology: edges, components, genus, orientation, defects.
     Check(CheckArgs),
@@ -49,7 +48,7 @@ enum Command {
 struct MeshArgs {
     /// The scene file (TOML).
     scene: PathBuf,
-    /// Output mesh; the extension picks the format (.ply, .obj, .stl). Defaults to the
+    /// Output mesh; the extension picks the format (.ply, .obj, .stl, .glb). Defaults to the
     /// scene's [output] file.
     #[arg(short, long)]
     output: Option<PathBuf>,
@@ -68,7 +67,7 @@ struct MeshArgs {
 
 #[derive(Args)]
 struct CheckArgs {
-    /// The mesh (PLY ascii or binary, OBJ, STL).
+    /// The mesh (PLY ascii or binary, OBJ, STL, glTF binary).
     mesh: PathBuf,
     /// Print the report as JSON.
     #[arg(long)]
@@ -104,8 +103,34 @@ fn runtime(error: impl Into<anyhow::Error>) -> Failure {
     Failure { code: 1, error: error.into() }
 }
 
+/// A usage error in one line (clap's own spreads over several, with a usage block that
+/// scripts and logs cut apart): what is wrong, the accepted values, and where help is.
+fn usage_error(e: &clap::Error) -> String {
+    let text = e.render().to_string();
+    let parts: Vec<&str> = text
+        .lines()
+        .map(str::trim)
+        .filter(|l| {
+            !l.is_empty() && !l.starts_with("Usage:") && !l.starts_with("For more information")
+        })
+        .map(|l| l.strip_prefix("error: ").unwrap_or(l))
+        .collect();
+    format!("error: {}; see skelform --help", parts.join(" "))
+}
+
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) if !e.use_stderr() => {
+            // --help and --version: clap prints them to standard output.
+            let _ = e.print();
+            return ExitCode::SUCCESS;
+        }
+        Err(e) => {
+            eprintln!("{}", usage_error(&e));
+            return ExitCode::from(2);
+        }
+    };
     let result = match cli.command {
         Command::Mesh(a) => mesh(a),
         Command::Check(a) => check(a),
@@ -123,27 +148,17 @@ fn main() -> ExitCode {
     }
 }
 
-fn load_scene(path: &Path) -> Result<Scene, Failure> {
-    load_scene_posed(path, None)
-}
-
-/// Loads a scene, its skeleton in the named pose when one is given.
-fn load_scene_posed(path: &Path, pose: Option<&str>) -> Result<Scene, Failure> {
-    let options = skelform_scene::LoadOptions { pose: pose.map(str::to_string) };
-    Scene::load_with(path, &options).map_err(input)
-}
-
 fn output_format(path: &Path) -> Result<Format, Failure> {
     Format::from_path(path).ok_or_else(|| {
         input(anyhow!(
-            "{}: unknown output format; use a .ply, .obj or .stl extension",
+            "{}: unknown output format; use a .ply, .obj, .stl or .glb extension",
             path.display()
         ))
     })
 }
 
 fn mesh(a: MeshArgs) -> Result<(), Failure> {
-    let scene = load_scene_posed(&a.scene, a.run.pose.as_deref())?;
+    let scene = run::load_scene(&a.scene, a.run.pose.as_deref())?;
     let out = a.output.clone().or_else(|| scene.output.file.clone()).ok_or_else(|| {
         input(anyhow!("no output file: give -o OUT.ply (or set [output] file in the scene)"))
     })?;
@@ -159,25 +174,19 @@ fn mesh(a: MeshArgs) -> Result<(), Failure> {
         )));
     }
     let started = Instant::now();
-    let (mesh, stats, method) = run::run_scene(&scene, &a.run)?;
-    if mesh.is_empty() {
-        return Err(runtime(report::no_surface(&scene, &stats)));
-    }
-    if !a.run.quiet {
-        for w in report::warnings(&stats) {
-            eprintln!("warning: {w}");
-        }
-    }
+    let meshed = run::run_scene(&scene, &a.run)?;
+    run::surface(&scene, &meshed, a.run.quiet)?;
+    let mesh = &meshed.mesh;
     let t = Instant::now();
     let write_opts =
         WriteOptions { ascii: a.ascii || scene.output.ascii, normals: !a.run.no_normals };
-    write_mesh(&out, &mesh, format, &write_opts).map_err(runtime)?;
+    write_mesh(&out, mesh, format, &write_opts).map_err(runtime)?;
     let writing = t.elapsed();
     let total = started.elapsed();
     if a.json {
-        println!("{}", report::json(&scene, &out, method, &stats, writing, total));
+        println!("{}", report::json(&scene, &out, &meshed, writing, total));
     } else if a.stats {
-        report::print(&stats, writing, total);
+        report::print(&meshed, writing, total);
     }
     if !a.run.quiet && !a.json {
         eprintln!(
@@ -196,8 +205,8 @@ fn check(a: CheckArgs) -> Result<(), Failure> {
         Some(t) if !(t.is_finite() && t >= 0.0) => {
             return Err(input(anyhow!("--weld takes a tolerance of 0 or more")));
         }
-        Some(t) => skelform_mesh::check::check_welded(&mesh, t),
-        None => skelform_mesh::check::check(&mesh),
+        Some(t) => skelform::mesh::check::check_welded(&mesh, t),
+        None => skelform::mesh::check::check(&mesh),
     };
     if a.json {
         let json = serde_json::to_string_pretty(&report)
@@ -211,7 +220,7 @@ fn check(a: CheckArgs) -> Result<(), Failure> {
 }
 
 fn info(a: InfoArgs) -> Result<(), Failure> {
-    let scene = load_scene_posed(&a.scene, a.pose.as_deref())?;
+    let scene = run::load_scene(&a.scene, a.pose.as_deref())?;
     println!("scene       {}", scene.origin);
     if let Some(n) = &scene.name {
         println!("name        {n}");
@@ -222,17 +231,14 @@ fn info(a: InfoArgs) -> Result<(), Failure> {
     let (lo, hi) = (scene.domain.min, scene.domain.max);
     println!("domain      [{}, {}, {}] – [{}, {}, {}]", lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
     println!("method      {}", scene.method.name());
-    let opts =
-        grid::Options { domain: scene.domain, resolution: scene.resolution, ..Default::default() };
-    match grid::grid_for(&opts) {
-        Ok(g) => {
-            let [nx, ny, nz] = g.dims;
-            println!("grid        {nx} × {ny} × {nz} samples, cell {:.6}", g.cell);
-            let streamed = opts.streaming.streams(&g);
+    match scene.lattice(&skelform::Overrides::default()) {
+        Ok(l) => {
+            let [nx, ny, nz] = l.dims;
+            println!("grid        {nx} × {ny} × {nz} samples, cell {:.6}", l.cell);
             println!(
                 "memory      {:.1} MiB before triangles{}",
-                grid::memory_needed(&g, streamed) as f64 / (1 << 20) as f64,
-                if streamed { " (volume streamed in slabs)" } else { "" }
+                l.memory as f64 / (1 << 20) as f64,
+                if l.streamed { " (volume streamed in slabs)" } else { "" }
             );
         }
         Err(e) => println!("grid        invalid: {e}"),

@@ -5,7 +5,7 @@ use std::sync::{Mutex, OnceLock};
 use std::time::Duration;
 
 use indicatif::{ProgressBar, ProgressStyle};
-use skelform_field::control::{Control, Progress};
+use skelform::{Control, Progress};
 
 static BAR: OnceLock<Mutex<Option<(ProgressBar, &'static str)>>> = OnceLock::new();
 

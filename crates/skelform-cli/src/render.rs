@@ -5,11 +5,11 @@ use std::path::{Path, PathBuf};
 
 use anyhow::anyhow;
 use clap::Args;
-use skelform_mesh::Mesh;
-use skelform_mesh::io::read_mesh;
-use skelform_render::{Projection, RenderError, Renderer, Settings, View, write_apng};
+use skelform::Mesh;
+use skelform::mesh::io::read_mesh;
+use skelform::render::{Projection, RenderError, Renderer, Settings, View, write_apng};
 
-use crate::{Failure, input, load_scene_posed, report, run, runtime};
+use crate::{Failure, input, run, runtime};
 
 #[derive(Args)]
 pub struct RenderArgs {
@@ -101,17 +101,10 @@ pub fn failure(e: RenderError) -> Failure {
 pub fn load(path: &Path, run_args: &run::RunArgs) -> Result<Mesh, Failure> {
     let is_scene = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml"));
     let mesh = if is_scene {
-        let scene = load_scene_posed(path, run_args.pose.as_deref())?;
-        let (mesh, stats, _) = run::run_scene(&scene, run_args)?;
-        if mesh.is_empty() {
-            return Err(runtime(report::no_surface(&scene, &stats)));
-        }
-        if !run_args.quiet {
-            for w in report::warnings(&stats) {
-                eprintln!("warning: {w}");
-            }
-        }
-        mesh
+        let scene = run::load_scene(path, run_args.pose.as_deref())?;
+        let meshed = run::run_scene(&scene, run_args)?;
+        run::surface(&scene, &meshed, run_args.quiet)?;
+        meshed.mesh
     } else {
         read_mesh(path).map_err(input)?
     };

@@ -1,32 +1,80 @@
 //! Running a scene's polygonizer with the command line's overrides: shared by the commands
-//! that mesh a scene (`mesh`, and `render` when given a scene).
+//! that mesh a scene (`mesh`, `render` and `gallery`). The library chooses and runs the
+//! polygonizer; this module only turns arguments into [`Overrides`].
 
 use std::io::IsTerminal;
+use std::path::Path;
 
 use anyhow::anyhow;
 use clap::Args;
-use skelform_field::DVec3;
-use skelform_mesh::Mesh;
-use skelform_polygonize::grid::{self, Resolution};
-use skelform_polygonize::{continuation, healed, nonmanifold, refine::RootMethod};
-use skelform_scene::{Method, Scene};
+use skelform::{
+    DVec3, LoadOptions, Meshed, Method, Overrides, Resolution, RootMethod, Scene, Streaming,
+};
 
-use crate::{Failure, input, progress, report, runtime};
+use crate::{Failure, input, progress, runtime};
 
 /// `--stream`.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum StreamArg {
+    /// Stream volumes over 256 MiB.
     Auto,
+    /// Always stream.
     Always,
+    /// Always hold the whole volume.
     Never,
 }
 
-impl From<StreamArg> for grid::Streaming {
+impl From<StreamArg> for Streaming {
     fn from(s: StreamArg) -> Self {
         match s {
-            StreamArg::Auto => grid::Streaming::Auto,
-            StreamArg::Always => grid::Streaming::Always,
-            StreamArg::Never => grid::Streaming::Never,
+            StreamArg::Auto => Streaming::Auto,
+            StreamArg::Always => Streaming::Always,
+            StreamArg::Never => Streaming::Never,
+        }
+    }
+}
+
+/// `--method`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MethodArg {
+    /// Sample a lattice, then marching cubes with consistent topology.
+    Grid,
+    /// Propagate cubes from seeds across the surface (dissertation ch. 3).
+    Continuation,
+    /// Continuation with each cube split into six tetrahedra.
+    Tetra,
+    /// Marching cubes healed along self-intersections.
+    Healed,
+    /// Labelled surfaces between regions of space, meeting along curves (ch. 4).
+    Nonmanifold,
+}
+
+impl From<MethodArg> for Method {
+    fn from(m: MethodArg) -> Self {
+        match m {
+            MethodArg::Grid => Method::Grid,
+            MethodArg::Continuation => Method::Continuation,
+            MethodArg::Tetra => Method::Tetra,
+            MethodArg::Healed => Method::Healed,
+            MethodArg::Nonmanifold => Method::NonManifold,
+        }
+    }
+}
+
+/// `--root`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RootArg {
+    /// Regula falsi: fewer evaluations on smooth fields.
+    RegulaFalsi,
+    /// Bisection: the dissertation's, a fixed number of halvings.
+    Bisection,
+}
+
+impl From<RootArg> for RootMethod {
+    fn from(r: RootArg) -> Self {
+        match r {
+            RootArg::RegulaFalsi => RootMethod::RegulaFalsi,
+            RootArg::Bisection => RootMethod::Bisection,
         }
     }
 }
@@ -40,16 +88,16 @@ pub struct RunArgs {
     /// Cell size (overrides the scene).
     #[arg(long)]
     pub cell: Option<f64>,
-    /// Polygonizer (overrides the scene): grid, continuation, tetra or healed.
-    #[arg(long)]
-    pub method: Option<String>,
+    /// Polygonizer (overrides the scene).
+    #[arg(long, value_enum)]
+    pub method: Option<MethodArg>,
     /// continuation/tetra: start from this point on or near the surface (repeatable;
     /// replaces the scene's seeds), e.g. --seed 0.6,0,0.
     #[arg(long, value_parser = parse_point, allow_hyphen_values = true)]
     pub seed: Vec<[f64; 3]>,
-    /// continuation/tetra: root finder, regula-falsi or bisection (overrides the scene).
-    #[arg(long)]
-    pub root: Option<String>,
+    /// continuation/tetra: root finder (overrides the scene).
+    #[arg(long, value_enum)]
+    pub root: Option<RootArg>,
     /// Root-finding tolerance as a fraction of the cell (overrides the scene).
     #[arg(long)]
     pub tolerance: Option<f64>,
@@ -84,166 +132,73 @@ pub struct RunArgs {
     pub pose: Option<String>,
 }
 
-/// The cell side the scene's domain and resolution give.
-fn cell_for(scene: &Scene, resolution: Resolution) -> Result<f64, Failure> {
-    let opts = grid::Options { domain: scene.domain, resolution, ..Default::default() };
-    grid::grid_for(&opts).map(|g| g.cell).map_err(|e| input(anyhow!("{}: {e}", scene.origin)))
-}
-
-/// Start points: the command line's `--seed`s, else the scene's seeds.
-fn seeds(scene: &Scene, a: &RunArgs) -> Vec<DVec3> {
-    if a.seed.is_empty() {
-        scene.continuation.seeds.clone()
-    } else {
-        a.seed.iter().map(|p| DVec3::from_array(*p)).collect()
-    }
-}
-
-/// Polygonizes the scene as the arguments say; returns the mesh, the run's statistics and
-/// the method used.
-pub fn run_scene(scene: &Scene, a: &RunArgs) -> Result<(Mesh, report::Run, Method), Failure> {
-    let method = match &a.method {
-        Some(m) => m.parse::<Method>().map_err(input)?,
-        None => scene.method,
-    };
-    let resolution = match (a.resolution, a.cell) {
-        (Some(n), _) if n < 2 => return Err(input(anyhow!("--resolution must be at least 2"))),
-        (Some(n), _) => Resolution::Samples(n),
-        (None, Some(c)) if !(c.is_finite() && c > 0.0) => {
-            return Err(input(anyhow!("--cell must be a positive length")));
-        }
-        (None, Some(c)) => Resolution::Cell(c),
-        (None, None) => scene.resolution,
-    };
-    let threads = a.threads.unwrap_or(0);
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .map_err(|e| runtime(anyhow!("cannot start {threads} threads: {e}")))?;
-
-    let show_progress = !a.quiet && std::io::stderr().is_terminal();
-    let control = progress::control(show_progress);
-    let refine = scene.refine && !a.no_refine;
-    let tolerance = match a.tolerance {
-        Some(t) if !(t > 0.0 && t < 1.0) => {
+impl RunArgs {
+    /// The library's overrides these arguments describe, reporting progress to `control`.
+    pub fn overrides(&self) -> Result<Overrides, Failure> {
+        let resolution = match (self.resolution, self.cell) {
+            (Some(n), _) if n < 2 => return Err(input(anyhow!("--resolution must be at least 2"))),
+            (Some(n), _) => Some(Resolution::Samples(n)),
+            (None, Some(c)) if !(c.is_finite() && c > 0.0) => {
+                return Err(input(anyhow!("--cell must be a positive length")));
+            }
+            (None, Some(c)) => Some(Resolution::Cell(c)),
+            (None, None) => None,
+        };
+        if let Some(t) = self.tolerance
+            && !(t > 0.0 && t < 1.0)
+        {
             return Err(input(anyhow!("--tolerance is a fraction of the cell, between 0 and 1")));
         }
-        Some(t) => t,
-        None => scene.tolerance,
-    };
-    let normals = scene.output.normals && !a.no_normals;
-    let field = scene.field.as_ref();
-    if scene.regions_only && method != Method::NonManifold {
-        return Err(input(anyhow!(
-            "{}: the scene has [regions] and no [field]: mesh it with method = \"nonmanifold\"",
-            scene.origin
-        )));
+        let show_progress = !self.quiet && std::io::stderr().is_terminal();
+        Ok(Overrides {
+            resolution,
+            method: self.method.map(Method::from),
+            seeds: (!self.seed.is_empty())
+                .then(|| self.seed.iter().map(|p| DVec3::from_array(*p)).collect()),
+            pose: None,
+            threads: self.threads,
+            tolerance: self.tolerance,
+            root: self.root.map(RootMethod::from),
+            max_cells: self.max_cells,
+            limit: self.limit,
+            refine: self.no_refine.then_some(false),
+            normals: self.no_normals.then_some(false),
+            streaming: Some(self.stream.into()),
+            max_memory: Some(self.max_memory),
+            control: progress::control(show_progress),
+        })
     }
-    let grid_options = grid::Options {
-        domain: scene.domain,
-        resolution,
-        refine,
-        tolerance,
-        normals,
-        max_memory: a.max_memory,
-        streaming: a.stream.into(),
-        control: control.clone(),
-    };
-    let result = match method {
-        Method::Grid => pool
-            .install(|| grid::polygonize(field, &grid_options))
-            .map(|(m, s)| (m, report::Run::Grid(s))),
-        Method::NonManifold => {
-            let Some(setup) = scene.nonmanifold_regions() else {
-                return Err(input(anyhow!(
-                    "{}: --method nonmanifold needs [regions] or [leaf] in the scene",
-                    scene.origin
-                )));
-            };
-            let cell = cell_for(scene, resolution)?;
-            let defaults = nonmanifold::Options::default();
-            let options = nonmanifold::Options {
-                domain: scene.domain,
-                cell,
-                seeds: seeds(scene, a),
-                search_stride: scene.continuation.search_stride.unwrap_or(defaults.search_stride),
-                full_grid: setup.full_grid,
-                loops: setup.loops,
-                interest: setup.interest,
-                curves: setup.curves,
-                max_cells: a
-                    .max_cells
-                    .or(scene.continuation.max_cells)
-                    .unwrap_or(defaults.max_cells),
-                control,
-                ..defaults
-            };
-            pool.install(|| nonmanifold::polygonize(setup.field.as_ref(), &options))
-                .map(|(m, s)| (m, report::Run::NonManifold(Box::new(s))))
-        }
-        Method::Continuation | Method::Tetra => {
-            let cell = cell_for(scene, resolution)?;
-            let c = &scene.continuation;
-            let defaults = continuation::Options::default();
-            let root = match a.root.as_deref() {
-                None => c.root,
-                Some("regula-falsi") => RootMethod::RegulaFalsi,
-                Some("bisection") => RootMethod::Bisection,
-                Some(other) => {
-                    return Err(input(anyhow!(
-                        "unknown root finder '{other}'; expected regula-falsi or bisection"
-                    )));
-                }
-            };
-            let options = continuation::Options {
-                domain: scene.domain,
-                cell,
-                seeds: seeds(scene, a),
-                search_stride: c.search_stride.unwrap_or(defaults.search_stride),
-                cells: if method == Method::Tetra {
-                    continuation::Cells::Tetrahedra
-                } else {
-                    continuation::Cells::Cubes
-                },
-                root,
-                tolerance,
-                refine,
-                normals,
-                max_cells: a.max_cells.or(c.max_cells).unwrap_or(defaults.max_cells),
-                limit: a.limit.or(c.limit),
-                control,
-            };
-            pool.install(|| continuation::polygonize(field, &options))
-                .map(|(m, s)| (m, report::Run::Continuation(s)))
-        }
-        Method::Healed => {
-            let h = &scene.healed;
-            let options = healed::Options {
-                grid: grid_options,
-                epsilon: match (h.epsilon, h.critical_cells) {
-                    (Some(e), _) => healed::Epsilon::Absolute(e),
-                    (None, Some(c)) => healed::Epsilon::Cells(c),
-                    (None, None) => healed::Options::default().epsilon,
-                },
-                split_sheets: h.split_sheets,
-                ..healed::Options::default()
-            };
-            pool.install(|| healed::polygonize(field, &options))
-                .map(|(m, s)| (m, report::Run::Healed(Box::new(s))))
-        }
-    };
+}
+
+/// A library error as a command-line failure: the input's fault exits 2, the run's 1.
+pub fn failure(e: skelform::Error) -> Failure {
+    if e.is_input() { input(e) } else { runtime(e) }
+}
+
+/// Loads a scene, its skeleton in the named pose when one is given.
+pub fn load_scene(path: &Path, pose: Option<&str>) -> Result<Scene, Failure> {
+    Scene::load_with(path, &LoadOptions { pose: pose.map(str::to_string) }).map_err(failure)
+}
+
+/// Meshes the scene as the arguments say. The mesh may be empty (see [`surface`]).
+pub fn run_scene(scene: &Scene, a: &RunArgs) -> Result<Meshed, Failure> {
+    let overrides = a.overrides()?;
+    let result = scene.mesh(&overrides);
     progress::finish();
-    let (mesh, stats) = result.map_err(|e| {
-        use skelform_polygonize::Error as E;
-        match e {
-            E::TooMuchMemory { .. } | E::Grid(_) | E::BadSeed { .. } | E::BadOption(_) => {
-                input(anyhow!("{}: {e}", scene.origin))
-            }
-            E::NoSurfaceFound { .. } => runtime(anyhow!("{}: {e}", scene.origin)),
-            e => runtime(e),
+    result.map_err(failure)
+}
+
+/// The run's mesh, or the reason there is none; prints its warnings unless `quiet`.
+pub fn surface(scene: &Scene, meshed: &Meshed, quiet: bool) -> Result<(), Failure> {
+    if let Some(why) = meshed.no_surface(scene) {
+        return Err(runtime(anyhow!(why)));
+    }
+    if !quiet {
+        for w in meshed.stats.warnings() {
+            eprintln!("warning: {w}");
         }
-    })?;
-    Ok((mesh, stats, method))
+    }
+    Ok(())
 }
 
 pub fn parse_bytes(s: &str) -> Result<u64, String> {

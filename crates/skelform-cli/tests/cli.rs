@@ -256,7 +256,7 @@ fn bad_input_gets_one_clear_line_and_exit_code() {
     fails(
         &["mesh", &example("sphere.toml"), "-o", o, "--method", "magic"],
         2,
-        "unknown method 'magic'",
+        "invalid value 'magic' for '--method <METHOD>' [possible values: grid, continuation, tetra, healed, nonmanifold]",
         Some(&out),
     );
 

@@ -95,7 +95,13 @@ fn seed_problems_are_clear() {
     assert!(text(&r.stderr).contains("not a point"), "{}", text(&r.stderr));
     let r = skelform(&["mesh", &sphere, "-o", o, "--method", "continuation", "--root", "newton"]);
     assert_eq!(r.status.code(), Some(2));
-    assert!(text(&r.stderr).contains("unknown root finder 'newton'"), "{}", text(&r.stderr));
+    assert!(
+        text(&r.stderr).contains(
+            "invalid value 'newton' for '--root <ROOT>' [possible values: regula-falsi, bisection]"
+        ),
+        "{}",
+        text(&r.stderr)
+    );
     // A cell budget cuts the mesh short and says so.
     let r = skelform(&[
         "mesh",

@@ -1,7 +1,5 @@
 //! `skelform mesh` on region scenes (`--method nonmanifold`).
 
-use std::path::Path;
-
 #[test]
 fn region_scenes_give_labelled_surfaces_and_curves() {
     let dir = tempfile::tempdir().unwrap();
@@ -119,30 +117,15 @@ struct Expect {
     degrees: &'static [usize],
 }
 
-/// Meshes an example scene as `skelform mesh` does, through the library.
-fn mesh_example(name: &str) -> (skelform_scene::Scene, skelform_mesh::Mesh, nonmanifold::Stats) {
-    let scene = skelform_scene::Scene::load(Path::new(&example(name))).unwrap();
-    let regions = scene.regions.clone().expect("a [regions] scene");
-    let grid = skelform_polygonize::grid::grid_for(&skelform_polygonize::grid::Options {
-        domain: scene.domain,
-        resolution: scene.resolution,
-        ..Default::default()
-    })
-    .unwrap();
-    let opts = nonmanifold::Options {
-        domain: scene.domain,
-        cell: grid.cell,
-        seeds: scene.continuation.seeds.clone(),
-        full_grid: regions.full_grid,
-        interest: regions.interest.clone(),
-        curves: regions.curves.clone(),
-        ..Default::default()
-    };
-    let (m, s) = nonmanifold::polygonize(regions.field.as_ref(), &opts).unwrap();
-    (scene, m, s)
+/// Meshes an example scene as `skelform mesh` does, through the library's front door.
+fn mesh_example(name: &str) -> (skelform::Scene, skelform::Mesh, nonmanifold::Stats) {
+    let scene = skelform::Scene::load(example(name)).unwrap();
+    let meshed = scene.mesh(&skelform::Overrides::default()).unwrap();
+    let skelform::Stats::NonManifold(s) = meshed.stats else { panic!("{name}: not nonmanifold") };
+    (scene, meshed.mesh, *s)
 }
 
-use skelform_polygonize::nonmanifold;
+use skelform::polygonize::nonmanifold;
 
 mod common;
 use common::{example, skelform};
@@ -203,8 +186,8 @@ fn the_chapter_examples_are_what_the_chapter_describes() {
         let pairs: Vec<[u32; 2]> = s.triangles_per_pair.iter().map(|(p, _)| [p.0, p.1]).collect();
         assert_eq!(pairs, e.pairs, "{}", e.name);
         let v = nonmanifold::verify::verify(&m, regions.field.as_ref(), 2.0 * s.epsilon);
-        let r = skelform_mesh::check::check_welded(&m, 0.0);
-        let crossing = skelform_mesh::check::crossings(&m, 1e-3 * s.epsilon);
+        let r = skelform::mesh::check::check_welded(&m, 0.0);
+        let crossing = skelform::mesh::check::crossings(&m, 1e-3 * s.epsilon);
         eprintln!(
             "{}: {v:?}\n  degrees {:?} curves {:?}\n  fallbacks {} of {} face vertices, {} crossing pairs, {} gradient normals of {}",
             e.name,

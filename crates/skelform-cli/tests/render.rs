@@ -7,8 +7,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use serde_json::Value;
-use skelform_mesh::io::{Format, WriteOptions, write_mesh};
-use skelform_mesh::{CurveEdge, Mesh, RegionPair, RegionTriple};
+use skelform::mesh::io::{Format, WriteOptions, write_mesh};
+use skelform::mesh::{CurveEdge, Mesh, RegionPair, RegionTriple};
 
 mod common;
 use common::skelform;

@@ -32,6 +32,7 @@ pub mod grid;
 pub mod healed;
 pub mod nonmanifold;
 pub mod refine;
+mod summary;
 
 use skelform_field::grid::GridError;
 

@@ -93,6 +93,7 @@ impl Default for Options {
 
 /// Why propagation stopped short of closing a surface.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize), serde(rename_all = "snake_case"))]
 pub enum Stop {
     /// The surface reached the domain box; the mesh is open there.
     Domain,
@@ -104,6 +105,7 @@ pub enum Stop {
 
 /// One component found, by the seed that started it.
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct Component {
     pub seed: DVec3,
     /// Where the search from the seed met the surface.
@@ -114,6 +116,7 @@ pub struct Component {
 
 /// What happened to a seed that did not start a component.
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize), serde(rename_all = "snake_case"))]
 pub enum SeedNote {
     /// Its surface had been found already from an earlier seed (index given).
     SameComponent { seed: DVec3, as_seed: usize },
@@ -123,6 +126,7 @@ pub enum SeedNote {
 
 /// What a run did, for `--stats`.
 #[derive(Clone, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct Stats {
     pub cell: f64,
     /// Field evaluations at lattice corners (each corner once).
@@ -139,9 +143,13 @@ pub struct Stats {
     pub stops: Vec<Stop>,
     pub vertices: usize,
     pub triangles: usize,
+    #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub search: Duration,
+    #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub propagation: Duration,
+    #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub refinement: Duration,
+    #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub normals: Duration,
 }
 

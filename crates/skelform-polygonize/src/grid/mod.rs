@@ -109,6 +109,7 @@ impl Default for Options {
 
 /// What a run did, for `--stats`.
 #[derive(Clone, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct Stats {
     pub grid_dims: [usize; 3],
     pub cell: f64,
@@ -125,9 +126,13 @@ pub struct Stats {
     pub tunnels: u64,
     pub vertices: usize,
     pub triangles: usize,
+    #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub sampling: Duration,
+    #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub extraction: Duration,
+    #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub refinement: Duration,
+    #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub normals: Duration,
     /// Whether the volume was streamed (then `sampling` and `extraction` share the wall time
     /// of the combined phase in proportion to the time the workers spent in each).

@@ -158,6 +158,7 @@ impl Default for Options {
 
 /// Critical cubes by the thesis's classes.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct CriticalCubes {
     pub class10: usize,
     pub class12: usize,
@@ -175,6 +176,7 @@ impl CriticalCubes {
 
 /// A traced self-intersection curve.
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct SelfIntersection {
     /// Points along it, about a quarter of a cell apart.
     pub points: Vec<DVec3>,
@@ -187,6 +189,7 @@ pub struct SelfIntersection {
 /// A line where the zero set is the line alone (the Whitney umbrella's handle): reported, not
 /// meshed.
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct SingularLine {
     pub points: Vec<DVec3>,
     pub length: f64,
@@ -194,6 +197,7 @@ pub struct SingularLine {
 
 /// What a run did, for `--stats`.
 #[derive(Clone, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct Stats {
     pub grid_dims: [usize; 3],
     pub cell: f64,
@@ -235,11 +239,17 @@ pub struct Stats {
     pub curves: Vec<SelfIntersection>,
     pub singular_points: Vec<SingularPoint>,
     pub singular_lines: Vec<SingularLine>,
+    #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub sampling: Duration,
+    #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub extraction: Duration,
+    #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub refinement: Duration,
+    #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub search: Duration,
+    #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub healing: Duration,
+    #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub normals: Duration,
 }
 

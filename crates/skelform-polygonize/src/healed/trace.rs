@@ -63,6 +63,7 @@ impl Curve {
 
 /// What an isolated singular point is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize), serde(rename_all = "snake_case"))]
 pub enum PointKind {
     /// Two nappes touching at a point (the double cone's apex).
     Cone,
@@ -79,6 +80,7 @@ pub enum PointKind {
 
 /// A singular point found by the search.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct SingularPoint {
     pub position: DVec3,
     pub kind: PointKind,

@@ -47,6 +47,7 @@ use crate::grid::{GridVertex, Place};
 
 /// A zone whose marching-cubes triangles were kept, and why.
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct Unresolved {
     /// The centre of its cubes.
     pub center: DVec3,

@@ -100,6 +100,7 @@ impl Default for Options {
 
 /// What a run did.
 #[derive(Clone, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct Stats {
     pub cell: f64,
     pub epsilon: f64,
@@ -133,12 +134,21 @@ pub struct Stats {
     pub gradient_normals: usize,
     /// Triangles whose side regions could not be told apart by a probe (kept as wound).
     pub unoriented_triangles: usize,
+    #[cfg_attr(
+        feature = "serde",
+        serde(rename = "surfaces", serialize_with = "crate::summary::surfaces")
+    )]
     pub triangles_per_pair: Vec<(RegionPair, usize)>,
+    #[cfg_attr(
+        feature = "serde",
+        serde(rename = "curves", serialize_with = "crate::summary::curves")
+    )]
     pub curve_length_per_triple: Vec<(RegionTriple, f64)>,
     pub reached_domain: bool,
     pub reached_budget: bool,
     pub vertices: usize,
     pub triangles: usize,
+    #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub time: Duration,
 }
 

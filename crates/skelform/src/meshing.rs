@@ -1,0 +1,234 @@
+//! From a scene and overrides to a polygonizer call: the one place that knows which
+//! polygonizer each [`Method`] is and how a scene's settings map onto its options.
+
+use std::time::{Duration, Instant};
+
+use skelform_field::DVec3;
+use skelform_mesh::Mesh;
+use skelform_polygonize::grid::{self, Resolution};
+use skelform_polygonize::{continuation, healed, nonmanifold};
+use skelform_scene::Method;
+
+use crate::overrides::DEFAULT_MAX_MEMORY;
+use crate::{Error, Overrides, Scene, Stats};
+
+/// A mesh and what it took to make it.
+#[derive(Clone, Debug)]
+pub struct Meshed {
+    /// The triangles, with normals unless they were turned off, region labels and curves
+    /// where the method makes them. Empty when the scene has no surface in its domain (see
+    /// [`Meshed::no_surface`]).
+    pub mesh: Mesh,
+    /// The method's statistics.
+    pub stats: Stats,
+    /// The method that ran (the scene's, or the override).
+    pub method: Method,
+    /// Wall time of the polygonizer call.
+    pub elapsed: Duration,
+}
+
+impl Meshed {
+    /// When the mesh is empty, why, and what to check (the scene's name in front).
+    pub fn no_surface(&self, scene: &Scene) -> Option<String> {
+        self.mesh.is_empty().then(|| format!("{}: {}", scene.origin, self.stats.no_surface()))
+    }
+}
+
+fn invalid(scene: &Scene, message: impl Into<String>) -> Error {
+    Error::Invalid { origin: scene.origin.clone(), message: message.into() }
+}
+
+/// The resolution after the override, checked.
+fn resolution(scene: &Scene, o: &Overrides) -> Result<Resolution, Error> {
+    match o.resolution {
+        Some(Resolution::Samples(n)) if n < 2 => {
+            Err(invalid(scene, "the resolution must be at least 2 samples"))
+        }
+        Some(Resolution::Cell(c)) if !(c.is_finite() && c > 0.0) => {
+            Err(invalid(scene, "the cell size must be a positive length"))
+        }
+        Some(r) => Ok(r),
+        None => Ok(scene.resolution),
+    }
+}
+
+/// The cell side the scene's domain and resolution give (what the grid method would use).
+fn cell_for(scene: &Scene, resolution: Resolution) -> Result<f64, Error> {
+    let opts = grid::Options { domain: scene.domain, resolution, ..Default::default() };
+    grid::grid_for(&opts)
+        .map(|g| g.cell)
+        .map_err(|e| Error::Polygonize { origin: scene.origin.clone(), source: e.into() })
+}
+
+fn seeds(scene: &Scene, o: &Overrides) -> Vec<DVec3> {
+    o.seeds.clone().unwrap_or_else(|| scene.continuation.seeds.clone())
+}
+
+/// The lattice a run would use, known before any work: what `skelform info` shows and what
+/// limits are checked against.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lattice {
+    /// Samples along x, y and z.
+    pub dims: [usize; 3],
+    /// Cell side.
+    pub cell: f64,
+    /// Bytes the grid method needs before any triangle exists.
+    pub memory: u64,
+    /// Whether the grid method would stream the volume slab by slab.
+    pub streamed: bool,
+}
+
+impl Scene {
+    /// The lattice that meshing with `overrides` would use (the grid method's; the
+    /// continuation methods visit part of the same lattice). An error when it is too large.
+    pub fn lattice(&self, overrides: &Overrides) -> Result<Lattice, Error> {
+        let resolution = resolution(self, overrides)?;
+        let opts = grid::Options { domain: self.domain, resolution, ..Default::default() };
+        let g = grid::grid_for(&opts)
+            .map_err(|e| Error::Polygonize { origin: self.origin.clone(), source: e.into() })?;
+        let streamed = overrides.streaming.unwrap_or_default().streams(&g);
+        Ok(Lattice {
+            dims: g.dims,
+            cell: g.cell,
+            memory: grid::memory_needed(&g, streamed),
+            streamed,
+        })
+    }
+
+    /// Meshes the scene with its own settings, as changed by `overrides`.
+    ///
+    /// The method decides what the mesh guarantees: grid and continuation give closed,
+    /// manifold, consistently oriented surfaces where the surface lies inside the domain;
+    /// tetra may join thin walls that cubes keep apart; healed gives sheets that cross along
+    /// self-intersection curves; non-manifold gives labelled surfaces that meet along
+    /// intersection curves. The same scene and overrides give the same mesh on any number of
+    /// threads.
+    pub fn mesh(&self, overrides: &Overrides) -> Result<Meshed, Error> {
+        if let Some(pose) = &overrides.pose {
+            let posed = self.posed(pose)?;
+            let plain = Overrides { pose: None, ..overrides.clone() };
+            return posed.mesh(&plain);
+        }
+        let threads = overrides.threads.unwrap_or(0);
+        if threads == 0 && overrides.threads.is_some() {
+            return Err(invalid(self, "the thread count must be at least 1"));
+        }
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .map_err(|e| invalid(self, format!("cannot start {threads} threads: {e}")))?;
+        pool.install(|| self.mesh_here(overrides))
+    }
+
+    fn mesh_here(&self, o: &Overrides) -> Result<Meshed, Error> {
+        let method = o.method.unwrap_or(self.method);
+        let resolution = resolution(self, o)?;
+        let tolerance = match o.tolerance {
+            Some(t) if !(t > 0.0 && t < 1.0) => {
+                return Err(invalid(
+                    self,
+                    "the root-finding tolerance is a fraction of the cell, between 0 and 1",
+                ));
+            }
+            Some(t) => t,
+            None => self.tolerance,
+        };
+        let refine = o.refine.unwrap_or(self.refine);
+        let normals = o.normals.unwrap_or(self.output.normals);
+        let max_memory = o.max_memory.unwrap_or(DEFAULT_MAX_MEMORY);
+        let control = o.control.clone();
+        if self.regions_only && method != Method::NonManifold {
+            return Err(invalid(
+                self,
+                "the scene has [regions] and no [field]: mesh it with method = \"nonmanifold\"",
+            ));
+        }
+        let field = self.field.as_ref();
+        let grid_options = grid::Options {
+            domain: self.domain,
+            resolution,
+            refine,
+            tolerance,
+            normals,
+            max_memory,
+            streaming: o.streaming.unwrap_or_default(),
+            control: control.clone(),
+        };
+        let started = Instant::now();
+        let result = match method {
+            Method::Grid => {
+                grid::polygonize(field, &grid_options).map(|(m, s)| (m, Stats::Grid(s)))
+            }
+            Method::NonManifold => {
+                let Some(setup) = self.nonmanifold_regions() else {
+                    return Err(invalid(
+                        self,
+                        "the non-manifold method needs [regions] or [leaf] in the scene",
+                    ));
+                };
+                let defaults = nonmanifold::Options::default();
+                let options = nonmanifold::Options {
+                    domain: self.domain,
+                    cell: cell_for(self, resolution)?,
+                    seeds: seeds(self, o),
+                    search_stride: self
+                        .continuation
+                        .search_stride
+                        .unwrap_or(defaults.search_stride),
+                    full_grid: setup.full_grid,
+                    loops: setup.loops,
+                    interest: setup.interest,
+                    curves: setup.curves,
+                    max_cells: o
+                        .max_cells
+                        .or(self.continuation.max_cells)
+                        .unwrap_or(defaults.max_cells),
+                    control,
+                    ..defaults
+                };
+                nonmanifold::polygonize(setup.field.as_ref(), &options)
+                    .map(|(m, s)| (m, Stats::NonManifold(Box::new(s))))
+            }
+            Method::Continuation | Method::Tetra => {
+                let c = &self.continuation;
+                let defaults = continuation::Options::default();
+                let options = continuation::Options {
+                    domain: self.domain,
+                    cell: cell_for(self, resolution)?,
+                    seeds: seeds(self, o),
+                    search_stride: c.search_stride.unwrap_or(defaults.search_stride),
+                    cells: if method == Method::Tetra {
+                        continuation::Cells::Tetrahedra
+                    } else {
+                        continuation::Cells::Cubes
+                    },
+                    root: o.root.unwrap_or(c.root),
+                    tolerance,
+                    refine,
+                    normals,
+                    max_cells: o.max_cells.or(c.max_cells).unwrap_or(defaults.max_cells),
+                    limit: o.limit.or(c.limit),
+                    control,
+                };
+                continuation::polygonize(field, &options).map(|(m, s)| (m, Stats::Continuation(s)))
+            }
+            Method::Healed => {
+                let h = &self.healed;
+                let options = healed::Options {
+                    grid: grid_options,
+                    epsilon: match (h.epsilon, h.critical_cells) {
+                        (Some(e), _) => healed::Epsilon::Absolute(e),
+                        (None, Some(c)) => healed::Epsilon::Cells(c),
+                        (None, None) => healed::Options::default().epsilon,
+                    },
+                    split_sheets: h.split_sheets,
+                    ..healed::Options::default()
+                };
+                healed::polygonize(field, &options).map(|(m, s)| (m, Stats::Healed(Box::new(s))))
+            }
+        };
+        let (mesh, stats) =
+            result.map_err(|source| Error::Polygonize { origin: self.origin.clone(), source })?;
+        Ok(Meshed { mesh, stats, method, elapsed: started.elapsed() })
+    }
+}
