@@ -15,8 +15,12 @@ use crate::LeafError;
 /// One piece of vein.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct VeinSegment {
+    /// The segment's end toward the vein's base, in scene units.
     pub a: DVec3,
+    /// The segment's end toward the vein's tip; distinct from `a`.
     pub b: DVec3,
+    /// The convolution radius, in scene units: a long lone segment's surface lies this far from
+    /// it (where the density is ½), and it is the `r` of the region rule.
     pub radius: f64,
 }
 
@@ -34,7 +38,9 @@ struct Reach {
 pub struct Veins {
     field: SkeletonField,
     reach: Vec<Reach>,
+    /// The segments as given. Changing them does not rebuild the field: build new `Veins`.
     pub segments: Vec<VeinSegment>,
+    /// The kernel the segments are convolved with; its support sets how far each vein reaches.
     pub kernel: Kernel,
 }
 
@@ -49,6 +55,9 @@ impl Veins {
             .collect()
     }
 
+    /// The convolution surface of `segments` under `kernel` (all in one blend group, so veins
+    /// blend where they branch). Errors if a segment has zero length or a radius that is not
+    /// positive, or if the kernel does not convolve segments (the sinc).
     pub fn new(segments: Vec<VeinSegment>, kernel: Kernel) -> Result<Veins, LeafError> {
         let mut s = Skeleton::new();
         for seg in &segments {
