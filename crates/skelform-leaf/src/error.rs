@@ -7,7 +7,7 @@ pub enum LeafError {
     #[error("{name} must be {expected} (got {value})")]
     /// A [`LeafParams`](crate::LeafParams) value out of its range.
     BadParameter {
-        /// The parameter's name, as the field of `LeafParams` and the scene key spell it.
+        /// The name of the `LeafParams` field.
         name: &'static str,
         /// The value given.
         value: f64,

@@ -15,11 +15,11 @@ use crate::web::{Web, WebStats};
 /// A vein in space: points and the radius at each.
 #[derive(Clone, Debug, PartialEq)]
 pub struct VeinCurve {
-    /// Polyline of the vein's axis in scene units, base first, on the bent blade (wrapped like
-    /// its points) so that the vein follows the blade's edges.
+    /// Polyline of the vein's axis in space (scene units), base first; a generated leaf's
+    /// veins are wrapped with the blade, so they run along its edges.
     pub points: Vec<DVec3>,
     /// The vein's radius at each point (one per point, positive, in scene units); each segment
-    /// takes the mean of its ends', so a vein steps down from base to tip.
+    /// takes the mean of its ends', so a tapering vein steps down segment by segment.
     pub radii: Vec<f64>,
 }
 

@@ -15,9 +15,10 @@ use crate::LeafError;
 /// One piece of vein.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct VeinSegment {
-    /// The segment's end toward the vein's base, in scene units.
+    /// One end, in scene units: the one toward the vein's base when the segment comes from a
+    /// base-first polyline ([`Veins::segments_of`]).
     pub a: DVec3,
-    /// The segment's end toward the vein's tip; distinct from `a`.
+    /// The other end; must differ from `a`.
     pub b: DVec3,
     /// The convolution radius, in scene units: a long lone segment's surface lies this far from
     /// it (where the density is ½), and it is the `r` of the region rule.
@@ -56,8 +57,9 @@ impl Veins {
     }
 
     /// The convolution surface of `segments` under `kernel` (all in one blend group, so veins
-    /// blend where they branch). Errors if a segment has zero length or a radius that is not
-    /// positive, or if the kernel does not convolve segments (the sinc).
+    /// blend where they branch). Errors if there are no segments, if a segment has zero
+    /// length or a radius that is not positive, or if the kernel does not convolve segments
+    /// (the sinc).
     pub fn new(segments: Vec<VeinSegment>, kernel: Kernel) -> Result<Veins, LeafError> {
         let mut s = Skeleton::new();
         for seg in &segments {

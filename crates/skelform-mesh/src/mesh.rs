@@ -45,8 +45,9 @@ impl std::fmt::Display for RegionTriple {
 /// One segment of a labelled curve (an intersection or self-intersection curve).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub struct CurveEdge {
-    /// The segment's two ends, as indices into [`Mesh::positions`]; consecutive segments
-    /// of a polyline share an index, so the polyline is recovered by following shared ends.
+    /// The segment's two ends, as indices into [`Mesh::positions`]; the segments of one
+    /// polyline meet at shared indices (the checker's `open_ends` counts the vertices where
+    /// an odd number of a label's segments end).
     pub v: [u32; 2],
     /// The three regions meeting along the curve (the three sheets the curve borders).
     pub label: RegionTriple,

@@ -45,7 +45,7 @@ pub enum SkeletonError {
         area: f64,
     },
     #[error("polygon is not planar: vertex {vertex} is {distance:.3e} off the polygon's plane")]
-    /// A polygon vertex lies off the best-fit plane by more than 10⁻⁶ of the polygon's
+    /// A polygon vertex lies off the polygon's plane by more than 10⁻⁶ of the polygon's
     /// size: the convolution integrals assume a planar polygon.
     NotPlanar {
         /// Index of the first vertex found too far from the plane.
@@ -68,7 +68,8 @@ pub enum SkeletonError {
     /// A numeric setting out of its range: a blend's `range` or `thumbweight`, an iso
     /// value, a curve's splitting tolerance.
     BadParameter {
-        /// The setting's name as a scene file spells it.
+        /// The setting's name (`range`, `thumbweight`, `iso`, `tolerance`), as the message
+        /// shows it.
         name: &'static str,
         /// The value given.
         value: f64,
@@ -144,7 +145,7 @@ pub enum SkeletonError {
          distance to each element) or another kernel"
     )]
     /// A convolution blend with a kernel that has no closed-form convolution for segments
-    /// and polygons (the sinc), on a skeleton that has one.
+    /// and polygons (the sinc), on a skeleton with a segment or polygon.
     KernelConvolvesPointsOnly {
         /// The kernel's scene-file name.
         kernel: &'static str,

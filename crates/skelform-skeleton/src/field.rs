@@ -93,8 +93,8 @@ pub enum Blend {
         /// The exponent `t` of eq. 5.13, at least 1: 2 is the elliptic blend, larger values
         /// a tighter fillet that approaches the union.
         thumbweight: f64,
-        /// Scale every range by `1 − cos θ` (eq. 5.14), removing the bulge where
-        /// primitives cross nearly parallel.
+        /// Scale every range by `1 − cos θ` (eq. 5.14), removing the bulge where primitives
+        /// cross: no blend where their gradients agree, the full blend at right angles.
         angle_scaled: bool,
     },
     /// The combination surface (DIS eqs. 5.15–5.17): a product blend where the skeleton is

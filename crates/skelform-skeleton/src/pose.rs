@@ -37,7 +37,8 @@ pub struct Joint {
     /// coordinates.
     pub parent: Option<JointId>,
     /// Position of the joint's origin in its parent's frame (world coordinates for a root), in
-    /// scene units; it does not move when the parent turns, it turns with it.
+    /// scene units. Fixed in that frame, so the joint swings with its parent when the parent
+    /// turns.
     pub offset: DVec3,
     /// Rotation of the joint's frame relative to its parent's at rest (unit); a pose's rotation
     /// is applied after it, about the rest frame's axes.

@@ -53,8 +53,9 @@ impl Group {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Element {
     /// What the element is, in scene units (world coordinates, or its joint's frame in an
-    /// [`Articulated`](crate::Articulated) skeleton). Public so that a pose can move it; a shape
-    /// is validated on construction, so any value here is usable.
+    /// [`Articulated`](crate::Articulated) skeleton). Public so that a pose or a caller can move
+    /// it; shapes validate themselves on construction, so any `Shape` value is well formed
+    /// (keep a tapered element a segment: only segments use the end radius and strength).
     pub shape: Shape,
     radius: f64,
     end_radius: f64,
