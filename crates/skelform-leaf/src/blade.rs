@@ -23,8 +23,13 @@ use glam::DVec3;
 /// Where a point is relative to the blade.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Side {
+    /// On the side the triangles' normals point to (counter-clockwise seen from there; +z for a
+    /// flat leaf): the signed distance is positive.
     Above,
+    /// On the other side of the blade: the signed distance is negative.
     Below,
+    /// Past the margin: the nearest feature is a margin edge or vertex and the point does not
+    /// project onto the blade. The distance is unsigned there.
     Beyond,
 }
 
@@ -52,6 +57,7 @@ impl Feature {
 pub struct BladeDistance {
     /// Distance to the blade: positive above, negative below, positive (unsigned) beyond.
     pub distance: f64,
+    /// Which side of the blade the point is on; decides the leaf region (above, below, beyond).
     pub side: Side,
     /// The nearest triangle.
     pub triangle: usize,
@@ -69,10 +75,15 @@ struct Node {
 /// A triangle mesh blade, ready for distance queries.
 #[derive(Clone, Debug)]
 pub struct Blade {
+    /// Vertex positions in scene units, indexed by `triangles`.
     pub vertices: Vec<DVec3>,
+    /// Vertex indices, counter-clockwise seen from above (so that face normals point to the
+    /// [`Side::Above`] side).
     pub triangles: Vec<[u32; 3]>,
     /// Per triangle, whether edge k (corner k to k + 1) is on the margin (has one triangle).
     pub margin_edge: Vec<[bool; 3]>,
+    /// Per vertex, whether it is an end of a margin edge; a point whose nearest feature is such a
+    /// vertex may be beyond.
     pub vertex_on_margin: Vec<bool>,
     face_normal: Vec<DVec3>,
     edge_normal: Vec<[DVec3; 3]>,

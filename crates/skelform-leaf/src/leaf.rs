@@ -15,7 +15,11 @@ use crate::web::{Web, WebStats};
 /// A vein in space: points and the radius at each.
 #[derive(Clone, Debug, PartialEq)]
 pub struct VeinCurve {
+    /// Polyline of the vein's axis in space (scene units), base first; a generated leaf's
+    /// veins are wrapped with the blade, so they run along its edges.
     pub points: Vec<DVec3>,
+    /// The vein's radius at each point (one per point, positive, in scene units); each segment
+    /// takes the mean of its ends', so a tapering vein steps down segment by segment.
     pub radii: Vec<f64>,
 }
 
@@ -24,8 +28,12 @@ pub struct VeinCurve {
 pub struct Leaf {
     /// The venation, for generated leaves.
     pub venation: Option<Venation>,
+    /// How the web was built and refined, and how many triangles the blade has.
     pub stats: WebStats,
+    /// The triangulated, wrapped blade whose signed distance the regions use.
     pub blade: Blade,
+    /// Veins to be convolved: for generated leaves, the petiole, the primaries and (with a
+    /// positive secondary radius) the secondaries.
     pub veins: Vec<VeinCurve>,
 }
 

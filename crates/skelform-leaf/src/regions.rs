@@ -36,9 +36,14 @@ use skelform_mesh::{RegionPair, RegionTriple};
 use crate::blade::{Blade, Side};
 use crate::veins::Veins;
 
+/// Region id of space past the blade's margin and outside the veins: the outside of the leaf.
 pub const BEYOND: u32 = 0;
+/// Region id of the inside of a vein (the vein test comes first, so a vein continues past
+/// the margin).
 pub const VEIN: u32 = 1;
+/// Region id of the space above the blade (positive signed distance), outside the veins.
 pub const ABOVE: u32 = 2;
+/// Region id of the space below the blade (negative signed distance), outside the veins.
 pub const BELOW: u32 = 3;
 
 /// Where a vein may fillet into the blade.
@@ -54,8 +59,12 @@ pub enum Fillet {
 /// The region function of a blade with veins.
 #[derive(Clone, Debug)]
 pub struct BladeRegions {
+    /// The blade whose signed distance `d` separates above, below and beyond.
     pub blade: Blade,
+    /// The vein convolution; `None` for a bare blade, which then has only the regions beyond,
+    /// above and below.
     pub veins: Option<Veins>,
+    /// Whether veins fillet into the blade on both sides or only below.
     pub fillet: Fillet,
 }
 

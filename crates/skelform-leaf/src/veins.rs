@@ -15,8 +15,13 @@ use crate::LeafError;
 /// One piece of vein.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct VeinSegment {
+    /// One end, in scene units: the one toward the vein's base when the segment comes from a
+    /// base-first polyline ([`Veins::segments_of`]).
     pub a: DVec3,
+    /// The other end; must differ from `a`.
     pub b: DVec3,
+    /// The convolution radius, in scene units: a long lone segment's surface lies this far from
+    /// it (where the density is ½), and it is the `r` of the region rule.
     pub radius: f64,
 }
 
@@ -34,7 +39,9 @@ struct Reach {
 pub struct Veins {
     field: SkeletonField,
     reach: Vec<Reach>,
+    /// The segments as given. Changing them does not rebuild the field: build new `Veins`.
     pub segments: Vec<VeinSegment>,
+    /// The kernel the segments are convolved with; its support sets how far each vein reaches.
     pub kernel: Kernel,
 }
 
@@ -49,6 +56,10 @@ impl Veins {
             .collect()
     }
 
+    /// The convolution surface of `segments` under `kernel` (all in one blend group, so veins
+    /// blend where they branch). Errors if there are no segments, if a segment has zero
+    /// length or a radius that is not positive, or if the kernel does not convolve segments
+    /// (the sinc).
     pub fn new(segments: Vec<VeinSegment>, kernel: Kernel) -> Result<Veins, LeafError> {
         let mut s = Skeleton::new();
         for seg in &segments {

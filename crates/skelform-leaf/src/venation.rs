@@ -32,9 +32,12 @@ pub enum VeinKind {
 /// One vein: a chain of points from where it leaves its parent (or the leaf base) to its tip.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Vein {
+    /// Petiole, primary or secondary: sets the vein's radius on the generated leaf.
     pub kind: VeinKind,
     /// Point ids, base first; the first point is shared with the parent vein's chain.
     pub points: Vec<usize>,
+    /// The vein (index into [`Venation::veins`]) this one branches from; `None` for primaries
+    /// and the petiole.
     pub parent: Option<usize>,
     /// Descendant veins on the left (looking from the base to the tip), nearest the base first.
     pub left: Vec<usize>,
@@ -46,14 +49,18 @@ pub struct Vein {
 /// over them, and the veins.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Venation {
+    /// Point positions in the leaf's plane, in scene units, indexed by point id; the leaf base is
+    /// at the origin.
     pub points: Vec<DVec2>,
     /// Curvature (1/radius of the sphere the point is wrapped onto); 0 is flat.
     pub curvature: Vec<f64>,
     /// The tree: each point's parent point, `None` for the leaf base.
     pub parent: Vec<Option<usize>>,
+    /// Every vein (primaries, their descendants, the petiole), indexed by vein id.
     pub veins: Vec<Vein>,
     /// Primary veins, clockwise round the petiole (seen from +z).
     pub primaries: Vec<usize>,
+    /// The petiole's vein id; `None` when [`LeafParams::petiole`] is 0.
     pub petiole: Option<usize>,
     /// The leaf base, where the primaries meet (point id).
     pub base: usize,

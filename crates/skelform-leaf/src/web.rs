@@ -27,7 +27,11 @@ use crate::venation::Venation;
 /// A web of polygons over shared points in the plane.
 #[derive(Clone, Debug, Default)]
 pub struct Web {
+    /// Point positions in the leaf's plane, in scene units: the venation's points first, then
+    /// those added by margin smoothing and by refinement cuts.
     pub points: Vec<DVec2>,
+    /// Per point, the curvature it is wrapped with ([`crate::wrap`]); added points interpolate
+    /// their neighbours'.
     pub curvature: Vec<f64>,
     /// Counter-clockwise polygons (point ids).
     pub polygons: Vec<Vec<usize>>,
@@ -44,6 +48,8 @@ pub struct WebStats {
     pub polygons: usize,
     /// Polygons left larger than asked because no cut inside them was found.
     pub unsplit: usize,
+    /// Triangles of the blade after ear cutting; the size of the mesh to be searched for
+    /// distances.
     pub triangles: usize,
 }
 

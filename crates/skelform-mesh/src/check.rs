@@ -31,7 +31,9 @@ use crate::mesh::{CurveEdge, Mesh, RegionPair, RegionTriple};
 /// as a compact text report.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Report {
+    /// Length of the mesh's position list, referenced or not.
     pub vertices: usize,
+    /// Triangles in the mesh, valid or not (out-of-range and degenerate ones included).
     pub faces: usize,
     /// Vertices used by no face (curves do not count as use).
     pub unreferenced_vertices: usize,
@@ -41,22 +43,34 @@ pub struct Report {
     pub edges: usize,
     /// Edge degree → number of edges.
     pub edge_degrees: BTreeMap<usize, usize>,
+    /// Edges of degree 1: an open surface's rim. Zero for a closed surface.
     pub boundary_edges: usize,
+    /// Edges of degree 3 or more, where several sheets meet (expected along the curves of a
+    /// non-manifold mesh, an error in a manifold one).
     pub non_manifold_edges: usize,
+    /// Vertices whose valid faces form more than one fan through manifold edges (cones
+    /// touching at their tips, ends of non-manifold edges), over the whole mesh.
     pub non_manifold_vertices: usize,
     /// Largest first (then by first face).
     pub components: Vec<Component>,
     /// Manifold edges whose two faces traverse them the same way.
     pub inconsistent_edges: usize,
+    /// No inconsistent edges: every manifold edge is traversed in opposite directions by its
+    /// two faces, so normals from the winding agree across it.
     pub consistently_oriented: bool,
     /// Whether every component can be oriented consistently (no Möbius strip).
     pub orientable: bool,
     /// `faces_with_repeated_vertex + zero_area_faces`.
     pub degenerate_faces: usize,
+    /// Faces with two equal indices; they are left out of the edge topology.
     pub faces_with_repeated_vertex: usize,
+    /// Faces with distinct indices but (nearly) no area: `|(p1 − p0) × (p2 − p0)| ≤ 1e-12 · d²`,
+    /// `d` the bounding-box diagonal. They still take part in the edge topology.
     pub zero_area_faces: usize,
     /// Faces with the same vertex set as an earlier face, in any order.
     pub duplicate_faces: usize,
+    /// Whether the mesh carries per-vertex normals; without them the renderer shades with
+    /// area-weighted face normals and PLY and OBJ files get none.
     pub has_normals: bool,
     /// Triangles per label, sorted by label; empty for an unlabelled mesh.
     pub labels: Vec<LabelCount>,
@@ -66,6 +80,7 @@ pub struct Report {
     pub curve_labels: Vec<CurveCount>,
     /// Vertices merged into another by [`weld`] before the analysis (`check --weld`).
     pub welded_vertices: Option<usize>,
+    /// The box of every vertex position, referenced or not; `None` for a mesh without vertices.
     pub bounds: Option<Bounds>,
     /// Total area of the faces with in-range indices.
     pub area: f64,
@@ -82,21 +97,30 @@ pub struct Report {
 pub struct Component {
     /// The lowest face index in the component.
     pub first_face: usize,
+    /// Valid faces in the component.
     pub faces: usize,
+    /// Distinct vertices used by the component's faces.
     pub vertices: usize,
+    /// Distinct undirected edges of the component's faces, of any degree.
     pub edges: usize,
     /// V − E + F.
     pub euler: i64,
+    /// Edges of degree 1 in the component.
     pub boundary_edges: usize,
     /// Chains of boundary edges joined at shared vertices (closed loops, on a manifold).
     pub boundary_loops: usize,
+    /// Edges of degree 3 or more in the component.
     pub non_manifold_edges: usize,
     /// Vertices where this component alone has more than one fan.
     pub non_manifold_vertices: usize,
     /// No boundary and no non-manifold edges.
     pub closed: bool,
+    /// Whether the component's faces can be wound consistently at all (a Möbius strip cannot);
+    /// false makes `genus` `None`.
     pub orientable: bool,
+    /// Manifold edges of the component whose two faces traverse them the same way: faces to flip.
     pub inconsistent_edges: usize,
+    /// No inconsistent edges in the component.
     pub consistently_oriented: bool,
     /// `(2 − χ) / 2` for a closed, orientable component without non-manifold vertices.
     pub genus: Option<i64>,
@@ -104,6 +128,7 @@ pub struct Component {
     pub volume: Option<f64>,
     /// Whether the volume is positive, i.e. the faces are wound outward.
     pub outward: Option<bool>,
+    /// Total area of the component's faces, in squared scene units.
     pub area: f64,
 }
 
@@ -117,14 +142,18 @@ impl Component {
 /// Triangles carrying one label.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 pub struct LabelCount {
+    /// The region pair the triangles separate.
     pub label: RegionPair,
+    /// Triangles carrying `label`.
     pub triangles: usize,
 }
 
 /// The curve segments carrying one region triple.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 pub struct CurveCount {
+    /// The three regions meeting along these curves.
     pub label: RegionTriple,
+    /// Curve segments carrying `label`.
     pub segments: usize,
     /// Vertices where an odd number of this label's segments end: 0 when the curves are
     /// closed loops (or meet other curves of the label in even numbers).
@@ -230,7 +259,9 @@ fn curve_counts(mesh: &Mesh) -> Vec<CurveCount> {
 /// An axis-aligned box.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct Bounds {
+    /// Least `x`, `y` and `z` of the vertices, in scene units.
     pub min: [f32; 3],
+    /// Greatest `x`, `y` and `z` of the vertices, in scene units.
     pub max: [f32; 3],
 }
 

@@ -28,6 +28,8 @@ impl std::fmt::Display for RegionPair {
 pub struct RegionTriple(pub [u32; 3]);
 
 impl RegionTriple {
+    /// The triple of three region ids in any order, sorted so that equal triples compare
+    /// equal. The ids should be distinct (a curve separates three regions); not checked.
     pub fn new(mut r: [u32; 3]) -> Self {
         r.sort_unstable();
         RegionTriple(r)
@@ -43,7 +45,11 @@ impl std::fmt::Display for RegionTriple {
 /// One segment of a labelled curve (an intersection or self-intersection curve).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub struct CurveEdge {
+    /// The segment's two ends, as indices into [`Mesh::positions`]; the segments of one
+    /// polyline meet at shared indices (the checker's `open_ends` counts the vertices where
+    /// an odd number of a label's segments end).
     pub v: [u32; 2],
+    /// The three regions meeting along the curve (the three sheets the curve borders).
     pub label: RegionTriple,
 }
 
@@ -53,6 +59,8 @@ pub struct CurveEdge {
 /// as long as `positions`; `labels` is empty or as long as `triangles`.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Mesh {
+    /// Vertex positions in scene units, as `f32`: the polygonizers evaluate fields and place
+    /// vertices in `f64` and round once when storing them here.
     pub positions: Vec<[f32; 3]>,
     /// Unit outward normals, one per vertex, or empty.
     pub normals: Vec<[f32; 3]>,
@@ -68,24 +76,57 @@ pub struct Mesh {
 #[derive(Debug, thiserror::Error, Clone, PartialEq, Eq)]
 pub enum MeshError {
     #[error("triangle {face} uses vertex {index}, but there are only {vertices} vertices")]
-    IndexOutOfRange { face: usize, index: u32, vertices: usize },
+    /// A triangle refers to a vertex that does not exist.
+    IndexOutOfRange {
+        /// Index of the triangle in [`Mesh::triangles`].
+        face: usize,
+        /// The offending vertex index.
+        index: u32,
+        /// Length of [`Mesh::positions`].
+        vertices: usize,
+    },
     #[error("curve edge {edge} uses vertex {index}, but there are only {vertices} vertices")]
-    CurveIndexOutOfRange { edge: usize, index: u32, vertices: usize },
+    /// A curve segment refers to a vertex that does not exist.
+    CurveIndexOutOfRange {
+        /// Index of the segment in [`Mesh::curves`].
+        edge: usize,
+        /// The offending vertex index.
+        index: u32,
+        /// Length of [`Mesh::positions`].
+        vertices: usize,
+    },
     #[error("{normals} normals for {vertices} vertices")]
-    NormalCount { normals: usize, vertices: usize },
+    /// Normals are present but not one per vertex.
+    NormalCount {
+        /// Length of [`Mesh::normals`].
+        normals: usize,
+        /// Length of [`Mesh::positions`].
+        vertices: usize,
+    },
     #[error("{labels} labels for {triangles} triangles")]
-    LabelCount { labels: usize, triangles: usize },
+    /// Labels are present but not one per triangle.
+    LabelCount {
+        /// Length of [`Mesh::labels`].
+        labels: usize,
+        /// Length of [`Mesh::triangles`].
+        triangles: usize,
+    },
 }
 
 impl Mesh {
+    /// Length of [`Mesh::positions`], vertices used by no triangle (curve-only or
+    /// unreferenced ones) included.
     pub fn vertex_count(&self) -> usize {
         self.positions.len()
     }
 
+    /// Length of [`Mesh::triangles`], degenerate and duplicate triangles included.
     pub fn triangle_count(&self) -> usize {
         self.triangles.len()
     }
 
+    /// Whether the mesh has no triangles, so no surface to write or draw; vertices and
+    /// curves alone do not make it non-empty.
     pub fn is_empty(&self) -> bool {
         self.triangles.is_empty()
     }

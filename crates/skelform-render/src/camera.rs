@@ -9,7 +9,11 @@
 /// looks straight down (then `+y` is up in the picture).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct View {
+    /// Degrees about `+z`, counter-clockwise seen from above; 0 looks from `−y`, 90 from `+x`.
+    /// Any finite value (it wraps every 360).
     pub azimuth: f64,
+    /// Degrees above the `xy` plane, −90 to 90: 0 is level, 90 looks straight down, −90 up
+    /// from below.
     pub elevation: f64,
 }
 
@@ -25,7 +29,11 @@ impl Default for View {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Projection {
     /// A pinhole camera; `fov_degrees` is the angle across the shorter side of the image.
-    Perspective { fov_degrees: f64 },
+    Perspective {
+        /// Full angle, in degrees, across the shorter side of the image: more than 0 and
+        /// less than 170; smaller is more telephoto (the camera then stands farther back).
+        fov_degrees: f64,
+    },
     /// Parallel projection: sizes do not shrink with distance.
     Orthographic,
 }
@@ -65,14 +73,19 @@ pub struct Camera {
     pub forward: V3,
     /// Unit vectors along the image's `x` (right) and up (against image `y`).
     pub right: V3,
+    /// Unit vector up in the picture (against image `y`), `right × forward`; at elevation 0 it
+    /// is `+z`.
     pub up: V3,
     /// Distance from the eye to `target` (perspective); for orthographic cameras, how far
     /// back the (notional) eye stands so that every point is in front of it.
     pub distance: f64,
     /// Perspective: pixels per unit of `x/z`; orthographic: pixels per world unit.
     pub scale: f64,
+    /// Image width in pixels the camera was fitted for.
     pub width: u32,
+    /// Image height in pixels the camera was fitted for.
     pub height: u32,
+    /// The projection `scale` refers to.
     pub projection: Projection,
 }
 

@@ -13,7 +13,9 @@ pub type Rgb = [u8; 3];
 /// A picture: `width × height` sRGB pixels, row by row from the top.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Image {
+    /// Pixels per row; a rendered picture has 1 to [`MAX_SIDE`](crate::MAX_SIDE).
     pub width: u32,
+    /// Rows of pixels; `pixels` holds `width * height` of them.
     pub height: u32,
     /// `width * height` pixels, top row first.
     pub pixels: Vec<Rgb>,

@@ -68,22 +68,49 @@ pub const MAX_SIDE: u32 = 16384;
 #[derive(Debug, thiserror::Error)]
 pub enum RenderError {
     #[error("the image size {width}×{height} is empty: width and height must be at least 1")]
-    EmptyImage { width: u32, height: u32 },
+    /// A picture with no pixels: [`Settings::width`] or [`Settings::height`] is 0.
+    EmptyImage {
+        /// The width asked for, in pixels.
+        width: u32,
+        /// The height asked for, in pixels.
+        height: u32,
+    },
     #[error("the image size {width}×{height} is too large: at most {MAX_SIDE} pixels a side")]
-    TooLarge { width: u32, height: u32 },
+    /// A side longer than [`MAX_SIDE`] pixels, refused before anything is allocated.
+    TooLarge {
+        /// The width asked for, in pixels.
+        width: u32,
+        /// The height asked for, in pixels.
+        height: u32,
+    },
+    /// A mesh with no triangles (points or curves alone): nothing to fit the camera to.
     #[error("the mesh has no triangles to draw")]
     NoTriangles,
     #[error("invalid mesh: {0}")]
+    /// The mesh fails [`Mesh::validate`] (an index out of range, lists of the wrong
+    /// length, …), so it cannot be drawn safely.
     InvalidMesh(#[from] MeshError),
     #[error("vertex {vertex} has a coordinate that is not a finite number")]
-    NonFinite { vertex: usize },
+    /// A vertex position with a NaN or infinite coordinate, which would make the fitted
+    /// camera meaningless.
+    NonFinite {
+        /// Index of the first such vertex in `mesh.positions`.
+        vertex: usize,
+    },
     #[error("invalid settings: {0}")]
+    /// A [`Settings`] value out of its range; the message names the setting and the range
+    /// ([`Settings::validate`]).
     Settings(String),
     #[error("cannot encode the PNG: {0}")]
+    /// The `png` crate could not encode the picture or the animation.
     Encode(#[source] png::EncodingError),
     #[error("cannot write {}: {source}", .path.display())]
+    /// Writing the file failed; the file at `path` is left as it was (files are written to
+    /// a temporary beside it and renamed over it).
     Write {
+        /// The file that was to be written.
         path: PathBuf,
+        /// What the operating system said.
         #[source]
         source: std::io::Error,
     },
@@ -96,9 +123,17 @@ pub enum RenderError {
 pub struct Light {
     /// Towards the light, in camera space: `x` right, `y` up, `z` towards the viewer.
     pub direction: [f32; 3],
+    /// Light every point receives whatever its normal, as a fraction of its colour
+    /// (non-negative; 0.28 by default); keeps the side away from the light readable.
     pub ambient: f32,
+    /// Weight of the Lambertian term `max(n·l, 0)` (non-negative; 0.72 by default). With
+    /// `ambient + diffuse = 1`, a face turned to the light shows its full colour.
     pub diffuse: f32,
+    /// Strength of the white highlight, added to every channel in linear light
+    /// (non-negative; 0.18 by default; 0 for a matte picture).
     pub specular: f32,
+    /// Blinn–Phong exponent of the highlight: larger is smaller and sharper (40 by
+    /// default).
     pub shininess: f32,
 }
 
@@ -121,33 +156,51 @@ impl Default for Light {
 pub struct Settings {
     /// Size in pixels, each from 1 to [`MAX_SIDE`].
     pub width: u32,
+    /// Height in pixels, 1 to [`MAX_SIDE`]; with `width` it sets the aspect ratio the camera
+    /// is fitted to.
     pub height: u32,
+    /// The direction the camera looks from; the camera is then fitted to the mesh.
     pub view: View,
+    /// Perspective (with its field of view, 0–170 degrees) or orthographic.
     pub projection: Projection,
     /// Space left around the fitted box, as a fraction of the half-width and half-height.
     pub margin: f64,
     /// Samples per pixel along each axis (1 to 4): 2 gives smooth edges at 4× the work.
     pub supersample: u32,
+    /// Colour of pixels no surface covers, and of what transparent sheets let through.
     pub background: Rgb,
+    /// The one directional light and the ambient and specular terms.
     pub light: Light,
     /// Front and back colours of an unlabelled surface.
     pub surface: Rgb,
+    /// The back is the side from which the triangles run clockwise (for a closed mesh with
+    /// outward winding, the inside). Labelled meshes ignore both: the back of a labelled
+    /// sheet is its region colour darkened.
     pub back: Rgb,
     /// Colours for particular region pairs; others take the shared palette
     /// ([`skelform_mesh::io::gltf::region_colour`]) in the order of the sorted labels.
     pub region_colours: Vec<(RegionPair, Rgb)>,
     /// Draw `mesh.curves` as lines of `curve_width` pixels.
     pub curves: bool,
+    /// Colour of the curves (the legend's swatch for them too).
     pub curve_colour: Rgb,
+    /// Thickness of the curves in output pixels (more than 0, at most 64); curves are
+    /// hidden where the surface is in front of them.
     pub curve_width: f32,
     /// Draw every visible triangle edge.
     pub wireframe: bool,
+    /// Colour of the wireframe's lines.
     pub wire_colour: Rgb,
+    /// Thickness of the wireframe's lines in output pixels (more than 0, at most 64).
     pub wire_width: f32,
+    /// How much a wireframe line covers the shaded surface under it, from 0 (invisible) to
+    /// 1 (opaque).
     pub wire_opacity: f32,
     /// See through every sheet: each layer covers `opacity` of what is behind it (more
     /// where seen edge-on), composited exactly front to back.
     pub transparent: bool,
+    /// Fraction of what is behind that each transparent layer hides, face-on (more than 0,
+    /// at most 1; only with `transparent`).
     pub opacity: f32,
     /// A legend of region colours (and curves) in the top-left corner, for meshes with more
     /// than one label or with curves, in pictures of at least 160 × 120 pixels.

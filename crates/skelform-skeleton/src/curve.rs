@@ -15,6 +15,8 @@ use crate::SkeletonError;
 /// `p(t) = c1·t³ + c2·t² + c3·t + c4`, `t ∈ [0, 1]` (DIS eq. 5.1).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CubicCurve {
+    /// The coefficients `[c1, c2, c3, c4]` of eq. 5.1, in scene units: `c4 = p(0)` is the start,
+    /// `c1 + c2 + c3 + c4 = p(1)` the end. [`CubicCurve::bezier`] converts control points.
     pub c: [DVec3; 4],
 }
 
@@ -22,9 +24,14 @@ pub struct CubicCurve {
 /// right-handed (`tangent × normal = binormal`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Frame {
+    /// The curve point `p(t)` the frame sits at.
     pub origin: DVec3,
+    /// Unit `p′(t)`, the direction of travel.
     pub tangent: DVec3,
+    /// Unit vector across the curve, carried along by rotation minimisation (DIS §5.3) rather
+    /// than the Frenet normal, so it neither flips at inflections nor vanishes on straight parts.
     pub normal: DVec3,
+    /// `tangent × normal`; with `normal`, spans the plane of the cross-section (DIS eq. 5.4).
     pub binormal: DVec3,
 }
 

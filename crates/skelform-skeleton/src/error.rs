@@ -4,58 +4,139 @@
 /// that a scene loader can add the file position and pass them on unchanged.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum SkeletonError {
+    /// A coordinate, direction, offset, rotation or joint angle was NaN or infinite; nothing
+    /// of the skeleton is built from it, since one NaN would spread to every field value.
     #[error("coordinates must be finite numbers")]
     NonFinite,
     #[error("radius must be a positive length (got {0})")]
+    /// An element radius (or a tapered segment's end radius) that is not a finite positive
+    /// length; the radius is where a lone element's surface lies, in scene units.
     BadRadius(f64),
     #[error("strength must be a finite number (got {0})")]
+    /// A strength (the weight on an element's density) that is NaN or infinite; any finite
+    /// value is accepted, negative ones carve.
     BadStrength(f64),
     #[error("segment has zero length: both ends are at {0:?} (use a point for a point source)")]
+    /// A segment whose ends coincide to 10⁻¹² of their magnitude; the value is the end.
     ZeroLengthSegment([f64; 3]),
     #[error("a polyline needs at least 2 points (got {0})")]
+    /// A polyline with fewer than two points; the value is the count given.
     ShortPolyline(usize),
     #[error("polyline point {index} repeats the point before it ({point:?}): zero-length segment")]
-    RepeatedPolylinePoint { index: usize, point: [f64; 3] },
+    /// Two consecutive polyline points coincide, which would make a zero-length segment.
+    RepeatedPolylinePoint {
+        /// Index in the polyline of the second of the two equal points.
+        index: usize,
+        /// Where the repeated point lies.
+        point: [f64; 3],
+    },
     #[error("a polygon needs at least 3 vertices (got {0})")]
+    /// A polygon with fewer than three vertices; the value is the count given.
     TooFewVertices(usize),
     #[error("polygon edge {0} has zero length (vertex {0} repeats the next one)")]
+    /// Polygon vertex `i` coincides with vertex `i + 1` (cyclically) to 10⁻¹² of the
+    /// polygon's size; the value is `i`, the edge's index.
     ZeroLengthEdge(usize),
     #[error("polygon is degenerate: its vertices are (nearly) collinear, area {area:.3e}")]
-    DegeneratePolygon { area: f64 },
+    /// A polygon whose area is (nearly) zero, so that it has no plane and no normal.
+    DegeneratePolygon {
+        /// The polygon's area (Newell's, in squared scene units); at most 10⁻¹² of its
+        /// size squared, or NaN.
+        area: f64,
+    },
     #[error("polygon is not planar: vertex {vertex} is {distance:.3e} off the polygon's plane")]
-    NotPlanar { vertex: usize, distance: f64 },
+    /// A polygon vertex lies off the polygon's plane by more than 10⁻⁶ of the polygon's
+    /// size: the convolution integrals assume a planar polygon.
+    NotPlanar {
+        /// Index of the first vertex found too far from the plane.
+        vertex: usize,
+        /// Its distance from the plane through the vertices' centroid along Newell's
+        /// normal, in scene units.
+        distance: f64,
+    },
     #[error("polygon edges {0} and {1} cross: a polygon must be simple")]
+    /// Two non-adjacent polygon edges touch or cross, so the polygon is not simple; the
+    /// values are the indices of the two edges (edge `i` runs from vertex `i` to `i + 1`).
     SelfIntersecting(usize, usize),
     #[error("unknown group '{0}'")]
+    /// A group name (or, from the API, `#index`) that the skeleton does not have.
     UnknownGroup(String),
     #[error("group '{0}' is defined twice")]
+    /// [`Skeleton::add_group`](crate::Skeleton::add_group) with a name already in use.
     DuplicateGroup(String),
     #[error("{name} must be {expected} (got {value})")]
-    BadParameter { name: &'static str, value: f64, expected: &'static str },
+    /// A numeric setting out of its range: a blend's `range` or `thumbweight`, an iso
+    /// value, a curve's splitting tolerance.
+    BadParameter {
+        /// The setting's name (`range`, `thumbweight`, `iso`, `tolerance`), as the message
+        /// shows it.
+        name: &'static str,
+        /// The value given.
+        value: f64,
+        /// The accepted range, in words ("a positive number").
+        expected: &'static str,
+    },
     #[error("unknown joint '{0}'")]
+    /// A joint name (or, from the API, `#index`) that the articulated skeleton does not have.
     UnknownJoint(String),
     #[error("joint '{0}' is defined twice")]
+    /// [`Articulated::add_joint`](crate::Articulated::add_joint) with a name already in use.
     DuplicateJoint(String),
     #[error("radius must be one number or one per point: {points} points, {radii} radii")]
-    RadiusCount { points: usize, radii: usize },
+    /// A tapered polyline whose list of radii is neither one radius nor one per point.
+    RadiusCount {
+        /// Points of the polyline.
+        points: usize,
+        /// Radii given.
+        radii: usize,
+    },
     #[error("only segments (and polylines and curves) can taper: give one radius")]
+    /// Different radii or strengths at the two ends of a point or polygon: only segments
+    /// interpolate them along their length.
     TaperNeedsSegment,
     #[error(
         "junction at {at:?} needs at least 2 limbs (segments with an end there), found {found}"
     )]
-    TooFewLimbs { at: [f64; 3], found: usize },
+    /// [`Skeleton::add_junction`](crate::Skeleton::add_junction) at a point where fewer than
+    /// two segments end (segments passing through it are split there first).
+    TooFewLimbs {
+        /// The joint as declared.
+        at: [f64; 3],
+        /// Segments found with an end within 10⁻⁹ (relative) of it.
+        found: usize,
+    },
     #[error("the limbs of the junction at {0:?} are in different blend groups")]
+    /// The limbs meeting at a junction belong to different blend groups, while a junction
+    /// blends all of them into one density; the value is the joint.
     LimbsInSeveralGroups([f64; 3]),
     #[error("direction must be a non-zero vector (got {0:?})")]
+    /// A junction's direction of convexity that is zero or not finite, so it cannot be
+    /// normalised.
     BadDirection([f64; 3]),
     #[error("junctions apply to the convolution blend only, not to {0}")]
+    /// A skeleton with junctions built into a field with another blend than convolution:
+    /// the joint combination surface (DIS eq. 5.37) combines convolution densities. The
+    /// value is the blend's scene-file name.
     JunctionNeedsConvolution(&'static str),
     #[error("image_resolution must be between 4 and {max} pixels (got {0})", max = crate::image::MAX_IMAGE_RESOLUTION)]
+    /// [`PolygonMethod::Image`](crate::PolygonMethod::Image) with a resolution outside
+    /// 4 ..= [`MAX_IMAGE_RESOLUTION`](crate::MAX_IMAGE_RESOLUTION) pixels.
     BadImageResolution(usize),
     #[error("joint '{joint}' turns about {axes} axes, so it takes {axes} angles (got {got})")]
-    AngleCount { joint: String, axes: usize, got: usize },
+    /// A joint given another number of angles than it has rotation axes.
+    AngleCount {
+        /// The joint's name.
+        joint: String,
+        /// Rotation axes the joint turns about.
+        axes: usize,
+        /// Angles given.
+        got: usize,
+    },
     #[error("there is no element {0}")]
+    /// An element index at or past the skeleton's length.
     UnknownElement(usize),
+    /// A field built from a skeleton with no elements: it would have no surface and no
+    /// bounds to polygonize in.
     #[error("the skeleton has no elements")]
     Empty,
     #[error(
@@ -63,8 +144,18 @@ pub enum SkeletonError {
          convolution with it has no closed form; use blend = \"sum\" (the {kernel} of the \
          distance to each element) or another kernel"
     )]
-    /// `element`: the index of the first segment or polygon.
-    KernelConvolvesPointsOnly { kernel: &'static str, shape: &'static str, element: usize },
+    /// A convolution blend with a kernel that has no closed-form convolution for segments
+    /// and polygons (the sinc), on a skeleton with a segment or polygon.
+    KernelConvolvesPointsOnly {
+        /// The kernel's scene-file name.
+        kernel: &'static str,
+        /// `"segment"` or `"polygon"`.
+        shape: &'static str,
+        /// The index of the first segment or polygon.
+        element: usize,
+    },
     #[error("iso applies to density blends (convolution, sum, combination), not to {0}")]
+    /// An iso value given to a distance blend (union, super-elliptic), whose surface is
+    /// where its value is 0; the value is the blend's scene-file name.
     IsoNotApplicable(&'static str),
 }

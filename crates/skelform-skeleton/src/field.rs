@@ -86,11 +86,28 @@ pub enum Blend {
     /// `1 − cos θ`, `θ` the angle between the gradients of the two elements nearest `p` (in
     /// units of their ranges): eq. 5.14, full blend where the primitives meet at right
     /// angles, the union where their gradients agree, which removes the blend's bulge.
-    SuperElliptic { range: f64, thumbweight: f64, angle_scaled: bool },
+    SuperElliptic {
+        /// Reach of each element's influence beyond its surface, in multiples of its
+        /// radius (`Rᵢ = range·rᵢ`); positive. Beyond it an element does not blend.
+        range: f64,
+        /// The exponent `t` of eq. 5.13, at least 1: 2 is the elliptic blend, larger values
+        /// a tighter fillet that approaches the union.
+        thumbweight: f64,
+        /// Scale every range by `1 − cos θ` (eq. 5.14), removing the bulge where primitives
+        /// cross: no blend where their gradients agree, the full blend at right angles.
+        angle_scaled: bool,
+    },
     /// The combination surface (DIS eqs. 5.15–5.17): a product blend where the skeleton is
     /// concave, the union where it is convex. `range` is the width of the blend zone, in
     /// multiples of the radius.
-    Combination { range: f64, clamp: bool },
+    Combination {
+        /// Width of the blend zone around each element's surface, in multiples of its
+        /// radius (`Rᵢ` in `Pᵢ = h(½ + (dᵢ − rᵢ)/Rᵢ)`); positive.
+        range: f64,
+        /// Clamp `cos θ` at 0 (eq. 5.17); without it (eq. 5.15) acute angles between
+        /// elements leave a protuberance.
+        clamp: bool,
+    },
 }
 
 impl Blend {
@@ -474,6 +491,7 @@ impl SkeletonField {
         Ok(self)
     }
 
+    /// The blend the field was built with; its parameters as given, already validated.
     pub fn blend(&self) -> Blend {
         self.blend
     }
@@ -484,6 +502,8 @@ impl SkeletonField {
         self.blend.has_iso().then_some(self.iso)
     }
 
+    /// Elements the field evaluates, junction limbs included: one per element of the
+    /// skeleton it was built from (a polyline or curve counts each of its segments).
     pub fn element_count(&self) -> usize {
         self.items.len()
     }

@@ -31,14 +31,18 @@ impl Segment {
         Ok(Segment { a, b })
     }
 
+    /// The start: parameter `α = 0` of [`Segment::nearest`], and the end at which a tapered
+    /// element has its first radius and strength.
     pub fn a(&self) -> DVec3 {
         self.a
     }
 
+    /// The end: parameter `α = 1`, where a tapered element has its end radius and strength.
     pub fn b(&self) -> DVec3 {
         self.b
     }
 
+    /// Distance from `a` to `b` in scene units; never zero (see [`Segment::new`]).
     pub fn length(&self) -> f64 {
         (self.b - self.a).length()
     }
@@ -139,6 +143,8 @@ impl Polygon {
         Polygon::new(vec![a, b, c])
     }
 
+    /// The vertices as given, in order: counter-clockwise about [`Polygon::normal`], the first
+    /// one fixing the direction of the plane frame's `e1`.
     pub fn vertices(&self) -> &[DVec3] {
         &self.vertices
     }
@@ -148,6 +154,8 @@ impl Polygon {
         self.normal
     }
 
+    /// Area enclosed, in squared scene units (half the length of Newell's vector); always
+    /// positive, whichever way the vertices run.
     pub fn area(&self) -> f64 {
         self.area
     }
@@ -229,14 +237,20 @@ fn segments_cross(a: DVec2, b: DVec2, c: DVec2, d: DVec2) -> bool {
 /// The shape of one skeletal element.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Shape {
+    /// A point source at this position: the convolution of a point is the kernel itself, and its
+    /// surface is a sphere of the element's radius.
     Point(DVec3),
+    /// A line segment; polylines and cubic curves are chains of these.
     Segment(Segment),
+    /// A planar polygon, filled: its surface is a slab of the element's radius around it, with
+    /// rounded edges (DIS ch. 6).
     Polygon(Polygon),
 }
 
 /// The nearest point of a shape and how it moves with the query point.
 #[derive(Clone, Copy, Debug)]
 pub struct Nearest {
+    /// The point of the shape nearest the query point, in scene units.
     pub point: DVec3,
     /// `∂point/∂p`: zero at a point or a vertex, the projection onto the segment's line or
     /// the polygon's plane in the interior of those.

@@ -42,7 +42,13 @@ pub enum PolygonMethod {
     #[default]
     Exact,
     /// The dissertation's filtered raster image, `resolution` pixels across.
-    Image { resolution: usize },
+    Image {
+        /// Pixels across the longer side of the image box (the polygon's bounds widened by
+        /// the kernel's support), 4 ..= [`MAX_IMAGE_RESOLUTION`]; cost grows with its
+        /// square and the error roughly falls with it squared. Default
+        /// [`DEFAULT_IMAGE_RESOLUTION`].
+        resolution: usize,
+    },
 }
 
 impl PolygonMethod {

@@ -20,6 +20,8 @@ use crate::skeleton::{Element, Skeleton};
 pub struct JointId(usize);
 
 impl JointId {
+    /// Position of the joint in [`Articulated::joints`]: joints are numbered in the order they
+    /// were added, so a parent's index is always below its children's.
     pub fn index(self) -> usize {
         self.0
     }
@@ -29,9 +31,17 @@ impl JointId {
 /// turns about.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Joint {
+    /// Unique within its [`Articulated`]; the name scenes and poses use.
     pub name: String,
+    /// The joint whose frame this one is placed in; `None` for a root, placed in world
+    /// coordinates.
     pub parent: Option<JointId>,
+    /// Position of the joint's origin in its parent's frame (world coordinates for a root), in
+    /// scene units. Fixed in that frame, so the joint swings with its parent when the parent
+    /// turns.
     pub offset: DVec3,
+    /// Rotation of the joint's frame relative to its parent's at rest (unit); a pose's rotation
+    /// is applied after it, about the rest frame's axes.
     pub rest: DQuat,
     /// Unit rotation axes in the joint's rest frame, applied in order (intrinsic angles: the
     /// second axis is turned by the first rotation). Empty for a joint that is only turned
@@ -69,6 +79,8 @@ pub struct Pose {
 }
 
 impl Pose {
+    /// A pose with no joint set, so every joint at rest. Note that this is not
+    /// [`Articulated::default_pose`], which applies the joints' default angles.
     pub fn new() -> Pose {
         Pose::default()
     }
@@ -81,6 +93,8 @@ impl Pose {
         }
     }
 
+    /// The rotation set for `joint` relative to its rest rotation; the identity for a joint the
+    /// pose does not set.
     pub fn rotation(&self, joint: JointId) -> DQuat {
         self.rotations.iter().find(|(j, _)| *j == joint).map_or(DQuat::IDENTITY, |(_, q)| *q)
     }
@@ -118,10 +132,13 @@ impl Articulated {
         Articulated { joints: Vec::new(), skeleton, attached }
     }
 
+    /// The joints in the order added (parents before children), indexed by [`JointId::index`].
     pub fn joints(&self) -> &[Joint] {
         &self.joints
     }
 
+    /// Looks a joint up by the name it was added with, as scene files and poses refer to
+    /// joints; `None` if no joint has it.
     pub fn joint_named(&self, name: &str) -> Option<JointId> {
         self.joints.iter().position(|j| j.name == name).map(JointId)
     }

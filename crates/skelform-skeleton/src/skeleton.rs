@@ -18,6 +18,8 @@ impl GroupId {
     /// The group every element is in unless put elsewhere.
     pub const DEFAULT: GroupId = GroupId(0);
 
+    /// Position of the group in [`Skeleton::groups`], in the order groups were added; the
+    /// default group is 0.
     pub fn index(self) -> usize {
         self.0
     }
@@ -27,6 +29,8 @@ impl GroupId {
 /// with.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Group {
+    /// Unique within its skeleton; the name scene files use for the group. The default group is
+    /// called `"default"`.
     pub name: String,
     blends_with: BTreeSet<GroupId>,
 }
@@ -48,6 +52,10 @@ impl Group {
 /// (`near.radius` from `alpha`, DIS §5.6.7 "radii may differ per endpoint").
 #[derive(Clone, Debug, PartialEq)]
 pub struct Element {
+    /// What the element is, in scene units (world coordinates, or its joint's frame in an
+    /// [`Articulated`](crate::Articulated) skeleton). Public so that a pose or a caller can move
+    /// it; shapes validate themselves on construction, so any `Shape` value is well formed
+    /// (keep a tapered element a segment: only segments use the end radius and strength).
     pub shape: Shape,
     radius: f64,
     end_radius: f64,
@@ -150,10 +158,14 @@ impl Element {
         self.radius != self.end_radius || self.strength != self.end_strength
     }
 
+    /// How a polygon's convolution is computed: exactly (the default) or by the
+    /// dissertation's raster image. Meaningless for points and segments.
     pub fn polygon_method(&self) -> PolygonMethod {
         self.polygon_method
     }
 
+    /// The blend group the element belongs to: it blends with the elements of this group and of
+    /// the groups linked to it, and meets the others in a sharp union.
     pub fn group(&self) -> GroupId {
         self.group
     }
@@ -231,14 +243,19 @@ impl Skeleton {
         Ok(GroupId(self.groups.len() - 1))
     }
 
+    /// Looks a group up by name, as scene files refer to groups; `None` if there is none.
     pub fn group_named(&self, name: &str) -> Option<GroupId> {
         self.groups.iter().position(|g| g.name == name).map(GroupId)
     }
 
+    /// Every group, in the order added, indexed by [`GroupId::index`]; the first is the default
+    /// group.
     pub fn groups(&self) -> &[Group] {
         &self.groups
     }
 
+    /// The group `id` stands for. Ids come from this skeleton, so the lookup does not fail;
+    /// an id of another skeleton with more groups panics.
     pub fn group(&self, id: GroupId) -> &Group {
         &self.groups[id.0]
     }
@@ -258,14 +275,18 @@ impl Skeleton {
         Ok(())
     }
 
+    /// Every element, in the order added: indices into this slice are what
+    /// [`Skeleton::push`] returns and junctions refer to.
     pub fn elements(&self) -> &[Element] {
         &self.elements
     }
 
+    /// Whether the skeleton has no element; a field cannot be built from an empty one.
     pub fn is_empty(&self) -> bool {
         self.elements.is_empty()
     }
 
+    /// Number of elements (a polyline or curve counts each of its segments).
     pub fn len(&self) -> usize {
         self.elements.len()
     }
@@ -622,6 +643,8 @@ impl Skeleton {
         })
     }
 
+    /// The junctions declared with [`Skeleton::add_junction`], in order of creation; limbs are
+    /// indices into [`Skeleton::elements`].
     pub fn junctions(&self) -> &[Junction] {
         &self.junctions
     }
