@@ -20,7 +20,7 @@ for s in sphere torus; do
             # shellcheck disable=SC2086
             j=$(./target/release/skelform mesh "bench/scenes/gg4-$s.toml" -o "$out/m.ply" -q --json --threads 1 $args)
             t=$(python3 -c 'import json,sys; print(json.load(sys.stdin)["seconds"]["total"])' <<<"$j")
-            e=$(python3 -c 'import json,sys; print(json.load(sys.stdin)["evaluations"]["total"])' <<<"$j")
+            e=$(python3 -c 'import json,sys; print(json.load(sys.stdin)["evaluations"])' <<<"$j")
             if [ -z "$best" ] || python3 -c "import sys; sys.exit(0 if $t < $best else 1)"; then best=$t; fi
         done
         printf '| %s | %s | %s | %.3f | %s |\n' "$s" "$label" "$(printf "%'d" "$e")" "$best" "$ref"

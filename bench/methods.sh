@@ -24,7 +24,7 @@ scene, method, doc, *times = sys.argv[1:]
 j = json.loads(doc)
 t = sorted(float(x) for x in times)[1]
 comps = len(j["components"]) if "components" in j else "-"
-print(f"| {scene} | {method} | {j['evaluations']['total']:,} | {j['triangles']:,} | {comps} | {t:.3f} |")
+print(f"| {scene} | {method} | {j['evaluations']:,} | {j['triangles']:,} | {comps} | {t:.3f} |")
 PY
     done
 done

@@ -200,7 +200,7 @@ def one_run(tool, field, n, mode):
                 cmd = [str(SKELFORM), "mesh", str(scene), "-o", f"{d}/m.ply", "--json", "--threads", threads,
                        "--no-normals", "--no-refine"]
                 j = json.loads(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout)
-                result["seconds"] = j["seconds"]["sampling"] + j["seconds"]["extraction"]
+                result["seconds"] = j["sampling"] + j["extraction"]
             result["vertices"], result["triangles"] = j["vertices"], j["triangles"]
         result["peak_mib"] = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
         return result

@@ -1,0 +1,120 @@
+//! The library's front door as a user meets it: load, override, mesh, read the statistics.
+
+use std::ops::ControlFlow;
+
+use skelform::mesh::check::check;
+use skelform::{Control, DVec3, Method, Overrides, Resolution, Scene, Stats};
+
+fn example(name: &str) -> String {
+    format!("{}/../../examples/{name}", env!("CARGO_MANIFEST_DIR"))
+}
+
+fn coarse() -> Overrides {
+    Overrides { resolution: Some(Resolution::Samples(24)), ..Overrides::default() }
+}
+
+#[test]
+fn every_field_method_meshes_the_torus_as_one_closed_genus_one_surface() {
+    let scene = Scene::load(example("torus.toml")).unwrap();
+    for method in [Method::Grid, Method::Continuation, Method::Tetra, Method::Healed] {
+        let m = scene.mesh(&Overrides { method: Some(method), ..coarse() }).unwrap();
+        assert_eq!(m.method, method);
+        let r = check(&m.mesh);
+        assert!(r.is_closed_manifold(), "{method:?}");
+        assert_eq!(r.components.len(), 1, "{method:?}");
+        assert_eq!(r.components[0].genus, Some(1), "{method:?}");
+        assert!(m.stats.evaluations() > 0);
+        assert!(m.stats.warnings().is_empty(), "{method:?}: {:?}", m.stats.warnings());
+        let text = m.stats.to_string();
+        assert!(text.contains("triangles"), "{text}");
+    }
+}
+
+#[test]
+fn parsed_text_and_loaded_file_give_the_same_mesh() {
+    let text = std::fs::read_to_string(example("sphere.toml")).unwrap();
+    let a = Scene::parse(&text, "<string>").unwrap().mesh(&coarse()).unwrap();
+    let b = Scene::load(example("sphere.toml")).unwrap().mesh(&coarse()).unwrap();
+    assert_eq!(a.mesh.positions, b.mesh.positions);
+    assert_eq!(a.mesh.triangles, b.mesh.triangles);
+}
+
+#[test]
+fn the_mesh_is_the_same_on_any_number_of_threads() {
+    let scene = Scene::load(example("gyroid.toml")).unwrap();
+    let one = scene.mesh(&Overrides { threads: Some(1), ..coarse() }).unwrap();
+    let two = scene.mesh(&Overrides { threads: Some(2), ..coarse() }).unwrap();
+    assert_eq!(one.mesh.positions, two.mesh.positions);
+    assert_eq!(one.mesh.triangles, two.mesh.triangles);
+}
+
+#[test]
+fn a_pose_override_rebuilds_the_skeleton() {
+    let scene = Scene::load(example("skeleton/hand.toml")).unwrap();
+    let rest = scene.mesh(&coarse()).unwrap();
+    let grip = scene.mesh(&Overrides { pose: Some("grip".into()), ..coarse() }).unwrap();
+    assert_ne!(rest.mesh.positions, grip.mesh.positions);
+    let loaded = Scene::load_with(
+        example("skeleton/hand.toml"),
+        &skelform::LoadOptions { pose: Some("grip".into()) },
+    )
+    .unwrap()
+    .mesh(&coarse())
+    .unwrap();
+    assert_eq!(grip.mesh.positions, loaded.mesh.positions);
+    let e = scene.mesh(&Overrides { pose: Some("wave".into()), ..coarse() }).unwrap_err();
+    assert!(e.is_input() && e.to_string().contains("grip"), "{e}");
+}
+
+#[test]
+fn bad_overrides_are_the_inputs_fault() {
+    let scene = Scene::load(example("sphere.toml")).unwrap();
+    for o in [
+        Overrides { resolution: Some(Resolution::Samples(1)), ..Overrides::default() },
+        Overrides { resolution: Some(Resolution::Cell(-1.0)), ..Overrides::default() },
+        Overrides { tolerance: Some(2.0), ..coarse() },
+        Overrides { method: Some(Method::NonManifold), ..coarse() },
+        Overrides { max_memory: Some(1 << 10), ..coarse() },
+        Overrides { seeds: Some(vec![DVec3::new(9.0, 0.0, 0.0)]), method: Some(Method::Continuation), ..coarse() },
+    ] {
+        let e = scene.mesh(&o).unwrap_err();
+        assert!(e.is_input(), "{e}");
+        assert!(e.to_string().starts_with(&scene.origin), "{e}");
+    }
+}
+
+#[test]
+fn a_cancelled_run_says_so() {
+    let scene = Scene::load(example("gyroid.toml")).unwrap();
+    let control = Control::with_callback(|_| ControlFlow::Break(()));
+    let e = scene.mesh(&Overrides { control, ..coarse() }).unwrap_err();
+    assert!(e.is_cancelled(), "{e}");
+    assert!(!e.is_input());
+}
+
+#[test]
+fn statistics_serialize_with_their_method_specific_fields() {
+    let grid = Scene::load(example("sphere.toml")).unwrap().mesh(&coarse()).unwrap();
+    let j = serde_json::to_value(&grid.stats).unwrap();
+    assert!(matches!(grid.stats, Stats::Grid(_)));
+    assert_eq!(j["triangles"].as_u64().unwrap() as usize, grid.mesh.triangle_count());
+    assert!(j["sampling"].as_f64().unwrap() >= 0.0, "durations in seconds: {j}");
+    let regions = Scene::load(example("nonmanifold/saucer-and-square.toml")).unwrap();
+    let nm = regions.mesh(&Overrides::default()).unwrap();
+    let j = serde_json::to_value(&nm.stats).unwrap();
+    assert_eq!(j["surfaces"].as_array().unwrap().len(), 3, "{j}");
+    assert_eq!(j["surfaces"][0]["pair"], serde_json::json!([1, 2]));
+    assert!(!nm.mesh.labels.is_empty());
+}
+
+#[test]
+fn an_empty_domain_is_explained() {
+    let scene = Scene::parse(
+        "[domain]\nmin = [-1, -1, -1]\nmax = [1, 1, 1]\n[field]\nformula = \"x^2 + y^2 + z^2 + 1\"\n",
+        "<empty>",
+    ).unwrap();
+    let m = scene.mesh(&coarse()).unwrap();
+    assert!(m.mesh.is_empty());
+    let why = m.no_surface(&scene).unwrap();
+    assert!(why.starts_with("<empty>: no surface") && why.contains("outside"), "{why}");
+}
