@@ -60,7 +60,7 @@ pub use meshing::{Lattice, Meshed};
 pub use overrides::{DEFAULT_MAX_MEMORY, Overrides};
 pub use stats::Stats;
 
-/// Fields: the [`Field`](skelform_field::Field) and region-field traits, the formula
+/// Fields: the [`Field`] and [`RegionField`] traits, the formula
 /// language, lattices, progress and cancellation.
 pub use skelform_field as field;
 /// Leaf forms (dissertation ch. 7): venation, the polygonal-web blade, veins as regions.
