@@ -231,9 +231,9 @@ pub fn extract(a: ExtractArgs) -> Result<(), Failure> {
                 })
                 .collect();
         }
-        println!("{j}");
+        outln!("{j}");
     } else if !a.quiet {
-        eprintln!(
+        errln!(
             "wrote {} ({} vertices, {} triangles; extraction {:.3}s)",
             a.output.display(),
             mesh.vertex_count(),
@@ -241,7 +241,7 @@ pub fn extract(a: ExtractArgs) -> Result<(), Failure> {
             scaling[0].median.as_secs_f64()
         );
         for s in scaling.iter().skip(1) {
-            eprintln!(
+            errln!(
                 "  on {} threads: {:.3}s, {:.2}× as fast as on {} (the median of {} rounds)",
                 s.threads,
                 s.median.as_secs_f64(),

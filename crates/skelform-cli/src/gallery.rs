@@ -130,7 +130,7 @@ fn one(a: &GalleryArgs, settings: &Settings, scene_path: &Path) -> Entry {
         image.write_png(&a.out.join(&file)).map_err(failure)?;
         Ok(file)
     })();
-    entry.picture = result.map_err(|f| f.error.to_string());
+    entry.picture = result.map_err(|f| f.error.map_or_else(String::new, |e| e.to_string()));
     entry
 }
 
@@ -213,8 +213,8 @@ pub fn gallery(a: GalleryArgs) -> Result<(), Failure> {
         let e = pool.install(|| one(&a, &settings, scene));
         if !a.run.quiet {
             match &e.picture {
-                Ok(file) => eprintln!("{} → {file}", scene.display()),
-                Err(err) => eprintln!("{}: failed: {err}", scene.display()),
+                Ok(file) => errln!("{} → {file}", scene.display()),
+                Err(err) => errln!("{}: failed: {err}", scene.display()),
             }
         }
         entries.push(e);
@@ -236,7 +236,7 @@ pub fn gallery(a: GalleryArgs) -> Result<(), Failure> {
         .map_err(|e| runtime(anyhow!("cannot write {}: {e}", readme.display())))?;
     let failed = entries.iter().filter(|e| e.picture.is_err()).count();
     if !a.run.quiet {
-        eprintln!("wrote {} ({} pictures)", readme.display(), entries.len() - failed);
+        errln!("wrote {} ({} pictures)", readme.display(), entries.len() - failed);
     }
     if failed > 0 {
         return Err(runtime(anyhow!(

@@ -4,6 +4,8 @@
 //! polygonizer, writes the mesh and prints statistics. Exit codes: 0 success, 1 runtime
 //! failure (nothing to mesh, cannot write), 2 bad input or usage.
 
+#[macro_use]
+mod console;
 mod extract;
 mod gallery;
 mod progress;
@@ -11,6 +13,7 @@ mod render;
 mod report;
 mod run;
 
+use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
@@ -92,15 +95,23 @@ struct InfoArgs {
 /// A failure with its exit code.
 struct Failure {
     code: u8,
-    error: anyhow::Error,
+    /// What to print; `None` ends quietly (the reader of standard output has gone).
+    error: Option<anyhow::Error>,
+}
+
+impl Failure {
+    /// The end of a run whose output nobody reads any more: no message, success.
+    fn quiet() -> Failure {
+        Failure { code: 0, error: None }
+    }
 }
 
 fn input(error: impl Into<anyhow::Error>) -> Failure {
-    Failure { code: 2, error: error.into() }
+    Failure { code: 2, error: Some(error.into()) }
 }
 
 fn runtime(error: impl Into<anyhow::Error>) -> Failure {
-    Failure { code: 1, error: error.into() }
+    Failure { code: 1, error: Some(error.into()) }
 }
 
 /// A usage error in one line (clap's own spreads over several, with a usage block that
@@ -123,11 +134,19 @@ fn main() -> ExitCode {
         Ok(cli) => cli,
         Err(e) if !e.use_stderr() => {
             // --help and --version: clap prints them to standard output.
-            let _ = e.print();
+            let text = e.render();
+            let shown = if std::io::stdout().is_terminal() {
+                text.ansi().to_string()
+            } else {
+                text.to_string()
+            };
+            if console::out(format_args!("{shown}")).is_err() {
+                return ExitCode::SUCCESS;
+            }
             return ExitCode::SUCCESS;
         }
         Err(e) => {
-            eprintln!("{}", usage_error(&e));
+            errln!("{}", usage_error(&e));
             return ExitCode::from(2);
         }
     };
@@ -142,7 +161,9 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(f) => {
-            eprintln!("error: {}", f.error);
+            if let Some(e) = f.error {
+                errln!("error: {e}");
+            }
             ExitCode::from(f.code)
         }
     }
@@ -184,12 +205,12 @@ fn mesh(a: MeshArgs) -> Result<(), Failure> {
     let writing = t.elapsed();
     let total = started.elapsed();
     if a.json {
-        println!("{}", report::json(&scene, &out, &meshed, writing, total));
+        outln!("{}", report::json(&scene, &out, &meshed, writing, total));
     } else if a.stats {
-        report::print(&meshed, writing, total);
+        report::print(&meshed, writing, total)?;
     }
     if !a.run.quiet && !a.json {
-        eprintln!(
+        errln!(
             "wrote {} ({} vertices, {} triangles)",
             out.display(),
             mesh.vertex_count(),
@@ -211,55 +232,55 @@ fn check(a: CheckArgs) -> Result<(), Failure> {
     if a.json {
         let json = serde_json::to_string_pretty(&report)
             .map_err(|e| runtime(anyhow!("cannot serialise the report: {e}")))?;
-        println!("{json}");
+        outln!("{json}");
     } else {
-        println!("{}", a.mesh.display());
-        print!("{report}");
+        outln!("{}", a.mesh.display());
+        outp!("{report}");
     }
     Ok(())
 }
 
 fn info(a: InfoArgs) -> Result<(), Failure> {
     let scene = run::load_scene(&a.scene, a.pose.as_deref())?;
-    println!("scene       {}", scene.origin);
+    outln!("scene       {}", scene.origin);
     if let Some(n) = &scene.name {
-        println!("name        {n}");
+        outln!("name        {n}");
     }
     if let Some(d) = &scene.description {
-        println!("description {d}");
+        outln!("description {d}");
     }
     let (lo, hi) = (scene.domain.min, scene.domain.max);
-    println!("domain      [{}, {}, {}] – [{}, {}, {}]", lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
-    println!("method      {}", scene.method.name());
+    outln!("domain      [{}, {}, {}] – [{}, {}, {}]", lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
+    outln!("method      {}", scene.method.name());
     match scene.lattice(&skelform::Overrides::default()) {
         Ok(l) => {
             let [nx, ny, nz] = l.dims;
-            println!("grid        {nx} × {ny} × {nz} samples, cell {:.6}", l.cell);
-            println!(
+            outln!("grid        {nx} × {ny} × {nz} samples, cell {:.6}", l.cell);
+            outln!(
                 "memory      {:.1} MiB before triangles{}",
                 l.memory as f64 / (1 << 20) as f64,
                 if l.streamed { " (volume streamed in slabs)" } else { "" }
             );
         }
-        Err(e) => println!("grid        invalid: {e}"),
+        Err(e) => outln!("grid        invalid: {e}"),
     }
     match &scene.skeleton {
-        Some(sk) => println!(
+        Some(sk) => outln!(
             "skeleton    {} elements in {} blending sets",
             sk.element_count(),
             sk.clique_count()
         ),
         None => {
-            println!("iso         {}", scene.iso);
-            println!("formula     {} instructions", scene.formula.instruction_count());
+            outln!("iso         {}", scene.iso);
+            outln!("formula     {} instructions", scene.formula.instruction_count());
         }
     }
     if let Some(art) = &scene.articulation {
-        println!("joints      {}", art.joints.len());
-        println!("pose        {} (poses: {})", art.pose, art.poses.join(", "));
+        outln!("joints      {}", art.joints.len());
+        outln!("pose        {} (poses: {})", art.pose, art.poses.join(", "));
     }
     if a.tape {
-        println!("{}", scene.formula.tape());
+        outln!("{}", scene.formula.tape());
     }
     Ok(())
 }

@@ -132,7 +132,7 @@ pub fn render(a: RenderArgs) -> Result<(), Failure> {
         .map_err(|e| runtime(anyhow!("cannot start {threads} threads: {e}")))?;
     let with_input = |e: RenderError| {
         let f = failure(e);
-        Failure { code: f.code, error: anyhow!("{}: {}", a.input.display(), f.error) }
+        Failure { code: f.code, error: f.error.map(|e| anyhow!("{}: {e}", a.input.display())) }
     };
     pool.install(|| {
         let renderer = Renderer::new(&mesh).map_err(with_input)?;
@@ -146,7 +146,7 @@ pub fn render(a: RenderArgs) -> Result<(), Failure> {
     })?;
     if !a.run.quiet {
         let frames = a.turntable.map_or(String::new(), |n| format!(", {n} frames"));
-        eprintln!("wrote {} ({}×{}{frames})", a.output.display(), s.width, s.height);
+        errln!("wrote {} ({}×{}{frames})", a.output.display(), s.width, s.height);
     }
     Ok(())
 }

@@ -8,10 +8,13 @@ use std::time::Duration;
 use serde_json::json;
 use skelform::{Meshed, Scene};
 
+use crate::Failure;
+
 /// The `--stats` text.
-pub fn print(meshed: &Meshed, writing: Duration, total: Duration) {
-    print!("{}", meshed.stats);
-    println!("writing       {:.3}s (total {:.3}s)", writing.as_secs_f64(), total.as_secs_f64());
+pub fn print(meshed: &Meshed, writing: Duration, total: Duration) -> Result<(), Failure> {
+    outp!("{}", meshed.stats);
+    outln!("writing       {:.3}s (total {:.3}s)", writing.as_secs_f64(), total.as_secs_f64());
+    Ok(())
 }
 
 /// The `--json` document: the method's statistics, field for field (durations in seconds),

@@ -195,7 +195,7 @@ pub fn surface(scene: &Scene, meshed: &Meshed, quiet: bool) -> Result<(), Failur
     }
     if !quiet {
         for w in meshed.stats.warnings() {
-            eprintln!("warning: {w}");
+            errln!("warning: {w}");
         }
     }
     Ok(())

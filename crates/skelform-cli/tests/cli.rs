@@ -2,7 +2,7 @@
 //! report, and one clear error with the right exit code for every kind of bad input.
 
 use std::path::{Path, PathBuf};
-use std::process::Output;
+use std::process::{Command, Output};
 
 mod common;
 use common::{example, skelform};
@@ -272,4 +272,32 @@ fn usage_errors_exit_with_two() {
     let o = skelform(&["--help"]);
     assert!(o.status.success());
     assert!(stdout(&o).contains("mesh"));
+}
+
+/// A full disk is a clear runtime failure; a reader that has gone ends the run quietly. Neither
+/// panics ("failed printing to stdout").
+#[test]
+fn standard_output_that_fails_is_not_a_panic() {
+    let full = std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_skelform"))
+        .args(["info", &example("gyroid.toml")])
+        .stdout(full)
+        .output()
+        .unwrap();
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("cannot write to standard output"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+
+    let mut child = Command::new(env!("CARGO_BIN_EXE_skelform"))
+        .args(["info", &example("gyroid.toml"), "--tape"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let o = child.wait_with_output().unwrap();
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    assert!(err.is_empty(), "a closed pipe ends quietly: {err}");
 }

@@ -75,7 +75,11 @@ fn bad_overrides_are_the_inputs_fault() {
         Overrides { tolerance: Some(2.0), ..coarse() },
         Overrides { method: Some(Method::NonManifold), ..coarse() },
         Overrides { max_memory: Some(1 << 10), ..coarse() },
-        Overrides { seeds: Some(vec![DVec3::new(9.0, 0.0, 0.0)]), method: Some(Method::Continuation), ..coarse() },
+        Overrides {
+            seeds: Some(vec![DVec3::new(9.0, 0.0, 0.0)]),
+            method: Some(Method::Continuation),
+            ..coarse()
+        },
     ] {
         let e = scene.mesh(&o).unwrap_err();
         assert!(e.is_input(), "{e}");
