@@ -12,7 +12,7 @@ use anyhow::anyhow;
 use clap::Args;
 use skelform::mesh::io::{WriteOptions, write_mesh};
 use skelform::volume::{
-    Grid, LayerSource, StreamError, Streamed, Volume, extract_mesh, extract_streamed, sanitize,
+    Grid, LayerSource, MAX_SAMPLES_PER_AXIS, StreamError, Streamed, Volume, extract_mesh, extract_streamed, sanitize,
 };
 use skelform::{Control, DVec3, Mesh};
 
@@ -104,19 +104,37 @@ pub fn extract(a: ExtractArgs) -> Result<(), Failure> {
     if !(a.spacing.is_finite() && a.spacing > 0.0) {
         return Err(input(anyhow!("--spacing must be a positive length")));
     }
-    let count: u64 = a.dims.iter().map(|&d| d as u64).product();
-    let bytes = count * 4;
+    let [nx, ny, nz] = a.dims;
+    if a.dims.iter().any(|&d| d > MAX_SAMPLES_PER_AXIS) {
+        return Err(input(anyhow!(
+            "{}: --dims {nx},{ny},{nz}: at most {MAX_SAMPLES_PER_AXIS} samples are allowed along one axis",
+            a.volume.display()
+        )));
+    }
+    // Each axis is at most 2^15 samples, so the count fits in 45 bits and its bytes in 47:
+    // checked anyway, as every size computed from input is.
+    let bytes = a
+        .dims
+        .iter()
+        .try_fold(4u64, |acc, &d| acc.checked_mul(d as u64))
+        .ok_or_else(|| input(anyhow!("{}: --dims {nx},{ny},{nz} is too large", a.volume.display())))?;
     // The samples as f32, plus about as much again for the extraction's bookkeeping (the
     // mesh); streamed, the samples are a few slabs.
-    if (if a.stream { bytes } else { 2 * bytes }) > a.max_memory {
+    let needed = if a.stream { bytes } else { bytes.saturating_mul(2) };
+    if needed > a.max_memory {
         return Err(input(anyhow!(
-            "{}: a {}×{}×{} volume needs about {:.2} GiB, over the limit of {:.2} GiB (--max-memory)",
+            "{}: a {nx}×{ny}×{nz} volume needs about {:.2} GiB, over the limit of {:.2} GiB (--max-memory)",
             a.volume.display(),
-            a.dims[0],
-            a.dims[1],
-            a.dims[2],
-            (2 * bytes) as f64 / (1u64 << 30) as f64,
+            needed as f64 / (1u64 << 30) as f64,
             a.max_memory as f64 / (1u64 << 30) as f64
+        )));
+    }
+    // Positions are stored as f32: the far corner of the lattice must be one.
+    let far = a.origin.iter().zip(a.dims).map(|(o, d)| o + a.spacing * (d - 1) as f64);
+    if a.origin.iter().copied().chain(far).any(|c| !(c.abs() <= f32::MAX as f64)) {
+        return Err(input(anyhow!(
+            "{}: --origin and --spacing put the lattice beyond the range of 32-bit coordinates",
+            a.volume.display()
         )));
     }
     let size = std::fs::metadata(&a.volume)
@@ -124,11 +142,8 @@ pub fn extract(a: ExtractArgs) -> Result<(), Failure> {
         .len();
     if size != bytes {
         return Err(input(anyhow!(
-            "{}: {size} bytes, but {}×{}×{} float32 samples take {bytes}",
+            "{}: {size} bytes, but {nx}×{ny}×{nz} float32 samples take {bytes}",
             a.volume.display(),
-            a.dims[0],
-            a.dims[1],
-            a.dims[2]
         )));
     }
     let iso = a.iso as f32;

@@ -133,3 +133,28 @@ fn bad_volumes_are_refused_clearly() {
         assert!(!out.exists());
     }
 }
+
+/// Sizes from the command line are checked before anything is read or allocated: counts
+/// whose byte size would wrap, axes over the lattice limit, coordinates past f32.
+#[test]
+fn hostile_sizes_are_refused_up_front() {
+    let dir = tempfile::tempdir().unwrap();
+    let vol = dir.path().join("v.raw");
+    std::fs::write(&vol, sphere(4, 0.5)).unwrap();
+    let out = dir.path().join("v.ply");
+    let (v, o) = (vol.to_str().unwrap(), out.to_str().unwrap());
+    for (args, needle) in [
+        (vec!["--dims", "4294967296,4294967296,4294967296"], "at most 32768 samples"),
+        (vec!["--dims", "30000,30000,30000"], "over the limit"),
+        (vec!["--dims", "4,4,4", "--origin", "1e39,0,0"], "32-bit coordinates"),
+        (vec!["--dims", "4,4,4", "--spacing", "2e38"], "32-bit coordinates"),
+    ] {
+        let mut all = vec!["extract", v, "-o", o];
+        all.extend(&args);
+        let r = skelform(&all);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(needle), "{args:?}: {err}");
+        assert!(!out.exists());
+    }
+}
