@@ -12,7 +12,8 @@ use anyhow::anyhow;
 use clap::Args;
 use skelform::mesh::io::{WriteOptions, write_mesh};
 use skelform::volume::{
-    Grid, LayerSource, MAX_SAMPLES_PER_AXIS, StreamError, Streamed, Volume, extract_mesh, extract_streamed, sanitize,
+    Grid, LayerSource, MAX_SAMPLES_PER_AXIS, StreamError, Streamed, Volume, extract_mesh,
+    extract_streamed, sanitize,
 };
 use skelform::{Control, DVec3, Mesh};
 
@@ -113,11 +114,10 @@ pub fn extract(a: ExtractArgs) -> Result<(), Failure> {
     }
     // Each axis is at most 2^15 samples, so the count fits in 45 bits and its bytes in 47:
     // checked anyway, as every size computed from input is.
-    let bytes = a
-        .dims
-        .iter()
-        .try_fold(4u64, |acc, &d| acc.checked_mul(d as u64))
-        .ok_or_else(|| input(anyhow!("{}: --dims {nx},{ny},{nz} is too large", a.volume.display())))?;
+    let bytes =
+        a.dims.iter().try_fold(4u64, |acc, &d| acc.checked_mul(d as u64)).ok_or_else(|| {
+            input(anyhow!("{}: --dims {nx},{ny},{nz} is too large", a.volume.display()))
+        })?;
     // The samples as f32, plus about as much again for the extraction's bookkeeping (the
     // mesh); streamed, the samples are a few slabs.
     let needed = if a.stream { bytes } else { bytes.saturating_mul(2) };

@@ -41,6 +41,7 @@
 //! // On the central primary vein, next to the blade: vein.
 //! assert_eq!(r.region(DVec3::new(0.0, 0.5, 0.001)), regions::VEIN);
 //! ```
+#![warn(missing_docs)]
 
 pub mod blade;
 mod error;

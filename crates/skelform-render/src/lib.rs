@@ -43,6 +43,7 @@
 //! assert_eq!(&png[1..4], b"PNG");
 //! # Ok::<(), skelform_render::RenderError>(())
 //! ```
+#![warn(missing_docs)]
 
 mod camera;
 mod image;

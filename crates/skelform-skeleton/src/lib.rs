@@ -86,6 +86,7 @@
 //! assert!((f.eval(DVec3::new(0.0, 0.0, 0.1)) - (0.5 - 0.75)).abs() < 1e-6);
 //! assert_eq!(f.seed_points().len(), 2);
 //! ```
+#![warn(missing_docs)]
 
 pub mod convolution;
 pub mod curve;

@@ -47,6 +47,7 @@
 //! language), [`skeleton`] (skeletal primitives, blends, convolution), [`leaf`] (leaf forms),
 //! [`scene`] (scene files), [`polygonize`] (the polygonizers), [`mesh`] (meshes, the checker,
 //! readers and writers), [`render`] (pictures).
+#![warn(missing_docs)]
 
 mod error;
 mod loaded;
