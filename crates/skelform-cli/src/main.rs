@@ -222,8 +222,12 @@ fn info(a: InfoArgs) -> Result<(), Failure> {
     let (lo, hi) = (scene.domain.min, scene.domain.max);
     println!("domain      [{}, {}, {}] – [{}, {}, {}]", lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
     println!("method      {}", scene.method.name());
-    let opts =
-        grid::Options { domain: scene.domain, resolution: scene.resolution, ..Default::default() };
+    let lattice = skelform_polygonize::LatticeOptions {
+        domain: scene.domain,
+        resolution: scene.resolution,
+        ..Default::default()
+    };
+    let opts = grid::Options { lattice, ..Default::default() };
     match grid::grid_for(&opts) {
         Ok(g) => {
             let [nx, ny, nz] = g.dims;

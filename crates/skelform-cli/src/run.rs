@@ -8,6 +8,7 @@ use clap::Args;
 use skelform_field::DVec3;
 use skelform_mesh::Mesh;
 use skelform_polygonize::grid::{self, Resolution};
+use skelform_polygonize::{LatticeOptions, Threads};
 use skelform_polygonize::{continuation, healed, nonmanifold, refine::RootMethod};
 use skelform_scene::{Method, Scene};
 
@@ -84,12 +85,6 @@ pub struct RunArgs {
     pub pose: Option<String>,
 }
 
-/// The cell side the scene's domain and resolution give.
-fn cell_for(scene: &Scene, resolution: Resolution) -> Result<f64, Failure> {
-    let opts = grid::Options { domain: scene.domain, resolution, ..Default::default() };
-    grid::grid_for(&opts).map(|g| g.cell).map_err(|e| input(anyhow!("{}: {e}", scene.origin)))
-}
-
 /// Start points: the command line's `--seed`s, else the scene's seeds.
 fn seeds(scene: &Scene, a: &RunArgs) -> Vec<DVec3> {
     if a.seed.is_empty() {
@@ -115,11 +110,11 @@ pub fn run_scene(scene: &Scene, a: &RunArgs) -> Result<(Mesh, report::Run, Metho
         (None, Some(c)) => Resolution::Cell(c),
         (None, None) => scene.resolution,
     };
-    let threads = a.threads.unwrap_or(0);
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .map_err(|e| runtime(anyhow!("cannot start {threads} threads: {e}")))?;
+    // No count (or 0): the caller's pool, by default a thread per core.
+    let threads = match a.threads {
+        None | Some(0) => Threads::Current,
+        Some(n) => Threads::Count(n),
+    };
 
     let show_progress = !a.quiet && std::io::stderr().is_terminal();
     let control = progress::control(show_progress);
@@ -139,20 +134,21 @@ pub fn run_scene(scene: &Scene, a: &RunArgs) -> Result<(Mesh, report::Run, Metho
             scene.origin
         )));
     }
-    let grid_options = grid::Options {
+    let lattice = LatticeOptions {
         domain: scene.domain,
         resolution,
         refine,
         tolerance,
         normals,
         max_memory: a.max_memory,
-        streaming: a.stream.into(),
-        control: control.clone(),
+        control,
+        threads,
     };
     let result = match method {
-        Method::Grid => pool
-            .install(|| grid::polygonize(field, &grid_options))
-            .map(|(m, s)| (m, report::Run::Grid(s))),
+        Method::Grid => {
+            let options = grid::Options { lattice, streaming: a.stream.into() };
+            grid::polygonize(field, &options).map(|(m, s)| (m, report::Run::Grid(s)))
+        }
         Method::NonManifold => {
             let Some(setup) = scene.nonmanifold_regions() else {
                 return Err(input(anyhow!(
@@ -160,11 +156,9 @@ pub fn run_scene(scene: &Scene, a: &RunArgs) -> Result<(Mesh, report::Run, Metho
                     scene.origin
                 )));
             };
-            let cell = cell_for(scene, resolution)?;
             let defaults = nonmanifold::Options::default();
             let options = nonmanifold::Options {
-                domain: scene.domain,
-                cell,
+                lattice,
                 seeds: seeds(scene, a),
                 search_stride: scene.continuation.search_stride.unwrap_or(defaults.search_stride),
                 full_grid: setup.full_grid,
@@ -175,14 +169,12 @@ pub fn run_scene(scene: &Scene, a: &RunArgs) -> Result<(Mesh, report::Run, Metho
                     .max_cells
                     .or(scene.continuation.max_cells)
                     .unwrap_or(defaults.max_cells),
-                control,
                 ..defaults
             };
-            pool.install(|| nonmanifold::polygonize(setup.field.as_ref(), &options))
+            nonmanifold::polygonize(setup.field.as_ref(), &options)
                 .map(|(m, s)| (m, report::Run::NonManifold(Box::new(s))))
         }
         Method::Continuation | Method::Tetra => {
-            let cell = cell_for(scene, resolution)?;
             let c = &scene.continuation;
             let defaults = continuation::Options::default();
             let root = match a.root.as_deref() {
@@ -196,8 +188,7 @@ pub fn run_scene(scene: &Scene, a: &RunArgs) -> Result<(Mesh, report::Run, Metho
                 }
             };
             let options = continuation::Options {
-                domain: scene.domain,
-                cell,
+                lattice,
                 seeds: seeds(scene, a),
                 search_stride: c.search_stride.unwrap_or(defaults.search_stride),
                 cells: if method == Method::Tetra {
@@ -206,20 +197,16 @@ pub fn run_scene(scene: &Scene, a: &RunArgs) -> Result<(Mesh, report::Run, Metho
                     continuation::Cells::Cubes
                 },
                 root,
-                tolerance,
-                refine,
-                normals,
                 max_cells: a.max_cells.or(c.max_cells).unwrap_or(defaults.max_cells),
                 limit: a.limit.or(c.limit),
-                control,
             };
-            pool.install(|| continuation::polygonize(field, &options))
+            continuation::polygonize(field, &options)
                 .map(|(m, s)| (m, report::Run::Continuation(s)))
         }
         Method::Healed => {
             let h = &scene.healed;
             let options = healed::Options {
-                grid: grid_options,
+                lattice,
                 epsilon: match (h.epsilon, h.critical_cells) {
                     (Some(e), _) => healed::Epsilon::Absolute(e),
                     (None, Some(c)) => healed::Epsilon::Cells(c),
@@ -228,8 +215,7 @@ pub fn run_scene(scene: &Scene, a: &RunArgs) -> Result<(Mesh, report::Run, Metho
                 split_sheets: h.split_sheets,
                 ..healed::Options::default()
             };
-            pool.install(|| healed::polygonize(field, &options))
-                .map(|(m, s)| (m, report::Run::Healed(Box::new(s))))
+            healed::polygonize(field, &options).map(|(m, s)| (m, report::Run::Healed(Box::new(s))))
         }
     };
     progress::finish();

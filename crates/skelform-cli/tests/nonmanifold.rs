@@ -123,15 +123,13 @@ struct Expect {
 fn mesh_example(name: &str) -> (skelform_scene::Scene, skelform_mesh::Mesh, nonmanifold::Stats) {
     let scene = skelform_scene::Scene::load(Path::new(&example(name))).unwrap();
     let regions = scene.regions.clone().expect("a [regions] scene");
-    let grid = skelform_polygonize::grid::grid_for(&skelform_polygonize::grid::Options {
+    let lattice = skelform_polygonize::LatticeOptions {
         domain: scene.domain,
         resolution: scene.resolution,
         ..Default::default()
-    })
-    .unwrap();
+    };
     let opts = nonmanifold::Options {
-        domain: scene.domain,
-        cell: grid.cell,
+        lattice,
         seeds: scene.continuation.seeds.clone(),
         full_grid: regions.full_grid,
         interest: regions.interest.clone(),
