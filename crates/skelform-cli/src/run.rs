@@ -9,6 +9,7 @@ use anyhow::anyhow;
 use clap::Args;
 use skelform::{
     DVec3, LoadOptions, Meshed, Method, Overrides, Resolution, RootMethod, Scene, Streaming,
+    Threads,
 };
 
 use crate::{Failure, input, progress, runtime};
@@ -156,7 +157,7 @@ impl RunArgs {
             seeds: (!self.seed.is_empty())
                 .then(|| self.seed.iter().map(|p| DVec3::from_array(*p)).collect()),
             pose: None,
-            threads: self.threads,
+            threads: self.threads.map(Threads::Count),
             tolerance: self.tolerance,
             root: self.root.map(RootMethod::from),
             max_cells: self.max_cells,

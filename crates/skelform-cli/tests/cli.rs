@@ -186,6 +186,15 @@ fn bad_input_gets_one_clear_line_and_exit_code() {
     let missing = d.join("missing.toml");
     fails(&["mesh", missing.to_str().unwrap(), "-o", o], 2, "missing.toml", Some(&out));
 
+    // A thread count far beyond any machine is refused before a thread starts.
+    let p = scene(d, "ball.toml", &format!("{head}[field]\nformula = \"x^2 + y^2 + z^2 - 0.5\"\n"));
+    fails(
+        &["mesh", p.to_str().unwrap(), "-o", o, "--threads", "100000"],
+        2,
+        "threads must be between 1 and 256",
+        Some(&out),
+    );
+
     let p = scene(
         d,
         "badtoml.toml",
@@ -252,6 +261,13 @@ fn bad_input_gets_one_clear_line_and_exit_code() {
         2,
         "unknown output format",
         None,
+    );
+    // A mistyped thread count once hung a machine starting threads.
+    fails(
+        &["mesh", &example("sphere.toml"), "-o", o, "--threads", "100000"],
+        2,
+        "threads must be between 1 and 256 (got 100000)",
+        Some(&out),
     );
     fails(
         &["mesh", &example("sphere.toml"), "-o", o, "--method", "magic"],

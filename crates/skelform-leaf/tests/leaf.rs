@@ -10,6 +10,7 @@ use skelform_leaf::web::signed_area2;
 use skelform_leaf::{Fillet, Leaf, LeafParams, Side, VeinCurve, VeinKind, Venation, Web};
 use skelform_mesh::{Mesh, RegionPair, RegionTriple};
 use skelform_polygonize::nonmanifold::{Options, Stats, polygonize};
+use skelform_polygonize::{LatticeOptions, Resolution};
 use skelform_skeleton::Kernel;
 
 /// A small deterministic stream of numbers in [0, 1).
@@ -227,9 +228,13 @@ fn options(leaf: &Leaf, r: &skelform_leaf::BladeRegions, cell: f64) -> Options {
     // plane holds the flat parts of the blade (z = 0) or a straight margin (x = ±1): a
     // region boundary lying in a lattice plane is the chapter's degenerate case.
     let lo = lo - DVec3::splat(2.0 * cell) + DVec3::splat(0.17 * cell);
+    let domain = Aabb::new(lo, hi + DVec3::splat(2.0 * cell));
     Options {
-        domain: Aabb::new(lo, hi + DVec3::splat(2.0 * cell)),
-        cell,
+        lattice: LatticeOptions {
+            domain,
+            resolution: Resolution::Cell(cell),
+            ..Default::default()
+        },
         seeds: r.seeds(),
         interest: r.interest(),
         ..Options::default()

@@ -13,6 +13,7 @@ use skelform_field::control::Control;
 use skelform_field::formula::Formula;
 use skelform_field::grid::{Grid, sample};
 use skelform_field::{Aabb, DVec3};
+use skelform_polygonize::LatticeOptions;
 use skelform_polygonize::grid::extract::{extract_positions, surface_cubes};
 use skelform_polygonize::grid::{Options, Resolution, Streaming, extract, polygonize};
 
@@ -48,12 +49,12 @@ fn bench(c: &mut Criterion) {
             for (label, streaming) in
                 [("polygonize", Streaming::Never), ("polygonize-streamed", Streaming::Always)]
             {
-                let opts = Options {
+                let lattice = LatticeOptions {
                     domain,
                     resolution: Resolution::Samples(n),
-                    streaming,
-                    ..Options::default()
+                    ..Default::default()
                 };
+                let opts = Options { lattice, streaming };
                 group.bench_with_input(BenchmarkId::new(label, n), &opts, |b, o| {
                     b.iter(|| polygonize(&f, o).expect("polygonize"))
                 });

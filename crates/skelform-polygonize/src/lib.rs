@@ -11,16 +11,20 @@
 //! - [`refine`]: root finding along edges and gradient normals, shared by all polygonizers.
 //!
 //! A polygonizer knows nothing of files: it takes a field and options and returns a mesh and
-//! statistics. Each takes a [`Control`](skelform_field::control::Control) to report progress
-//! and to cancel.
+//! statistics. Each has the same [`LatticeOptions`] in its options: the domain and
+//! resolution, vertex placement, a [`Control`](skelform_field::control::Control) to report
+//! progress and to cancel (a cancelled run returns [`Error::Cancelled`], whatever the method),
+//! and the [`Threads`] to run on.
 //!
 //! ```
 //! use skelform_field::{Aabb, formula::Formula};
-//! use skelform_polygonize::grid::{polygonize, Options, Resolution};
+//! use skelform_polygonize::{LatticeOptions, Resolution};
+//! use skelform_polygonize::grid::{polygonize, Options};
 //! use skelform_mesh::check::check;
 //!
 //! let torus = Formula::parse("q = sqrt(x^2 + y^2) - 0.6\nq^2 + z^2 - 0.25^2").unwrap();
-//! let opts = Options { domain: Aabb::cube(1.0), resolution: Resolution::Samples(48), ..Default::default() };
+//! let lattice = LatticeOptions { domain: Aabb::cube(1.0), resolution: Resolution::Samples(48), ..Default::default() };
+//! let opts = Options { lattice, ..Default::default() };
 //! let (mesh, _stats) = polygonize(&torus, &opts).unwrap();
 //! let report = check(&mesh);
 //! assert!(report.is_closed_manifold());
@@ -30,11 +34,14 @@
 pub mod continuation;
 pub mod grid;
 pub mod healed;
+pub mod lattice;
 pub mod nonmanifold;
 pub mod refine;
 mod summary;
 
 use skelform_field::grid::GridError;
+
+pub use lattice::{LatticeOptions, MAX_THREADS, Resolution, Threads};
 
 /// Why a polygonizer could not run.
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]
@@ -57,6 +64,25 @@ pub enum Error {
     NoSurfaceFound { samples: u64, stride: usize },
     #[error("{0}")]
     BadOption(String),
+    /// The thread pool asked for in [`LatticeOptions::threads`] could not be started (the
+    /// system refused the threads).
+    #[error("{0}")]
+    ThreadPool(String),
+}
+
+impl From<grid::extract::Cancelled> for Error {
+    fn from(_: grid::extract::Cancelled) -> Self {
+        Error::Cancelled
+    }
+}
+
+impl From<grid::StreamError<std::convert::Infallible>> for Error {
+    fn from(e: grid::StreamError<std::convert::Infallible>) -> Self {
+        match e {
+            grid::StreamError::Cancelled => Error::Cancelled,
+            grid::StreamError::Source(never) => match never {},
+        }
+    }
 }
 
 impl From<GridError> for Error {

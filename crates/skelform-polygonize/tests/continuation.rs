@@ -8,10 +8,12 @@ use skelform_mesh::Mesh;
 use skelform_mesh::check::{Report, check};
 use skelform_polygonize::continuation::{Cells, Options, SeedNote, Stats, Stop, polygonize};
 use skelform_polygonize::refine::RootMethod;
-use skelform_polygonize::{Error, grid};
+use skelform_polygonize::{Error, LatticeOptions, Resolution, grid};
 
 fn run(field: &dyn Field, domain: Aabb, cell: f64, seeds: &[DVec3], cells: Cells) -> (Mesh, Stats) {
-    let opts = Options { domain, cell, seeds: seeds.to_vec(), cells, ..Options::default() };
+    let lattice =
+        LatticeOptions { domain, resolution: Resolution::Cell(cell), ..Default::default() };
+    let opts = Options { lattice, seeds: seeds.to_vec(), cells, ..Options::default() };
     polygonize(field, &opts).expect("polygonize")
 }
 
@@ -71,8 +73,8 @@ fn cube_variant_makes_the_grid_polygonizers_mesh() {
         Formula::parse("sin(3*x)*cos(3*y) + sin(3*y)*cos(3*z) + sin(3*z)*cos(3*x) - 0.3").unwrap();
     let domain = Aabb::cube(1.0);
     let h = 2.0 / 40.0;
-    let gopts =
-        grid::Options { domain, resolution: grid::Resolution::Cell(h), ..Default::default() };
+    let lattice = LatticeOptions { domain, resolution: Resolution::Cell(h), ..Default::default() };
+    let gopts = grid::Options { lattice, ..Default::default() };
     let (g, _) = grid::polygonize(&f, &gopts).unwrap();
     // Seed every component the grid mesh has, from one of its vertices.
     let r = check(&g);
@@ -161,8 +163,11 @@ fn seeds_of_one_component_are_reported_as_such() {
 fn bad_seeds_get_clear_errors() {
     let plane_far = FnField(|p: DVec3| p.x + 10.0); // no surface in the domain
     let opts = Options {
-        domain: Aabb::cube(1.0),
-        cell: 0.1,
+        lattice: LatticeOptions {
+            domain: Aabb::cube(1.0),
+            resolution: Resolution::Cell(0.1),
+            ..Default::default()
+        },
         seeds: vec![DVec3::ZERO],
         ..Options::default()
     };
@@ -171,21 +176,28 @@ fn bad_seeds_get_clear_errors() {
     assert!(e.to_string().contains("no surface was found"), "{e}");
     let sphere = FnField(|p: DVec3| p.length() - 0.5);
     let opts = Options {
-        domain: Aabb::cube(1.0),
-        cell: 0.1,
+        lattice: LatticeOptions {
+            domain: Aabb::cube(1.0),
+            resolution: Resolution::Cell(0.1),
+            ..Default::default()
+        },
         seeds: vec![DVec3::splat(3.0)],
         ..Options::default()
     };
     assert!(polygonize(&sphere, &opts).unwrap_err().to_string().contains("outside the domain"));
     let nan = FnField(|_: DVec3| f64::NAN);
     let opts = Options {
-        domain: Aabb::cube(1.0),
-        cell: 0.1,
+        lattice: LatticeOptions {
+            domain: Aabb::cube(1.0),
+            resolution: Resolution::Cell(0.1),
+            ..Default::default()
+        },
         seeds: vec![DVec3::ZERO],
         ..Options::default()
     };
     assert!(polygonize(&nan, &opts).unwrap_err().to_string().contains("NaN"));
-    let opts = Options { domain: Aabb::cube(1.0), cell: 0.1, ..Options::default() };
+    let lattice = LatticeOptions { resolution: Resolution::Cell(0.1), ..Default::default() };
+    let opts = Options { lattice, ..Options::default() };
     assert!(matches!(polygonize(&plane_far, &opts).unwrap_err(), Error::NoSurfaceFound { .. }));
 }
 
@@ -210,8 +222,11 @@ fn stops_at_the_domain_the_budget_and_the_limit_are_reported() {
 
     let sphere = FnField(|p: DVec3| p.length() - 0.8);
     let opts = Options {
-        domain: Aabb::cube(1.0),
-        cell: 0.02,
+        lattice: LatticeOptions {
+            domain: Aabb::cube(1.0),
+            resolution: Resolution::Cell(0.02),
+            ..Default::default()
+        },
         seeds: vec![DVec3::ZERO],
         max_cells: 500,
         ..Options::default()
@@ -230,8 +245,11 @@ fn stops_at_the_domain_the_budget_and_the_limit_are_reported() {
     )
     .unwrap();
     let opts = Options {
-        domain: Aabb::cube(50.0),
-        cell: 0.1,
+        lattice: LatticeOptions {
+            domain: Aabb::cube(50.0),
+            resolution: Resolution::Cell(0.1),
+            ..Default::default()
+        },
         seeds: vec![DVec3::new(0.0, -0.5, 0.0)],
         limit: Some(7),
         ..Options::default()
@@ -250,11 +268,14 @@ fn bisection_and_regula_falsi_reach_the_same_surface() {
         [(RootMethod::Bisection, 1.0 / 1024.0), (RootMethod::RegulaFalsi, 1.0 / 1024.0)]
     {
         let opts = Options {
-            domain: Aabb::cube(1.0),
-            cell: 2.0 / 100.0,
+            lattice: LatticeOptions {
+                domain: Aabb::cube(1.0),
+                resolution: Resolution::Cell(2.0 / 100.0),
+                tolerance: tol,
+                ..Default::default()
+            },
             seeds: vec![DVec3::new(0.6, 0.0, 0.0)],
             root,
-            tolerance: tol,
             ..Options::default()
         };
         let (m, s) = polygonize(&t, &opts).unwrap();
@@ -286,12 +307,15 @@ fn cancellation_stops_the_run() {
     use std::ops::ControlFlow;
     let sphere = FnField(|p: DVec3| p.length() - 0.8);
     let opts = Options {
-        domain: Aabb::cube(1.0),
-        cell: 0.01,
+        lattice: LatticeOptions {
+            domain: Aabb::cube(1.0),
+            resolution: Resolution::Cell(0.01),
+            control: Control::with_callback(|p| {
+                if p.done > 100 { ControlFlow::Break(()) } else { ControlFlow::Continue(()) }
+            }),
+            ..Default::default()
+        },
         seeds: vec![DVec3::ZERO],
-        control: Control::with_callback(|p| {
-            if p.done > 100 { ControlFlow::Break(()) } else { ControlFlow::Continue(()) }
-        }),
         ..Options::default()
     };
     assert_eq!(polygonize(&sphere, &opts).unwrap_err(), Error::Cancelled);

@@ -11,14 +11,14 @@ use skelform_field::formula::Formula;
 use skelform_field::{Aabb, Field, FnField};
 use skelform_mesh::Mesh;
 use skelform_mesh::check::check;
-use skelform_polygonize::Error;
-use skelform_polygonize::grid::{self, Resolution};
+use skelform_polygonize::grid;
 use skelform_polygonize::healed::{
     Epsilon, Options, PointKind, SELF_INTERSECTION, Stats, config, polygonize,
 };
+use skelform_polygonize::{Error, LatticeOptions, Resolution};
 
 fn heal_with(field: &dyn Field, domain: Aabb, resolution: Resolution, o: Options) -> (Mesh, Stats) {
-    let opts = Options { grid: grid::Options { domain, resolution, ..o.grid }, ..o };
+    let opts = Options { lattice: LatticeOptions { domain, resolution, ..o.lattice }, ..o };
     polygonize(field, &opts).expect("healed")
 }
 
@@ -27,7 +27,8 @@ fn heal(field: &dyn Field, domain: Aabb, resolution: Resolution) -> (Mesh, Stats
 }
 
 fn plain(field: &dyn Field, domain: Aabb, resolution: Resolution) -> Mesh {
-    let opts = grid::Options { domain, resolution, ..grid::Options::default() };
+    let lattice = LatticeOptions { domain, resolution, ..Default::default() };
+    let opts = grid::Options { lattice, ..grid::Options::default() };
     grid::polygonize(field, &opts).expect("grid").0
 }
 
@@ -80,8 +81,7 @@ fn boundary_inside(m: &Mesh, b: &Aabb, h: f64) -> usize {
 
 /// The lattice box for a domain and resolution.
 fn lattice_box(domain: Aabb, resolution: Resolution) -> (Aabb, f64) {
-    let g =
-        grid::grid_for(&grid::Options { domain, resolution, ..grid::Options::default() }).unwrap();
+    let g = LatticeOptions { domain, resolution, ..Default::default() }.grid().unwrap();
     (g.bounds(), g.cell)
 }
 
@@ -576,21 +576,21 @@ fn bad_options_and_cancellation() {
         bad(Options { epsilon: Epsilon::Absolute(f64::NAN), ..Options::default() }),
         Error::BadOption(_)
     ));
-    let tolerance = |tolerance| grid::Options { tolerance, ..grid::Options::default() };
+    let tolerance = |tolerance| LatticeOptions { tolerance, ..Default::default() };
     assert!(matches!(
-        bad(Options { grid: tolerance(2.0), ..Options::default() }),
+        bad(Options { lattice: tolerance(2.0), ..Options::default() }),
         Error::BadOption(_)
     ));
     assert!(matches!(
         bad(Options {
-            grid: grid::Options { resolution: Resolution::Samples(1), ..grid::Options::default() },
+            lattice: LatticeOptions { resolution: Resolution::Samples(1), ..Default::default() },
             ..Options::default()
         }),
         Error::Grid(_)
     ));
     assert!(matches!(
         bad(Options {
-            grid: grid::Options { max_memory: 1000, ..grid::Options::default() },
+            lattice: LatticeOptions { max_memory: 1000, ..Default::default() },
             ..Options::default()
         }),
         Error::TooMuchMemory { .. }
@@ -600,9 +600,9 @@ fn bad_options_and_cancellation() {
         let control = Control::with_callback(move |p| {
             if p.phase == phase { ControlFlow::Break(()) } else { ControlFlow::Continue(()) }
         });
-        let grid =
-            grid::Options { resolution: Resolution::Samples(40), control, ..Default::default() };
-        let o = Options { grid, ..Options::default() };
+        let lattice =
+            LatticeOptions { resolution: Resolution::Samples(40), control, ..Default::default() };
+        let o = Options { lattice, ..Options::default() };
         assert_eq!(polygonize(&field, &o).unwrap_err(), Error::Cancelled, "{phase}");
     }
 }

@@ -8,6 +8,12 @@ use skelform_field::{Aabb, FnField, RegionField};
 use skelform_mesh::check::check;
 use skelform_mesh::{Mesh, RegionPair};
 use skelform_polygonize::nonmanifold::{Options, polygonize};
+use skelform_polygonize::{LatticeOptions, Resolution};
+
+/// A lattice of cubes of side `cell` over `domain`.
+fn lattice(domain: Aabb, cell: f64) -> LatticeOptions {
+    LatticeOptions { domain, resolution: Resolution::Cell(cell), ..Default::default() }
+}
 
 /// The chapter's saucer-and-square: 0 outside the cube, 1 the saucer, 2 above, 3 below.
 fn saucer_and_square() -> impl RegionField {
@@ -61,8 +67,7 @@ fn saucer_options() -> Options {
     Options {
         // 25 cells of 0.1 centred on the origin: no lattice plane lies on z = 0, which would
         // put crossings on lattice points (a degenerate case the follower does not resolve).
-        domain: Aabb::cube(1.23),
-        cell: 0.1,
+        lattice: lattice(Aabb::cube(1.23), 0.1),
         seeds: vec![DVec3::new(0.0, 0.0, 0.35)],
         interest: vec![RegionPair(1, 2), RegionPair(1, 3), RegionPair(2, 3)],
         ..Options::default()
@@ -162,8 +167,7 @@ fn vertices_lie_between_their_regions_and_triangles_face_the_lesser_region() {
 fn a_single_pair_gives_the_closed_manifold_a_manifold_polygonizer_gives() {
     let sphere = InsideOutside(FnField(|p: DVec3| p.length() - 0.7));
     let opts = Options {
-        domain: Aabb::cube(1.0),
-        cell: 0.1,
+        lattice: lattice(Aabb::cube(1.0), 0.1),
         seeds: vec![DVec3::new(0.7, 0.0, 0.0)],
         ..Options::default()
     };
@@ -219,8 +223,7 @@ fn sphere_and_square_meet_along_the_circle() {
         }
     });
     let opts = Options {
-        domain: Aabb::cube(1.0),
-        cell: 0.08,
+        lattice: lattice(Aabb::cube(1.0), 0.08),
         full_grid: true,
         interest: vec![RegionPair(1, 3), RegionPair(1, 4), RegionPair(3, 4)],
         ..Options::default()
@@ -276,8 +279,7 @@ fn sphere_with_a_hole_and_its_scoop() {
         }
     });
     let base = Options {
-        domain: Aabb::cube(1.0),
-        cell: 0.08,
+        lattice: lattice(Aabb::cube(1.0), 0.08),
         seeds: vec![DVec3::new(-0.7, 0.0, 0.0)],
         ..Options::default()
     };
@@ -326,8 +328,7 @@ fn blend_to_a_patch_meets_it_along_the_bumps_rim() {
     let regions = patch_blend();
     let opts = Options {
         // The patch's border (x, y = ±1) falls half-way between lattice planes.
-        domain: Aabb::cube(1.23),
-        cell: 0.1,
+        lattice: lattice(Aabb::cube(1.23), 0.1),
         // The bump's top (where 0.35 Sigmoid(1.4 h) = h).
         seeds: vec![regions.centre + DVec3::new(0.0, 0.0, 0.24)],
         interest: vec![RegionPair(1, 2), RegionPair(1, 3), RegionPair(2, 3)],
@@ -363,8 +364,11 @@ fn a_surface_poking_through_one_edge_is_kept_with_loops() {
     let centre = DVec3::new(0.1, 0.05, 0.05);
     let radius = 0.03;
     let ball = InsideOutside(FnField(move |p: DVec3| (p - centre).length() - radius));
-    let base =
-        Options { domain: Aabb::cube(1.25), cell: 0.1, seeds: vec![centre], ..Options::default() };
+    let base = Options {
+        lattice: lattice(Aabb::cube(1.25), 0.1),
+        seeds: vec![centre],
+        ..Options::default()
+    };
     let (m, s) = polygonize(&ball, &base).unwrap();
     assert_eq!(m.triangle_count(), 0, "the chapter truncates the loop: {s:?}");
     assert!(s.looped_pairs_ignored >= 1);

@@ -6,10 +6,13 @@ use skelform_field::formula::Formula;
 use skelform_field::{Aabb, Field, FnField};
 use skelform_mesh::Mesh;
 use skelform_mesh::check::{Report, check};
+use skelform_polygonize::LatticeOptions;
 use skelform_polygonize::grid::{Options, Resolution, polygonize};
 
 fn mesh(field: &dyn Field, domain: Aabb, samples: usize) -> (Mesh, f64) {
-    let opts = Options { domain, resolution: Resolution::Samples(samples), ..Options::default() };
+    let lattice =
+        LatticeOptions { domain, resolution: Resolution::Samples(samples), ..Default::default() };
+    let opts = Options { lattice, ..Options::default() };
     let (m, stats) = polygonize(field, &opts).expect("polygonize");
     (m, stats.cell)
 }
@@ -160,7 +163,8 @@ fn streamed_volume_gives_the_same_mesh_and_counts() {
         }
     });
     let run = |streaming, threads| {
-        let opts = Options { resolution: Resolution::Samples(43), streaming, ..Options::default() };
+        let lattice = LatticeOptions { resolution: Resolution::Samples(43), ..Default::default() };
+        let opts = Options { lattice, streaming };
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
         pool.install(|| polygonize(&f, &opts).unwrap())
     };
@@ -199,11 +203,12 @@ fn sample_values_exactly_zero_keep_the_mesh_closed() {
 #[test]
 fn memory_limit_is_checked_before_work() {
     let f = FnField(|_: DVec3| panic!("must not evaluate"));
-    let opts = Options {
+    let lattice = LatticeOptions {
         resolution: Resolution::Samples(2000),
         max_memory: 1 << 30,
-        ..Options::default()
+        ..Default::default()
     };
+    let opts = Options { lattice, ..Options::default() };
     let err = polygonize(&f, &opts).unwrap_err();
     assert!(matches!(err, skelform_polygonize::Error::TooMuchMemory { .. }), "{err}");
     assert!(err.to_string().contains("GiB"));
@@ -214,20 +219,22 @@ fn cancellation_stops_the_run() {
     use skelform_field::control::Control;
     use std::ops::ControlFlow;
     let f = FnField(|p: DVec3| p.length() - 0.5);
-    let opts = Options {
+    let lattice = LatticeOptions {
         resolution: Resolution::Samples(96),
         control: Control::with_callback(|p| {
             if p.done > 2 { ControlFlow::Break(()) } else { ControlFlow::Continue(()) }
         }),
-        ..Options::default()
+        ..Default::default()
     };
+    let opts = Options { lattice, ..Options::default() };
     assert_eq!(polygonize(&f, &opts).unwrap_err(), skelform_polygonize::Error::Cancelled);
 }
 
 #[test]
 fn no_surface_gives_an_empty_mesh_and_the_value_range() {
     let f = FnField(|p: DVec3| p.length() + 1.0);
-    let opts = Options { resolution: Resolution::Samples(16), ..Options::default() };
+    let lattice = LatticeOptions { resolution: Resolution::Samples(16), ..Default::default() };
+    let opts = Options { lattice, ..Options::default() };
     let (m, s) = polygonize(&f, &opts).unwrap();
     assert!(m.is_empty());
     assert!(s.min_sample > 0.0);
@@ -257,4 +264,22 @@ fn surface_cubes_counts_the_cubes_with_both_signs() {
     }
     assert!(brute > 10_000);
     assert_eq!(surface_cubes(&v), brute);
+}
+
+#[test]
+fn threads_are_bounded_and_do_not_change_the_mesh() {
+    use skelform_polygonize::{Error, MAX_THREADS, Threads};
+    let f = FnField(|p: DVec3| p.length() - 0.5);
+    let with = |threads| {
+        let lattice =
+            LatticeOptions { resolution: Resolution::Samples(24), threads, ..Default::default() };
+        polygonize(&f, &Options { lattice, ..Options::default() })
+    };
+    for n in [0, MAX_THREADS + 1, 100_000] {
+        assert!(matches!(with(Threads::Count(n)), Err(Error::BadOption(_))), "{n} threads");
+    }
+    let one = with(Threads::Count(1)).unwrap().0;
+    assert!(with(Threads::Count(3)).unwrap().0 == one);
+    let pool = std::sync::Arc::new(rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap());
+    assert!(with(Threads::Pool(pool)).unwrap().0 == one);
 }

@@ -12,17 +12,19 @@
 use criterion::{Criterion, criterion_group, criterion_main};
 use skelform_field::formula::Formula;
 use skelform_field::{Aabb, DVec3};
+use skelform_polygonize::LatticeOptions;
 use skelform_polygonize::grid::{Options, Resolution, polygonize};
 use skelform_render::{Renderer, Settings};
 
 fn gyroid() -> skelform_mesh::Mesh {
     let f = Formula::parse("sin(x)*cos(y) + sin(y)*cos(z) + sin(z)*cos(x)").expect("gyroid");
     let tau = 2.0 * std::f64::consts::PI;
-    let opts = Options {
+    let lattice = LatticeOptions {
         domain: Aabb::new(DVec3::splat(-tau), DVec3::splat(tau)),
         resolution: Resolution::Samples(230),
-        ..Options::default()
+        ..Default::default()
     };
+    let opts = Options { lattice, ..Options::default() };
     polygonize(&f, &opts).expect("polygonize").0
 }
 

@@ -6,7 +6,7 @@
 use std::path::Path;
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
-use skelform_polygonize::{continuation, grid};
+use skelform_polygonize::{LatticeOptions, continuation, grid};
 use skelform_scene::Scene;
 
 fn load(name: &str) -> Scene {
@@ -17,12 +17,13 @@ fn load(name: &str) -> Scene {
 fn bench(c: &mut Criterion) {
     for name in ["continuation/blobs-50.toml", "continuation/torus.toml"] {
         let scene = load(name);
-        let gopts = grid::Options {
+        let lattice = LatticeOptions {
             domain: scene.domain,
             resolution: scene.resolution,
             ..Default::default()
         };
-        let cell = grid::grid_for(&gopts).expect("grid").cell;
+        let gopts = grid::Options { lattice: lattice.clone(), ..Default::default() };
+        let cell = lattice.grid().expect("grid").cell;
         let mut group = c.benchmark_group(name);
         group.sample_size(10);
         group.bench_function(BenchmarkId::new("grid", cell), |b| {
@@ -33,8 +34,7 @@ fn bench(c: &mut Criterion) {
             ("tetra", continuation::Cells::Tetrahedra),
         ] {
             let opts = continuation::Options {
-                domain: scene.domain,
-                cell,
+                lattice: lattice.clone(),
                 seeds: scene.continuation.seeds.clone(),
                 cells,
                 ..Default::default()

@@ -1135,6 +1135,7 @@ radius = 0.05
 mod example_meshes {
     use crate::Scene;
     use skelform_mesh::check::check;
+    use skelform_polygonize::LatticeOptions;
     use skelform_polygonize::grid::{Options, Resolution, polygonize};
 
     /// Polygonizes each scene (grid method, at the scene's resolution or at `samples` per
@@ -1144,11 +1145,12 @@ mod example_meshes {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/skeleton");
         for &(file, pieces) in expected {
             let scene = Scene::load(&dir.join(file)).unwrap_or_else(|e| panic!("{e}"));
-            let opts = Options {
+            let lattice = LatticeOptions {
                 domain: scene.domain,
                 resolution: samples.map_or(scene.resolution, Resolution::Samples),
                 ..Default::default()
             };
+            let opts = Options { lattice, ..Default::default() };
             let (mesh, _) =
                 polygonize(&*scene.field, &opts).unwrap_or_else(|e| panic!("{file}: {e}"));
             let r = check(&mesh);
@@ -1225,11 +1227,12 @@ mod example_meshes {
         check_examples(&[("sinc-points.toml", 3)], Some(110));
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/skeleton");
         let scene = Scene::load(&dir.join("sinc-points.toml")).unwrap();
-        let opts = Options {
+        let lattice = LatticeOptions {
             domain: scene.domain,
             resolution: Resolution::Samples(110),
             ..Default::default()
         };
+        let opts = Options { lattice, ..Default::default() };
         let (mesh, _) = polygonize(&*scene.field, &opts).unwrap();
         let r = check(&mesh);
         assert!(r.components.iter().all(|c| c.genus == Some(1)), "{:?}", r.components);

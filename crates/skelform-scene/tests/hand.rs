@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use glam::DVec3;
 use skelform_field::Field;
 use skelform_mesh::check::check;
+use skelform_polygonize::LatticeOptions;
 use skelform_polygonize::grid::{Options, Resolution, polygonize};
 use skelform_scene::{LoadOptions, Scene};
 
@@ -164,8 +165,12 @@ fn one_closed_surface_with_separate_fingers(pose: &str) {
     assert_eq!(scene.articulation.as_ref().unwrap().pose, pose);
     // A coarse grid (cell 0.035 in, about a fifth of a finger's thickness) keeps the
     // test fast and still resolves the gaps between the fingers.
-    let opts =
-        Options { domain: scene.domain, resolution: Resolution::Cell(0.035), ..Default::default() };
+    let lattice = LatticeOptions {
+        domain: scene.domain,
+        resolution: Resolution::Cell(0.035),
+        ..Default::default()
+    };
+    let opts = Options { lattice, ..Default::default() };
     let (mesh, _) = polygonize(&*scene.field, &opts).unwrap();
     let r = check(&mesh);
     println!("{pose}: {} triangles, {} components", r.faces, r.components.len());

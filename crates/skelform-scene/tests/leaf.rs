@@ -4,6 +4,7 @@ use std::path::Path;
 
 use skelform_mesh::RegionPair;
 use skelform_polygonize::nonmanifold::{Options, polygonize};
+use skelform_polygonize::{LatticeOptions, Resolution};
 use skelform_scene::{Scene, SceneError};
 
 fn example(name: &str) -> Scene {
@@ -14,9 +15,13 @@ fn example(name: &str) -> Scene {
 /// Polygonizes a scene's leaf with a coarser cell than the example's, to stay quick.
 fn mesh(scene: &Scene, cell: f64) -> Vec<RegionPair> {
     let setup = scene.nonmanifold_regions().unwrap();
-    let opts = Options {
+    let lattice = LatticeOptions {
         domain: scene.domain,
-        cell,
+        resolution: Resolution::Cell(cell),
+        ..Default::default()
+    };
+    let opts = Options {
+        lattice,
         seeds: scene.continuation.seeds.clone(),
         interest: setup.interest,
         full_grid: setup.full_grid,

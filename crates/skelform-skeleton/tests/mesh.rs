@@ -5,13 +5,16 @@ use glam::DVec3;
 use skelform_field::Aabb;
 use skelform_mesh::Mesh;
 use skelform_mesh::check::check;
+use skelform_polygonize::LatticeOptions;
 use skelform_polygonize::grid::{Options, Resolution, polygonize};
 use skelform_skeleton::{Blend, GroupId, Kernel, Skeleton, SkeletonField};
 
 const R: f64 = 0.1;
 
 fn mesh(f: &SkeletonField, domain: Aabb, cell: f64) -> Mesh {
-    let opts = Options { domain, resolution: Resolution::Cell(cell), ..Default::default() };
+    let lattice =
+        LatticeOptions { domain, resolution: Resolution::Cell(cell), ..Default::default() };
+    let opts = Options { lattice, ..Default::default() };
     polygonize(f, &opts).unwrap().0
 }
 

@@ -5,7 +5,7 @@ use std::time::{Duration, Instant};
 
 use skelform_field::DVec3;
 use skelform_mesh::Mesh;
-use skelform_polygonize::grid::{self, Resolution};
+use skelform_polygonize::{LatticeOptions, Resolution, grid};
 use skelform_polygonize::{continuation, healed, nonmanifold};
 use skelform_scene::Method;
 
@@ -52,14 +52,6 @@ fn resolution(scene: &Scene, o: &Overrides) -> Result<Resolution, Error> {
     }
 }
 
-/// The cell side the scene's domain and resolution give (what the grid method would use).
-fn cell_for(scene: &Scene, resolution: Resolution) -> Result<f64, Error> {
-    let opts = grid::Options { domain: scene.domain, resolution, ..Default::default() };
-    grid::grid_for(&opts)
-        .map(|g| g.cell)
-        .map_err(|e| Error::Polygonize { origin: scene.origin.clone(), source: e.into() })
-}
-
 fn seeds(scene: &Scene, o: &Overrides) -> Vec<DVec3> {
     o.seeds.clone().unwrap_or_else(|| scene.continuation.seeds.clone())
 }
@@ -82,9 +74,13 @@ impl Scene {
     /// The lattice that meshing with `overrides` would use (the grid method's; the
     /// continuation methods visit part of the same lattice). An error when it is too large.
     pub fn lattice(&self, overrides: &Overrides) -> Result<Lattice, Error> {
-        let resolution = resolution(self, overrides)?;
-        let opts = grid::Options { domain: self.domain, resolution, ..Default::default() };
-        let g = grid::grid_for(&opts)
+        let lattice = LatticeOptions {
+            domain: self.domain,
+            resolution: resolution(self, overrides)?,
+            ..LatticeOptions::default()
+        };
+        let g = lattice
+            .grid()
             .map_err(|e| Error::Polygonize { origin: self.origin.clone(), source: e.into() })?;
         let streamed = overrides.streaming.unwrap_or_default().streams(&g);
         Ok(Lattice {
@@ -109,15 +105,7 @@ impl Scene {
             let plain = Overrides { pose: None, ..overrides.clone() };
             return posed.mesh(&plain);
         }
-        let threads = overrides.threads.unwrap_or(0);
-        if threads == 0 && overrides.threads.is_some() {
-            return Err(invalid(self, "the thread count must be at least 1"));
-        }
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .map_err(|e| invalid(self, format!("cannot start {threads} threads: {e}")))?;
-        pool.install(|| self.mesh_here(overrides))
+        self.mesh_here(overrides)
     }
 
     fn mesh_here(&self, o: &Overrides) -> Result<Meshed, Error> {
@@ -133,31 +121,28 @@ impl Scene {
             Some(t) => t,
             None => self.tolerance,
         };
-        let refine = o.refine.unwrap_or(self.refine);
-        let normals = o.normals.unwrap_or(self.output.normals);
-        let max_memory = o.max_memory.unwrap_or(DEFAULT_MAX_MEMORY);
-        let control = o.control.clone();
         if self.regions_only && method != Method::NonManifold {
             return Err(invalid(
                 self,
                 "the scene has [regions] and no [field]: mesh it with method = \"nonmanifold\"",
             ));
         }
-        let field = self.field.as_ref();
-        let grid_options = grid::Options {
+        let lattice = LatticeOptions {
             domain: self.domain,
             resolution,
-            refine,
+            refine: o.refine.unwrap_or(self.refine),
             tolerance,
-            normals,
-            max_memory,
-            streaming: o.streaming.unwrap_or_default(),
-            control: control.clone(),
+            normals: o.normals.unwrap_or(self.output.normals),
+            max_memory: o.max_memory.unwrap_or(DEFAULT_MAX_MEMORY),
+            control: o.control.clone(),
+            threads: o.threads.clone().unwrap_or_default(),
         };
+        let field = self.field.as_ref();
         let started = Instant::now();
         let result = match method {
             Method::Grid => {
-                grid::polygonize(field, &grid_options).map(|(m, s)| (m, Stats::Grid(s)))
+                let options = grid::Options { lattice, streaming: o.streaming.unwrap_or_default() };
+                grid::polygonize(field, &options).map(|(m, s)| (m, Stats::Grid(s)))
             }
             Method::NonManifold => {
                 let Some(setup) = self.nonmanifold_regions() else {
@@ -168,8 +153,7 @@ impl Scene {
                 };
                 let defaults = nonmanifold::Options::default();
                 let options = nonmanifold::Options {
-                    domain: self.domain,
-                    cell: cell_for(self, resolution)?,
+                    lattice,
                     seeds: seeds(self, o),
                     search_stride: self
                         .continuation
@@ -183,7 +167,6 @@ impl Scene {
                         .max_cells
                         .or(self.continuation.max_cells)
                         .unwrap_or(defaults.max_cells),
-                    control,
                     ..defaults
                 };
                 nonmanifold::polygonize(setup.field.as_ref(), &options)
@@ -193,8 +176,7 @@ impl Scene {
                 let c = &self.continuation;
                 let defaults = continuation::Options::default();
                 let options = continuation::Options {
-                    domain: self.domain,
-                    cell: cell_for(self, resolution)?,
+                    lattice,
                     seeds: seeds(self, o),
                     search_stride: c.search_stride.unwrap_or(defaults.search_stride),
                     cells: if method == Method::Tetra {
@@ -203,19 +185,15 @@ impl Scene {
                         continuation::Cells::Cubes
                     },
                     root: o.root.unwrap_or(c.root),
-                    tolerance,
-                    refine,
-                    normals,
                     max_cells: o.max_cells.or(c.max_cells).unwrap_or(defaults.max_cells),
                     limit: o.limit.or(c.limit),
-                    control,
                 };
                 continuation::polygonize(field, &options).map(|(m, s)| (m, Stats::Continuation(s)))
             }
             Method::Healed => {
                 let h = &self.healed;
                 let options = healed::Options {
-                    grid: grid_options,
+                    lattice,
                     epsilon: match (h.epsilon, h.critical_cells) {
                         (Some(e), _) => healed::Epsilon::Absolute(e),
                         (None, Some(c)) => healed::Epsilon::Cells(c),

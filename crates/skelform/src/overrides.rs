@@ -2,8 +2,9 @@
 
 use skelform_field::DVec3;
 use skelform_field::control::Control;
-use skelform_polygonize::grid::{Resolution, Streaming};
+use skelform_polygonize::grid::Streaming;
 use skelform_polygonize::refine::RootMethod;
+use skelform_polygonize::{Resolution, Threads};
 use skelform_scene::Method;
 
 /// The memory limit when [`Overrides::max_memory`] is not given: 4 GiB, enough for a 512³
@@ -27,9 +28,10 @@ pub struct Overrides {
     /// Build an articulated skeleton in this named pose (`rest`: every joint at its default
     /// angles); a name the scene does not define is an error listing the ones it does.
     pub pose: Option<String>,
-    /// Worker threads; `None` runs on the caller's rayon pool (all cores by default). The
-    /// mesh is the same for any count.
-    pub threads: Option<usize>,
+    /// Which threads run the polygonizer: `None` or [`Threads::Current`] the caller's rayon
+    /// pool (all cores by default), [`Threads::Count`] a pool of its own, [`Threads::Pool`] a
+    /// pool the caller keeps from run to run. The mesh is the same on any of them.
+    pub threads: Option<Threads>,
     /// Root-finding tolerance as a fraction of the cell, in (0, 1).
     pub tolerance: Option<f64>,
     /// Root finder of the continuation and tetra methods.

@@ -3,7 +3,7 @@
 use std::ops::ControlFlow;
 
 use skelform::mesh::check::check;
-use skelform::{Control, DVec3, Method, Overrides, Resolution, Scene, Stats};
+use skelform::{Control, DVec3, Method, Overrides, Resolution, Scene, Stats, Threads};
 
 fn example(name: &str) -> String {
     format!("{}/../../examples/{name}", env!("CARGO_MANIFEST_DIR"))
@@ -42,8 +42,8 @@ fn parsed_text_and_loaded_file_give_the_same_mesh() {
 #[test]
 fn the_mesh_is_the_same_on_any_number_of_threads() {
     let scene = Scene::load(example("gyroid.toml")).unwrap();
-    let one = scene.mesh(&Overrides { threads: Some(1), ..coarse() }).unwrap();
-    let two = scene.mesh(&Overrides { threads: Some(2), ..coarse() }).unwrap();
+    let one = scene.mesh(&Overrides { threads: Some(Threads::Count(1)), ..coarse() }).unwrap();
+    let two = scene.mesh(&Overrides { threads: Some(Threads::Count(2)), ..coarse() }).unwrap();
     assert_eq!(one.mesh.positions, two.mesh.positions);
     assert_eq!(one.mesh.triangles, two.mesh.triangles);
 }

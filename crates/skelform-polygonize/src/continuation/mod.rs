@@ -21,16 +21,16 @@ use std::time::{Duration, Instant};
 
 use glam::DVec3;
 use rayon::prelude::*;
-use skelform_field::control::{Control, Progress};
+use skelform_field::Field;
+use skelform_field::control::Progress;
 use skelform_field::grid::Grid;
-use skelform_field::{Aabb, Field};
 use skelform_mesh::Mesh;
 
-use crate::Error;
 use crate::grid::cell::{CubeSink, case_of, crossing, polygonize_cube};
 use crate::grid::cube::{CORNERS, EDGES, FACES};
 use crate::grid::{GridVertex, Place, Placement, place_vertices};
 use crate::refine::{RootMethod, RootOptions, gradient_normals};
+use crate::{Error, LatticeOptions, Resolution};
 use lattice::Lattice;
 use tetra::{TetraSink, polygonize_tetrahedra};
 
@@ -47,10 +47,11 @@ pub enum Cells {
 /// Settings of the continuation polygonizer.
 #[derive(Clone, Debug)]
 pub struct Options {
-    /// Propagation never leaves this box.
-    pub domain: Aabb,
-    /// Cube side.
-    pub cell: f64,
+    /// The lattice (propagation never leaves its domain), vertex placement, progress and
+    /// threads. The lattice is the grid polygonizer's for the same domain and resolution,
+    /// so a component comes out as the grid polygonizer makes it. `max_memory` is not read:
+    /// storage grows with the surface, and `max_cells` bounds it.
+    pub lattice: LatticeOptions,
     /// Points on or near the surface to start from, one or more per component. When empty,
     /// the domain is searched on a coarse lattice (see `search_stride`).
     pub seeds: Vec<DVec3>,
@@ -58,35 +59,26 @@ pub struct Options {
     pub search_stride: usize,
     pub cells: Cells,
     pub root: RootMethod,
-    /// Root-finding tolerance, as a fraction of the cell (bisection takes
-    /// `ceil(log2(1/tolerance))` steps: 2⁻¹⁰ gives the dissertation's ten).
-    pub tolerance: f64,
-    /// Refine vertices on the field (else linear interpolation).
-    pub refine: bool,
-    pub normals: bool,
     /// Stop propagating after visiting this many cubes in all.
     pub max_cells: u64,
     /// Stop propagating this many cubes away from each component's starting cube, in every
     /// direction (the chapter's propagation limit for unbounded surfaces).
     pub limit: Option<u32>,
-    pub control: Control,
 }
 
 impl Default for Options {
     fn default() -> Self {
         Self {
-            domain: Aabb::cube(1.0),
-            cell: 1.0 / 64.0,
+            lattice: LatticeOptions {
+                resolution: Resolution::Cell(1.0 / 64.0),
+                ..LatticeOptions::default()
+            },
             seeds: Vec::new(),
             search_stride: 4,
             cells: Cells::Cubes,
             root: RootMethod::RegulaFalsi,
-            tolerance: 1e-4,
-            refine: true,
-            normals: true,
             max_cells: 20_000_000,
             limit: None,
-            control: Control::default(),
         }
     }
 }
@@ -168,19 +160,26 @@ impl Stats {
 ///
 /// ```
 /// use skelform_field::{Aabb, FnField, DVec3};
+/// use skelform_polygonize::{LatticeOptions, Resolution};
 /// use skelform_polygonize::continuation::{polygonize, Options};
 /// let sphere = FnField(|p: DVec3| p.length() - 0.5);
-/// let opts = Options { domain: Aabb::cube(1.0), cell: 0.05, seeds: vec![DVec3::ZERO], ..Options::default() };
+/// let lattice = LatticeOptions { domain: Aabb::cube(1.0), resolution: Resolution::Cell(0.05), ..Default::default() };
+/// let opts = Options { lattice, seeds: vec![DVec3::ZERO], ..Options::default() };
 /// let (mesh, stats) = polygonize(&sphere, &opts).unwrap();
 /// assert!(mesh.triangle_count() > 0);
 /// assert_eq!(stats.components.len(), 1);
 /// ```
 pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats), Error> {
-    let grid = Grid::with_cell(&options.domain, options.cell)?;
-    if options.tolerance.is_nan() || options.tolerance <= 0.0 || options.tolerance >= 1.0 {
+    options.lattice.threads.install(|| polygonize_here(field, options))
+}
+
+/// [`polygonize`] on the current thread pool.
+fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats), Error> {
+    let grid = options.lattice.grid()?;
+    let tolerance = options.lattice.tolerance;
+    if tolerance.is_nan() || tolerance <= 0.0 || tolerance >= 1.0 {
         return Err(Error::BadOption(format!(
-            "tolerance must be between 0 and 1 (got {})",
-            options.tolerance
+            "tolerance must be between 0 and 1 (got {tolerance})"
         )));
     }
     let mut run = Run::new(field, grid, options);
@@ -390,7 +389,7 @@ impl<'a> Run<'a> {
             next.sort_unstable();
             wave = next;
             let p = Progress { phase: "propagating", done: self.lattice.visited(), total: None };
-            if self.opts.control.report(p).is_break() {
+            if self.opts.lattice.control.report(p).is_break() {
                 return Err(Error::Cancelled);
             }
         }
@@ -415,14 +414,14 @@ impl<'a> Run<'a> {
     fn finish(mut self) -> Result<(Mesh, Stats), Error> {
         let t = Instant::now();
         let how = Placement {
-            refine: self.opts.refine,
+            refine: self.opts.lattice.refine,
             roots: RootOptions {
                 method: self.opts.root,
-                tolerance: self.opts.tolerance,
+                tolerance: self.opts.lattice.tolerance,
                 t_min: crate::grid::cell::T_MIN,
                 ..RootOptions::default()
             },
-            tolerance: self.opts.tolerance,
+            tolerance: self.opts.lattice.tolerance,
         };
         let ends = &self.ends;
         let (positions, evals) = place_vertices(
@@ -435,7 +434,7 @@ impl<'a> Run<'a> {
         self.stats.refine_evaluations = evals;
         self.stats.refinement = t.elapsed();
         let t = Instant::now();
-        let normals = if self.opts.normals && !self.triangles.is_empty() {
+        let normals = if self.opts.lattice.normals && !self.triangles.is_empty() {
             let (n, evals) = gradient_normals(self.field, &positions, &self.triangles);
             self.stats.normal_evaluations = evals;
             n

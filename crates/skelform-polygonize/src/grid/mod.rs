@@ -21,46 +21,28 @@ use std::borrow::Borrow;
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
-use skelform_field::Aabb;
 use skelform_field::Field;
 use skelform_field::control::Control;
 use skelform_field::grid::{Grid, GridError, LayerSampling, Volume, sample};
 use skelform_mesh::Mesh;
 
 use crate::Error;
+use crate::lattice::LatticeOptions;
 use crate::refine::{Bracket, RootOptions, gradient_normals, project_to_surface, refine_roots};
 pub use extract::{
     Extraction, GridVertex, LayerSource, Place, SampledVertex, StreamError, StreamStats, Streamed,
     dir_vector, extract, extract_streamed,
 };
 
-/// How fine the lattice is.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Resolution {
-    /// Samples along the domain's longest side.
-    Samples(usize),
-    /// Cell side length.
-    Cell(f64),
-}
+pub use crate::lattice::Resolution;
 
 /// Settings of the grid polygonizer.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 pub struct Options {
-    /// The box to sample; the lattice covers it (grown to whole cells, centred).
-    pub domain: Aabb,
-    pub resolution: Resolution,
-    /// Move vertices onto the surface by root finding on the field (else linear interpolation
-    /// of the samples).
-    pub refine: bool,
-    /// Root-finding tolerance, as a fraction of the cell.
-    pub tolerance: f64,
-    /// Compute per-vertex normals from the field's gradient.
-    pub normals: bool,
-    /// Refuse, before allocating, work that would need more memory than this (bytes).
-    pub max_memory: u64,
+    /// The lattice, vertex placement, memory limit, progress and threads.
+    pub lattice: LatticeOptions,
     /// Whether the sampled volume is held whole or streamed slab by slab.
     pub streaming: Streaming,
-    pub control: Control,
 }
 
 /// Whether the grid polygonizer keeps the whole sampled volume.
@@ -88,21 +70,6 @@ impl Streaming {
             Streaming::Auto => Volume::bytes_for(grid) > STREAM_ABOVE,
             Streaming::Always => true,
             Streaming::Never => false,
-        }
-    }
-}
-
-impl Default for Options {
-    fn default() -> Self {
-        Self {
-            domain: Aabb::cube(1.0),
-            resolution: Resolution::Samples(128),
-            refine: true,
-            tolerance: 1e-4,
-            normals: true,
-            max_memory: 4 << 30,
-            streaming: Streaming::Auto,
-            control: Control::default(),
         }
     }
 }
@@ -146,12 +113,9 @@ impl Stats {
     }
 }
 
-/// The lattice the options describe.
+/// The lattice the options describe (see [`LatticeOptions::grid`]).
 pub fn grid_for(options: &Options) -> Result<Grid, GridError> {
-    match options.resolution {
-        Resolution::Samples(n) => Grid::with_resolution(&options.domain, n),
-        Resolution::Cell(c) => Grid::with_cell(&options.domain, c),
-    }
+    options.lattice.grid()
 }
 
 /// Bytes the run needs before any triangle exists: the sampled volume (or, streamed, each
@@ -185,19 +149,27 @@ impl LayerSource for FieldLayers<'_> {
 ///
 /// ```
 /// use skelform_field::{Aabb, FnField, DVec3};
-/// use skelform_polygonize::grid::{polygonize, Options, Resolution};
+/// use skelform_polygonize::{LatticeOptions, Resolution};
+/// use skelform_polygonize::grid::{polygonize, Options};
 /// let sphere = FnField(|p: DVec3| p.length() - 0.8);
-/// let opts = Options { domain: Aabb::cube(1.0), resolution: Resolution::Samples(32), ..Options::default() };
+/// let lattice = LatticeOptions { domain: Aabb::cube(1.0), resolution: Resolution::Samples(32), ..Default::default() };
+/// let opts = Options { lattice, ..Options::default() };
 /// let (mesh, stats) = polygonize(&sphere, &opts).unwrap();
 /// assert!(mesh.triangle_count() > 0);
 /// assert_eq!(stats.samples, 32 * 32 * 32);
 /// ```
 pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats), Error> {
-    let grid = grid_for(options)?;
+    options.lattice.threads.install(|| polygonize_here(field, options))
+}
+
+/// [`polygonize`] on the current thread pool.
+fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats), Error> {
+    let lattice = &options.lattice;
+    let grid = lattice.grid()?;
     let streamed = options.streaming.streams(&grid);
     let needed = memory_needed(&grid, streamed);
-    if needed > options.max_memory {
-        return Err(Error::TooMuchMemory { needed, limit: options.max_memory, dims: grid.dims });
+    if needed > lattice.max_memory {
+        return Err(Error::TooMuchMemory { needed, limit: lattice.max_memory, dims: grid.dims });
     }
     let mut stats = Stats { grid_dims: grid.dims, cell: grid.cell, streamed, ..Stats::default() };
     if streamed {
@@ -205,7 +177,7 @@ pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats),
     }
 
     let t = Instant::now();
-    let volume = sample(field, &grid, &options.control)?;
+    let volume = sample(field, &grid, &lattice.control)?;
     stats.sampling = t.elapsed();
     stats.samples = grid.sample_count();
     stats.non_finite_samples = volume.non_finite;
@@ -214,17 +186,17 @@ pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats),
     stats.max_sample = hi;
 
     let t = Instant::now();
-    let ex = extract(&volume, &options.control).map_err(|_| Error::Cancelled)?;
+    let ex = extract(&volume, &lattice.control)?;
     stats.extraction = t.elapsed();
     stats.ambiguous_faces = ex.ambiguous_faces;
     stats.tunnels = ex.tunnels;
 
     let t = Instant::now();
     let (positions, evals) =
-        place_extracted(field, &volume, &ex, options.refine, options.tolerance);
+        place_extracted(field, &volume, &ex, lattice.refine, lattice.tolerance);
     stats.refine_evaluations = evals;
     stats.refinement = t.elapsed();
-    if options.control.is_cancelled() {
+    if lattice.control.is_cancelled() {
         return Err(Error::Cancelled);
     }
 
@@ -240,7 +212,7 @@ fn finish(
     mut stats: Stats,
 ) -> Result<(Mesh, Stats), Error> {
     let t = Instant::now();
-    let normals = if options.normals && !triangles.is_empty() {
+    let normals = if options.lattice.normals && !triangles.is_empty() {
         let (n, evals) = gradient_normals(field, &positions, &triangles);
         stats.normal_evaluations = evals;
         n
@@ -270,8 +242,7 @@ fn polygonize_streamed(
     let t = Instant::now();
     let source = FieldLayers(LayerSampling::new(field, grid));
     let extract::Streamed { vertices: sampled, triangles, stats: s } =
-        extract::extract_streamed::<SampledVertex, _>(&source, grid, &options.control)
-            .map_err(|_| Error::Cancelled)?;
+        extract::extract_streamed::<SampledVertex, _>(&source, grid, &options.lattice.control)?;
     let wall = t.elapsed();
     let busy = (s.source_time + s.extract_time).as_secs_f64();
     let share = if busy > 0.0 { s.source_time.as_secs_f64() / busy } else { 0.5 };
@@ -285,12 +256,12 @@ fn polygonize_streamed(
     stats.tunnels = s.tunnels;
 
     let t = Instant::now();
-    let how = Placement::for_grid(options.refine, options.tolerance);
+    let how = Placement::for_grid(options.lattice.refine, options.lattice.tolerance);
     let ends = |i: usize| sampled[i].ends.map(f64::from);
     let (positions, evals) = place_vertices(field, grid, &sampled, ends, &how);
     stats.refine_evaluations = evals;
     stats.refinement = t.elapsed();
-    if options.control.is_cancelled() {
+    if options.lattice.control.is_cancelled() {
         return Err(Error::Cancelled);
     }
     finish(field, positions, triangles, options, stats)
@@ -385,7 +356,6 @@ pub(crate) fn place_extracted(
 /// Marching cubes on a volume sampled elsewhere, with vertices interpolated linearly and no
 /// normals: the extraction-only path (e.g. for a volume read from a raw file).
 pub fn extract_mesh(volume: &Volume, control: &Control) -> Result<Mesh, Error> {
-    let (positions, triangles) =
-        extract::extract_positions(volume, control).map_err(|_| Error::Cancelled)?;
+    let (positions, triangles) = extract::extract_positions(volume, control)?;
     Ok(Mesh { positions, triangles, ..Mesh::default() })
 }

@@ -100,12 +100,12 @@ use skelform_field::control::{Control, Progress};
 use skelform_field::grid::{Grid, Volume, sample};
 use skelform_mesh::{CurveEdge, Mesh, RegionTriple};
 
-use crate::Error;
 use crate::grid::cell::case_of;
 use crate::grid::cube::{EDGES, FACES, edge_between, other_axes};
 use crate::grid::table::table;
 use crate::grid::{self, GridVertex, Place, extract};
 use crate::refine::face_normals;
+use crate::{Error, LatticeOptions};
 use config::ThesisClass;
 use local::{Probe, sym_eigen};
 use trace::{TraceOptions, Tracer};
@@ -131,10 +131,10 @@ pub enum Epsilon {
 /// Settings of the healed polygonizer.
 #[derive(Clone, Debug)]
 pub struct Options {
-    /// The lattice, refinement, normals, memory limit and progress, as for the grid
-    /// polygonizer. Its `streaming` is not read: healing looks at the samples around every
+    /// The lattice, refinement, normals, memory limit, progress and threads, as for the grid
+    /// polygonizer. There is no streaming: healing looks at the samples around every
     /// critical cube, so the whole volume is kept.
-    pub grid: grid::Options,
+    pub lattice: LatticeOptions,
     /// The critical-vertex test.
     pub epsilon: Epsilon,
     /// Give each sheet its own copy of each self-intersection vertex (its own normal), so that
@@ -148,7 +148,7 @@ pub struct Options {
 impl Default for Options {
     fn default() -> Self {
         Self {
-            grid: grid::Options::default(),
+            lattice: LatticeOptions::default(),
             epsilon: Epsilon::Cells(2.0),
             split_sheets: false,
             max_healed_cubes: 1_000_000,
@@ -277,27 +277,29 @@ fn report(control: &Control, phase: &'static str, done: u64, total: u64) -> Resu
 ///
 /// ```
 /// use skelform_field::{Aabb, FnField, DVec3};
-/// use skelform_polygonize::grid::{self, Resolution};
+/// use skelform_polygonize::{LatticeOptions, Resolution};
 /// use skelform_polygonize::healed::{polygonize, Options};
 /// // Two planes crossing along the x axis.
 /// let f = FnField(|p: DVec3| p.y * p.z);
-/// let grid = grid::Options { domain: Aabb::cube(1.0), resolution: Resolution::Samples(12), ..Default::default() };
-/// let opts = Options { grid, ..Options::default() };
+/// let lattice = LatticeOptions { domain: Aabb::cube(1.0), resolution: Resolution::Samples(12), ..Default::default() };
+/// let opts = Options { lattice, ..Options::default() };
 /// let (mesh, stats) = polygonize(&f, &opts).unwrap();
 /// assert!(stats.curve_edges > 0);
 /// assert_eq!(mesh.curves.len(), stats.curve_edges);
 /// ```
 pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats), Error> {
+    options.lattice.threads.install(|| polygonize_here(field, options))
+}
+
+/// [`polygonize`] on the current thread pool.
+fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats), Error> {
     check_options(options)?;
-    let control = &options.grid.control;
-    let grid = grid::grid_for(&options.grid)?;
+    let lattice = &options.lattice;
+    let control = &lattice.control;
+    let grid = lattice.grid()?;
     let needed = grid::memory_needed(&grid, false);
-    if needed > options.grid.max_memory {
-        return Err(Error::TooMuchMemory {
-            needed,
-            limit: options.grid.max_memory,
-            dims: grid.dims,
-        });
+    if needed > lattice.max_memory {
+        return Err(Error::TooMuchMemory { needed, limit: lattice.max_memory, dims: grid.dims });
     }
     let h = grid.cell;
     let mut stats = Stats { grid_dims: grid.dims, cell: h, ..Stats::default() };
@@ -312,13 +314,13 @@ pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats),
     stats.min_sample = lo;
     stats.max_sample = hi;
     let t = Instant::now();
-    let ex = extract(&volume, control).map_err(|_| Error::Cancelled)?;
+    let ex = extract(&volume, control)?;
     stats.extraction = t.elapsed();
     stats.mc_triangles = ex.triangles.len();
 
     let t = Instant::now();
     let (positions, evals) =
-        grid::place_extracted(field, &volume, &ex, options.grid.refine, options.grid.tolerance);
+        grid::place_extracted(field, &volume, &ex, lattice.refine, lattice.tolerance);
     stats.refine_evaluations = evals;
     stats.refinement = t.elapsed();
     if control.is_cancelled() {
@@ -529,7 +531,7 @@ pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats),
         .iter()
         .map(|c| CurveEdge { v: c.map(|v| remap[v as usize]), label: SELF_INTERSECTION })
         .collect();
-    if options.grid.normals && !mesh.triangles.is_empty() {
+    if options.lattice.normals && !mesh.triangles.is_empty() {
         let mut n: Vec<DVec3> =
             (0..used.len()).filter(|&i| used[i]).map(|i| normals_all[i]).collect();
         if n.iter().any(|x| *x == DVec3::ZERO || !x.is_finite()) {
@@ -583,10 +585,10 @@ pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats),
 }
 
 fn check_options(o: &Options) -> Result<(), Error> {
-    if !(o.grid.tolerance > 0.0 && o.grid.tolerance < 1.0) {
+    if !(o.lattice.tolerance > 0.0 && o.lattice.tolerance < 1.0) {
         return Err(Error::BadOption(format!(
             "tolerance must be between 0 and 1 (got {})",
-            o.grid.tolerance
+            o.lattice.tolerance
         )));
     }
     match o.epsilon {

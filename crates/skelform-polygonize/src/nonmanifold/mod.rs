@@ -36,19 +36,22 @@ use std::time::{Duration, Instant};
 
 use glam::DVec3;
 use rustc_hash::{FxHashMap, FxHashSet};
-use skelform_field::control::{Control, Progress};
+use skelform_field::RegionField;
+use skelform_field::control::Progress;
 use skelform_field::grid::Grid;
-use skelform_field::{Aabb, RegionField};
 use skelform_mesh::{CurveEdge, Mesh, RegionPair, RegionTriple};
 
-use crate::Error;
 use crate::grid::cube::CORNERS;
+use crate::{Error, LatticeOptions, Resolution};
 
 /// Settings of the non-manifold polygonizer.
 #[derive(Clone, Debug)]
 pub struct Options {
-    pub domain: Aabb,
-    pub cell: f64,
+    /// The lattice, progress and threads. Vertices are placed by bisection on the region
+    /// function to `epsilon`, so `refine`, `tolerance` and `normals` are not read (normals
+    /// always come out), and storage grows with the surfaces (bounded by `max_cells`), so
+    /// `max_memory` is not read either.
+    pub lattice: LatticeOptions,
     /// Start points within about half a cell of a surface of interest; with none, the
     /// domain is searched every `search_stride` cells.
     pub seeds: Vec<DVec3>,
@@ -74,14 +77,15 @@ pub struct Options {
     /// edge, so the poke is made rather than cut off. Off: the chapter's truncation.
     pub loops: bool,
     pub max_cells: u64,
-    pub control: Control,
 }
 
 impl Default for Options {
     fn default() -> Self {
         Options {
-            domain: Aabb::cube(1.0),
-            cell: 1.0 / 32.0,
+            lattice: LatticeOptions {
+                resolution: Resolution::Cell(1.0 / 32.0),
+                ..LatticeOptions::default()
+            },
             seeds: Vec::new(),
             search_stride: 4,
             full_grid: false,
@@ -93,7 +97,6 @@ impl Default for Options {
             close_factor: 1.0,
             loops: false,
             max_cells: 5_000_000,
-            control: Control::default(),
         }
     }
 }
@@ -209,18 +212,25 @@ struct Run<'a> {
 /// ```
 /// use skelform_field::{Aabb, DVec3, region::FnRegions};
 /// use skelform_mesh::RegionPair;
+/// use skelform_polygonize::{LatticeOptions, Resolution};
 /// use skelform_polygonize::nonmanifold::{polygonize, Options};
 /// // A ball (1) cut by the plane z = 0 into an upper (2) and lower (3) half-space.
 /// let regions = FnRegions(|p: DVec3| if p.length() < 0.5 { 1 } else if p.z > 0.0 { 2 } else { 3 });
-/// let opts = Options { domain: Aabb::cube(1.0), cell: 0.1, full_grid: true, ..Options::default() };
+/// let lattice = LatticeOptions { domain: Aabb::cube(1.0), resolution: Resolution::Cell(0.1), ..Default::default() };
+/// let opts = Options { lattice, full_grid: true, ..Options::default() };
 /// let (mesh, stats) = polygonize(&regions, &opts).unwrap();
 /// let pairs: Vec<RegionPair> = stats.triangles_per_pair.iter().map(|(p, _)| *p).collect();
 /// assert_eq!(pairs, vec![RegionPair(1, 2), RegionPair(1, 3), RegionPair(2, 3)]);
 /// assert!(!mesh.curves.is_empty());
 /// ```
 pub fn polygonize(regions: &dyn RegionField, options: &Options) -> Result<(Mesh, Stats), Error> {
+    options.lattice.threads.install(|| polygonize_here(regions, options))
+}
+
+/// [`polygonize`] on the current thread pool.
+fn polygonize_here(regions: &dyn RegionField, options: &Options) -> Result<(Mesh, Stats), Error> {
     let started = Instant::now();
-    let grid = Grid::with_cell(&options.domain, options.cell)?;
+    let grid = options.lattice.grid()?;
     if options.sections == 0 || options.close_factor.is_nan() || options.close_factor < 0.0 {
         return Err(Error::BadOption(
             "sections must be at least 1 and close_factor not negative".into(),
@@ -932,7 +942,7 @@ impl Run<'_> {
             wave = next;
             let p =
                 Progress { phase: "non-manifold", done: self.visited.len() as u64, total: None };
-            if self.opts.control.report(p).is_break() {
+            if self.opts.lattice.control.report(p).is_break() {
                 return Err(Error::Cancelled);
             }
         }

@@ -1,0 +1,79 @@
+//! What every polygonizer shares about its lattice: the options that say which lattice, how
+//! its vertices are placed and on which threads the run goes ([`LatticeOptions`]).
+//!
+//! Each polygonizer's `Options` embeds one of these as its `lattice` field, so that a front
+//! end sets the domain, resolution, accuracy and threads once, whatever the method; only
+//! what is particular to a method (seeds, streaming, healing thresholds) stays beside it.
+
+mod threads;
+
+use skelform_field::Aabb;
+use skelform_field::control::Control;
+use skelform_field::grid::{Grid, GridError};
+
+pub use threads::{MAX_THREADS, Threads};
+
+/// How fine the lattice is.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Resolution {
+    /// Samples along the domain's longest side (the cell follows from the domain).
+    Samples(usize),
+    /// Cell side length (the sample count follows from the domain).
+    Cell(f64),
+}
+
+/// The lattice a polygonizer works on and how it places vertices, shared by all of them.
+///
+/// Not every polygonizer reads every field: the non-manifold polygonizer places vertices by
+/// bisection on the region function to its own `epsilon` (so `refine`, `tolerance` and
+/// `normals` are not read), and the propagating polygonizers (continuation, non-manifold)
+/// keep storage that grows with the surface, bounded by their `max_cells` rather than by
+/// `max_memory`.
+#[derive(Clone, Debug)]
+pub struct LatticeOptions {
+    /// The box to cover; the lattice is grown from it to whole cells, centred on it, and
+    /// propagation never leaves it.
+    pub domain: Aabb,
+    /// How fine the lattice is.
+    pub resolution: Resolution,
+    /// Move vertices onto the surface by root finding on the field (else linear
+    /// interpolation of the samples).
+    pub refine: bool,
+    /// Root-finding tolerance, as a fraction of the cell (bisection takes
+    /// `ceil(log2(1/tolerance))` steps).
+    pub tolerance: f64,
+    /// Compute per-vertex normals from the field's gradient.
+    pub normals: bool,
+    /// Refuse, before allocating, a dense run that would need more memory than this (bytes).
+    pub max_memory: u64,
+    /// Progress reports and cancellation.
+    pub control: Control,
+    /// Which threads run the polygonizer.
+    pub threads: Threads,
+}
+
+impl Default for LatticeOptions {
+    fn default() -> Self {
+        Self {
+            domain: Aabb::cube(1.0),
+            resolution: Resolution::Samples(128),
+            refine: true,
+            tolerance: 1e-4,
+            normals: true,
+            max_memory: 4 << 30,
+            control: Control::default(),
+            threads: Threads::Current,
+        }
+    }
+}
+
+impl LatticeOptions {
+    /// The lattice these options describe: the same lattice for every polygonizer, so that
+    /// the continuation polygonizer reproduces the grid polygonizer's mesh of a component.
+    pub fn grid(&self) -> Result<Grid, GridError> {
+        match self.resolution {
+            Resolution::Samples(n) => Grid::with_resolution(&self.domain, n),
+            Resolution::Cell(c) => Grid::with_cell(&self.domain, c),
+        }
+    }
+}
