@@ -522,3 +522,50 @@ fn the_gallery_renders_every_scene_with_its_figure() {
     let page = std::fs::read_to_string(out.join("README.md")).unwrap();
     assert!(page.contains("failed: ") && page.contains("broken.toml"), "{page}");
 }
+
+/// The gallery touches only files it wrote: a folder it did not make is refused, and a
+/// user's picture beside its own survives a rerun, even one that drops pictures.
+#[test]
+fn the_gallery_leaves_what_it_did_not_write() {
+    let dir = tempfile::tempdir().unwrap();
+    let ex = dir.path().join("examples");
+    std::fs::create_dir_all(&ex).unwrap();
+    let ball = "[domain]\nmin = [-1, -1, -1]\nmax = [1, 1, 1]\n[mesh]\nresolution = 12\n[field]\nformula = \"x^2 + y^2 + z^2 - 0.5\"\n";
+    std::fs::write(ex.join("ball.toml"), ball).unwrap();
+    std::fs::write(ex.join("orb.toml"), ball).unwrap();
+    let run = |out: &Path| {
+        skelform(&["gallery", "--examples", s(&ex), "--out", s(out), "--size", "48x36", "-q"])
+    };
+
+    // Someone else's folder: refused, nothing written.
+    let theirs = dir.path().join("theirs");
+    std::fs::create_dir_all(&theirs).unwrap();
+    std::fs::write(theirs.join("README.md"), "# my photos\n").unwrap();
+    let o = run(&theirs);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("not made by `skelform gallery`"), "{}", stderr(&o));
+    assert_eq!(listing(&theirs), ["README.md"]);
+    assert_eq!(std::fs::read_to_string(theirs.join("README.md")).unwrap(), "# my photos\n");
+
+    // Our folder with a user's photo in it: the photo stays through reruns.
+    let out = dir.path().join("gallery");
+    assert!(run(&out).status.success());
+    std::fs::write(out.join("photo.png"), b"not ours").unwrap();
+    std::fs::remove_file(ex.join("orb.toml")).unwrap();
+    let o = run(&out);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(listing(&out), ["README.md", "ball.png", "photo.png"]);
+    assert_eq!(std::fs::read(out.join("photo.png")).unwrap(), b"not ours");
+
+    // A new scene whose picture name a user's file already has: refused before drawing.
+    std::fs::write(out.join("orb.png"), b"also not ours").unwrap();
+    std::fs::write(ex.join("orb.toml"), ball).unwrap();
+    let o = run(&out);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert_eq!(std::fs::read(out.join("orb.png")).unwrap(), b"also not ours");
+
+    // Outside the repository, the command says what it needs.
+    let o = skelform(&["gallery", "--examples", s(&dir.path().join("nowhere")), "-q"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("give --examples DIR"), "{}", stderr(&o));
+}
