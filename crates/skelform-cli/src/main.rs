@@ -180,7 +180,11 @@ fn output_format(path: &Path) -> Result<Format, Failure> {
 
 fn mesh(a: MeshArgs) -> Result<(), Failure> {
     let scene = run::load_scene(&a.scene, a.run.pose.as_deref())?;
-    let out = a.output.clone().or_else(|| scene.output.file.clone()).ok_or_else(|| {
+    let declared = match &a.output {
+        Some(_) => None,
+        None => scene.output_file().map_err(run::failure)?.map(Path::to_path_buf),
+    };
+    let out = a.output.clone().or(declared).ok_or_else(|| {
         input(anyhow!("no output file: give -o OUT.ply (or set [output] file in the scene)"))
     })?;
     let format = output_format(&out)?;
@@ -252,6 +256,11 @@ fn info(a: InfoArgs) -> Result<(), Failure> {
     let (lo, hi) = (scene.domain.min, scene.domain.max);
     outln!("domain      [{}, {}, {}] – [{}, {}, {}]", lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
     outln!("method      {}", scene.method.name());
+    match scene.output_file() {
+        Ok(Some(p)) => outln!("output      {}", p.display()),
+        Ok(None) => outln!("output      none (give -o)"),
+        Err(e) => outln!("output      refused: {e}"),
+    }
     match scene.lattice(&skelform::Overrides::default()) {
         Ok(l) => {
             let [nx, ny, nz] = l.dims;

@@ -317,3 +317,33 @@ fn standard_output_that_fails_is_not_a_panic() {
     assert_eq!(o.status.code(), Some(0), "{err}");
     assert!(err.is_empty(), "a closed pipe ends quietly: {err}");
 }
+
+/// A scene names output files in its own folder only: `..` or an absolute path in
+/// `[output] file` is refused (exit 2, nothing written); `-o` may name any path.
+#[test]
+fn a_scene_cannot_write_outside_its_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let inner = dir.path().join("a/b");
+    std::fs::create_dir_all(&inner).unwrap();
+    let victim = dir.path().join("victim.ply");
+    std::fs::write(&victim, b"keep me").unwrap();
+    let body = "[domain]\nmin = [-1, -1, -1]\nmax = [1, 1, 1]\n[mesh]\nresolution = 12\n[field]\nformula = \"x^2 + y^2 + z^2 - 0.5\"\n";
+    for file in ["../../victim.ply".to_string(), victim.display().to_string()] {
+        let scene = inner.join("s.toml");
+        std::fs::write(&scene, format!("{body}[output]\nfile = \"{file}\"\n")).unwrap();
+        let o = skelform(&["mesh", scene.to_str().unwrap()]);
+        assert_eq!(o.status.code(), Some(2), "{file}: {}", stderr(&o));
+        assert!(stderr(&o).contains("outside the scene's folder"), "{}", stderr(&o));
+        assert_eq!(std::fs::read(&victim).unwrap(), b"keep me");
+        let info = skelform(&["info", scene.to_str().unwrap()]);
+        assert!(stdout(&info).contains("output      refused"), "{}", stdout(&info));
+    }
+    let scene = inner.join("s.toml");
+    std::fs::write(&scene, format!("{body}[output]\nfile = \"out/m.ply\"\n")).unwrap();
+    std::fs::create_dir_all(inner.join("out")).unwrap();
+    let o = skelform(&["mesh", scene.to_str().unwrap(), "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(inner.join("out/m.ply").exists());
+    let o = skelform(&["mesh", scene.to_str().unwrap(), "-q", "-o", victim.to_str().unwrap()]);
+    assert!(o.status.success(), "the command line may name any path: {}", stderr(&o));
+}

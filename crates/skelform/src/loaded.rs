@@ -22,6 +22,8 @@ pub struct Scene {
     base: Option<PathBuf>,
     /// The pose the description was built in, when one was asked for.
     pose: Option<String>,
+    /// Why the scene's `[output] file` may not be written, when it may not.
+    output_refused: Option<String>,
 }
 
 impl Scene {
@@ -54,10 +56,11 @@ impl Scene {
     ) -> Result<Scene, Error> {
         let options = LoadOptions { pose: pose.clone() };
         let mut description = skelform_scene::Scene::parse_with(&text, origin, &options)?;
+        let output_refused = description.output.file.as_deref().and_then(outside_folder);
         if let (Some(file), Some(dir)) = (&description.output.file, &base) {
             description.output.file = Some(dir.join(file));
         }
-        Ok(Scene { description: Arc::new(description), text, base, pose })
+        Ok(Scene { description: Arc::new(description), text, base, pose, output_refused })
     }
 
     /// The same scene with its skeleton in the named pose (this one, shared, when it is
@@ -80,6 +83,20 @@ impl Scene {
         )
     }
 
+    /// Where the scene asks its mesh to be written (`[output] file`, relative to the scene's
+    /// folder), or `None` when it does not say. A scene may name a file in its own folder or
+    /// below it only: a scene from elsewhere must not replace files it points at with `..`
+    /// or an absolute path (only the command line, or the caller, may name those).
+    pub fn output_file(&self) -> Result<Option<&Path>, Error> {
+        match &self.output_refused {
+            Some(why) => Err(Error::Invalid {
+                origin: self.description.origin.clone(),
+                message: why.clone(),
+            }),
+            None => Ok(self.description.output.file.as_deref()),
+        }
+    }
+
     /// The checked description.
     pub fn description(&self) -> &skelform_scene::Scene {
         &self.description
@@ -96,4 +113,17 @@ impl Deref for Scene {
     fn deref(&self) -> &skelform_scene::Scene {
         &self.description
     }
+}
+
+/// Why a scene's own output path leaves the scene's folder, if it does.
+fn outside_folder(file: &Path) -> Option<String> {
+    use std::path::Component;
+    let escapes = file.components().any(|c| !matches!(c, Component::Normal(_) | Component::CurDir));
+    escapes.then(|| {
+        format!(
+            "[output] file = \"{}\" is outside the scene's folder; a scene may only name a file \
+             in its folder or below it (give the path on the command line with -o to write there)",
+            file.display()
+        )
+    })
 }
