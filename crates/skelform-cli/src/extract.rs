@@ -121,12 +121,13 @@ pub fn extract(a: ExtractArgs) -> Result<(), Failure> {
     // The samples as f32, plus about as much again for the extraction's bookkeeping (the
     // mesh); streamed, the samples are a few slabs.
     let needed = if a.stream { bytes } else { bytes.saturating_mul(2) };
-    if needed > a.max_memory {
+    let max_memory = crate::run::memory_limit(a.max_memory, false);
+    if needed > max_memory {
         return Err(input(anyhow!(
             "{}: a {nx}×{ny}×{nz} volume needs about {:.2} GiB, over the limit of {:.2} GiB (--max-memory)",
             a.volume.display(),
             needed as f64 / (1u64 << 30) as f64,
-            a.max_memory as f64 / (1u64 << 30) as f64
+            max_memory as f64 / (1u64 << 30) as f64
         )));
     }
     // Positions are stored as f32: the far corner of the lattice must be one.

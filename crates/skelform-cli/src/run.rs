@@ -165,7 +165,7 @@ impl RunArgs {
             refine: self.no_refine.then_some(false),
             normals: self.no_normals.then_some(false),
             streaming: Some(self.stream.into()),
-            max_memory: Some(self.max_memory),
+            max_memory: Some(memory_limit(self.max_memory, self.quiet)),
             control: progress::control(show_progress),
         })
     }
@@ -200,6 +200,32 @@ pub fn surface(scene: &Scene, meshed: &Meshed, quiet: bool) -> Result<(), Failur
         }
     }
     Ok(())
+}
+
+/// This machine's memory in bytes (Linux: `MemTotal` of /proc/meminfo), if known.
+fn physical_memory() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemTotal:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    kib.checked_mul(1024)
+}
+
+/// `--max-memory`, held to this machine's memory: a limit above it would let a run start
+/// that the system then kills, instead of refusing it with a message.
+pub fn memory_limit(asked: u64, quiet: bool) -> u64 {
+    match physical_memory() {
+        Some(have) if asked > have => {
+            if !quiet {
+                errln!(
+                    "warning: --max-memory {:.1} GiB is more than this machine has; the limit is its {:.1} GiB",
+                    asked as f64 / (1u64 << 30) as f64,
+                    have as f64 / (1u64 << 30) as f64
+                );
+            }
+            have
+        }
+        _ => asked,
+    }
 }
 
 pub fn parse_bytes(s: &str) -> Result<u64, String> {

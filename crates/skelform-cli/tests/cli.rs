@@ -347,3 +347,40 @@ fn a_scene_cannot_write_outside_its_folder() {
     let o = skelform(&["mesh", scene.to_str().unwrap(), "-q", "-o", victim.to_str().unwrap()]);
     assert!(o.status.success(), "the command line may name any path: {}", stderr(&o));
 }
+
+/// A field that is NaN everywhere is said to be so (not "values from 3.4e38 to 3.4e38"); a
+/// memory limit above the machine's is held to the machine's, with a warning, so the check
+/// still refuses what the machine cannot hold.
+#[test]
+fn undefined_fields_and_impossible_limits_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("nan.toml");
+    std::fs::write(
+        &scene,
+        "[domain]\nmin = [-1, -1, -1]\nmax = [1, 1, 1]\n[mesh]\nresolution = 12\n[field]\nformula = \"ln(-1 - x^2)\"\n",
+    )
+    .unwrap();
+    let out = dir.path().join("m.ply");
+    let o = out.to_str().unwrap();
+    fails(
+        &["mesh", scene.to_str().unwrap(), "-o", o],
+        1,
+        "all 1728 samples are NaN or infinite",
+        Some(&out),
+    );
+    let r = skelform(&[
+        "mesh",
+        &example("sphere.toml"),
+        "-o",
+        o,
+        "--max-memory",
+        "1000T",
+        "--resolution",
+        "30000",
+    ]);
+    assert_eq!(r.status.code(), Some(2), "{}", stderr(&r));
+    let err = stderr(&r);
+    assert!(err.contains("more than this machine has"), "{err}");
+    assert!(err.contains("over the limit"), "{err}");
+    assert!(!err.contains("panicked") && !out.exists(), "{err}");
+}

@@ -65,13 +65,22 @@ fn at(p: DVec3) -> String {
     format!("({}, {}, {})", r(p.x), r(p.y), r(p.z))
 }
 
-/// The part of an empty run's explanation that the samples give.
-fn all_samples(samples: u64, min: f32, max: f32) -> String {
-    let where_ = if min >= 0.0 { "outside (f ≥ 0)" } else { "inside (f < 0)" };
-    if !(min.is_finite() || max.is_finite()) {
-        return format!("all {samples} samples are NaN or infinite");
+/// The part of an empty run's explanation that the samples give. Non-finite samples are
+/// stored as ±`f32::MAX`, so the range alone would report a NaN field as "values from
+/// 3.4e38 to 3.4e38".
+fn all_samples(samples: u64, non_finite: u64, min: f32, max: f32) -> String {
+    if non_finite >= samples {
+        return format!(
+            "all {samples} samples are NaN or infinite (the field is undefined over the whole domain)"
+        );
     }
-    format!("all {samples} samples are {where_}, values from {min} to {max}")
+    let where_ = if min >= 0.0 { "outside (f ≥ 0)" } else { "inside (f < 0)" };
+    let range = if non_finite > 0 {
+        format!("{non_finite} of them NaN or infinite")
+    } else {
+        format!("values from {min} to {max}")
+    };
+    format!("all {samples} samples are {where_}, {range}")
 }
 
 fn non_finite(count: u64, what: &str, w: &mut Vec<String>) {
@@ -92,7 +101,7 @@ impl grid::Stats {
     pub fn no_surface(&self) -> String {
         format!(
             "no surface in the domain: {}; check the formula, the iso value and the domain box",
-            all_samples(self.samples, self.min_sample, self.max_sample)
+            all_samples(self.samples, self.non_finite_samples, self.min_sample, self.max_sample)
         )
     }
 }
@@ -344,7 +353,7 @@ impl healed::Stats {
         };
         format!(
             "no surface in the domain: {}{found}; check the formula, the iso value and the domain box",
-            all_samples(self.samples, self.min_sample, self.max_sample)
+            all_samples(self.samples, self.non_finite_samples, self.min_sample, self.max_sample)
         )
     }
 }
