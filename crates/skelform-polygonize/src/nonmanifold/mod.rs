@@ -37,11 +37,13 @@ use std::time::{Duration, Instant};
 use glam::DVec3;
 use rustc_hash::{FxHashMap, FxHashSet};
 use skelform_field::RegionField;
-use skelform_field::control::Progress;
 use skelform_field::grid::Grid;
 use skelform_mesh::{CurveEdge, Mesh, RegionPair, RegionTriple};
 
 use crate::grid::cube::CORNERS;
+use crate::lattice::cubes::{CubeLattice, Key};
+use crate::lattice::propagate::{Cubes, Limits, Order, propagate};
+use crate::lattice::search::CoarseSearch;
 use crate::{Error, LatticeOptions, Resolution};
 
 /// Settings of the non-manifold polygonizer.
@@ -145,9 +147,6 @@ pub struct Stats {
     pub time: Duration,
 }
 
-/// A lattice point as one integer.
-type Key = u64;
-
 #[derive(Clone, Copy, Debug)]
 struct Crossing {
     /// Regions before and after, in that direction.
@@ -178,6 +177,7 @@ struct FaceInfo {
 struct Run<'a> {
     regions: &'a dyn RegionField,
     grid: Grid,
+    cubes: CubeLattice,
     opts: &'a Options,
     eps: f64,
     interest: Option<FxHashSet<RegionPair>>,
@@ -249,6 +249,7 @@ fn polygonize_here(regions: &dyn RegionField, options: &Options) -> Result<(Mesh
     let mut run = Run {
         regions,
         grid,
+        cubes: CubeLattice::new(grid),
         opts: options,
         eps,
         interest: (!options.interest.is_empty())
@@ -276,18 +277,15 @@ fn polygonize_here(regions: &dyn RegionField, options: &Options) -> Result<(Mesh
 
 impl Run<'_> {
     fn key(&self, p: [u32; 3]) -> Key {
-        let [nx, ny, _] = self.grid.dims;
-        p[0] as u64 + nx as u64 * (p[1] as u64 + ny as u64 * p[2] as u64)
+        self.cubes.key(p)
     }
 
     fn unkey(&self, k: Key) -> [u32; 3] {
-        let [nx, ny, _] = self.grid.dims.map(|d| d as u64);
-        [(k % nx) as u32, ((k / nx) % ny) as u32, (k / (nx * ny)) as u32]
+        self.cubes.unkey(k)
     }
 
     fn point(&self, k: Key) -> DVec3 {
-        let p = self.unkey(k);
-        self.grid.point(p[0] as usize, p[1] as usize, p[2] as usize)
+        self.cubes.point(self.unkey(k))
     }
 
     fn interesting(&self, pair: RegionPair) -> bool {
@@ -812,68 +810,34 @@ impl Run<'_> {
         v
     }
 
-    fn cube_of(&self, p: DVec3) -> [u32; 3] {
-        let rel = (p - self.grid.origin) / self.grid.cell;
-        std::array::from_fn(|a| (rel[a].floor().max(0.0) as u32).min(self.grid.dims[a] as u32 - 2))
-    }
-
     /// Start cubes: from the seeds, or from a coarse search of the domain.
     fn starts(&mut self) -> Result<Vec<[u32; 3]>, Error> {
         let mut points = self.opts.seeds.clone();
         if points.is_empty() {
-            let stride = self.opts.search_stride.max(1);
-            let dims = self.grid.dims.map(|d| (d - 1).div_ceil(stride) + 1);
-            let mut pts = Vec::new();
-            for k in 0..dims[2] {
-                for j in 0..dims[1] {
-                    for i in 0..dims[0] {
-                        let p = [i, j, k].map(|x| x * stride);
-                        let p =
-                            std::array::from_fn::<usize, 3, _>(|a| p[a].min(self.grid.dims[a] - 1));
-                        pts.push(self.grid.point(p[0], p[1], p[2]));
+            let search = CoarseSearch::new(&self.grid, self.opts.search_stride);
+            let (pts, stride) = (&search.points, search.stride);
+            let r = self.regions_of(pts);
+            search.edges(|a, b| {
+                if self.interesting(RegionPair::new(r[a], r[b])) {
+                    // Every cube along the coarse edge is a candidate start.
+                    for s in 0..=stride {
+                        points.push(pts[a].lerp(pts[b], s as f64 / stride as f64));
                     }
                 }
-            }
-            let r = self.regions_of(&pts);
-            let idx = |i: usize, j: usize, k: usize| i + dims[0] * (j + dims[1] * k);
-            for k in 0..dims[2] {
-                for j in 0..dims[1] {
-                    for i in 0..dims[0] {
-                        for (di, dj, dk) in [(1, 0, 0), (0, 1, 0), (0, 0, 1)] {
-                            let (ni, nj, nk) = (i + di, j + dj, k + dk);
-                            if ni < dims[0] && nj < dims[1] && nk < dims[2] {
-                                let (a, b) = (idx(i, j, k), idx(ni, nj, nk));
-                                if self.interesting(RegionPair::new(r[a], r[b])) {
-                                    // Every cube along the coarse edge is a candidate start.
-                                    for s in 0..=stride {
-                                        points.push(pts[a].lerp(pts[b], s as f64 / stride as f64));
-                                    }
-                                }
-                            }
-                        }
-                    }
-                }
-            }
+            });
             if points.is_empty() {
                 return Err(Error::NoSurfaceFound { samples: pts.len() as u64, stride });
             }
         }
         let seeded = !self.opts.seeds.is_empty();
-        let max = self.grid.dims.map(|d| d as i64 - 2);
         let mut cubes: Vec<[u32; 3]> = Vec::new();
         for p in points.iter().filter(|p| self.grid.bounds().contains(**p)) {
-            let c = self.cube_of(*p);
+            let c = self.cubes.cube_of_u32(*p);
             cubes.push(c);
             if seeded {
                 // A seed within half a cell of the surface may sit on a lattice point or in a
                 // cube the surface misses: its 26 neighbours start too.
-                for d in 0..27i64 {
-                    let n = [d % 3 - 1, d / 3 % 3 - 1, d / 9 - 1];
-                    let q: [i64; 3] = std::array::from_fn(|a| c[a] as i64 + n[a]);
-                    if q.iter().zip(max).all(|(&x, m)| (0..=m).contains(&x)) {
-                        cubes.push(q.map(|x| x as u32));
-                    }
-                }
+                cubes.extend(self.cubes.around(c));
             }
         }
         if cubes.is_empty() {
@@ -888,54 +852,19 @@ impl Run<'_> {
     }
 
     fn propagate(&mut self, starts: Vec<[u32; 3]>) -> Result<(), Error> {
-        let max = self.grid.dims.map(|d| d as u32 - 2);
-        let mut wave: Vec<[u32; 3]> = Vec::new();
-        for c in starts {
-            let k = self.key(c);
-            if self.visited.insert(k) {
-                wave.push(c);
-            }
-        }
-        let propagate = !self.opts.full_grid;
-        while !wave.is_empty() {
-            let mut next = Vec::new();
-            for &c in &wave {
-                let open = self.cube(c);
-                if !propagate {
-                    continue;
-                }
-                for (axis, side) in open {
-                    let mut n = c;
-                    if side == 0 {
-                        if n[axis] == 0 {
-                            self.stats.reached_domain = true;
-                            continue;
-                        }
-                        n[axis] -= 1;
-                    } else {
-                        if n[axis] == max[axis] {
-                            self.stats.reached_domain = true;
-                            continue;
-                        }
-                        n[axis] += 1;
-                    }
-                    if self.visited.len() as u64 >= self.opts.max_cells {
-                        self.stats.reached_budget = true;
-                        continue;
-                    }
-                    if self.visited.insert(self.key(n)) {
-                        next.push(n);
-                    }
-                }
-            }
-            next.sort_unstable();
-            wave = next;
-            let p =
-                Progress { phase: "non-manifold", done: self.visited.len() as u64, total: None };
-            if self.opts.lattice.control.report(p).is_break() {
-                return Err(Error::Cancelled);
-            }
-        }
+        let limits = Limits { max_cells: self.opts.max_cells, limit: None, origin: [0; 3] };
+        let (lattice, control) = (self.cubes, &self.opts.lattice.control);
+        let stops = propagate(
+            self,
+            &lattice,
+            starts,
+            &limits,
+            Order::Coordinates,
+            control,
+            "non-manifold",
+        )?;
+        self.stats.reached_domain |= stops.domain;
+        self.stats.reached_budget |= stops.budget;
         self.stats.cells_visited = self.visited.len() as u64;
         Ok(())
     }
@@ -1095,6 +1024,30 @@ impl Run<'_> {
         self.stats.vertices = mesh.vertex_count();
         self.stats.triangles = mesh.triangle_count();
         mesh
+    }
+}
+
+impl Cubes for Run<'_> {
+    fn process(&mut self, c: [u32; 3]) -> u8 {
+        let open = self.cube(c);
+        if self.opts.full_grid {
+            // Every cube is a start already.
+            return 0;
+        }
+        open.iter().fold(0, |m, &(axis, side)| m | 1 << (2 * axis + side))
+    }
+
+    fn is_visited(&mut self, c: [u32; 3]) -> bool {
+        self.visited.contains(&self.key(c))
+    }
+
+    fn visit(&mut self, c: [u32; 3]) {
+        let k = self.key(c);
+        self.visited.insert(k);
+    }
+
+    fn visited(&self) -> u64 {
+        self.visited.len() as u64
     }
 }
 
