@@ -22,13 +22,15 @@ use std::time::{Duration, Instant};
 use glam::DVec3;
 use rayon::prelude::*;
 use skelform_field::Field;
-use skelform_field::control::Progress;
 use skelform_field::grid::Grid;
 use skelform_mesh::Mesh;
 
 use crate::grid::cell::{CubeSink, case_of, crossing, polygonize_cube};
 use crate::grid::cube::{CORNERS, EDGES, FACES};
 use crate::grid::{GridVertex, Place, Placement, place_vertices};
+use crate::lattice::cubes::CubeLattice;
+use crate::lattice::propagate::{Cubes, Limits, Order, propagate};
+use crate::lattice::search::CoarseSearch;
 use crate::refine::{RootMethod, RootOptions, gradient_normals};
 use crate::{Error, LatticeOptions, Resolution};
 use lattice::Lattice;
@@ -193,7 +195,7 @@ fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats)
             run.stats.seed_notes.push(SeedNote::NoSurface { seed });
             continue;
         };
-        if let Some(owner) = run.lattice.owner(run.unkey(cube)) {
+        if let Some(owner) = run.lattice.owner(cube) {
             run.stats.seed_notes.push(SeedNote::SameComponent { seed, as_seed: owner });
             continue;
         }
@@ -211,12 +213,10 @@ fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats)
     run.finish()
 }
 
-/// A cube or lattice point as one integer key.
-type Key = u64;
-
 struct Run<'a> {
     field: &'a dyn Field,
     grid: Grid,
+    cubes: CubeLattice,
     opts: &'a Options,
     /// Corner values (each evaluated once) and visited cubes.
     lattice: Lattice,
@@ -232,6 +232,7 @@ impl<'a> Run<'a> {
         Run {
             field,
             grid,
+            cubes: CubeLattice::new(grid),
             opts,
             lattice: Lattice::new(grid.dims, if opts.cells == Cells::Tetrahedra { 7 } else { 3 }),
             ends: Vec::new(),
@@ -241,59 +242,22 @@ impl<'a> Run<'a> {
         }
     }
 
-    fn key(&self, [i, j, k]: [u32; 3]) -> Key {
-        let [nx, ny, _] = self.grid.dims;
-        i as u64 + nx as u64 * (j as u64 + ny as u64 * k as u64)
-    }
-
-    fn unkey(&self, key: Key) -> [u32; 3] {
-        let [nx, ny, _] = self.grid.dims.map(|d| d as u64);
-        [(key % nx) as u32, ((key / nx) % ny) as u32, (key / (nx * ny)) as u32]
-    }
-
-    /// The cube holding a point (clamped into the lattice).
-    fn cube_of(&self, p: DVec3) -> Key {
-        let rel = (p - self.grid.origin) / self.grid.cell;
-        let idx: [u32; 3] = std::array::from_fn(|a| {
-            (rel[a].floor().max(0.0) as u32).min(self.grid.dims[a] as u32 - 2)
-        });
-        self.key(idx)
-    }
-
-    fn point(&self, p: [u32; 3]) -> DVec3 {
-        self.grid.point(p[0] as usize, p[1] as usize, p[2] as usize)
-    }
-
     /// A cube the surface crosses: the one holding `p` or, when the surface slips between its
     /// corners there, one of its 26 neighbours (the first in lattice order).
-    fn surface_cube_near(&mut self, p: DVec3) -> Option<Key> {
-        let c = self.unkey(self.cube_of(p));
-        let max: [u32; 3] = self.grid.dims.map(|d| d as u32 - 2);
-        let mut candidates = vec![self.key(c)];
-        for dz in -1i64..=1 {
-            for dy in -1i64..=1 {
-                for dx in -1i64..=1 {
-                    let n = [c[0] as i64 + dx, c[1] as i64 + dy, c[2] as i64 + dz];
-                    if n.iter().zip(max).all(|(&x, m)| x >= 0 && x <= m as i64)
-                        && (dx, dy, dz) != (0, 0, 0)
-                    {
-                        candidates.push(self.key(n.map(|x| x as u32)));
-                    }
-                }
-            }
-        }
+    fn surface_cube_near(&mut self, p: DVec3) -> Option<[u32; 3]> {
+        let c = self.cubes.cube_of_u32(p);
+        let candidates: Vec<[u32; 3]> = std::iter::once(c).chain(self.cubes.around(c)).collect();
         self.evaluate_corners(&candidates);
         candidates.into_iter().find(|&k| {
-            let case = case_of(&self.cube_values(self.unkey(k)));
+            let case = case_of(&self.cube_values(k));
             case != 0 && case != 255
         })
     }
 
     /// Evaluates the corners of these cubes that are not known yet, in parallel batches.
-    fn evaluate_corners(&mut self, cubes: &[Key]) {
+    fn evaluate_corners(&mut self, cubes: &[[u32; 3]]) {
         let mut todo: Vec<[u32; 3]> = Vec::new();
-        for &c in cubes {
-            let b = self.unkey(c);
+        for &b in cubes {
             for o in CORNERS {
                 let p = [b[0] + o[0] as u32, b[1] + o[1] as u32, b[2] + o[2] as u32];
                 if self.lattice.queue(p) {
@@ -304,7 +268,7 @@ impl<'a> Run<'a> {
         if todo.is_empty() {
             return;
         }
-        let points: Vec<DVec3> = todo.iter().map(|&p| self.point(p)).collect();
+        let points: Vec<DVec3> = todo.iter().map(|&p| self.cubes.point(p)).collect();
         let mut out = vec![0.0; points.len()];
         out.par_chunks_mut(1024)
             .zip(points.par_chunks(1024))
@@ -332,69 +296,27 @@ impl<'a> Run<'a> {
     }
 
     /// Breadth-first propagation from one cube, in waves processed in lattice order.
-    fn propagate(&mut self, start: Key, seed_index: usize) -> Result<(), Error> {
-        let origin = self.unkey(start);
-        let mut wave = vec![start];
-        self.lattice.visit(origin, seed_index);
-        let mut stops = [false; 3];
-        let max_index: [u32; 3] = self.grid.dims.map(|d| d as u32 - 2);
-        while !wave.is_empty() {
-            self.evaluate_corners(&wave);
-            let mut next = Vec::new();
-            for &cube in &wave {
-                let base = self.unkey(cube);
-                let v = self.cube_values(base);
-                let case = case_of(&v);
-                if case == 0 || case == 255 {
-                    continue;
-                }
-                self.polygonize(base, &v);
-                for (f, q) in FACES.iter().enumerate() {
-                    let inside = q.iter().filter(|&&c| v[c] < 0.0).count();
-                    if inside == 0 || inside == 4 {
-                        continue;
-                    }
-                    let (axis, side) = (f / 2, f % 2);
-                    let mut n = base;
-                    if side == 0 {
-                        if n[axis] == 0 {
-                            stops[0] = true;
-                            continue;
-                        }
-                        n[axis] -= 1;
-                    } else {
-                        if n[axis] == max_index[axis] {
-                            stops[0] = true;
-                            continue;
-                        }
-                        n[axis] += 1;
-                    }
-                    if let Some(limit) = self.opts.limit
-                        && n[axis].abs_diff(origin[axis]) > limit
-                    {
-                        stops[2] = true;
-                        continue;
-                    }
-                    if self.lattice.owner(n).is_some() {
-                        continue;
-                    }
-                    if self.lattice.visited() >= self.opts.max_cells {
-                        stops[1] = true;
-                        continue;
-                    }
-                    self.lattice.visit(n, seed_index);
-                    next.push(self.key(n));
-                }
-            }
-            next.sort_unstable();
-            wave = next;
-            let p = Progress { phase: "propagating", done: self.lattice.visited(), total: None };
-            if self.opts.lattice.control.report(p).is_break() {
-                return Err(Error::Cancelled);
-            }
-        }
-        for (hit, stop) in stops.iter().zip([Stop::Domain, Stop::Budget, Stop::Limit]) {
-            if *hit && !self.stats.stops.contains(&stop) {
+    fn propagate(&mut self, start: [u32; 3], seed_index: usize) -> Result<(), Error> {
+        let limits =
+            Limits { max_cells: self.opts.max_cells, limit: self.opts.limit, origin: start };
+        let (lattice, control) = (self.cubes, &self.opts.lattice.control);
+        let mut walk = Walk { run: self, seed: seed_index };
+        let stops = propagate(
+            &mut walk,
+            &lattice,
+            [start],
+            &limits,
+            Order::Lattice,
+            control,
+            "propagating",
+        )?;
+        let hits = [
+            (stops.domain, Stop::Domain),
+            (stops.budget, Stop::Budget),
+            (stops.limit, Stop::Limit),
+        ];
+        for (hit, stop) in hits {
+            if hit && !self.stats.stops.contains(&stop) {
                 self.stats.stops.push(stop);
             }
         }
@@ -451,6 +373,47 @@ impl<'a> Run<'a> {
         self.stats.vertices = mesh.vertex_count();
         self.stats.triangles = mesh.triangle_count();
         Ok((mesh, self.stats))
+    }
+}
+
+/// One component's propagation: cubes it visits are marked with its seed.
+struct Walk<'r, 'a> {
+    run: &'r mut Run<'a>,
+    seed: usize,
+}
+
+impl Cubes for Walk<'_, '_> {
+    fn prepare(&mut self, wave: &[[u32; 3]]) {
+        self.run.evaluate_corners(wave);
+    }
+
+    fn process(&mut self, base: [u32; 3]) -> u8 {
+        let v = self.run.cube_values(base);
+        let case = case_of(&v);
+        if case == 0 || case == 255 {
+            return 0;
+        }
+        self.run.polygonize(base, &v);
+        let mut faces = 0;
+        for (f, q) in FACES.iter().enumerate() {
+            let inside = q.iter().filter(|&&c| v[c] < 0.0).count();
+            if inside != 0 && inside != 4 {
+                faces |= 1 << f;
+            }
+        }
+        faces
+    }
+
+    fn is_visited(&mut self, cube: [u32; 3]) -> bool {
+        self.run.lattice.owner(cube).is_some()
+    }
+
+    fn visit(&mut self, cube: [u32; 3]) {
+        self.run.lattice.visit(cube, self.seed);
+    }
+
+    fn visited(&self) -> u64 {
+        self.run.lattice.visited()
     }
 }
 
@@ -623,50 +586,22 @@ fn bisect(run: &mut Run, mut a: DVec3, fa: f64, mut b: DVec3) -> DVec3 {
 /// With no seeds: sample a coarse lattice and start from every coarse edge with a sign
 /// change (each component at least `search_stride` cells across is found).
 fn search_domain(run: &mut Run) -> Result<Vec<(usize, DVec3, DVec3)>, Error> {
-    let stride = run.opts.search_stride.max(1);
-    let dims = run.grid.dims.map(|d| (d - 1).div_ceil(stride) + 1);
-    let at = |i: usize, j: usize, k: usize| {
-        let p = run.grid.point(i * stride, j * stride, k * stride);
-        p.min(run.grid.bounds().max)
-    };
-    let mut pts = Vec::with_capacity(dims.iter().product());
-    for k in 0..dims[2] {
-        for j in 0..dims[1] {
-            for i in 0..dims[0] {
-                pts.push(at(i, j, k));
-            }
-        }
-    }
+    let search = CoarseSearch::new(&run.grid, run.opts.search_stride);
+    let pts = &search.points;
     let mut vals = vec![0.0; pts.len()];
     vals.par_chunks_mut(1024)
         .zip(pts.par_chunks(1024))
         .for_each(|(o, p)| run.field.eval_many(p, o));
     run.stats.search_evaluations += pts.len() as u64;
-    let idx = |i: usize, j: usize, k: usize| i + dims[0] * (j + dims[1] * k);
     let mut starts = Vec::new();
-    for k in 0..dims[2] {
-        for j in 0..dims[1] {
-            for i in 0..dims[0] {
-                let a = idx(i, j, k);
-                for (di, dj, dk) in [(1, 0, 0), (0, 1, 0), (0, 0, 1)] {
-                    let (ni, nj, nk) = (i + di, j + dj, k + dk);
-                    if ni >= dims[0] || nj >= dims[1] || nk >= dims[2] {
-                        continue;
-                    }
-                    let b = idx(ni, nj, nk);
-                    if vals[a].is_finite()
-                        && vals[b].is_finite()
-                        && (vals[a] < 0.0) != (vals[b] < 0.0)
-                    {
-                        let p = bisect(run, pts[a], vals[a], pts[b]);
-                        starts.push((starts.len(), pts[a], p));
-                    }
-                }
-            }
+    search.edges(|a, b| {
+        if vals[a].is_finite() && vals[b].is_finite() && (vals[a] < 0.0) != (vals[b] < 0.0) {
+            let p = bisect(run, pts[a], vals[a], pts[b]);
+            starts.push((starts.len(), pts[a], p));
         }
-    }
+    });
     if starts.is_empty() {
-        return Err(Error::NoSurfaceFound { samples: pts.len() as u64, stride });
+        return Err(Error::NoSurfaceFound { samples: pts.len() as u64, stride: search.stride });
     }
     Ok(starts)
 }

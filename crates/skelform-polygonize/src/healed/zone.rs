@@ -93,41 +93,18 @@ pub(crate) enum Outcome {
     Healed(Healing),
 }
 
-/// Cube and lattice indexing.
-#[derive(Clone, Copy)]
-pub(crate) struct Lattice {
-    pub grid: Grid,
-    pub cubes: [usize; 3],
-}
+/// Cube and lattice indexing: the shared lattice, with what healing adds to it below.
+pub(crate) use crate::lattice::cubes::CubeLattice as Lattice;
 
 impl Lattice {
-    pub fn new(grid: Grid) -> Self {
-        Lattice { grid, cubes: grid.dims.map(|d| d - 1) }
-    }
-
-    pub fn cube(&self, c: [usize; 3]) -> usize {
-        c[0] + self.cubes[0] * (c[1] + self.cubes[1] * c[2])
-    }
-
-    pub fn coords(&self, i: usize) -> [usize; 3] {
-        let [cx, cy, _] = self.cubes;
-        [i % cx, (i / cx) % cy, i / (cx * cy)]
-    }
-
+    /// The key of a lattice point given in healing's `usize` coordinates.
     pub fn point_index(&self, p: [usize; 3]) -> u64 {
-        let [nx, ny, _] = self.grid.dims;
-        p[0] as u64 + nx as u64 * (p[1] as u64 + ny as u64 * p[2] as u64)
+        self.key(p.map(|x| x as u32))
     }
 
     /// Key of the lattice edge from point `p` along `axis`.
     pub fn edge_key(&self, p: [usize; 3], axis: usize) -> u64 {
         self.point_index(p) * 3 + axis as u64
-    }
-
-    /// The cube holding a point (clamped into the lattice).
-    pub fn cube_of(&self, p: DVec3) -> [usize; 3] {
-        let r = (p - self.grid.origin) / self.grid.cell;
-        std::array::from_fn(|a| (r[a].floor().max(0.0) as usize).min(self.cubes[a] - 1))
     }
 
     /// The four cubes round a lattice edge, in cyclic order (`None` outside the lattice).
@@ -143,21 +120,6 @@ impl Lattice {
             (q[0] < self.cubes[0] && q[1] < self.cubes[1] && q[2] < self.cubes[2])
                 .then(|| self.cube(q))
         })
-    }
-
-    /// The cube across face `f` of cube `c`.
-    pub fn neighbour(&self, c: [usize; 3], f: usize) -> Option<usize> {
-        let (a, s) = (f / 2, f % 2);
-        let mut q = c;
-        if s == 0 {
-            q[a] = q[a].checked_sub(1)?;
-        } else {
-            q[a] += 1;
-            if q[a] >= self.cubes[a] {
-                return None;
-            }
-        }
-        Some(self.cube(q))
     }
 
     pub fn corner_values(&self, volume: &Volume, c: [usize; 3]) -> [f32; 8] {

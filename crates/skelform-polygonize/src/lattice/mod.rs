@@ -4,7 +4,14 @@
 //! Each polygonizer's `Options` embeds one of these as its `lattice` field, so that a front
 //! end sets the domain, resolution, accuracy and threads once, whatever the method; only
 //! what is particular to a method (seeds, streaming, healing thresholds) stays beside it.
+//!
+//! Inside the crate it also holds what the lattice walkers share: point and cube keys and
+//! neighbours (`cubes`), the coarse search of the domain for a surface (`search`) and
+//! breadth-first propagation across the faces a surface crosses (`propagate`).
 
+pub(crate) mod cubes;
+pub(crate) mod propagate;
+pub(crate) mod search;
 mod threads;
 
 use skelform_field::Aabb;

@@ -1,0 +1,285 @@
+//! Post-processing: winding each triangle from its lesser region, merging close vertices,
+//! snapping thin triangles' vertices onto the opposite side, dropping degenerate triangles,
+//! and duplicating vertices per region pair with their normals.
+
+use glam::DVec3;
+use rustc_hash::{FxHashMap, FxHashSet};
+use skelform_mesh::{CurveEdge, Mesh, RegionPair, RegionTriple};
+
+use super::Run;
+
+impl Run<'_> {
+    /// Winds every triangle counter-clockwise seen from its lesser region. Each triangle has
+    /// an edge vertex of its own pair, whose lattice segment runs from one region into the
+    /// other: the normal must point back along it towards the lesser region. (A probe off
+    /// the triangle would do for large triangles, but a flat triangle under a curved surface
+    /// can have both probes on one side.)
+    pub(super) fn orient(&mut self) {
+        for (t, pair) in self.triangles.iter_mut().zip(&self.labels) {
+            let [a, b, c] = t.map(|i| self.positions[i as usize]);
+            let n = (b - a).cross(c - a);
+            let witness = t.iter().find_map(|&v| match self.crossing[v as usize] {
+                Some((dir, from, to)) if RegionPair::new(from, to) == *pair => Some((dir, from)),
+                _ => None,
+            });
+            match witness {
+                // Along `dir` the region goes from `from` to the other: the lesser region lies
+                // against `dir` when it is `from`.
+                Some((dir, from)) => {
+                    let towards_lesser = if from == pair.0 { -dir } else { dir };
+                    if n.dot(towards_lesser) < 0.0 {
+                        t.swap(1, 2);
+                    }
+                }
+                None => self.stats.unoriented_triangles += 1,
+            }
+        }
+    }
+
+    /// Merges close vertices, drops degenerate triangles, duplicates vertices per pair.
+    pub(super) fn finish(&mut self) -> Mesh {
+        let n = self.positions.len();
+        let mut parent: Vec<u32> = (0..n as u32).collect();
+        fn root(p: &mut [u32], mut x: u32) -> u32 {
+            while p[x as usize] != x {
+                p[x as usize] = p[p[x as usize] as usize];
+                x = p[x as usize];
+            }
+            x
+        }
+        let limit = self.opts.close_factor * self.eps;
+        for t in &self.triangles {
+            for k in 0..3 {
+                let (u, v) = (t[k], t[(k + 1) % 3]);
+                if self.positions[u as usize].distance(self.positions[v as usize]) < limit {
+                    let (ru, rv) = (root(&mut parent, u), root(&mut parent, v));
+                    if ru != rv {
+                        parent[ru.max(rv) as usize] = ru.min(rv);
+                        self.stats.merged_vertices += 1;
+                    }
+                }
+            }
+        }
+        let mut sum: FxHashMap<u32, (DVec3, f64)> = FxHashMap::default();
+        for v in 0..n as u32 {
+            let r = root(&mut parent, v);
+            let e = sum.entry(r).or_insert((DVec3::ZERO, 0.0));
+            e.0 += self.positions[v as usize];
+            e.1 += 1.0;
+        }
+        let mut pos = self.positions.clone();
+        for (&r, &(s, c)) in &sum {
+            pos[r as usize] = s / c;
+        }
+        let mut tris: Vec<([u32; 3], RegionPair)> = Vec::with_capacity(self.triangles.len());
+        for (t, &pair) in self.triangles.iter().zip(&self.labels) {
+            let r = t.map(|v| root(&mut parent, v));
+            if r[0] == r[1] || r[1] == r[2] || r[0] == r[2] {
+                self.stats.dropped_triangles += 1;
+                continue;
+            }
+            tris.push((r, pair));
+        }
+        let mut curves: Vec<CurveEdge> = Vec::with_capacity(self.curves.len());
+        for c in &self.curves {
+            let v = c.v.map(|v| root(&mut parent, v));
+            if v[0] != v[1] {
+                curves.push(CurveEdge { v, label: c.label });
+            }
+        }
+        let (snapped, dropped) = snap_to_edges(&mut pos, &mut tris, &mut curves, limit);
+        self.stats.snapped_to_edges += snapped;
+        self.stats.dropped_triangles += dropped;
+        // Duplicate per (merged vertex, pair); keep first-use order, so output is stable.
+        let mut copy: FxHashMap<(u32, RegionPair), u32> = FxHashMap::default();
+        let mut copy_of: Vec<(DVec3, RegionPair)> = Vec::new();
+        let mut first_copy: FxHashMap<u32, u32> = FxHashMap::default();
+        let mut mesh = Mesh::default();
+        let mut counts: FxHashMap<RegionPair, usize> = FxHashMap::default();
+        for &(r, pair) in &tris {
+            let tri = r.map(|v| {
+                *copy.entry((v, pair)).or_insert_with(|| {
+                    let p = pos[v as usize];
+                    mesh.positions.push(p.as_vec3().to_array());
+                    copy_of.push((p, pair));
+                    let id = mesh.positions.len() as u32 - 1;
+                    first_copy.entry(v).or_insert(id);
+                    id
+                })
+            });
+            mesh.triangles.push(tri);
+            mesh.labels.push(pair);
+            *counts.entry(pair).or_default() += 1;
+        }
+        // Normals per copy: area-weighted, from its pair's triangles only.
+        let mut acc = vec![DVec3::ZERO; mesh.positions.len()];
+        for t in &mesh.triangles {
+            let [a, b, c] = t.map(|i| DVec3::from_array(mesh.positions[i as usize].map(f64::from)));
+            let nrm = (b - a).cross(c - a);
+            for &i in t {
+                acc[i as usize] += nrm;
+            }
+        }
+        // Where the region function has a gradient for the pair (the chapter's
+        // `Gradient(p, pair)`), it gives the normal. Its sign is the function's own, so it is
+        // turned, once per pair, to agree with most of the pair's triangles (weighted by
+        // area): per vertex, a few tiny triangles at the curves could turn it the wrong way.
+        let grads: Vec<Option<DVec3>> = copy_of
+            .iter()
+            .map(|&(p, pair)| {
+                let g = self.regions.gradient(p, (pair.0, pair.1))?.normalize_or_zero();
+                (g != DVec3::ZERO).then_some(g)
+            })
+            .collect();
+        let mut agree: FxHashMap<RegionPair, f64> = FxHashMap::default();
+        for ((g, n), &(_, pair)) in grads.iter().zip(&acc).zip(&copy_of) {
+            if let Some(g) = g {
+                *agree.entry(pair).or_default() += g.dot(*n);
+            }
+        }
+        for ((g, n), &(_, pair)) in grads.iter().zip(acc.iter_mut()).zip(&copy_of) {
+            if let Some(g) = g {
+                *n = if agree[&pair] < 0.0 { -*g } else { *g };
+                self.stats.gradient_normals += 1;
+            }
+        }
+        mesh.normals = acc.iter().map(|n| n.normalize_or_zero().as_vec3().to_array()).collect();
+        let mut lengths: FxHashMap<RegionTriple, f64> = FxHashMap::default();
+        for c in &curves {
+            let r = c.v;
+            let (Some(&a), Some(&b)) = (first_copy.get(&r[0]), first_copy.get(&r[1])) else {
+                continue;
+            };
+            let pa = DVec3::from_array(mesh.positions[a as usize].map(f64::from));
+            let pb = DVec3::from_array(mesh.positions[b as usize].map(f64::from));
+            *lengths.entry(c.label).or_default() += pa.distance(pb);
+            mesh.curves.push(CurveEdge { v: [a, b], label: c.label });
+        }
+        let mut per_pair: Vec<(RegionPair, usize)> = counts.into_iter().collect();
+        per_pair.sort_unstable();
+        self.stats.triangles_per_pair = per_pair;
+        let mut per_triple: Vec<(RegionTriple, f64)> = lengths.into_iter().collect();
+        per_triple.sort_by_key(|(t, _)| *t);
+        self.stats.curve_length_per_triple = per_triple;
+        self.stats.vertices = mesh.vertex_count();
+        self.stats.triangles = mesh.triangle_count();
+        mesh
+    }
+}
+
+/// The chapter's second post-process: a vertex closer than `limit` to the opposite side
+/// of one of its triangles (a thin triangle) moves onto that side (to its nearest point
+/// there, not the chapter's midpoint, which can be half a side away); the thin
+/// triangle, now flat, is dropped, and every other triangle on that side is split at the
+/// vertex (so no crack opens: on an intersection curve that is each sheet's triangle),
+/// as is a curve segment along it. One move per vertex and per side, in triangle order.
+fn snap_to_edges(
+    pos: &mut [DVec3],
+    tris: &mut Vec<([u32; 3], RegionPair)>,
+    curves: &mut Vec<CurveEdge>,
+    limit: f64,
+) -> (usize, usize) {
+    let key = |a: u32, b: u32| (a.min(b), a.max(b));
+    let (mut snapped, mut dropped) = (0, 0);
+    let mut touched: FxHashSet<u32> = FxHashSet::default();
+    let mut splits: FxHashMap<(u32, u32), u32> = FxHashMap::default();
+    let mut neighbours: FxHashMap<u32, Vec<u32>> = FxHashMap::default();
+    for (t, _) in tris.iter() {
+        for k in 0..3 {
+            neighbours.entry(t[k]).or_default().extend([t[(k + 1) % 3], t[(k + 2) % 3]]);
+        }
+    }
+    for (t, _) in tris.iter() {
+        for k in 0..3 {
+            let (v, a, b) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+            if touched.contains(&v) || touched.contains(&a) || touched.contains(&b) {
+                continue;
+            }
+            let (pv, pa, pb) = (pos[v as usize], pos[a as usize], pos[b as usize]);
+            let ab = pb - pa;
+            let len2 = ab.length_squared();
+            if len2 == 0.0 {
+                continue;
+            }
+            let s = (pv - pa).dot(ab) / len2;
+            // Near an end it is a short side, the merge's business.
+            if !(0.0..=1.0).contains(&s) || (pa + ab * s).distance(pv) >= limit {
+                continue;
+            }
+            // Nor may the move bring it within `limit` of a neighbour (a short side whose
+            // triangles would have no reliable normal).
+            let q = pa + ab * s;
+            if neighbours[&v].iter().any(|&w| pos[w as usize].distance(q) < limit) {
+                continue;
+            }
+            pos[v as usize] = q;
+            touched.extend([v, a, b]);
+            splits.insert(key(a, b), v);
+            snapped += 1;
+        }
+    }
+    if splits.is_empty() {
+        return (0, 0);
+    }
+    let mut out = Vec::with_capacity(tris.len() + splits.len());
+    for &(t, pair) in tris.iter() {
+        let side = (0..3).find_map(|k| {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            splits.get(&key(a, b)).map(|&v| (k, v))
+        });
+        match side {
+            None => out.push((t, pair)),
+            // The thin triangle itself.
+            Some((_, v)) if t.contains(&v) => dropped += 1,
+            Some((k, v)) => {
+                let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+                out.push(([a, v, c], pair));
+                out.push(([v, b, c], pair));
+            }
+        }
+    }
+    *tris = out;
+    let mut split_curves = Vec::with_capacity(curves.len());
+    for c in curves.iter() {
+        match splits.get(&key(c.v[0], c.v[1])) {
+            Some(&v) => {
+                split_curves.push(CurveEdge { v: [c.v[0], v], label: c.label });
+                split_curves.push(CurveEdge { v: [v, c.v[1]], label: c.label });
+            }
+            None => split_curves.push(*c),
+        }
+    }
+    *curves = split_curves;
+    (snapped, dropped)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_thin_triangles_vertex_moves_onto_the_side_which_is_split() {
+        // A thin triangle (a, b, v), v 0.1 from the middle of a-b, and two sheets beyond a-b
+        // (a non-manifold edge, as on a curve): v moves onto a-b, the thin triangle goes, and
+        // each other triangle on a-b is split at v, so every edge keeps its triangles.
+        let mut pos = vec![
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(10.0, 0.0, 0.0),
+            DVec3::new(4.0, 0.1, 0.0),
+            DVec3::new(5.0, -5.0, 0.0),
+            DVec3::new(5.0, 0.0, 5.0),
+        ];
+        let (p, q) = (RegionPair(1, 2), RegionPair(1, 3));
+        let mut tris = vec![([0, 1, 2], p), ([1, 0, 3], p), ([1, 0, 4], q)];
+        let mut curves = vec![CurveEdge { v: [0, 1], label: RegionTriple([1, 2, 3]) }];
+        let (snapped, dropped) = snap_to_edges(&mut pos, &mut tris, &mut curves, 0.5);
+        assert_eq!((snapped, dropped), (1, 1));
+        assert_eq!(pos[2], DVec3::new(4.0, 0.0, 0.0));
+        assert_eq!(tris, vec![([1, 2, 3], p), ([2, 0, 3], p), ([1, 2, 4], q), ([2, 0, 4], q)]);
+        assert_eq!(curves.iter().map(|c| c.v).collect::<Vec<_>>(), vec![[0, 2], [2, 1]]);
+        // Farther than the limit: nothing moves.
+        let mut tris = vec![([0, 1, 2], p)];
+        pos[2].y = 0.6;
+        assert_eq!(snap_to_edges(&mut pos, &mut tris, &mut Vec::new(), 0.5), (0, 0));
+    }
+}
