@@ -76,8 +76,15 @@ struct CheckArgs {
     #[arg(long)]
     json: bool,
     /// Weld vertices within TOL (default 0: coincident) before the analysis, e.g. to see a
-    /// non-manifold mesh, whose vertices are duplicated per region pair, as one complex.
-    #[arg(long, value_name = "TOL", num_args = 0..=1, default_missing_value = "0")]
+    /// non-manifold mesh, whose vertices are duplicated per region pair, as one complex. The
+    /// tolerance takes an `=` (`--weld=1e-6`), so `--weld MESH` is never read as one.
+    #[arg(
+        long,
+        value_name = "TOL",
+        num_args = 0..=1,
+        require_equals = true,
+        default_missing_value = "0"
+    )]
     weld: Option<f32>,
 }
 

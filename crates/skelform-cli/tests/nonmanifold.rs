@@ -392,10 +392,13 @@ fn saucer_as_glb_keeps_its_three_labels_and_welds_into_one_complex() {
         .collect();
     assert_eq!(labels, surfaces);
     // Welded, the rim's edges have three triangles.
-    let c = skelform(&["check", glb.to_str().unwrap(), "--weld"]);
-    assert!(c.status.success());
+    let c = skelform(&["check", "--weld", glb.to_str().unwrap()]);
+    assert!(c.status.success(), "--weld before the mesh is not its tolerance");
     let text = String::from_utf8_lossy(&c.stdout);
     assert!(text.contains("welded ") && text.contains("(3: "), "{text}");
-    let c = skelform(&["check", glb.to_str().unwrap(), "--weld", "-1"]);
+    let c = skelform(&["check", glb.to_str().unwrap(), "--weld=-1"]);
     assert_eq!(c.status.code(), Some(2));
+    let c = skelform(&["check", glb.to_str().unwrap(), "--weld=1e-45"]);
+    let text = String::from_utf8_lossy(&c.stdout);
+    assert!(text.contains("welded ") && text.contains("(3: "), "{text}");
 }

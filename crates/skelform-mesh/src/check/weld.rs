@@ -1,7 +1,7 @@
 //! Welding coincident vertices: the non-manifold polygonizer gives each sheet its own copy of
 //! a vertex (for its own normal), so topology is only seen after copies are identified.
 
-use std::collections::BTreeMap;
+use std::collections::HashMap;
 
 use crate::mesh::{CurveEdge, Mesh};
 
@@ -11,11 +11,23 @@ use crate::mesh::{CurveEdge, Mesh};
 /// are kept (the checker counts them as degenerate); normals are dropped (a welded vertex
 /// has one per sheet). Deterministic: each vertex joins the lowest-numbered vertex within the
 /// tolerance that is not itself joined to another.
+///
+/// Linear in the vertex count for any tolerance: vertices are hashed into cells of at least
+/// the tolerance and at least 2⁻²⁰ of the mesh's extent, so a tiny (or zero) tolerance
+/// cannot put every vertex into one cell, and only the 27 cells round a vertex are searched.
 pub fn weld(mesh: &Mesh, tolerance: f32) -> (Mesh, usize) {
     let tol = f64::from(tolerance.max(0.0));
-    let cell = if tol > 0.0 { tol } else { 1.0 };
-    let key = |p: [f32; 3]| p.map(|x| (f64::from(x) / cell).floor() as i64);
-    let mut buckets: BTreeMap<[i64; 3], Vec<u32>> = BTreeMap::new();
+    let finite = || mesh.positions.iter().flatten().copied().filter(|x| x.is_finite());
+    let lo = finite().fold(f32::INFINITY, f32::min);
+    let hi = finite().fold(f32::NEG_INFINITY, f32::max);
+    let (lo, extent) =
+        if lo <= hi { (f64::from(lo), f64::from(hi) - f64::from(lo)) } else { (0.0, 0.0) };
+    let cell = tol.max(extent * (-20f64).exp2()).max(f64::from(f32::MIN_POSITIVE));
+    // Within ±2²⁰ (+1) cells of `lo` for finite coordinates; the rest share the edge cells.
+    let key = |p: [f32; 3]| {
+        p.map(|x| ((f64::from(x) - lo) / cell).floor().clamp(-1.0, f64::from(1 << 21)) as i64)
+    };
+    let mut buckets: HashMap<[i64; 3], Vec<u32>> = HashMap::with_capacity(mesh.positions.len());
     let mut rep: Vec<u32> = (0..mesh.positions.len() as u32).collect();
     let mut merged = 0;
     for (i, p) in mesh.positions.iter().enumerate() {
