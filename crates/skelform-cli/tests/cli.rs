@@ -262,6 +262,15 @@ fn bad_input_gets_one_clear_line_and_exit_code() {
         "unknown output format",
         None,
     );
+    // Lattices too large to count are refused with the per-axis limit, by every method.
+    for m in ["grid", "healed", "tetra", "continuation"] {
+        fails(
+            &["mesh", &example("sphere.toml"), "-o", o, "--cell", "1e-19", "--method", m],
+            2,
+            "at most 32768 are allowed along one axis",
+            Some(&out),
+        );
+    }
     // A mistyped thread count once hung a machine starting threads.
     fails(
         &["mesh", &example("sphere.toml"), "-o", o, "--threads", "100000"],

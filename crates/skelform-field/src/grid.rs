@@ -18,15 +18,18 @@ pub const MAX_SAMPLES_PER_AXIS: usize = 1 << 15;
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum GridError {
     #[error(
-        "the domain box must have positive, finite size on every axis (got min {min:?}, max {max:?})"
+        "the domain box must have positive, finite size on every axis and lie within ±3.4e38 (mesh coordinates are 32-bit floats); got min {min:?}, max {max:?}"
     )]
     BadDomain { min: [f64; 3], max: [f64; 3] },
     #[error("the resolution must be at least 2 samples along the longest side (got {0})")]
     BadResolution(usize),
     #[error("the cell size must be positive and finite (got {0})")]
     BadCell(f64),
-    #[error("the grid would have {dims:?} samples; at most {max} are allowed along one axis")]
-    TooLarge { dims: [u64; 3], max: usize },
+    #[error(
+        "the grid would have {} × {} × {} samples; at most {max} are allowed along one axis",
+        count(dims[0]), count(dims[1]), count(dims[2])
+    )]
+    TooLarge { dims: [f64; 3], max: usize },
     #[error("cancelled")]
     Cancelled,
 }
@@ -64,10 +67,15 @@ impl Grid {
         // A relative slack keeps 2.0 / (2.0 / 100) from becoming 101 cells.
         let cells = |len: f64| ((len / cell) * (1.0 - 1e-12)).ceil().max(1.0);
         let n = [cells(size.x), cells(size.y), cells(size.z)];
-        let dims64 = n.map(|c| c as u64 + 1);
-        if dims64.iter().any(|&d| d > MAX_SAMPLES_PER_AXIS as u64) {
-            return Err(GridError::TooLarge { dims: dims64, max: MAX_SAMPLES_PER_AXIS });
+        // Compared as floats: a tiny cell makes counts past u64 (`as` would saturate them and
+        // the `+ 1` overflow), and the message shows them saturated.
+        if n.iter().any(|&c| c >= MAX_SAMPLES_PER_AXIS as f64) {
+            return Err(GridError::TooLarge {
+                dims: n.map(|c| c + 1.0),
+                max: MAX_SAMPLES_PER_AXIS,
+            });
         }
+        let dims64 = n.map(|c| c as u64 + 1);
         let extent = DVec3::new(n[0], n[1], n[2]) * cell;
         let origin = domain.center() - extent * 0.5;
         Ok(Grid { origin, cell, dims: dims64.map(|d| d as usize) })
@@ -106,8 +114,21 @@ impl Grid {
     }
 }
 
+/// A sample count as a person reads it: whole below a billion, else in powers of ten.
+fn count(n: f64) -> String {
+    if n < 1e9 { format!("{n}") } else { format!("{n:.2e}") }
+}
+
+/// Mesh positions are stored as `f32`: a lattice past its range would write infinite
+/// coordinates.
+const LARGEST_COORDINATE: f64 = f32::MAX as f64;
+
 fn check_domain(domain: &Aabb) -> Result<(), GridError> {
-    if domain.is_valid() {
+    let size = domain.size();
+    let in_range = (domain.min.abs().max_element() <= LARGEST_COORDINATE)
+        && (domain.max.abs().max_element() <= LARGEST_COORDINATE)
+        && size.is_finite();
+    if domain.is_valid() && in_range {
         Ok(())
     } else {
         Err(GridError::BadDomain { min: domain.min.to_array(), max: domain.max.to_array() })
@@ -325,6 +346,15 @@ mod tests {
         assert_eq!(Grid::with_resolution(&d, 1), Err(GridError::BadResolution(1)));
         assert!(matches!(Grid::with_cell(&d, 0.0), Err(GridError::BadCell(_))));
         assert!(matches!(Grid::with_cell(&d, 1e-9), Err(GridError::TooLarge { .. })));
+        // Counts past u64 are refused, not wrapped or saturated into a panic.
+        let e = Grid::with_cell(&d, 1e-19).unwrap_err();
+        assert!(e.to_string().contains("2.00e19 × 2.00e19 × 2.00e19"), "{e}");
+        // Boxes whose size overflows, or that reach past f32 coordinates, are bad domains.
+        for (lo, hi) in [(-1e308, 1.0), (-1e308, 1e308), (-1e39, 1e39)] {
+            let b = Aabb::new(DVec3::new(-1.0, -1.0, lo), DVec3::new(1.0, 1.0, hi));
+            assert!(matches!(Grid::with_cell(&b, 0.15), Err(GridError::BadDomain { .. })));
+            assert!(matches!(Grid::with_resolution(&b, 20), Err(GridError::BadDomain { .. })));
+        }
         let flat = Aabb::new(DVec3::ZERO, DVec3::new(1.0, 1.0, 0.0));
         assert!(matches!(Grid::with_cell(&flat, 0.1), Err(GridError::BadDomain { .. })));
     }
