@@ -32,6 +32,7 @@ use skelform_skeleton::Kernel;
 use toml::Spanned;
 
 use crate::SceneError;
+use crate::diag::At;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -103,7 +104,7 @@ impl LeafRegions {
 pub(crate) fn build(
     sec: &Spanned<LeafSection>,
     domain: &Aabb,
-    at: &dyn Fn(usize, String) -> SceneError,
+    at: At,
 ) -> Result<LeafRegions, SceneError> {
     let s = sec.get_ref();
     let section_at = sec.span().start;

@@ -24,6 +24,7 @@
 //!
 //! The format is documented with examples in `docs/SCENES.md`.
 
+mod diag;
 mod leaf;
 mod patch_blend;
 mod pose;
@@ -221,15 +222,6 @@ impl Scene {
     ) -> Result<Scene, SceneError> {
         schema::build(text, origin, options)
     }
-}
-
-/// 1-based line and column (in characters) of a byte offset.
-pub(crate) fn line_col(text: &str, offset: usize) -> (usize, usize) {
-    let offset = offset.min(text.len());
-    let before = &text[..text.floor_char_boundary(offset)];
-    let line = before.matches('\n').count() + 1;
-    let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
-    (line, col)
 }
 
 pub(crate) fn iso_field(formula: Arc<Formula>, iso: f64) -> Arc<dyn Field> {

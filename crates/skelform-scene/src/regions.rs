@@ -27,6 +27,7 @@ use skelform_mesh::{RegionPair, RegionTriple};
 use toml::Spanned;
 
 use crate::SceneError;
+use crate::diag::At;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -94,7 +95,7 @@ pub(crate) type Compile<'a> = dyn Fn(
 /// error, `compile` compiles one formula with the parameters.
 pub(crate) fn build(
     section: &Spanned<RegionsSection>,
-    at: &dyn Fn(usize, String) -> SceneError,
+    at: At,
     compile: &Compile<'_>,
 ) -> Result<Regions, SceneError> {
     let sec = section.get_ref();

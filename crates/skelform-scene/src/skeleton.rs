@@ -30,9 +30,7 @@ use skelform_skeleton::{
 use toml::Spanned;
 
 use crate::SceneError;
-
-/// Makes a positioned error from a byte offset in the scene text.
-pub(crate) type At<'a> = &'a dyn Fn(usize, String) -> SceneError;
+use crate::diag::At;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
