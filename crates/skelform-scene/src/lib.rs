@@ -44,7 +44,7 @@ pub use leaf::LeafRegions;
 pub use pose::{Articulation, REST as REST_POSE};
 pub use regions::Regions;
 pub use schema::{Method, ParseMethodError};
-pub use skeleton::Combine;
+pub use skelform_field::combine::Combine;
 
 /// A loaded, validated scene.
 #[derive(Clone)]

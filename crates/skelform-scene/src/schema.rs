@@ -6,6 +6,7 @@ use std::str::FromStr;
 use std::sync::Arc;
 
 use serde::Deserialize;
+use skelform_field::combine::Combined;
 use skelform_field::formula::Formula;
 use skelform_field::{Aabb, DVec3};
 use skelform_mesh::io::Format;
@@ -314,9 +315,7 @@ pub(crate) fn build(
             sk.field.clone()
         }
         (Some(sk), Some(f)) => match sk.combine {
-            Some((op, _)) => {
-                Arc::new(crate::skeleton::Combined { skeleton: sk.field.clone(), formula: f, op })
-            }
+            Some((op, _)) => Arc::new(Combined::new(sk.field.clone(), f, op)),
             None => {
                 return Err(cx.at(
                     sk.section_at,
