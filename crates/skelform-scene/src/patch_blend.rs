@@ -20,7 +20,7 @@
 
 use serde::Deserialize;
 use skelform_field::DVec3;
-use skelform_field::region::{BicubicPatch, PatchBlend};
+use skelform_leaf::patch::{BicubicPatch, PatchBlend};
 use skelform_mesh::RegionPair;
 use toml::Spanned;
 
