@@ -1,6 +1,6 @@
 //! Region functions: space divided into numbered regions, for non-manifold polygonization.
 //!
-//! Where a [`Field`](crate::Field) says inside or outside, a [`RegionField`] says *which*
+//! Where a [`Field`] says inside or outside, a [`RegionField`] says *which*
 //! region a point is in (dissertation ch. 4). The surfaces between chosen pairs of regions
 //! meet along curves where three or more regions meet.
 
@@ -48,8 +48,14 @@ pub trait RegionField: Send + Sync {
 /// `a < b`, a field whose gradient is normal to the surface between them (see
 /// [`RegionField::gradient`]); pairs without one take the built-in's.
 pub struct OrderedRegions {
+    /// `(region id, field)` in priority order: the first field negative at a point claims
+    /// it, so earlier regions cut into later ones. Ids may repeat (a region made of several
+    /// pieces).
     pub regions: Vec<(u32, Box<dyn Field>)>,
+    /// Where the points that no field claims go.
     pub default: Otherwise,
+    /// `((a, b), field)` with `a < b`: the field whose gradient gives vertex normals on the
+    /// surface between regions `a` and `b`.
     pub gradients: Vec<((u32, u32), Box<dyn Field>)>,
 }
 

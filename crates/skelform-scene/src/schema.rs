@@ -35,6 +35,8 @@ pub enum Method {
 }
 
 impl Method {
+    /// Every method with the name scene files and the command line give it, in the order
+    /// messages list them.
     pub const ALL: &'static [(&'static str, Method)] = &[
         ("grid", Method::Grid),
         ("continuation", Method::Continuation),
@@ -43,6 +45,8 @@ impl Method {
         ("nonmanifold", Method::NonManifold),
     ];
 
+    /// The method's name in scene files (`"nonmanifold"`, ...), which [`str::parse`] reads
+    /// back.
     pub fn name(self) -> &'static str {
         Method::ALL.iter().find(|(_, m)| *m == self).map_or("?", |(n, _)| n)
     }
