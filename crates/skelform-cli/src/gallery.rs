@@ -10,6 +10,7 @@ use std::path::{Component, Path, PathBuf};
 
 use anyhow::anyhow;
 use clap::Args;
+use skelform::mesh::io::atomic;
 use skelform::render::{Renderer, Settings};
 
 use crate::render::{failure, parse_size};
@@ -228,16 +229,6 @@ fn page(a: &GalleryArgs, entries: &[Entry]) -> String {
     s
 }
 
-/// Writes `text` to `path` through a temporary file, so the page is never half written.
-fn write_atomic(path: &Path, text: &str) -> std::io::Result<()> {
-    let tmp = path.with_extension(format!("md.tmp-{}", std::process::id()));
-    let r = std::fs::write(&tmp, text).and_then(|()| std::fs::rename(&tmp, path));
-    if r.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    r
-}
-
 pub fn gallery(a: GalleryArgs) -> Result<(), Failure> {
     let settings = Settings { width: a.size.0, height: a.size.1, ..Settings::default() };
     settings.validate().map_err(failure)?;
@@ -296,7 +287,8 @@ pub fn gallery(a: GalleryArgs) -> Result<(), Failure> {
             let _ = std::fs::remove_file(a.out.join(old));
         }
     }
-    write_atomic(&readme, &page(&a, &entries))
+    // Through a temporary file, so the page is never half written.
+    atomic::write(&readme, page(&a, &entries).as_bytes())
         .map_err(|e| runtime(anyhow!("cannot write {}: {e}", readme.display())))?;
     let failed = entries.iter().filter(|e| e.picture.is_err()).count();
     if !a.run.quiet {

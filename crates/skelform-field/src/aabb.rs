@@ -8,7 +8,10 @@ use glam::DVec3;
 /// mesh is then open along the cut, which `skelform check` reports as boundary edges).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Aabb {
+    /// The corner with the smallest coordinates; [`Aabb::new`] sorts the corners, a literal
+    /// box should keep `min ≤ max` on every axis ([`Aabb::is_valid`] checks it).
     pub min: DVec3,
+    /// The corner with the largest coordinates.
     pub max: DVec3,
 }
 
@@ -23,10 +26,13 @@ impl Aabb {
         Self::new(DVec3::splat(-h), DVec3::splat(h))
     }
 
+    /// The side lengths along x, y and z (negative on an axis where `max < min`).
     pub fn size(&self) -> DVec3 {
         self.max - self.min
     }
 
+    /// The midpoint of the box: lattices are centred on it when the sides are not whole
+    /// multiples of the cell.
     pub fn center(&self) -> DVec3 {
         (self.min + self.max) * 0.5
     }
@@ -37,6 +43,8 @@ impl Aabb {
         self.min.is_finite() && self.max.is_finite() && s.x > 0.0 && s.y > 0.0 && s.z > 0.0
     }
 
+    /// Whether `p` is in the box, faces included (a seed exactly on the domain's boundary is
+    /// accepted). False for a NaN coordinate.
     pub fn contains(&self, p: DVec3) -> bool {
         p.cmpge(self.min).all() && p.cmple(self.max).all()
     }

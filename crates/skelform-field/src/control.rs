@@ -51,6 +51,9 @@ impl Control {
         self.cancelled.store(true, Ordering::Relaxed);
     }
 
+    /// Whether [`Control::cancel`] was called or a callback returned `Break`, for work that
+    /// wants to stop without reporting progress (before a phase starts, say). Clones of a
+    /// control share the flag, so a clone kept by a signal handler cancels the original.
     pub fn is_cancelled(&self) -> bool {
         self.cancelled.load(Ordering::Relaxed)
     }

@@ -179,7 +179,9 @@ impl<F: Fn(DVec3) -> f64 + Send + Sync> Field for FnField<F> {
 /// `f − c`: the level set `f = c` as the zero set.
 #[derive(Clone, Copy, Debug)]
 pub struct Iso<F> {
+    /// The field whose level set is wanted.
     pub field: F,
+    /// The level `c`, subtracted from every value; gradients are the field's own.
     pub iso: f64,
 }
 

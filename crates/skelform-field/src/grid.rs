@@ -17,19 +17,36 @@ pub const MAX_SAMPLES_PER_AXIS: usize = 1 << 15;
 /// Why a grid could not be made or sampled.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum GridError {
+    /// The domain box is empty, inverted or not finite on some axis ([`Aabb::is_valid`]).
     #[error(
         "the domain box must have positive, finite size on every axis and lie within ±3.4e38 (mesh coordinates are 32-bit floats); got min {min:?}, max {max:?}"
     )]
-    BadDomain { min: [f64; 3], max: [f64; 3] },
+    BadDomain {
+        /// The box's `min` corner, as given.
+        min: [f64; 3],
+        /// Its `max` corner.
+        max: [f64; 3],
+    },
+    /// Fewer than 2 samples along the longest side: there would be no cell.
     #[error("the resolution must be at least 2 samples along the longest side (got {0})")]
     BadResolution(usize),
+    /// A cell size that is zero, negative or not finite.
     #[error("the cell size must be positive and finite (got {0})")]
     BadCell(f64),
+    /// More than [`MAX_SAMPLES_PER_AXIS`] samples along an axis: refused before anything is
+    /// allocated, since the volume (or the edge numbering) would not fit.
     #[error(
         "the grid would have {} × {} × {} samples; at most {max} are allowed along one axis",
         count(dims[0]), count(dims[1]), count(dims[2])
     )]
-    TooLarge { dims: [f64; 3], max: usize },
+    TooLarge {
+        /// The samples along x, y, z the domain and cell would need (as floats: a tiny cell
+        /// asks for counts past any integer type).
+        dims: [f64; 3],
+        /// The limit, [`MAX_SAMPLES_PER_AXIS`].
+        max: usize,
+    },
+    /// The [`Control`] asked the sampling to stop.
     #[error("cancelled")]
     Cancelled,
 }
@@ -40,7 +57,10 @@ pub enum GridError {
 /// grown to the next whole cell and centred on the domain, so it always covers the domain.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Grid {
+    /// The position of sample `(0, 0, 0)`, the lattice's lowest corner: the domain's `min`,
+    /// moved out by half of what rounding the sides up to whole cells adds.
     pub origin: DVec3,
+    /// The side of every cell; samples are `cell` apart along each axis.
     pub cell: f64,
     /// Samples (not cells) along x, y, z; each at least 2.
     pub dims: [usize; 3],
@@ -142,6 +162,7 @@ fn check_domain(domain: &Aabb) -> Result<(), GridError> {
 /// so that extraction never interpolates towards NaN; [`Volume::non_finite`] says how many.
 #[derive(Clone, Debug)]
 pub struct Volume {
+    /// The lattice the values were sampled on.
     pub grid: Grid,
     /// `values[grid.index(i, j, k)]`.
     pub values: Vec<f32>,
@@ -160,6 +181,8 @@ impl Volume {
         Volume { grid, values, non_finite }
     }
 
+    /// The (sanitised) value at sample `(i, j, k)`, which must be inside the grid: the
+    /// indices are not checked axis by axis, only the resulting position in `values`.
     #[inline]
     pub fn get(&self, i: usize, j: usize, k: usize) -> f32 {
         self.values[self.grid.index(i, j, k)]
@@ -238,6 +261,9 @@ pub struct LayerSampling<'a> {
 }
 
 impl<'a> LayerSampling<'a> {
+    /// Prepares to sample `field` on `grid`'s layers, with the same coordinates as
+    /// [`Grid::point`] (so the values are [`sample`]'s, bit for bit); the field's sampler does
+    /// here what all layers share.
     pub fn new(field: &'a dyn Field, grid: &Grid) -> Self {
         let [nx, ny, _] = grid.dims;
         // The coordinates as `grid.point` computes them (each axis on its own).

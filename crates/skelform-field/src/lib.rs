@@ -2,8 +2,8 @@
 //!
 //! A [`Field`] maps a point to a number; its zero set is the surface, **negative inside**.
 //! This crate holds the trait and its adapters, the domain box [`Aabb`], regular lattices
-//! and sampling ([`grid`]), the scene formula language ([`formula`]), and progress and
-//! cancellation ([`control`]).
+//! and sampling ([`grid`]), the scene formula language ([`formula`]), sharp Booleans of two
+//! fields ([`combine`]), and progress and cancellation ([`control`]).
 //!
 //! What it guarantees: evaluation is deterministic and thread-safe (`Field: Send + Sync`),
 //! and batch evaluation gives the same numbers as point evaluation. What it does not: a
@@ -22,6 +22,7 @@
 //! ```
 
 pub mod aabb;
+pub mod combine;
 pub mod control;
 pub mod field;
 pub mod formula;

@@ -46,6 +46,7 @@
 pub mod blade;
 mod error;
 pub mod leaf;
+pub mod patch;
 pub mod regions;
 mod rng;
 pub mod veins;
@@ -55,6 +56,7 @@ pub mod web;
 pub use blade::{Blade, BladeDistance, Side};
 pub use error::LeafError;
 pub use leaf::{Leaf, VeinCurve};
+pub use patch::{BicubicPatch, PatchBlend};
 pub use regions::{BladeRegions, Fillet};
 pub use veins::{VeinSegment, Veins};
 pub use venation::{LeafParams, Vein, VeinKind, Venation, wrap};

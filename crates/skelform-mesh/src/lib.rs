@@ -22,5 +22,6 @@
 pub mod check;
 pub mod io;
 pub mod mesh;
+pub mod palette;
 
 pub use mesh::{CurveEdge, Mesh, MeshError, RegionPair, RegionTriple};

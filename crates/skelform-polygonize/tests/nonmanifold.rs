@@ -317,8 +317,8 @@ fn same_mesh_on_any_thread_count() {
 /// centre, through the Rust API; `examples/nonmanifold/patch-blend.toml` is the same blend as
 /// a scene (`[regions.patch_blend]`), with a domain that keeps lattice planes off the patch's
 /// border and its saddle's level.
-fn patch_blend() -> skelform_field::region::PatchBlend {
-    use skelform_field::region::{BicubicPatch, PatchBlend};
+fn patch_blend() -> skelform_leaf::patch::PatchBlend {
+    use skelform_leaf::patch::{BicubicPatch, PatchBlend};
     let patch = BicubicPatch::over_square(|x, y| 0.15 * (x * x - y * y) + 0.1 * x);
     PatchBlend { centre: patch.centre(), patch, radius: 1.0 / 1.4, height: 0.35 }
 }

@@ -1,8 +1,6 @@
 //! The picture: 8-bit sRGB pixels, PNG encoding (the `png` crate), atomic files, and
 //! animated PNG for turntables.
 
-use std::fs;
-use std::io::{self, Write};
 use std::path::Path;
 
 use crate::RenderError;
@@ -106,27 +104,11 @@ pub fn encode(frames: &[Image], delay_ms: u16) -> Result<Vec<u8>, RenderError> {
     Ok(out)
 }
 
-/// Writes `bytes` to a new temporary file beside `path`, syncs it and renames it over
-/// `path`; on any error the temporary file is removed and `path` is untouched.
+/// Writes `bytes` to `path` atomically ([`skelform_mesh::io::atomic`]): a temporary file
+/// beside `path`, synced and renamed over it; on any error `path` is untouched.
 pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), RenderError> {
-    let fail = |source: io::Error| RenderError::Write { path: path.to_path_buf(), source };
-    let file_name = path.file_name().ok_or_else(|| {
-        fail(io::Error::new(io::ErrorKind::InvalidInput, "the path names no file"))
-    })?;
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let (tmp, mut file) = skelform_mesh::io::create_temp(dir, file_name).map_err(fail)?;
-    let result = file.write_all(bytes).and_then(|()| file.sync_all()).and_then(|()| {
-        drop(file);
-        fs::rename(&tmp, path)
-    });
-    if let Err(e) = result {
-        let _ = fs::remove_file(&tmp);
-        return Err(fail(e));
-    }
-    Ok(())
+    skelform_mesh::io::atomic::write(path, bytes)
+        .map_err(|source| RenderError::Write { path: path.to_path_buf(), source })
 }
 
 /// Linear light to an sRGB byte.

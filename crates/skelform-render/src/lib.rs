@@ -53,7 +53,7 @@ mod raster;
 use std::path::PathBuf;
 
 use rayon::prelude::*;
-use skelform_mesh::io::gltf::{SURFACE_COLOUR, region_colour};
+use skelform_mesh::palette::{SURFACE_COLOUR, region_colour};
 use skelform_mesh::{Mesh, MeshError, RegionPair};
 
 pub use camera::{Camera, Projection, View};
@@ -179,7 +179,7 @@ pub struct Settings {
     /// sheet is its region colour darkened.
     pub back: Rgb,
     /// Colours for particular region pairs; others take the shared palette
-    /// ([`skelform_mesh::io::gltf::region_colour`]) in the order of the sorted labels.
+    /// ([`skelform_mesh::palette::region_colour`]) in the order of the sorted labels.
     pub region_colours: Vec<(RegionPair, Rgb)>,
     /// Draw `mesh.curves` as lines of `curve_width` pixels.
     pub curves: bool,

@@ -32,6 +32,7 @@ use skelform_skeleton::Kernel;
 use toml::Spanned;
 
 use crate::SceneError;
+use crate::diag::At;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -73,9 +74,11 @@ struct VeinSpec {
 /// A scene's leaf, ready for the non-manifold polygonizer.
 #[derive(Clone)]
 pub struct LeafRegions {
+    /// The blade and veins as regions: beyond 0, vein 1, above 2, below 3.
     pub field: Arc<BladeRegions>,
     /// The surfaces of interest: (0,1), (1,2), (1,3), (2,3) (only (2,3) without veins).
     pub interest: Vec<RegionPair>,
+    /// `[leaf] full_grid`: visit every cube instead of propagating from the seeds below.
     pub full_grid: bool,
     /// Web polygons, refined polygons and blade triangles.
     pub stats: WebStats,
@@ -95,6 +98,8 @@ impl std::fmt::Debug for LeafRegions {
 }
 
 impl LeafRegions {
+    /// The region function as the polygonizer takes it, sharing the blade (its triangles
+    /// and their hierarchy are not copied).
     pub fn region_field(&self) -> Arc<dyn RegionField> {
         self.field.clone()
     }
@@ -103,7 +108,7 @@ impl LeafRegions {
 pub(crate) fn build(
     sec: &Spanned<LeafSection>,
     domain: &Aabb,
-    at: &dyn Fn(usize, String) -> SceneError,
+    at: At,
 ) -> Result<LeafRegions, SceneError> {
     let s = sec.get_ref();
     let section_at = sec.span().start;

@@ -24,6 +24,7 @@
 //!
 //! The format is documented with examples in `docs/SCENES.md`.
 
+mod diag;
 mod leaf;
 mod patch_blend;
 mod pose;
@@ -43,21 +44,33 @@ pub use leaf::LeafRegions;
 pub use pose::{Articulation, REST as REST_POSE};
 pub use regions::Regions;
 pub use schema::{Method, ParseMethodError};
-pub use skeleton::Combine;
+pub use skelform_field::combine::Combine;
 
 /// A loaded, validated scene.
 #[derive(Clone)]
 pub struct Scene {
     /// Where it came from (for messages); `"<string>"` when parsed from text.
     pub origin: String,
+    /// `[scene] name`: a title for the gallery and `skelform info`, in place of the file
+    /// name.
     pub name: Option<String>,
+    /// `[scene] description`: a sentence on what the scene shows, printed by `skelform info`.
     pub description: Option<String>,
     /// The dissertation figure the scene reproduces (`figure = "3.12"` in `[scene]`), shown
     /// beside its picture in the gallery.
     pub figure: Option<String>,
+    /// `[domain]`: the box the polygonizer may visit; a surface that leaves it is cut open
+    /// there.
     pub domain: Aabb,
+    /// How finely to mesh: `[mesh] resolution` (samples along the domain's longest side) or
+    /// `cell` (a cell size), never both; 128 samples when the file gives neither.
     pub resolution: Resolution,
+    /// `[mesh] method`, the polygonizer the scene is meant for (the command line's
+    /// `--method` overrides it); [`Method::Grid`] when absent.
     pub method: Method,
+    /// `[mesh] refine` (default true): move vertices onto the surface by root finding on
+    /// the field; false keeps the linear interpolation along lattice edges, which is faster
+    /// and shows what refinement buys.
     pub refine: bool,
     /// Root-finding tolerance as a fraction of the cell.
     pub tolerance: f64,
@@ -81,7 +94,10 @@ pub struct Scene {
     /// The compiled formula (before the iso value), for `skelform info`; the constant `1`
     /// when the scene has a skeleton and no `[field]`.
     pub formula: Arc<Formula>,
+    /// The level the surface is taken at: `[field] iso` (default 0), or the skeleton's own
+    /// when there is no formula. Already subtracted in `field`; kept for `skelform info`.
     pub iso: f64,
+    /// What `[output]` asks for (file, format, text or binary, normals).
     pub output: Output,
     /// Joints and poses, when the skeleton has them: the pose the field was built in and
     /// the others a load could ask for ([`LoadOptions::pose`]).
@@ -112,10 +128,24 @@ impl std::fmt::Debug for Scene {
 /// Settings that only the continuation polygonizer reads.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Continuation {
+    /// Where propagation starts: `[mesh] seeds` (each checked to be inside the domain) or,
+    /// when the file gives none, a point on each skeleton element or on the leaf. Empty: the
+    /// polygonizer searches the domain for the surface.
     pub seeds: Vec<skelform_field::DVec3>,
+    /// `[mesh] root`: how an edge's crossing is found, regula falsi (the default,
+    /// superlinear on smooth fields) or bisection (the dissertation's, one bit of position
+    /// per evaluation whatever the field).
     pub root: skelform_polygonize::refine::RootMethod,
+    /// `[mesh] max_cells`: the most cubes to visit before stopping (the mesh is then open
+    /// where propagation stopped); `None` takes the polygonizer's budget. The non-manifold
+    /// method reads it too, and `--max-cells` overrides it.
     pub max_cells: Option<u64>,
+    /// `[mesh] limit`: how many cubes propagation may go from each component's first cube,
+    /// for surfaces that are unbounded within the domain; `None` for no limit.
     pub limit: Option<u32>,
+    /// `[mesh] search_stride`: the stride, in cells, of the coarse search for the surface
+    /// when there are no seeds (larger is faster but may miss small parts); `None` takes the
+    /// polygonizer's. The non-manifold method reads it too.
     pub search_stride: Option<usize>,
 }
 
@@ -136,34 +166,64 @@ pub struct Healed {
 pub struct Output {
     /// Default output file, relative to the scene file's folder.
     pub file: Option<PathBuf>,
+    /// `[output] format`: when the scene's own `file` is used, its extension must name this
+    /// format (a mismatch is an error rather than a file in the wrong format); `None` lets
+    /// the extension decide.
     pub format: Option<Format>,
+    /// `[output] ascii`: PLY as text instead of binary (as `--ascii` does).
     pub ascii: bool,
+    /// `[output] normals` (default true): write per-vertex normals where the format keeps
+    /// them; `--no-normals` turns them off whatever the scene says.
     pub normals: bool,
 }
 
 /// A scene that cannot be used, with where and why.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
+    /// The scene file could not be read.
     #[error("{path}: {source}")]
     Io {
+        /// The file, as it was given.
         path: String,
+        /// Why the system could not read it.
         #[source]
         source: std::io::Error,
     },
     /// Anything wrong inside the file: syntax, unknown key, bad value, bad formula.
     #[error("{path}:{line}:{column}: {message}")]
-    At { path: String, line: usize, column: usize, message: String },
+    At {
+        /// The file, as it was given (`<string>` for text parsed directly).
+        path: String,
+        /// 1-based line of the offending value.
+        line: usize,
+        /// 1-based column, counted in characters as editors count them.
+        column: usize,
+        /// What is wrong and what was expected, without the position.
+        message: String,
+    },
+    /// The scene cannot be used as asked, with no one place in the file to blame: a pose
+    /// the command line asks for that the scene does not define, or a posed skeleton that
+    /// cannot be built.
     #[error("{path}: {message}")]
-    Invalid { path: String, message: String },
+    Invalid {
+        /// The file, as it was given.
+        path: String,
+        /// What is wrong.
+        message: String,
+    },
 }
 
 /// What the non-manifold polygonizer needs from a scene's `[regions]` or `[leaf]`.
 pub struct NonManifoldSetup {
+    /// The region function: the scene's region formulas in order (with the default region
+    /// or the patch blend behind them), or the leaf's blade and veins.
     pub field: Arc<dyn skelform_field::RegionField>,
     /// Surfaces of interest (region pairs).
     pub interest: Vec<skelform_mesh::RegionPair>,
     /// Curves of interest (region triples); empty: every curve between surfaces of interest.
     pub curves: Vec<skelform_mesh::RegionTriple>,
+    /// `full_grid`: visit every cube of the domain instead of propagating from seeds;
+    /// slower, but it finds surfaces that no seed leads to.
     pub full_grid: bool,
     /// Resolve looped intersections (beyond the chapter).
     pub loops: bool,
@@ -221,15 +281,6 @@ impl Scene {
     ) -> Result<Scene, SceneError> {
         schema::build(text, origin, options)
     }
-}
-
-/// 1-based line and column (in characters) of a byte offset.
-pub(crate) fn line_col(text: &str, offset: usize) -> (usize, usize) {
-    let offset = offset.min(text.len());
-    let before = &text[..text.floor_char_boundary(offset)];
-    let line = before.matches('\n').count() + 1;
-    let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
-    (line, col)
 }
 
 pub(crate) fn iso_field(formula: Arc<Formula>, iso: f64) -> Arc<dyn Field> {

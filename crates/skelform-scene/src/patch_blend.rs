@@ -20,11 +20,12 @@
 
 use serde::Deserialize;
 use skelform_field::DVec3;
-use skelform_field::region::{BicubicPatch, PatchBlend};
+use skelform_leaf::patch::{BicubicPatch, PatchBlend};
 use skelform_mesh::RegionPair;
 use toml::Spanned;
 
 use crate::SceneError;
+use crate::diag::At;
 
 /// The region ids of a patch blend: beyond, bump, above, below.
 pub(crate) const IDS: [u32; 4] = [0, 1, 2, 3];
@@ -50,10 +51,7 @@ pub(crate) struct PatchBlendSection {
 
 /// Checks the table and makes the region function; `at(offset, message)` makes a
 /// positioned error.
-pub(crate) fn build(
-    sec: &PatchBlendSection,
-    at: &dyn Fn(usize, String) -> SceneError,
-) -> Result<PatchBlend, SceneError> {
+pub(crate) fn build(sec: &PatchBlendSection, at: At) -> Result<PatchBlend, SceneError> {
     let rows = sec.control.get_ref();
     let shape = "a bicubic patch has 4 rows of 4 control points [x, y, z]";
     if rows.len() != 4 {

@@ -36,7 +36,7 @@ use skelform_skeleton::{Articulated, JointId, Pose, Skeleton, SkeletonError};
 use toml::Spanned;
 
 use crate::SceneError;
-use crate::skeleton::At;
+use crate::diag::At;
 
 /// The pose that every scene with joints has: each joint at its default angles.
 pub const REST: &str = "rest";

@@ -27,6 +27,7 @@ use skelform_mesh::{RegionPair, RegionTriple};
 use toml::Spanned;
 
 use crate::SceneError;
+use crate::diag::At;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -61,11 +62,14 @@ struct RegionEntry {
 /// A scene's regions, ready for the non-manifold polygonizer.
 #[derive(Clone)]
 pub struct Regions {
+    /// The region formulas in order, with the default region or the patch blend behind
+    /// them and the per-pair gradient formulas.
     pub field: Arc<OrderedRegions>,
     /// The region pairs to polygonize; empty means every pair that occurs.
     pub interest: Vec<RegionPair>,
     /// The intersection curves to output; empty means every one that occurs.
     pub curves: Vec<RegionTriple>,
+    /// `[regions] full_grid`: visit every cube instead of propagating from seeds.
     pub full_grid: bool,
     /// Keep looped crossings instead of the chapter's truncation (see
     /// `skelform_polygonize::nonmanifold::Options::loops`).
@@ -94,7 +98,7 @@ pub(crate) type Compile<'a> = dyn Fn(
 /// error, `compile` compiles one formula with the parameters.
 pub(crate) fn build(
     section: &Spanned<RegionsSection>,
-    at: &dyn Fn(usize, String) -> SceneError,
+    at: At,
     compile: &Compile<'_>,
 ) -> Result<Regions, SceneError> {
     let sec = section.get_ref();

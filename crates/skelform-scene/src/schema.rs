@@ -6,13 +6,15 @@ use std::str::FromStr;
 use std::sync::Arc;
 
 use serde::Deserialize;
+use skelform_field::combine::Combined;
 use skelform_field::formula::Formula;
 use skelform_field::{Aabb, DVec3};
 use skelform_mesh::io::Format;
 use skelform_polygonize::grid::Resolution;
 use toml::Spanned;
 
-use crate::{Continuation, Healed, Output, Scene, SceneError, iso_field, line_col};
+use crate::diag::Source;
+use crate::{Continuation, Healed, Output, Scene, SceneError, iso_field};
 use skelform_polygonize::refine::RootMethod;
 
 /// Which polygonizer a scene asks for.
@@ -33,6 +35,8 @@ pub enum Method {
 }
 
 impl Method {
+    /// Every method with the name scene files and the command line give it, in the order
+    /// messages list them.
     pub const ALL: &'static [(&'static str, Method)] = &[
         ("grid", Method::Grid),
         ("continuation", Method::Continuation),
@@ -41,6 +45,8 @@ impl Method {
         ("nonmanifold", Method::NonManifold),
     ];
 
+    /// The method's name in scene files (`"nonmanifold"`, ...), which [`str::parse`] reads
+    /// back.
     pub fn name(self) -> &'static str {
         Method::ALL.iter().find(|(_, m)| *m == self).map_or("?", |(n, _)| n)
     }
@@ -144,28 +150,13 @@ struct OutputSection {
 /// Default samples along the longest side when a scene states neither resolution nor cell.
 pub const DEFAULT_RESOLUTION: usize = 128;
 
-struct Ctx<'a> {
-    text: &'a str,
-    origin: &'a str,
-}
-
-impl Ctx<'_> {
-    fn at(&self, offset: usize, message: impl Into<String>) -> SceneError {
-        let (line, column) = line_col(self.text, offset);
-        SceneError::At { path: self.origin.to_string(), line, column, message: message.into() }
-    }
-}
-
 pub(crate) fn build(
     text: &str,
     origin: &str,
     options: &crate::LoadOptions,
 ) -> Result<Scene, SceneError> {
-    let cx = Ctx { text, origin };
-    let file: File = toml::from_str(text).map_err(|e| {
-        let offset = e.span().map_or(0, |s| s.start);
-        cx.at(offset, plain_types(e.message().trim_end()).replace('\n', "; "))
-    })?;
+    let cx = Source { text, origin };
+    let file: File = toml::from_str(text).map_err(|e| cx.toml_error(&e))?;
 
     let d = file.domain.get_ref();
     let (min, max) = (DVec3::from_array(*d.min.get_ref()), DVec3::from_array(*d.max.get_ref()));
@@ -328,9 +319,7 @@ pub(crate) fn build(
             sk.field.clone()
         }
         (Some(sk), Some(f)) => match sk.combine {
-            Some((op, _)) => {
-                Arc::new(crate::skeleton::Combined { skeleton: sk.field.clone(), formula: f, op })
-            }
+            Some((op, _)) => Arc::new(Combined::new(sk.field.clone(), f, op)),
             None => {
                 return Err(cx.at(
                     sk.section_at,
@@ -406,7 +395,7 @@ pub(crate) fn build(
 
 /// The continuation polygonizer's settings, checked.
 fn continuation_settings(
-    cx: &Ctx,
+    cx: &Source,
     mesh: &MeshSection,
     domain: &Aabb,
 ) -> Result<Continuation, SceneError> {
@@ -448,7 +437,7 @@ fn continuation_settings(
 }
 
 /// The healed polygonizer's settings, checked.
-fn healed_settings(cx: &Ctx, mesh: &MeshSection) -> Result<Healed, SceneError> {
+fn healed_settings(cx: &Source, mesh: &MeshSection) -> Result<Healed, SceneError> {
     let positive = |v: &Option<Spanned<f64>>, what: &str| -> Result<Option<f64>, SceneError> {
         match v {
             Some(x) if !(x.get_ref().is_finite() && *x.get_ref() > 0.0) => Err(cx.at(
@@ -473,7 +462,7 @@ fn parse_format(s: &str) -> Option<Format> {
 
 /// Compiles the formula and maps its error position into the scene file.
 fn compile_formula(
-    cx: &Ctx,
+    cx: &Source,
     src: &Spanned<String>,
     params: &[(String, f64)],
     params_at: Option<usize>,
@@ -485,47 +474,6 @@ fn compile_formula(
             cx.at(params_at.unwrap_or(src.span().start), format!("parameters: {}", e.message()))
         );
     }
-    Formula::parse_with_constants(src.get_ref(), &constants).map_err(|e| {
-        let content = content_start(cx.text, src.span().start);
-        let (line0, col0) = line_col(cx.text, content);
-        // Formula positions to file positions: the first line starts at the content's column.
-        let to_file =
-            |l: usize, c: usize| if l == 1 { (line0, col0 + c - 1) } else { (line0 + l - 1, c) };
-        let (line, column) = to_file(e.line(), e.column());
-        SceneError::At {
-            path: cx.origin.to_string(),
-            line,
-            column,
-            message: e.message_mapped(to_file),
-        }
-    })
-}
-
-/// serde names Rust types in its messages; say what they mean instead.
-fn plain_types(message: &str) -> String {
-    message
-        .replace("expected i64", "expected a whole number")
-        .replace("expected f64", "expected a number")
-        .replace("expected a sequence", "expected an array")
-        .replace("expected an array of length 3", "expected an array of three numbers")
-}
-
-/// Byte offset where a TOML string's content starts, given where its literal starts.
-fn content_start(text: &str, literal: usize) -> usize {
-    let rest = &text[literal.min(text.len())..];
-    let skip = if rest.starts_with("\"\"\"") || rest.starts_with("'''") {
-        let after = &rest[3..];
-        3 + if after.starts_with("\r\n") {
-            2
-        } else if after.starts_with('\n') {
-            1
-        } else {
-            0
-        }
-    } else if rest.starts_with('"') || rest.starts_with('\'') {
-        1
-    } else {
-        0
-    };
-    literal + skip
+    Formula::parse_with_constants(src.get_ref(), &constants)
+        .map_err(|e| cx.formula_error(src.span().start, &e))
 }

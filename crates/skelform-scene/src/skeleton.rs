@@ -21,7 +21,8 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 
 use serde::Deserialize;
-use skelform_field::{Aabb, DVec3, Field, LayerSampler};
+use skelform_field::DVec3;
+use skelform_field::combine::Combine;
 use skelform_skeleton::{
     Blend, CubicCurve, DEFAULT_IMAGE_RESOLUTION, Element, Falloff, GroupId, Kernel,
     MAX_IMAGE_RESOLUTION, Polygon, PolygonMethod, Segment, Shape, Skeleton, SkeletonError,
@@ -30,9 +31,7 @@ use skelform_skeleton::{
 use toml::Spanned;
 
 use crate::SceneError;
-
-/// Makes a positioned error from a byte offset in the scene text.
-pub(crate) type At<'a> = &'a dyn Fn(usize, String) -> SceneError;
+use crate::diag::At;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -168,17 +167,6 @@ struct PolygonSpec {
     image_resolution: Option<Spanned<i64>>,
     /// The joint whose frame the element is written in.
     joint: Option<Spanned<String>>,
-}
-
-/// How a skeleton and a formula in the same scene make one surface.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Combine {
-    /// Inside either: `min(skeleton, formula)`.
-    Union,
-    /// Inside both: `max(skeleton, formula)`.
-    Intersection,
-    /// Inside the skeleton and outside the formula: `max(skeleton, −formula)`.
-    Difference,
 }
 
 /// A skeleton section, built.
@@ -649,141 +637,6 @@ fn set_strength(
 fn unknown_group(name: &str, skeleton: &Skeleton) -> String {
     let known: Vec<&str> = skeleton.groups().iter().map(|g| g.name.as_str()).collect();
     format!("unknown group '{name}'; declare it in [skeleton.groups] (known: {})", known.join(", "))
-}
-
-/// A skeleton and a formula combined by [`Combine`]; both already inside-negative.
-pub(crate) struct Combined {
-    pub skeleton: Arc<dyn Field>,
-    pub formula: Arc<dyn Field>,
-    pub op: Combine,
-}
-
-impl Combined {
-    /// `eval(field, out)` of both fields, combined into `out`.
-    fn pick_all(&self, out: &mut [f64], eval: impl Fn(&dyn Field, &mut [f64])) {
-        pick_all(self.op, out, |skeleton, out| {
-            eval(if skeleton { &*self.skeleton } else { &*self.formula }, out)
-        });
-    }
-
-    fn pick(&self, s: f64, f: f64) -> (f64, bool) {
-        pick(self.op, s, f)
-    }
-}
-
-/// Both operands' values (`eval(true, out)`: the skeleton's), combined by `op` into `out`.
-fn pick_all(op: Combine, out: &mut [f64], eval: impl Fn(bool, &mut [f64])) {
-    let mut other = vec![0.0; out.len()];
-    eval(true, out);
-    eval(false, &mut other);
-    for (o, f) in out.iter_mut().zip(other) {
-        *o = pick(op, *o, f).0;
-    }
-}
-
-/// The combined value of skeleton value `s` and formula value `f`, and which operand it came
-/// from (true: the skeleton).
-#[inline]
-fn pick(op: Combine, s: f64, f: f64) -> (f64, bool) {
-    match op {
-        Combine::Union => {
-            if f < s {
-                (f, false)
-            } else {
-                (s, true)
-            }
-        }
-        Combine::Intersection => {
-            if f > s {
-                (f, false)
-            } else {
-                (s, true)
-            }
-        }
-        Combine::Difference => {
-            if -f > s {
-                (-f, false)
-            } else {
-                (s, true)
-            }
-        }
-    }
-}
-
-/// [`Combined`]'s sampler: both operands' samplers, combined.
-struct CombinedSampler<'a> {
-    skeleton: Box<dyn LayerSampler + 'a>,
-    formula: Box<dyn LayerSampler + 'a>,
-    op: Combine,
-}
-
-impl LayerSampler for CombinedSampler<'_> {
-    fn layer(&self, z: f64, rows: std::ops::Range<usize>, out: &mut [f64]) {
-        pick_all(self.op, out, |skeleton, out| {
-            let s = if skeleton { &self.skeleton } else { &self.formula };
-            s.layer(z, rows.clone(), out)
-        });
-    }
-}
-
-impl Field for Combined {
-    fn eval(&self, p: DVec3) -> f64 {
-        self.pick(self.skeleton.eval(p), self.formula.eval(p)).0
-    }
-
-    fn eval_many(&self, points: &[DVec3], out: &mut [f64]) {
-        self.pick_all(out, |f, out| f.eval_many(points, out));
-    }
-
-    fn eval_layer(&self, xs: &[f64], ys: &[f64], z: f64, out: &mut [f64]) {
-        self.pick_all(out, |f, out| f.eval_layer(xs, ys, z, out));
-    }
-
-    fn sampler<'a>(&'a self, xs: &[f64], ys: &[f64]) -> Box<dyn LayerSampler + 'a> {
-        Box::new(CombinedSampler {
-            skeleton: self.skeleton.sampler(xs, ys),
-            formula: self.formula.sampler(xs, ys),
-            op: self.op,
-        })
-    }
-
-    fn gradient(&self, p: DVec3) -> DVec3 {
-        let (s, f) = (self.skeleton.eval(p), self.formula.eval(p));
-        match self.pick(s, f) {
-            (_, true) => self.skeleton.gradient(p),
-            (_, false) if self.op == Combine::Difference => -self.formula.gradient(p),
-            _ => self.formula.gradient(p),
-        }
-    }
-
-    fn eval_grad_many(&self, points: &[DVec3], values: &mut [f64], grads: &mut [DVec3]) {
-        let n = points.len();
-        let (mut fv, mut fg) = (vec![0.0; n], vec![DVec3::ZERO; n]);
-        self.skeleton.eval_grad_many(points, values, grads);
-        self.formula.eval_grad_many(points, &mut fv, &mut fg);
-        for i in 0..n {
-            let (v, from_skeleton) = self.pick(values[i], fv[i]);
-            values[i] = v;
-            if !from_skeleton {
-                grads[i] = if self.op == Combine::Difference { -fg[i] } else { fg[i] };
-            }
-        }
-    }
-
-    fn gradient_step(&self) -> f64 {
-        self.skeleton.gradient_step().min(self.formula.gradient_step())
-    }
-
-    fn has_exact_gradient(&self) -> bool {
-        self.skeleton.has_exact_gradient() && self.formula.has_exact_gradient()
-    }
-
-    fn bounds(&self) -> Option<Aabb> {
-        match self.op {
-            Combine::Union => None,
-            Combine::Intersection | Combine::Difference => self.skeleton.bounds(),
-        }
-    }
 }
 
 #[cfg(test)]

@@ -6,7 +6,7 @@ use std::path::Path;
 
 use glam::DVec3;
 use skelform_field::RegionField;
-use skelform_field::region::{BicubicPatch, PatchBlend};
+use skelform_leaf::patch::{BicubicPatch, PatchBlend};
 use skelform_mesh::RegionPair;
 use skelform_scene::{Scene, SceneError};
 

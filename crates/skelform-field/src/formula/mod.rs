@@ -94,9 +94,11 @@
 mod compile;
 mod eval;
 mod lexer;
+mod ops;
 mod parser;
 #[cfg(test)]
 mod tests;
+mod trig;
 
 use std::fmt;
 

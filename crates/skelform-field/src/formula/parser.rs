@@ -15,8 +15,9 @@
 use std::collections::HashMap;
 
 use super::FormulaError;
-use super::compile::{BinOp, Builder, Id, UnOp};
+use super::compile::{Builder, Id};
 use super::lexer::{Tok, Token, tokenize};
+use super::ops::{BinOp, UnOp};
 
 /// Deepest nesting of parentheses, calls, unary operators and exponents. Keeps the parser's
 /// recursion (and so its stack use) bounded on any input.

@@ -177,7 +177,7 @@ fn sine_and_cosine_are_accurate() {
     for range in [1e-8, 0.1, 1.0, 4.0, 100.0, 1e4, 8e5] {
         for _ in 0..20_000 {
             let a = rng.uniform(-range, range);
-            let (s, c) = (eval::lane::sin(a), eval::lane::cos(a));
+            let (s, c) = (ops::lane::sin(a), ops::lane::cos(a));
             // Near a zero the libm value is tiny; compare absolutely there.
             for (got, want) in [(s, a.sin()), (c, a.cos())] {
                 if want.abs() > 1e-3 {
@@ -194,13 +194,13 @@ fn sine_and_cosine_are_accurate() {
     assert!(worst <= 2, "worst error {worst} ulps");
     // Special values and the libm fallback beyond the fast range.
     for a in [0.0, -0.0, 1e6, -3e9, 1e300, f64::MAX, f64::INFINITY, f64::NEG_INFINITY, f64::NAN] {
-        assert!(same(eval::lane::sin(a), a.sin()) && same(eval::lane::cos(a), a.cos()), "{a}");
+        assert!(same(ops::lane::sin(a), a.sin()) && same(ops::lane::cos(a), a.cos()), "{a}");
     }
-    assert!(eval::lane::sin(-0.0).is_sign_negative());
+    assert!(ops::lane::sin(-0.0).is_sign_negative());
     // Exact quadrant values.
-    assert_eq!(eval::lane::cos(0.0), 1.0);
-    assert_eq!(eval::lane::sin(PI / 2.0), 1.0);
-    assert_eq!(eval::lane::cos(PI), -1.0);
+    assert_eq!(ops::lane::cos(0.0), 1.0);
+    assert_eq!(ops::lane::sin(PI / 2.0), 1.0);
+    assert_eq!(ops::lane::cos(PI), -1.0);
 }
 
 #[test]
@@ -844,8 +844,8 @@ impl T {
                     "sqrt" => v[0].sqrt(),
                     "exp" => v[0].exp(),
                     "ln" | "log" => v[0].ln(),
-                    "sin" => eval::lane::sin(v[0]),
-                    "cos" => eval::lane::cos(v[0]),
+                    "sin" => ops::lane::sin(v[0]),
+                    "cos" => ops::lane::cos(v[0]),
                     "tan" => v[0].tan(),
                     "asin" => v[0].asin(),
                     "acos" => v[0].acos(),

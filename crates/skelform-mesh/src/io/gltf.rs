@@ -29,29 +29,7 @@ use serde_json::{Value, json};
 
 use super::{IoError, Welder, WriteOptions, buffered, finish};
 use crate::mesh::{CurveEdge, Mesh, RegionPair, RegionTriple};
-
-/// Colours for region pairs, in the order of the sorted distinct labels of a mesh (sRGB).
-/// Shared by the glTF writer and the renderer, so files and pictures agree.
-pub const REGION_COLOURS: [[u8; 3]; 10] = [
-    [84, 140, 204],
-    [230, 142, 62],
-    [104, 176, 96],
-    [206, 86, 86],
-    [152, 118, 196],
-    [72, 178, 178],
-    [214, 182, 72],
-    [210, 124, 172],
-    [140, 110, 82],
-    [150, 150, 150],
-];
-
-/// The colour of an unlabelled surface (sRGB).
-pub const SURFACE_COLOUR: [u8; 3] = [176, 192, 214];
-
-/// The colour of the `index`-th distinct region pair of a mesh (sorted order), cycling.
-pub fn region_colour(index: usize) -> [u8; 3] {
-    REGION_COLOURS[index % REGION_COLOURS.len()]
-}
+use crate::palette::{SURFACE_COLOUR, region_colour};
 
 const MAGIC: u32 = 0x4654_6C67; // "glTF"
 const CHUNK_JSON: u32 = 0x4E4F_534A; // "JSON"

@@ -1,8 +1,9 @@
 //! Mesh readers and writers: PLY, OBJ, STL and binary glTF.
 //!
-//! Writers to a path are atomic: the mesh is written into a temporary file in the target
-//! directory (`.NAME.tmp-PID-N`), flushed and synced, then renamed over the target. On any
-//! error the temporary file is removed and the target is left as it was.
+//! Writers to a path are atomic ([`atomic`], which every file skelform writes goes
+//! through): the mesh is written into a temporary file in the target directory
+//! (`.NAME.tmp-PID-N`), flushed and synced, then renamed over the target. On any error the
+//! temporary file is removed and the target is left as it was.
 //!
 //! Readers take whole files written by other programs (see each module for what is
 //! accepted) and never panic on malformed input: every error says where (the line for text,
@@ -12,10 +13,10 @@ use std::fmt;
 use std::fs;
 use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::mesh::{Mesh, MeshError};
 
+pub mod atomic;
 pub mod gltf;
 pub mod obj;
 pub mod ply;
@@ -241,64 +242,12 @@ pub fn write_mesh(
     opts: &WriteOptions,
 ) -> Result<(), IoError> {
     mesh.validate().map_err(|e| IoError::invalid(e).with_path(path))?;
-    let file_name = path.file_name().ok_or_else(|| {
-        IoError::write(io::Error::new(io::ErrorKind::InvalidInput, "the path names no file"))
-            .with_path(path)
-    })?;
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let (tmp, file) = create_temp(dir, file_name).map_err(|e| IoError::write(e).with_path(path))?;
-    let result = (|| {
-        let mut file = file;
-        write_mesh_to(&mut file, mesh, format, opts)?;
-        file.sync_all().map_err(IoError::write)?;
-        drop(file);
-        fs::rename(&tmp, path).map_err(IoError::write)
-    })();
-    match result {
-        Ok(()) => {
-            sync_dir(dir);
-            Ok(())
-        }
-        Err(e) => {
-            let _ = fs::remove_file(&tmp);
-            Err(e.with_path(path))
-        }
-    }
-}
-
-/// Creates a new temporary file `DIR/.NAME.tmp-PID-N` that did not exist before: the first
-/// step of every atomic write in skelform (meshes here, pictures in `skelform-render`).
-pub fn create_temp(dir: &Path, file_name: &std::ffi::OsStr) -> io::Result<(PathBuf, fs::File)> {
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let pid = std::process::id();
-    let mut attempts = 0;
-    loop {
-        attempts += 1;
-        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-        let mut name = std::ffi::OsString::from(".");
-        name.push(file_name);
-        name.push(format!(".tmp-{pid}-{n}"));
-        let tmp = dir.join(name);
-        match fs::OpenOptions::new().write(true).create_new(true).open(&tmp) {
-            Ok(f) => return Ok((tmp, f)),
-            Err(e) if e.kind() == io::ErrorKind::AlreadyExists && attempts < 100 => continue,
-            Err(e) => return Err(e),
-        }
-    }
-}
-
-/// Makes the rename durable where the platform allows it; failures are not errors (the file
-/// itself is complete and synced).
-fn sync_dir(dir: &Path) {
-    #[cfg(unix)]
-    if let Ok(d) = fs::File::open(dir) {
-        let _ = d.sync_all();
-    }
-    #[cfg(not(unix))]
-    let _ = dir;
+    atomic::write_with(path, |file| write_mesh_to(file, mesh, format, opts))
+        .map_err(|e| match e {
+            atomic::AtomicError::Io(e) => IoError::write(e),
+            atomic::AtomicError::Write(e) => e,
+        })
+        .map_err(|e| e.with_path(path))
 }
 
 /// A buffered writer over `w` for the format writers.
