@@ -20,6 +20,7 @@
 //! let volume = sample(&f, &grid, &Control::default()).unwrap();
 //! assert_eq!(volume.values.len(), 16 * 16 * 16);
 //! ```
+#![warn(missing_docs)]
 
 pub mod aabb;
 pub mod combine;

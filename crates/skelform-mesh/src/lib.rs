@@ -18,6 +18,7 @@
 //! assert!(report.is_closed_manifold());
 //! assert_eq!(report.components[0].genus, Some(0));
 //! ```
+#![warn(missing_docs)]
 
 pub mod check;
 pub mod io;

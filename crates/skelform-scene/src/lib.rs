@@ -23,6 +23,7 @@
 //! ```
 //!
 //! The format is documented with examples in `docs/SCENES.md`.
+#![warn(missing_docs)]
 
 mod diag;
 mod leaf;

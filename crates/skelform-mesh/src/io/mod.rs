@@ -101,25 +101,63 @@ impl Default for WriteOptions {
 pub enum IoError {
     /// The file could not be opened or read.
     #[error("cannot read{}: {source}", name(.path))]
-    Read { path: Option<PathBuf>, source: io::Error },
+    Read {
+        /// The file, or `None` for the in-memory readers.
+        path: Option<PathBuf>,
+        /// What the operating system said.
+        source: io::Error,
+    },
     /// The file (or its temporary file) could not be created, written, synced or renamed.
     #[error("cannot write{}: {source}", name(.path))]
-    Write { path: Option<PathBuf>, source: io::Error },
+    Write {
+        /// The file to be written (not its temporary), or `None` for the in-memory writers.
+        path: Option<PathBuf>,
+        /// What the operating system said, from creating, writing, syncing or renaming.
+        source: io::Error,
+    },
     /// Malformed text (OBJ, ASCII PLY or STL, and every PLY header), with its 1-based line.
     #[error("{}line {line}: {msg}", prefix(.path))]
-    Parse { path: Option<PathBuf>, line: usize, msg: String },
+    Parse {
+        /// The file, or `None` for the in-memory readers.
+        path: Option<PathBuf>,
+        /// 1-based line number of the malformed text.
+        line: usize,
+        /// What is wrong there, in words for users.
+        msg: String,
+    },
     /// Malformed binary data (binary PLY body, binary STL), with the byte offset in the file.
     #[error("{}byte {offset}: {msg}", prefix(.path))]
-    Binary { path: Option<PathBuf>, offset: u64, msg: String },
+    Binary {
+        /// The file, or `None` for the in-memory readers.
+        path: Option<PathBuf>,
+        /// Byte offset from the start of the file (header included) of the malformed data.
+        offset: u64,
+        /// What is wrong there, in words for users.
+        msg: String,
+    },
     /// The mesh handed to a writer breaks the [`Mesh`] invariants.
     #[error("cannot write{}: invalid mesh: {source}", name(.path))]
-    InvalidMesh { path: Option<PathBuf>, source: MeshError },
+    InvalidMesh {
+        /// The file to be written (not its temporary), or `None` for the in-memory writers.
+        path: Option<PathBuf>,
+        /// The invariant the mesh breaks.
+        source: MeshError,
+    },
     /// The mesh cannot be expressed in the format (too many triangles, too large an id...).
     #[error("cannot write{}: {msg}", name(.path))]
-    Unsupported { path: Option<PathBuf>, msg: String },
+    Unsupported {
+        /// The file to be written (not its temporary), or `None` for the in-memory writers.
+        path: Option<PathBuf>,
+        /// What the format cannot hold, in words for users.
+        msg: String,
+    },
     /// The extension names no supported format.
     #[error("{}: unknown mesh format: expected the extension .ply, .obj, .stl or .glb", .path.display())]
-    UnknownFormat { path: PathBuf },
+    UnknownFormat {
+        /// The path whose extension was not recognised (extensions are compared without
+        /// regard to case).
+        path: PathBuf,
+    },
 }
 
 fn name(path: &Option<PathBuf>) -> String {
