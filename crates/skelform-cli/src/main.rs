@@ -24,7 +24,9 @@ use skelform::mesh::io::{Format, WriteOptions, read_mesh, write_mesh};
 
 #[derive(Parser)]
 #[command(name = "skelform", version, about = "Implicit surfaces, skeletal forms and their meshes")]
-#[command(after_help = "Exit codes: 0 success, 1 runtime failure, 2 bad input or usage.")]
+#[command(
+    after_help = "Exit codes: 0 success, 1 runtime failure, 2 bad input or usage, 3 defects found by `check --strict`."
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -75,6 +77,10 @@ struct CheckArgs {
     /// Print the report as JSON.
     #[arg(long)]
     json: bool,
+    /// Exit with status 3 when the mesh is not a clean closed manifold (open, non-manifold,
+    /// inconsistently oriented, invalid or duplicate faces), for print pipelines and scripts.
+    #[arg(long)]
+    strict: bool,
     /// Weld vertices within TOL (default 0: coincident) before the analysis, e.g. to see a
     /// non-manifold mesh, whose vertices are duplicated per region pair, as one complex. The
     /// tolerance takes an `=` (`--weld=1e-6`), so `--weld MESH` is never read as one.
@@ -97,6 +103,9 @@ struct InfoArgs {
     /// Describe the scene in this named pose (see `skelform mesh --pose`).
     #[arg(long)]
     pose: Option<String>,
+    /// Print the description as JSON.
+    #[arg(long)]
+    json: bool,
 }
 
 /// A failure with its exit code.
@@ -248,55 +257,114 @@ fn check(a: CheckArgs) -> Result<(), Failure> {
         outln!("{}", a.mesh.display());
         outp!("{report}");
     }
+    let mut defects = report.problems();
+    if report.duplicate_faces > 0 {
+        defects.push(format!("{} duplicate faces", report.duplicate_faces));
+    }
+    if a.strict && !defects.is_empty() {
+        return Err(Failure {
+            code: 3,
+            error: Some(anyhow!(
+                "{}: not a clean closed manifold: {}",
+                a.mesh.display(),
+                defects.join(", ")
+            )),
+        });
+    }
     Ok(())
 }
 
 fn info(a: InfoArgs) -> Result<(), Failure> {
     let scene = run::load_scene(&a.scene, a.pose.as_deref())?;
-    outln!("scene       {}", scene.origin);
-    if let Some(n) = &scene.name {
-        outln!("name        {n}");
-    }
-    if let Some(d) = &scene.description {
-        outln!("description {d}");
-    }
-    let (lo, hi) = (scene.domain.min, scene.domain.max);
-    outln!("domain      [{}, {}, {}] – [{}, {}, {}]", lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
-    outln!("method      {}", scene.method.name());
-    match scene.output_file() {
-        Ok(Some(p)) => outln!("output      {}", p.display()),
-        Ok(None) => outln!("output      none (give -o)"),
-        Err(e) => outln!("output      refused: {e}"),
-    }
-    match scene.lattice(&skelform::Overrides::default()) {
-        Ok(l) => {
-            let [nx, ny, nz] = l.dims;
-            outln!("grid        {nx} × {ny} × {nz} samples, cell {:.6}", l.cell);
-            outln!(
-                "memory      {:.1} MiB before triangles{}",
-                l.memory as f64 / (1 << 20) as f64,
-                if l.streamed { " (volume streamed in slabs)" } else { "" }
-            );
+    let lattice = scene.lattice(&skelform::Overrides::default());
+    let output = scene.output_file().map(|p| p.map(Path::to_path_buf));
+    if a.json {
+        let (lo, hi) = (scene.domain.min, scene.domain.max);
+        let mut j = serde_json::json!({
+            "scene": scene.origin,
+            "name": scene.name,
+            "description": scene.description,
+            "figure": scene.figure,
+            "domain": { "min": lo.to_array(), "max": hi.to_array() },
+            "method": scene.method.name(),
+        });
+        j["output"] = match &output {
+            Ok(p) => serde_json::json!(p.as_ref().map(|p| p.display().to_string())),
+            Err(e) => serde_json::json!({ "refused": e.to_string() }),
+        };
+        j["grid"] = match &lattice {
+            Ok(l) => serde_json::json!({
+                "dims": l.dims, "cell": l.cell, "memory_bytes": l.memory, "streamed": l.streamed,
+            }),
+            Err(e) => serde_json::json!({ "invalid": e.to_string() }),
+        };
+        match &scene.skeleton {
+            Some(sk) => {
+                j["skeleton"] = serde_json::json!({
+                    "elements": sk.element_count(), "blending_sets": sk.clique_count(),
+                });
+            }
+            None => {
+                j["iso"] = serde_json::json!(scene.iso);
+                j["formula_instructions"] = serde_json::json!(scene.formula.instruction_count());
+            }
         }
-        Err(e) => outln!("grid        invalid: {e}"),
-    }
-    match &scene.skeleton {
-        Some(sk) => outln!(
-            "skeleton    {} elements in {} blending sets",
-            sk.element_count(),
-            sk.clique_count()
-        ),
-        None => {
-            outln!("iso         {}", scene.iso);
-            outln!("formula     {} instructions", scene.formula.instruction_count());
+        if let Some(art) = &scene.articulation {
+            j["joints"] = serde_json::json!(art.joints);
+            j["pose"] = serde_json::json!(art.pose);
+            j["poses"] = serde_json::json!(art.poses);
+        }
+        if a.tape {
+            j["tape"] = serde_json::json!(scene.formula.tape().to_string());
+        }
+        outln!("{j:#}");
+    } else {
+        outln!("scene       {}", scene.origin);
+        if let Some(n) = &scene.name {
+            outln!("name        {n}");
+        }
+        if let Some(d) = &scene.description {
+            outln!("description {d}");
+        }
+        let (lo, hi) = (scene.domain.min, scene.domain.max);
+        outln!("domain      [{}, {}, {}] – [{}, {}, {}]", lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
+        outln!("method      {}", scene.method.name());
+        match &output {
+            Ok(Some(p)) => outln!("output      {}", p.display()),
+            Ok(None) => outln!("output      none (give -o)"),
+            Err(e) => outln!("output      refused: {e}"),
+        }
+        match &lattice {
+            Ok(l) => {
+                let [nx, ny, nz] = l.dims;
+                outln!("grid        {nx} × {ny} × {nz} samples, cell {:.6}", l.cell);
+                outln!(
+                    "memory      {:.1} MiB before triangles{}",
+                    l.memory as f64 / (1 << 20) as f64,
+                    if l.streamed { " (volume streamed in slabs)" } else { "" }
+                );
+            }
+            Err(e) => outln!("grid        invalid: {e}"),
+        }
+        match &scene.skeleton {
+            Some(sk) => outln!(
+                "skeleton    {} elements in {} blending sets",
+                sk.element_count(),
+                sk.clique_count()
+            ),
+            None => {
+                outln!("iso         {}", scene.iso);
+                outln!("formula     {} instructions", scene.formula.instruction_count());
+            }
+        }
+        if let Some(art) = &scene.articulation {
+            outln!("joints      {}", art.joints.len());
+            outln!("pose        {} (poses: {})", art.pose, art.poses.join(", "));
+        }
+        if a.tape {
+            outln!("{}", scene.formula.tape());
         }
     }
-    if let Some(art) = &scene.articulation {
-        outln!("joints      {}", art.joints.len());
-        outln!("pose        {} (poses: {})", art.pose, art.poses.join(", "));
-    }
-    if a.tape {
-        outln!("{}", scene.formula.tape());
-    }
-    Ok(())
+    // A scene that cannot be meshed at its own settings is bad input, after saying why.
+    lattice.map(|_| ()).map_err(run::failure)
 }

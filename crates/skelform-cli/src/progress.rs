@@ -25,8 +25,17 @@ pub fn control(show: bool) -> Control {
             if let Some((bar, _)) = guard.take() {
                 bar.finish_and_clear();
             }
-            let bar = ProgressBar::new(p.total.unwrap_or(0));
-            let style = ProgressStyle::with_template("{msg:>12} [{bar:40}] {pos}/{len} {elapsed}")
+            // A known total gets a bar; work whose size is not known until it ends (the
+            // propagating polygonizers visit cubes until the surface closes) a counter.
+            let (bar, template) = match p.total {
+                Some(total) => {
+                    (ProgressBar::new(total), "{msg:>12} [{bar:40}] {pos}/{len} {elapsed}")
+                }
+                None => {
+                    (ProgressBar::no_length(), "{msg:>12} {spinner} {human_pos} cubes {elapsed}")
+                }
+            };
+            let style = ProgressStyle::with_template(template)
                 .unwrap_or_else(|_| ProgressStyle::default_bar());
             bar.set_style(style.progress_chars("=> "));
             bar.set_message(p.phase);

@@ -393,3 +393,42 @@ fn undefined_fields_and_impossible_limits_are_named() {
     assert!(err.contains("over the limit"), "{err}");
     assert!(!err.contains("panicked") && !out.exists(), "{err}");
 }
+
+/// `info --json` describes the scene as data; `check --strict` turns defects into exit
+/// status 3 (a clean mesh passes), for scripts and print pipelines.
+#[test]
+fn info_as_json_and_a_strict_check() {
+    let o = skelform(&["info", &example("skeleton/hand.toml"), "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["method"], "grid");
+    assert_eq!(j["grid"]["dims"].as_array().unwrap().len(), 3);
+    assert!(j["poses"].as_array().unwrap().iter().any(|p| p == "grip"), "{j}");
+
+    let dir = tempfile::tempdir().unwrap();
+    let closed = dir.path().join("t.ply");
+    let r = skelform(&[
+        "mesh",
+        &example("torus.toml"),
+        "-o",
+        closed.to_str().unwrap(),
+        "--resolution",
+        "20",
+        "-q",
+    ]);
+    assert!(r.status.success());
+    assert!(skelform(&["check", "--strict", closed.to_str().unwrap()]).status.success());
+    // The same surface cut open by the domain box: boundary edges.
+    let open = dir.path().join("open.ply");
+    let scene = dir.path().join("open.toml");
+    std::fs::write(&scene, "[domain]\nmin = [-1, -1, 0]\nmax = [1, 1, 1]\n[mesh]\nresolution = 20\n[field]\nformula = \"x^2 + y^2 + z^2 - 0.5\"\n").unwrap();
+    assert!(
+        skelform(&["mesh", scene.to_str().unwrap(), "-o", open.to_str().unwrap(), "-q"])
+            .status
+            .success()
+    );
+    let r = skelform(&["check", "--strict", open.to_str().unwrap()]);
+    assert_eq!(r.status.code(), Some(3), "{}", stderr(&r));
+    assert!(stderr(&r).contains("boundary edges"), "{}", stderr(&r));
+    assert!(stdout(&r).contains("boundary"), "the report is still printed");
+}
