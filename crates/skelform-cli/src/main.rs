@@ -47,6 +47,13 @@ enum Command {
     Render(render::RenderArgs),
     /// Render every example scene into docs/gallery, with a page of figures and statistics.
     Gallery(gallery::GalleryArgs),
+    /// Print a shell completion script, e.g. `skelform completions bash >
+    /// ~/.local/share/bash-completion/completions/skelform`.
+    Completions {
+        /// The shell to complete in.
+        #[arg(value_enum)]
+        shell: clap_complete::Shell,
+    },
 }
 
 #[derive(Args)]
@@ -173,6 +180,7 @@ fn main() -> ExitCode {
         Command::Extract(a) => extract::extract(a),
         Command::Render(a) => render::render(a),
         Command::Gallery(a) => gallery::gallery(a),
+        Command::Completions { shell } => completions(shell),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -237,6 +245,18 @@ fn mesh(a: MeshArgs) -> Result<(), Failure> {
             mesh.triangle_count()
         );
     }
+    Ok(())
+}
+
+fn completions(shell: clap_complete::Shell) -> Result<(), Failure> {
+    let mut script = Vec::new();
+    clap_complete::generate(
+        shell,
+        &mut <Cli as clap::CommandFactory>::command(),
+        "skelform",
+        &mut script,
+    );
+    outp!("{}", String::from_utf8_lossy(&script));
     Ok(())
 }
 

@@ -432,3 +432,16 @@ fn info_as_json_and_a_strict_check() {
     assert!(stderr(&r).contains("boundary edges"), "{}", stderr(&r));
     assert!(stdout(&r).contains("boundary"), "the report is still printed");
 }
+
+/// Completion scripts for the usual shells, knowing the subcommands and the method names.
+#[test]
+fn shell_completions_know_the_commands() {
+    for shell in ["bash", "zsh", "fish"] {
+        let o = skelform(&["completions", shell]);
+        assert!(o.status.success(), "{shell}: {}", stderr(&o));
+        let script = stdout(&o);
+        for word in ["mesh", "extract", "nonmanifold", "regula-falsi"] {
+            assert!(script.contains(word), "{shell} completion lacks {word}");
+        }
+    }
+}
