@@ -7,7 +7,7 @@ use anyhow::anyhow;
 use clap::Args;
 use skelform::Mesh;
 use skelform::mesh::io::read_mesh;
-use skelform::render::{Projection, RenderError, Renderer, Settings, View, write_apng};
+use skelform::render::{Projection, RenderError, Renderer, Settings, View};
 
 use crate::{Failure, input, run, runtime};
 
@@ -137,10 +137,7 @@ pub fn render(a: RenderArgs) -> Result<(), Failure> {
     pool.install(|| {
         let renderer = Renderer::new(&mesh).map_err(with_input)?;
         match a.turntable {
-            Some(n) => {
-                let frames = renderer.turntable(&s, n).map_err(failure)?;
-                write_apng(&a.output, &frames, a.frame_ms).map_err(failure)
-            }
+            Some(n) => renderer.write_turntable(&s, n, a.frame_ms, &a.output).map_err(failure),
             None => renderer.render(&s).map_err(failure)?.write_png(&a.output).map_err(failure),
         }
     })?;

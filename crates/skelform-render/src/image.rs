@@ -1,6 +1,7 @@
 //! The picture: 8-bit sRGB pixels, PNG encoding (the `png` crate), atomic files, and
 //! animated PNG for turntables.
 
+use std::io;
 use std::path::Path;
 
 use crate::RenderError;
@@ -74,34 +75,76 @@ pub fn write_apng(path: &Path, frames: &[Image], delay_ms: u16) -> Result<(), Re
     write_atomic(path, &encode(frames, delay_ms)?)
 }
 
+/// Writes an animated PNG of `count` frames drawn one at a time by `frame(k)`, atomically:
+/// only one frame is ever held, whatever the count and size.
+pub(crate) fn write_apng_streamed(
+    path: &Path,
+    (width, height): (u32, u32),
+    count: u32,
+    delay_ms: u16,
+    frame: impl Fn(u32) -> Image,
+) -> Result<(), RenderError> {
+    skelform_mesh::io::atomic::write_with(path, |file| {
+        let mut out = io::BufWriter::new(file);
+        let mut frames = (0..count).map(|k| Ok(std::borrow::Cow::Owned(frame(k))));
+        encode_frames(&mut out, width, height, count, delay_ms, &mut frames)?;
+        io::Write::flush(&mut out)
+            .map_err(|e| RenderError::Write { path: path.to_path_buf(), source: e })
+    })
+    .map_err(|e| match e {
+        skelform_mesh::io::atomic::AtomicError::Io(source) => {
+            RenderError::Write { path: path.to_path_buf(), source }
+        }
+        skelform_mesh::io::atomic::AtomicError::Write(e) => e,
+    })
+}
+
 /// Encodes one image (`frames.len() == 1`) or an animation.
 pub fn encode(frames: &[Image], delay_ms: u16) -> Result<Vec<u8>, RenderError> {
     let first = frames.first().ok_or_else(|| RenderError::Settings("no frames".into()))?;
-    if frames.iter().any(|f| f.width != first.width || f.height != first.height) {
-        return Err(RenderError::Settings("the frames differ in size".into()));
-    }
+    let n =
+        u32::try_from(frames.len()).map_err(|_| RenderError::Settings("too many frames".into()))?;
     let mut out = Vec::new();
-    {
-        let mut enc = png::Encoder::new(&mut out, first.width, first.height);
-        enc.set_color(png::ColorType::Rgb);
-        enc.set_depth(png::BitDepth::Eight);
-        enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
-        // Rendered pictures have large flat areas; the adaptive filter with the default
-        // deflate level keeps the gallery small without slowing big renders much.
-        enc.set_compression(png::Compression::Balanced);
-        if frames.len() > 1 {
-            let n = u32::try_from(frames.len())
-                .map_err(|_| RenderError::Settings("too many frames".into()))?;
-            enc.set_animated(n, 0).map_err(RenderError::Encode)?;
-            enc.set_frame_delay(delay_ms, 1000).map_err(RenderError::Encode)?;
-        }
-        let mut w = enc.write_header().map_err(RenderError::Encode)?;
-        for f in frames {
-            w.write_image_data(&f.as_bytes()).map_err(RenderError::Encode)?;
-        }
-        w.finish().map_err(RenderError::Encode)?;
-    }
+    let mut frames = frames.iter().map(|f| Ok(std::borrow::Cow::Borrowed(f)));
+    encode_frames(&mut out, first.width, first.height, n, delay_ms, &mut frames)?;
     Ok(out)
+}
+
+/// Encodes `count` frames of `width × height` as they come from `frames` (one still picture
+/// when `count` is 1), so that an animation of any length holds one frame at a time.
+pub(crate) fn encode_frames<'a, W: io::Write>(
+    out: W,
+    width: u32,
+    height: u32,
+    count: u32,
+    delay_ms: u16,
+    frames: &mut dyn Iterator<Item = Result<std::borrow::Cow<'a, Image>, RenderError>>,
+) -> Result<(), RenderError> {
+    let mut enc = png::Encoder::new(out, width, height);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
+    // Rendered pictures have large flat areas; the adaptive filter with the default
+    // deflate level keeps the gallery small without slowing big renders much.
+    enc.set_compression(png::Compression::Balanced);
+    if count > 1 {
+        enc.set_animated(count, 0).map_err(RenderError::Encode)?;
+        enc.set_frame_delay(delay_ms, 1000).map_err(RenderError::Encode)?;
+    }
+    let mut w = enc.write_header().map_err(RenderError::Encode)?;
+    let mut written = 0;
+    for f in frames.take(count as usize) {
+        let f = f?;
+        if f.width != width || f.height != height {
+            return Err(RenderError::Settings("the frames differ in size".into()));
+        }
+        w.write_image_data(&f.as_bytes()).map_err(RenderError::Encode)?;
+        written += 1;
+    }
+    if written != count {
+        return Err(RenderError::Settings(format!("{written} frames given for {count}")));
+    }
+    w.finish().map_err(RenderError::Encode)
 }
 
 /// Writes `bytes` to `path` atomically ([`skelform_mesh::io::atomic`]): a temporary file

@@ -429,8 +429,33 @@ impl<'m> Renderer<'m> {
     }
 
     /// `frames` pictures turning once around the vertical (`z`) axis, starting at the
-    /// settings' azimuth, all at one camera distance so the form keeps its size.
+    /// settings' azimuth, all at one camera distance so the form keeps its size. Holds every
+    /// frame: for long or large animations [`Renderer::write_turntable`] holds one at a time.
     pub fn turntable(&self, settings: &Settings, frames: u32) -> Result<Vec<Image>, RenderError> {
+        let draw = self.turntable_frames(settings, frames)?;
+        Ok((0..frames).map(draw).collect())
+    }
+
+    /// Writes the turntable of [`Renderer::turntable`] as an animated PNG at `path`
+    /// (atomically), each frame shown `delay_ms` milliseconds, drawing and encoding one frame
+    /// at a time, so memory does not grow with the frame count.
+    pub fn write_turntable(
+        &self,
+        settings: &Settings,
+        frames: u32,
+        delay_ms: u16,
+        path: &std::path::Path,
+    ) -> Result<(), RenderError> {
+        let draw = self.turntable_frames(settings, frames)?;
+        image::write_apng_streamed(path, (settings.width, settings.height), frames, delay_ms, draw)
+    }
+
+    /// The frame-drawing function of a turntable of `frames` views.
+    fn turntable_frames(
+        &self,
+        settings: &Settings,
+        frames: u32,
+    ) -> Result<impl Fn(u32) -> Image + '_, RenderError> {
         settings.validate()?;
         if frames == 0 || frames > 3600 {
             return Err(RenderError::Settings("a turntable needs from 1 to 3600 frames".into()));
@@ -453,14 +478,12 @@ impl<'m> Renderer<'m> {
         );
         let look = self.look(settings);
         let entries = self.legend(settings);
-        Ok(cams
-            .into_iter()
-            .map(|cam| {
-                let mut img = raster::render_view(p, settings, &look, cam);
-                legend::draw(&mut img, &entries);
-                img
-            })
-            .collect())
+        let settings = settings.clone();
+        Ok(move |k: u32| {
+            let mut img = raster::render_view(p, &settings, &look, cams[k as usize]);
+            legend::draw(&mut img, &entries);
+            img
+        })
     }
 }
 

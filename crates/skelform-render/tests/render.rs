@@ -410,6 +410,12 @@ fn turntables_turn_at_a_fixed_distance() {
     write_apng(&path, &frames, 100).unwrap();
     let bytes = std::fs::read(&path).unwrap();
     assert!(bytes.windows(4).any(|w| w == b"acTL"), "an animated PNG");
+    // Drawn and encoded a frame at a time, the same file (what `render --turntable` writes,
+    // holding one frame however many there are).
+    let streamed = dir.path().join("streamed.png");
+    r.write_turntable(&s, 4, 100, &streamed).unwrap();
+    assert_eq!(std::fs::read(&streamed).unwrap(), bytes);
+    assert!(r.write_turntable(&s, 0, 100, &streamed).is_err());
 }
 
 #[test]
