@@ -157,7 +157,7 @@ pub fn extract(a: ExtractArgs) -> Result<(), Failure> {
     // The case table is generated once per process (a few milliseconds); build it before the
     // clock starts so that the reported time is the extraction's, comparable with tools whose
     // tables are compiled in.
-    skelform_polygonize::grid::table::table();
+    skelform_polygonize::grid::prepare_tables();
     let mut times = vec![Vec::new(); pools.len()];
     let mut last: Option<(Mesh, u64)> = None;
     for round in 0..a.repeat as usize {

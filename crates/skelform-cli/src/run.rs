@@ -146,7 +146,7 @@ pub fn run_scene(scene: &Scene, a: &RunArgs) -> Result<(Mesh, report::Run, Metho
     };
     let result = match method {
         Method::Grid => {
-            let options = grid::Options { lattice, streaming: a.stream.into() };
+            let options = grid::Options { lattice, streaming: a.stream.into(), workspace: None };
             grid::polygonize(field, &options).map(|(m, s)| (m, report::Run::Grid(s)))
         }
         Method::NonManifold => {

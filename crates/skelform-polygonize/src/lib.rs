@@ -69,8 +69,8 @@ pub enum Error {
     ThreadPool(String),
 }
 
-impl From<grid::extract::Cancelled> for Error {
-    fn from(_: grid::extract::Cancelled) -> Self {
+impl From<grid::Cancelled> for Error {
+    fn from(_: grid::Cancelled) -> Self {
         Error::Cancelled
     }
 }
