@@ -59,7 +59,10 @@ pub struct Options {
     pub seeds: Vec<DVec3>,
     /// Stride of the domain search, in cells.
     pub search_stride: usize,
+    /// Cubes as the grid polygonizer does them, or six tetrahedra per cube.
     pub cells: Cells,
+    /// How edge roots are found (bisection is the dissertation's; regula falsi needs fewer
+    /// evaluations on smooth fields).
     pub root: RootMethod,
     /// Stop propagating after visiting this many cubes in all.
     pub max_cells: u64,
@@ -99,10 +102,13 @@ pub enum Stop {
 /// One component found, by the seed that started it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Component {
+    /// The seed (or, with no seeds, the coarse search point) it was found from.
     pub seed: DVec3,
     /// Where the search from the seed met the surface.
     pub start: DVec3,
+    /// Cubes its propagation visited.
     pub cells: u64,
+    /// Triangles it made.
     pub triangles: usize,
 }
 
@@ -110,9 +116,17 @@ pub struct Component {
 #[derive(Clone, Debug, PartialEq)]
 pub enum SeedNote {
     /// Its surface had been found already from an earlier seed (index given).
-    SameComponent { seed: DVec3, as_seed: usize },
+    SameComponent {
+        /// The seed.
+        seed: DVec3,
+        /// The index of the earlier seed whose component it reached.
+        as_seed: usize,
+    },
     /// No surface was found from it within the domain.
-    NoSurface { seed: DVec3 },
+    NoSurface {
+        /// The seed.
+        seed: DVec3,
+    },
 }
 
 /// What a run did, for `--stats`.

@@ -159,8 +159,12 @@ impl Default for Options {
 /// Critical cubes by the thesis's classes.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct CriticalCubes {
+    /// Class 10: two opposite ambiguous faces, a self-intersection line straight through
+    /// the cube.
     pub class10: usize,
+    /// Class 12: two adjacent ambiguous faces, a line turning round an edge of the cube.
     pub class12: usize,
+    /// Class 13: six ambiguous faces, a triple point inside the cube.
     pub class13: usize,
     /// Critical cubes of other configurations (the thesis leaves them; here they are healed
     /// like any other when a curve passes through them).
@@ -168,6 +172,7 @@ pub struct CriticalCubes {
 }
 
 impl CriticalCubes {
+    /// Critical cubes of every class: what the thesis's tables count as the cubes to heal.
     pub fn total(&self) -> usize {
         self.class10 + self.class12 + self.class13 + self.other
     }
@@ -178,7 +183,10 @@ impl CriticalCubes {
 pub struct SelfIntersection {
     /// Points along it, about a quarter of a cell apart.
     pub points: Vec<DVec3>,
+    /// Whether it is a loop (its last point joins its first) rather than a path between
+    /// the domain's boundary, pinch points and triple points.
     pub closed: bool,
+    /// Its length along `points` (closing segment included for a loop).
     pub length: f64,
     /// Whether it is meshed (its region was healed).
     pub healed: bool,
@@ -188,7 +196,9 @@ pub struct SelfIntersection {
 /// meshed.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SingularLine {
+    /// Points along it, as traced.
     pub points: Vec<DVec3>,
+    /// Its length along `points`.
     pub length: f64,
 }
 

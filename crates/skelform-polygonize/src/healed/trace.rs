@@ -80,7 +80,9 @@ pub enum PointKind {
 /// A singular point found by the search.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SingularPoint {
+    /// Where it is, after the Gauss–Newton solve for `∇f = 0, f = 0`.
     pub position: DVec3,
+    /// What the Hessian there says it is.
     pub kind: PointKind,
 }
 

@@ -50,7 +50,9 @@ use crate::grid::{GridVertex, Place};
 pub struct Unresolved {
     /// The centre of its cubes.
     pub center: DVec3,
+    /// How many cubes it has: how much of the mesh stays as marching cubes made it.
     pub cubes: usize,
+    /// The first check it failed, in words (e.g. a curve edge without four sheet pieces).
     pub reason: String,
 }
 

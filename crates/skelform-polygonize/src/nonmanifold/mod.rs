@@ -62,6 +62,7 @@ pub struct Options {
     /// Start points within about half a cell of a surface of interest; with none, the
     /// domain is searched every `search_stride` cells.
     pub seeds: Vec<DVec3>,
+    /// Stride of the domain search, in cells: regions thinner than that can be missed.
     pub search_stride: usize,
     /// Visit every cube of the domain instead of propagating from starts.
     pub full_grid: bool,
@@ -83,6 +84,7 @@ pub struct Options {
     /// contour between them is followed and a vertex put where it is farthest from the
     /// edge, so the poke is made rather than cut off. Off: the chapter's truncation.
     pub loops: bool,
+    /// Stop propagating after visiting this many cubes (then `Stats::reached_budget`).
     pub max_cells: u64,
 }
 

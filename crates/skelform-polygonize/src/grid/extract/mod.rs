@@ -49,20 +49,32 @@ const BORROWED: u32 = 1 << 31;
 /// Where a mesh vertex lies, relative to lattice point `base`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GridVertex {
+    /// The lattice point the vertex is placed from.
     pub base: [u32; 3],
+    /// On which segment or in which cell from `base`.
     pub place: Place,
 }
 
+/// Where from its lattice point a vertex lies: kept symbolically (not as a position) so
+/// that refinement knows which segment to search and which samples bracket the root.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Place {
     /// On the lattice segment from `base` to `base + dir` (a bit mask: 1 = x, 2 = y, 4 = z;
     /// one bit for a cell edge, more for the face and body diagonals that tetrahedra use), at
     /// fraction `t`. Refinement moves `t` by root finding along the segment.
-    Edge { dir: u8, t: f64 },
+    Edge {
+        /// The segment's direction, as a bit mask.
+        dir: u8,
+        /// The fraction along it.
+        t: f64,
+    },
     /// Inside the cell whose lowest corner is `base`, at `offset` (in cells). Only the few
     /// configurations whose loop cannot be triangulated from its own crossings use one;
     /// refinement projects it onto the surface.
-    Cell { offset: [f64; 3] },
+    Cell {
+        /// The position in the cell, in cells from `base`.
+        offset: [f64; 3],
+    },
 }
 
 /// The offset a direction mask stands for.
@@ -96,7 +108,9 @@ impl GridVertex {
 /// The raw output of extraction: triangles over edge vertices.
 #[derive(Clone, Debug, Default)]
 pub struct Extraction {
+    /// The vertices, by lattice place (for refinement on the field).
     pub vertices: Vec<GridVertex>,
+    /// The triangles, wound with their normals towards `f > 0`.
     pub triangles: Vec<[u32; 3]>,
     /// Ambiguous faces decided by the asymptotic decider (each counted once per cube).
     pub ambiguous_faces: u64,
@@ -134,7 +148,10 @@ impl SlabVertex for [f32; 3] {
 /// itself is not kept (streamed extraction).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct SampledVertex {
+    /// Where the vertex lies.
     pub vertex: GridVertex,
+    /// The samples at its segment's two ends (zero for a vertex inside a cell): the
+    /// bracket refinement starts from, without the volume.
     pub ends: [f32; 2],
 }
 

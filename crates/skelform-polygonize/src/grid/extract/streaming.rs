@@ -13,14 +13,20 @@ use super::{SLAB, SlabVertex, extract_slab, slab_done};
 /// The output of [`extract_streamed`].
 #[derive(Clone, Debug)]
 pub struct Streamed<V> {
+    /// The vertices, in the record the caller chose (a lattice place, with or without its
+    /// end samples, or a position).
     pub vertices: Vec<V>,
+    /// The triangles, wound with their normals towards `f > 0`.
     pub triangles: Vec<[u32; 3]>,
+    /// What the run read and found, since the samples are not kept to look at afterwards.
     pub stats: StreamStats,
 }
 
 /// Where streamed extraction gets its samples from, one `z` layer at a time (`nx·ny` values,
 /// x fastest), already relative to the iso value (inside negative) and finite.
 pub trait LayerSource: Sync {
+    /// Why a layer could not be had (a read error, for a file): extraction stops and
+    /// returns it as [`StreamError::Source`].
     type Error: Send;
     /// Fills `out` with sample layer `k`; returns how many of its samples were not finite
     /// (NaN, ±∞) and were replaced as [`skelform_field::grid::sanitize`] does.
@@ -41,24 +47,31 @@ pub trait LayerSource: Sync {
 /// Why streamed extraction stopped.
 #[derive(Debug)]
 pub enum StreamError<E> {
+    /// The control asked the run to stop.
     Cancelled,
+    /// The source failed (the lowest slab's failure, when several did).
     Source(E),
 }
 
 /// What streamed extraction gives besides the mesh.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct StreamStats {
+    /// Ambiguous faces decided by the asymptotic decider (each counted once per cube).
     pub ambiguous_faces: u64,
+    /// Cubes whose interior tunnel test joined two loops.
     pub tunnels: u64,
     /// Samples that were not finite (each lattice point counted once).
     pub non_finite: u64,
+    /// The smallest sample: with `max_sample`, whether the volume has a surface at all.
     pub min_sample: f32,
+    /// The largest sample.
     pub max_sample: f32,
     /// Samples read (or evaluated): each layer once, and a layer that two slabs share twice
     /// when they ran on different threads.
     pub samples_read: u64,
     /// Time spent in the source and in extraction, summed over the workers.
     pub source_time: std::time::Duration,
+    /// See `source_time`: the time in extraction proper.
     pub extract_time: std::time::Duration,
 }
 
