@@ -108,7 +108,8 @@ pub struct RunArgs {
     /// continuation/tetra: stop this many cubes from each start, in every direction.
     #[arg(long)]
     pub limit: Option<u32>,
-    /// Worker threads (default: all cores). The mesh is the same for any count.
+    /// Worker threads, 1 to 256 (default, or 0: all cores). The mesh is the same for any
+    /// count.
     #[arg(long)]
     pub threads: Option<usize>,
     /// Leave out vertex normals.
@@ -157,7 +158,9 @@ impl RunArgs {
             seeds: (!self.seed.is_empty())
                 .then(|| self.seed.iter().map(|p| DVec3::from_array(*p)).collect()),
             pose: None,
-            threads: self.threads.map(Threads::Count),
+            threads: self
+                .threads
+                .map(|n| if n == 0 { Threads::Current } else { Threads::Count(n) }),
             tolerance: self.tolerance,
             root: self.root.map(RootMethod::from),
             max_cells: self.max_cells,
@@ -166,6 +169,7 @@ impl RunArgs {
             normals: self.no_normals.then_some(false),
             streaming: Some(self.stream.into()),
             max_memory: Some(memory_limit(self.max_memory, self.quiet)),
+            workspace: None,
             control: progress::control(show_progress),
         })
     }

@@ -14,8 +14,9 @@ use skelform_field::formula::Formula;
 use skelform_field::grid::{Grid, sample};
 use skelform_field::{Aabb, DVec3};
 use skelform_polygonize::LatticeOptions;
-use skelform_polygonize::grid::extract::{extract_positions, surface_cubes};
-use skelform_polygonize::grid::{Options, Resolution, Streaming, extract, polygonize};
+use skelform_polygonize::grid::{
+    Options, Resolution, Streaming, extract, extract_positions, polygonize, surface_cubes,
+};
 
 fn shapes() -> Vec<(&'static str, Formula, Aabb)> {
     let torus = Formula::parse("q = sqrt(x^2 + y^2) - 0.6\nq^2 + z^2 - 0.25^2").expect("torus");
@@ -54,7 +55,7 @@ fn bench(c: &mut Criterion) {
                     resolution: Resolution::Samples(n),
                     ..Default::default()
                 };
-                let opts = Options { lattice, streaming };
+                let opts = Options { lattice, streaming, ..Options::default() };
                 group.bench_with_input(BenchmarkId::new(label, n), &opts, |b, o| {
                     b.iter(|| polygonize(&f, o).expect("polygonize"))
                 });

@@ -31,6 +31,8 @@
 //! assert_eq!(report.components[0].genus, Some(1));
 //! ```
 
+#![warn(missing_docs)]
+
 pub mod continuation;
 pub mod grid;
 pub mod healed;
@@ -46,22 +48,53 @@ pub use lattice::{LatticeOptions, MAX_THREADS, Resolution, Threads};
 /// Why a polygonizer could not run.
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]
 pub enum Error {
+    /// The lattice cannot be built: an empty or non-finite domain, a resolution below two
+    /// samples, a cell that is not a positive length, or more samples per axis than a grid
+    /// may have.
     #[error(transparent)]
     Grid(GridError),
+    /// A dense run would need more memory than [`LatticeOptions::max_memory`] allows; refused
+    /// before anything is allocated, so asking is cheap.
     #[error(
         "the grid of {} × {} × {} samples would need {:.2} GiB, over the limit of {:.2} GiB; \
          use a coarser resolution or raise the limit",
         dims[0], dims[1], dims[2], *needed as f64 / (1u64 << 30) as f64, *limit as f64 / (1u64 << 30) as f64
     )]
-    TooMuchMemory { needed: u64, limit: u64, dims: [usize; 3] },
+    TooMuchMemory {
+        /// Bytes the run would need before its first triangle.
+        needed: u64,
+        /// The limit it was given.
+        limit: u64,
+        /// Samples per axis of the lattice asked for.
+        dims: [usize; 3],
+    },
+    /// The run's [`Control`](skelform_field::control::Control) asked it to stop; whatever
+    /// phase it was in, and whichever polygonizer, this is the one error a cancelled run
+    /// returns.
     #[error("cancelled")]
     Cancelled,
+    /// A seed cannot start propagation: it lies outside the domain, the field is not finite
+    /// there, or no surface was found from it (or from any seed).
     #[error("seed ({}, {}, {}): {why}", seed[0], seed[1], seed[2])]
-    BadSeed { seed: [f64; 3], why: String },
+    BadSeed {
+        /// The seed, as given.
+        seed: [f64; 3],
+        /// What is wrong with it, in words for the user.
+        why: String,
+    },
+    /// With no seeds, the coarse search of the domain found no crossing to start from: the
+    /// surface is absent or smaller than the search stride.
     #[error(
         "no surface found: a search of {samples} points (every {stride} cells) found no sign change (or, for regions, no change between a pair of interest); give a seed near the surface or a smaller search stride"
     )]
-    NoSurfaceFound { samples: u64, stride: usize },
+    NoSurfaceFound {
+        /// Points the search sampled.
+        samples: u64,
+        /// Its stride, in cells.
+        stride: usize,
+    },
+    /// An option out of its range (a tolerance outside (0, 1), a thread count over
+    /// [`MAX_THREADS`], a region the region function does not have, …), with what was wrong.
     #[error("{0}")]
     BadOption(String),
     /// The thread pool asked for in [`LatticeOptions::threads`] could not be started (the
@@ -70,8 +103,8 @@ pub enum Error {
     ThreadPool(String),
 }
 
-impl From<grid::extract::Cancelled> for Error {
-    fn from(_: grid::extract::Cancelled) -> Self {
+impl From<grid::Cancelled> for Error {
+    fn from(_: grid::Cancelled) -> Self {
         Error::Cancelled
     }
 }

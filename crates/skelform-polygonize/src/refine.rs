@@ -15,10 +15,14 @@ const CHUNK: usize = 1024;
 /// A vertex on the segment `p0 → p1`, where the field has opposite signs at the two ends.
 #[derive(Clone, Copy, Debug)]
 pub struct Bracket {
+    /// The segment's end where `t = 0`.
     pub p0: DVec3,
+    /// The segment's end where `t = 1`.
     pub p1: DVec3,
-    /// Field values at the ends (opposite signs; one may be zero).
+    /// Field values at the ends (opposite signs; one may be zero): the samples, so that
+    /// refinement need not evaluate the ends again.
     pub f0: f64,
+    /// See `f0`.
     pub f1: f64,
     /// Current estimate of the root as a fraction of the segment; refined in place.
     pub t: f64,
@@ -38,6 +42,7 @@ pub enum RootMethod {
 /// How root finding stops.
 #[derive(Clone, Copy, Debug)]
 pub struct RootOptions {
+    /// Regula falsi or bisection.
     pub method: RootMethod,
     /// Stop when the bracket is shorter than this fraction of the segment.
     pub tolerance: f64,

@@ -164,7 +164,7 @@ fn streamed_volume_gives_the_same_mesh_and_counts() {
     });
     let run = |streaming, threads| {
         let lattice = LatticeOptions { resolution: Resolution::Samples(43), ..Default::default() };
-        let opts = Options { lattice, streaming };
+        let opts = Options { lattice, streaming, ..Options::default() };
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
         pool.install(|| polygonize(&f, &opts).unwrap())
     };
@@ -244,8 +244,7 @@ fn no_surface_gives_an_empty_mesh_and_the_value_range() {
 fn surface_cubes_counts_the_cubes_with_both_signs() {
     use skelform_field::control::Control;
     use skelform_field::grid::{Grid, sample};
-    use skelform_polygonize::grid::cell::case_of;
-    use skelform_polygonize::grid::extract::surface_cubes;
+    use skelform_polygonize::grid::surface_cubes;
     // 70 samples across: rows longer than one 64-bit word, so the word carry is exercised.
     let f =
         Formula::parse("sin(5*x)*cos(4*y) + sin(4*y)*cos(5*z) + sin(5*z)*cos(4*x) - 0.1").unwrap();
@@ -258,7 +257,8 @@ fn surface_cubes_counts_the_cubes_with_both_signs() {
             for i in 0..nx - 1 {
                 let c: [f32; 8] =
                     std::array::from_fn(|c| v.get(i + (c & 1), j + ((c >> 1) & 1), k + (c >> 2)));
-                brute += u64::from(!matches!(case_of(&c), 0 | 255));
+                let inside = c.iter().filter(|&&x| x < 0.0).count();
+                brute += u64::from(inside != 0 && inside != 8);
             }
         }
     }
@@ -282,4 +282,19 @@ fn threads_are_bounded_and_do_not_change_the_mesh() {
     assert!(with(Threads::Count(3)).unwrap().0 == one);
     let pool = std::sync::Arc::new(rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap());
     assert!(with(Threads::Pool(pool)).unwrap().0 == one);
+}
+
+#[test]
+fn a_workspace_of_the_callers_own_gives_the_same_mesh() {
+    use skelform_polygonize::grid::{Streaming, Workspace};
+    let f = FnField(|p: DVec3| p.length() - 0.5);
+    let lattice = LatticeOptions { resolution: Resolution::Samples(40), ..Default::default() };
+    let shared = polygonize(&f, &Options { lattice: lattice.clone(), ..Options::default() });
+    let own = std::sync::Arc::new(Workspace::new());
+    for streaming in [Streaming::Never, Streaming::Always, Streaming::Never] {
+        let opts = Options { lattice: lattice.clone(), streaming, workspace: Some(own.clone()) };
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(3).build().unwrap();
+        let mine = pool.install(|| polygonize(&f, &opts)).unwrap().0;
+        assert!(mine == shared.as_ref().unwrap().0, "{streaming:?}");
+    }
 }

@@ -102,6 +102,6 @@ pub mod volume {
     /// Builds the marching-cubes case table now (a few milliseconds, once per process), so
     /// that a timed extraction measures the extraction alone.
     pub fn prepare() {
-        skelform_polygonize::grid::table::table();
+        skelform_polygonize::grid::prepare_tables();
     }
 }

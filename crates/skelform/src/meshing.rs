@@ -141,7 +141,11 @@ impl Scene {
         let started = Instant::now();
         let result = match method {
             Method::Grid => {
-                let options = grid::Options { lattice, streaming: o.streaming.unwrap_or_default() };
+                let options = grid::Options {
+                    lattice,
+                    streaming: o.streaming.unwrap_or_default(),
+                    workspace: o.workspace.clone(),
+                };
                 grid::polygonize(field, &options).map(|(m, s)| (m, Stats::Grid(s)))
             }
             Method::NonManifold => {

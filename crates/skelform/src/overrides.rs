@@ -2,7 +2,9 @@
 
 use skelform_field::DVec3;
 use skelform_field::control::Control;
-use skelform_polygonize::grid::Streaming;
+use std::sync::Arc;
+
+use skelform_polygonize::grid::{Streaming, Workspace};
 use skelform_polygonize::refine::RootMethod;
 use skelform_polygonize::{Resolution, Threads};
 use skelform_scene::Method;
@@ -49,6 +51,10 @@ pub struct Overrides {
     /// Refuse work that needs more memory than this many bytes (default
     /// [`DEFAULT_MAX_MEMORY`]).
     pub max_memory: Option<u64>,
+    /// Grid method: the slab buffers to reuse (`None`: the process's shared ones). A front end
+    /// that meshes on every edit keeps its own, so its runs neither wait for nor grow the
+    /// buffers of other work in the process.
+    pub workspace: Option<Arc<Workspace>>,
     /// Progress reports and cancellation for the run.
     pub control: Control,
 }

@@ -59,7 +59,10 @@ pub struct Options {
     pub seeds: Vec<DVec3>,
     /// Stride of the domain search, in cells.
     pub search_stride: usize,
+    /// Cubes as the grid polygonizer does them, or six tetrahedra per cube.
     pub cells: Cells,
+    /// How edge roots are found (bisection is the dissertation's; regula falsi needs fewer
+    /// evaluations on smooth fields).
     pub root: RootMethod,
     /// Stop propagating after visiting this many cubes in all.
     pub max_cells: u64,
@@ -101,10 +104,13 @@ pub enum Stop {
 #[derive(Clone, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct Component {
+    /// The seed (or, with no seeds, the coarse search point) it was found from.
     pub seed: DVec3,
     /// Where the search from the seed met the surface.
     pub start: DVec3,
+    /// Cubes its propagation visited.
     pub cells: u64,
+    /// Triangles it made.
     pub triangles: usize,
 }
 
@@ -113,36 +119,58 @@ pub struct Component {
 #[cfg_attr(feature = "serde", derive(serde::Serialize), serde(rename_all = "snake_case"))]
 pub enum SeedNote {
     /// Its surface had been found already from an earlier seed (index given).
-    SameComponent { seed: DVec3, as_seed: usize },
+    SameComponent {
+        /// The seed.
+        seed: DVec3,
+        /// The index of the earlier seed whose component it reached.
+        as_seed: usize,
+    },
     /// No surface was found from it within the domain.
-    NoSurface { seed: DVec3 },
+    NoSurface {
+        /// The seed.
+        seed: DVec3,
+    },
 }
 
 /// What a run did, for `--stats`.
 #[derive(Clone, Debug, Default, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct Stats {
+    /// Side of the cubes propagated, in the field's units (from the lattice options).
     pub cell: f64,
     /// Field evaluations at lattice corners (each corner once).
     pub corner_evaluations: u64,
     /// Field evaluations to find the surface from the seeds or by searching the domain.
     pub search_evaluations: u64,
+    /// Field evaluations for root finding along crossed edges.
     pub refine_evaluations: u64,
+    /// Field gradients taken for vertex normals.
     pub normal_evaluations: u64,
+    /// Cubes visited by propagation (the cost that grows with the surface's area, not the
+    /// volume).
     pub cells_visited: u64,
     /// Corners whose value was NaN or infinite (treated as outside or inside).
     pub non_finite: u64,
+    /// The components meshed, each with the seed that reached it.
     pub components: Vec<Component>,
+    /// Seeds that did not start a component, and why.
     pub seed_notes: Vec<SeedNote>,
+    /// Why propagation stopped short of closing a surface (empty: every component closed).
     pub stops: Vec<Stop>,
+    /// Vertices in the mesh.
     pub vertices: usize,
+    /// Triangles in the mesh.
     pub triangles: usize,
+    /// Wall time of finding the surface from the seeds or by searching the domain.
     #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub search: Duration,
+    /// Wall time of propagating cubes across the surface and polygonizing them.
     #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub propagation: Duration,
+    /// Wall time of root finding on the crossed edges.
     #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub refinement: Duration,
+    /// Wall time of computing vertex normals.
     #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub normals: Duration,
 }

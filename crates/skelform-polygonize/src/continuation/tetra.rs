@@ -25,6 +25,7 @@ pub trait TetraSink {
     /// The vertex on the segment from cube corner `c0` to `c1` (`c0`'s coordinates ≤ `c1`'s)
     /// at fraction `t` from `c0`.
     fn segment_vertex(&mut self, c0: usize, c1: usize, t: f64) -> u32;
+    /// A triangle of the tetrahedron's surface piece, wound with its normal towards `f > 0`.
     fn triangle(&mut self, t: [u32; 3]);
 }
 

@@ -10,14 +10,17 @@
 //! cell are found (sampling can miss them), and triangles never intersect (fans over strongly
 //! curved loops can fold).
 
+// The per-cube machinery is shared with the other polygonizers inside the crate but is no
+// part of the interface: what a caller needs of it is re-exported below.
 mod assembly;
-pub mod cell;
-pub mod cube;
-pub mod extract;
-pub mod interior;
-pub mod table;
+pub(crate) mod cell;
+pub(crate) mod cube;
+pub(crate) mod extract;
+pub(crate) mod interior;
+pub(crate) mod table;
 
 use std::borrow::Borrow;
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
@@ -30,8 +33,9 @@ use crate::Error;
 use crate::lattice::LatticeOptions;
 use crate::refine::{Bracket, RootOptions, gradient_normals, project_to_surface, refine_roots};
 pub use extract::{
-    Extraction, GridVertex, LayerSource, Place, SampledVertex, StreamError, StreamStats, Streamed,
-    dir_vector, extract, extract_streamed,
+    Cancelled, Extraction, GridVertex, LayerSource, Place, Positions, SLAB, SampledVertex,
+    SlabVertex, StreamError, StreamStats, Streamed, Workspace, dir_vector, extract,
+    extract_positions, extract_streamed, extract_streamed_with, extract_with, surface_cubes,
 };
 
 pub use crate::lattice::Resolution;
@@ -43,11 +47,15 @@ pub struct Options {
     pub lattice: LatticeOptions,
     /// Whether the sampled volume is held whole or streamed slab by slab.
     pub streaming: Streaming,
+    /// Where extraction keeps its slab buffers between runs; `None`: the process's shared
+    /// [`Workspace`] (what a one-shot program wants; a long-lived one may keep its own, and
+    /// drop it to give the memory back).
+    pub workspace: Option<Arc<Workspace>>,
 }
 
 /// Whether the grid polygonizer keeps the whole sampled volume.
 ///
-/// Streaming samples each slab of [`extract::SLAB`] cube layers as it is extracted, so memory
+/// Streaming samples each slab of [`SLAB`] cube layers as it is extracted, so memory
 /// follows the thread count instead of the volume (a 512³ volume is 512 MiB of samples); the
 /// layer between two slabs is evaluated twice when the slabs run on different threads (at
 /// most one layer in `SLAB` more). The mesh is the same either way, bit for bit.
@@ -56,7 +64,9 @@ pub enum Streaming {
     /// Stream when the volume would take more than [`STREAM_ABOVE`] bytes.
     #[default]
     Auto,
+    /// Always stream, whatever the volume's size (memory follows the threads).
     Always,
+    /// Never stream: the volume is held whole (a few percent faster when it fits).
     Never,
 }
 
@@ -78,27 +88,43 @@ impl Streaming {
 #[derive(Clone, Debug, Default, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct Stats {
+    /// Samples along x, y and z of the lattice that covered the domain.
     pub grid_dims: [usize; 3],
+    /// Side of the lattice's cubic cells, in the field's units.
     pub cell: f64,
+    /// Field evaluations made to sample the lattice (streamed runs sample a layer between slabs
+    /// on different threads twice).
     pub samples: u64,
     /// Samples that were NaN or infinite (treated as far outside / inside).
     pub non_finite_samples: u64,
     /// The smallest and largest sampled values: a surface needs one of each sign.
     pub min_sample: f32,
+    /// See `min_sample`; both are of the sanitized samples (non-finite ones stored as
+    /// ±`f32::MAX`).
     pub max_sample: f32,
     /// Field evaluations for root finding and for normals.
     pub refine_evaluations: u64,
+    /// Field gradients taken for vertex normals (none when normals are off).
     pub normal_evaluations: u64,
+    /// Cube faces whose sign pattern is ambiguous, decided by the asymptotic decider.
     pub ambiguous_faces: u64,
+    /// Cubes whose trilinear interpolant joins opposite corners through the inside (tubes
+    /// built).
     pub tunnels: u64,
+    /// Vertices in the mesh (one per crossed lattice edge, plus interior vertices of tunnels).
     pub vertices: usize,
+    /// Triangles in the mesh.
     pub triangles: usize,
+    /// Wall time of sampling the field on the lattice.
     #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub sampling: Duration,
+    /// Wall time of marching cubes over the samples.
     #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub extraction: Duration,
+    /// Wall time of moving vertices onto the surface by root finding.
     #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub refinement: Duration,
+    /// Wall time of computing vertex normals.
     #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub normals: Duration,
     /// Whether the volume was streamed (then `sampling` and `extraction` share the wall time
@@ -111,6 +137,17 @@ impl Stats {
     pub fn evaluations(&self) -> u64 {
         self.samples + self.refine_evaluations + self.normal_evaluations
     }
+}
+
+/// The slab buffers a run uses: its own workspace, else the process's.
+fn workspace(options: &Options) -> &Workspace {
+    options.workspace.as_deref().unwrap_or(Workspace::shared())
+}
+
+/// Builds the marching-cubes case table now (a few milliseconds, once per process), so that
+/// a timed extraction measures extraction alone, as a tool with a compiled-in table would.
+pub fn prepare_tables() {
+    table::table();
 }
 
 /// The lattice the options describe (see [`LatticeOptions::grid`]).
@@ -186,7 +223,7 @@ fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats)
     stats.max_sample = hi;
 
     let t = Instant::now();
-    let ex = extract(&volume, &lattice.control)?;
+    let ex = extract_with(&volume, &lattice.control, workspace(options))?;
     stats.extraction = t.elapsed();
     stats.ambiguous_faces = ex.ambiguous_faces;
     stats.tunnels = ex.tunnels;
@@ -242,7 +279,12 @@ fn polygonize_streamed(
     let t = Instant::now();
     let source = FieldLayers(LayerSampling::new(field, grid));
     let extract::Streamed { vertices: sampled, triangles, stats: s } =
-        extract::extract_streamed::<SampledVertex, _>(&source, grid, &options.lattice.control)?;
+        extract_streamed_with::<SampledVertex, _>(
+            &source,
+            grid,
+            &options.lattice.control,
+            workspace(options),
+        )?;
     let wall = t.elapsed();
     let busy = (s.source_time + s.extract_time).as_secs_f64();
     let share = if busy > 0.0 { s.source_time.as_secs_f64() / busy } else { 0.5 };

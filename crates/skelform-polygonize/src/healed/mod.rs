@@ -160,8 +160,12 @@ impl Default for Options {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct CriticalCubes {
+    /// Class 10: two opposite ambiguous faces, a self-intersection line straight through
+    /// the cube.
     pub class10: usize,
+    /// Class 12: two adjacent ambiguous faces, a line turning round an edge of the cube.
     pub class12: usize,
+    /// Class 13: six ambiguous faces, a triple point inside the cube.
     pub class13: usize,
     /// Critical cubes of other configurations (the thesis leaves them; here they are healed
     /// like any other when a curve passes through them).
@@ -169,6 +173,7 @@ pub struct CriticalCubes {
 }
 
 impl CriticalCubes {
+    /// Critical cubes of every class: what the thesis's tables count as the cubes to heal.
     pub fn total(&self) -> usize {
         self.class10 + self.class12 + self.class13 + self.other
     }
@@ -180,7 +185,10 @@ impl CriticalCubes {
 pub struct SelfIntersection {
     /// Points along it, about a quarter of a cell apart.
     pub points: Vec<DVec3>,
+    /// Whether it is a loop (its last point joins its first) rather than a path between
+    /// the domain's boundary, pinch points and triple points.
     pub closed: bool,
+    /// Its length along `points` (closing segment included for a loop).
     pub length: f64,
     /// Whether it is meshed (its region was healed).
     pub healed: bool,
@@ -191,7 +199,9 @@ pub struct SelfIntersection {
 #[derive(Clone, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct SingularLine {
+    /// Points along it, as traced.
     pub points: Vec<DVec3>,
+    /// Its length along `points`.
     pub length: f64,
 }
 
@@ -199,13 +209,21 @@ pub struct SingularLine {
 #[derive(Clone, Debug, Default, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct Stats {
+    /// Samples along x, y and z of the lattice that covered the domain.
     pub grid_dims: [usize; 3],
+    /// Side of the lattice's cubic cells.
     pub cell: f64,
+    /// Field evaluations made to sample the lattice (the whole volume is kept for healing).
     pub samples: u64,
+    /// Samples that were NaN or infinite (treated as far outside / inside).
     pub non_finite_samples: u64,
+    /// The smallest sampled value (of the sanitized samples): a surface needs one of each sign.
     pub min_sample: f32,
+    /// The largest sampled value.
     pub max_sample: f32,
+    /// Field evaluations for root finding along crossed edges.
     pub refine_evaluations: u64,
+    /// Field gradients taken for vertex normals.
     pub normal_evaluations: u64,
     /// Gradients for the critical-vertex test (and its Hessians).
     pub critical_evaluations: u64,
@@ -217,9 +235,14 @@ pub struct Stats {
     pub kept_mc_triangles: usize,
     /// Triangles made by healing.
     pub healing_triangles: usize,
+    /// Triangles in the healed mesh (the thesis's "triangles by HMC").
     pub triangles: usize,
+    /// Vertices in the healed mesh.
     pub vertices: usize,
+    /// Marching-cubes vertices where the gradient nearly vanishes (thesis eq. 4.1): where
+    /// sheets may cross.
     pub critical_vertices: usize,
+    /// Cubes holding critical vertices, by the thesis's classes.
     pub critical_cubes: CriticalCubes,
     /// The thesis's face points: where the segments joining opposite crossings meet, on the
     /// faces with four crossings of critical class 10/12/13 cubes (seeds for the search).
@@ -228,27 +251,38 @@ pub struct Stats {
     pub seeds_tried: u64,
     /// Healed regions, and their cubes.
     pub zones: usize,
+    /// Cubes re-triangulated by healing, over all zones.
     pub healed_cubes: usize,
     /// Regions left as marching cubes made them, and why.
     pub unresolved: Vec<Unresolved>,
     /// Lattice edges and faces checked on the field while growing healed regions.
     pub edges_checked: usize,
+    /// See `edges_checked`.
     pub faces_checked: usize,
     /// Edges of self-intersection curves in the mesh.
     pub curve_edges: usize,
+    /// The self-intersection curves traced, meshed or not.
     pub curves: Vec<SelfIntersection>,
+    /// Isolated singular points found (cone apexes, pinch and triple points, …).
     pub singular_points: Vec<SingularPoint>,
+    /// Lines where the zero set is the line alone: reported, not meshed.
     pub singular_lines: Vec<SingularLine>,
+    /// Wall time of sampling the field on the lattice.
     #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub sampling: Duration,
+    /// Wall time of plain marching cubes.
     #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub extraction: Duration,
+    /// Wall time of root finding on crossed edges.
     #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub refinement: Duration,
+    /// Wall time of the critical-vertex test and the singular-point search and tracing.
     #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub search: Duration,
+    /// Wall time of growing zones and re-triangulating them.
     #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub healing: Duration,
+    /// Wall time of computing vertex normals.
     #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub normals: Duration,
 }

@@ -82,7 +82,9 @@ pub enum PointKind {
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct SingularPoint {
+    /// Where it is, after the Gauss–Newton solve for `∇f = 0, f = 0`.
     pub position: DVec3,
+    /// What the Hessian there says it is.
     pub kind: PointKind,
 }
 

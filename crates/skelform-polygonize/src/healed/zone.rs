@@ -51,7 +51,9 @@ use crate::grid::{GridVertex, Place};
 pub struct Unresolved {
     /// The centre of its cubes.
     pub center: DVec3,
+    /// How many cubes it has: how much of the mesh stays as marching cubes made it.
     pub cubes: usize,
+    /// The first check it failed, in words (e.g. a curve edge without four sheet pieces).
     pub reason: String,
 }
 
@@ -580,7 +582,9 @@ fn shortest_path(net: &Network, a: u32, b: u32, limit: f64) -> Option<Vec<u32>> 
     Some(path)
 }
 
-/// Builds and checks the bands of one zone.
+/// Builds and checks the bands of one zone: the zone boundary's trace (its segments chained
+/// into paths and loops), each piece mapped onto the network walk it follows and zipped to
+/// it, then the check that two sheets cross along every curve edge and every cone is fanned.
 fn heal_component(
     inp: &Input,
     lat: &Lattice,
@@ -590,17 +594,72 @@ fn heal_component(
     probe: &mut Probe,
     edge_memo: &mut FxHashMap<u64, bool>,
 ) -> Result<Bands, String> {
-    let t = table();
     let net = inp.net;
     let h = inp.grid.cell;
-    let n_mc = inp.vertices.len() as u32;
+    let exits = exit_faces(inp, lat);
+    let boundary = Boundary { set, comp, edge_vertex, exits: &exits };
+    let trace = boundary_trace(inp, lat, &boundary, probe, edge_memo)?;
+    let zone = ZoneNetwork::new(net, lat, set)?;
+    let components = trace.components()?;
 
-    // Faces of the domain box where a curve leaves it: there marching cubes pairs the four
-    // crossings of the two sheets wrongly, so their segments are not used; the traces end on
-    // those faces' edges and the bands on the exit node.
+    let mut bands = Bands { triangles: Vec::new(), band_of: Vec::new(), edges: Vec::new() };
+    let mut usage: FxHashMap<u32, u32> = FxHashMap::default();
+    let mut cone_fans: FxHashMap<u32, u32> = FxHashMap::default();
+    for (band, (trace, closed)) in components.iter().enumerate() {
+        let band = band as u32;
+        let (mut walk, mut w) = walk_along(inp, &zone, trace)?;
+        remove_wiggles(net, &mut walk, &mut w, h);
+        if !closed {
+            extend_to_exits(inp, trace, &mut walk, &mut w);
+        }
+        if walk.len() == 1 {
+            let n = walk[0];
+            if !closed {
+                return Err("an open trace along no self-intersection curve".into());
+            }
+            if net.nodes[n as usize].kind != NodeKind::Cone {
+                // A sheet piece that enters the zone and leaves it without reaching a curve
+                // (a tangential graze, a corner cut off): a disk, fanned from its first
+                // vertex. Were it really a piece round a curve, that curve's edges would lack
+                // it, and the check below would refuse the zone.
+                for k in 1..trace.len().saturating_sub(2) {
+                    bands.triangles.push([trace[0], trace[k], trace[k + 1]]);
+                    bands.band_of.push(band);
+                }
+                continue;
+            }
+            *cone_fans.entry(n).or_insert(0) += 1;
+        } else if walk.iter().any(|&n| net.nodes[n as usize].kind == NodeKind::Cone) {
+            return Err("a trace runs through a cone apex".into());
+        }
+        let (steps, tris) = zip_band(inp, trace, &walk, &w);
+        for t in tris {
+            bands.triangles.push(t);
+            bands.band_of.push(band);
+        }
+        let mut j = 0usize;
+        for &along_trace in &steps {
+            if !along_trace {
+                let Some(e) = net.edge_between(walk[j], walk[j + 1]) else {
+                    return Err("a walk step is not a network edge".into());
+                };
+                *usage.entry(e).or_insert(0) += 1;
+                j += 1;
+            }
+        }
+    }
+    check_sheets(net, &zone, &usage, &cone_fans, &mut bands)?;
+    Ok(bands)
+}
+
+/// Faces of the domain box where a curve leaves it: there marching cubes pairs the four
+/// crossings of the two sheets wrongly, so their segments are not used; the traces end on
+/// those faces' edges and the bands on the exit node. As `(cube, face)`.
+fn exit_faces(inp: &Input, lat: &Lattice) -> FxHashSet<(usize, usize)> {
+    let h = inp.grid.cell;
     let bounds = inp.grid.bounds();
     let mut exit_faces: FxHashSet<(usize, usize)> = FxHashSet::default();
-    for n in net.nodes.iter().filter(|n| n.kind == NodeKind::Exit) {
+    for n in inp.net.nodes.iter().filter(|n| n.kind == NodeKind::Exit) {
         let mut cubes = FxHashSet::default();
         lat.add_near(n.p, 1e-6, &mut cubes);
         for c in cubes {
@@ -614,13 +673,42 @@ fn heal_component(
             }
         }
     }
+    exit_faces
+}
 
-    // Trace segments on the zone's boundary, directed as the zone-side cube has them: on
-    // faces shared with cubes outside, and on the domain box (where the bands end with the
-    // mesh), except where curves leave it.
+/// What decides which of a zone's marching-cubes segments lie on its boundary.
+struct Boundary<'z> {
+    /// The zone's cubes, as a set and in order.
+    set: &'z FxHashSet<usize>,
+    comp: &'z [usize],
+    /// Lattice edge key → marching-cubes vertex.
+    edge_vertex: &'z FxHashMap<u64, u32>,
+    /// Box faces where a curve leaves the domain ([`exit_faces`]).
+    exits: &'z FxHashSet<(usize, usize)>,
+}
+
+/// The zone boundary's segments, chained: each marching-cubes vertex to the next along its
+/// sheet's trace.
+struct Trace {
+    next: FxHashMap<u32, u32>,
+    /// Vertices some segment ends at (the rest of `next`'s keys start paths).
+    has_prev: FxHashSet<u32>,
+}
+
+/// Trace segments on the zone's boundary, directed as the zone-side cube has them: on faces
+/// shared with cubes outside, and on the domain box (where the bands end with the mesh),
+/// except where curves leave it.
+fn boundary_trace(
+    inp: &Input,
+    lat: &Lattice,
+    zone: &Boundary,
+    probe: &mut Probe,
+    edge_memo: &mut FxHashMap<u64, bool>,
+) -> Result<Trace, String> {
+    let t = table();
     let mut next: FxHashMap<u32, u32> = FxHashMap::default();
     let mut has_prev: FxHashSet<u32> = FxHashSet::default();
-    for &ci in comp {
+    for &ci in zone.comp {
         let c = lat.coords(ci);
         let v = lat.corner_values(inp.volume, c);
         let case = case_of(&v);
@@ -634,7 +722,7 @@ fn heal_component(
             let e = e as usize;
             let o = CORNERS[EDGES[e][0]];
             let p = [c[0] + o[0], c[1] + o[1], c[2] + o[2]];
-            edge_vertex
+            zone.edge_vertex
                 .get(&lat.edge_key(p, edge_axis(e)))
                 .copied()
                 .ok_or_else(|| "a boundary crossing has no marching-cubes vertex".to_string())
@@ -648,8 +736,8 @@ fn heal_component(
                     return Err("a loop side on no face".into());
                 };
                 match lat.neighbour(c, f) {
-                    Some(nb) if set.contains(&nb) => continue,
-                    None if exit_faces.contains(&(ci, f)) => continue,
+                    Some(nb) if zone.set.contains(&nb) => continue,
+                    None if zone.exits.contains(&(ci, f)) => continue,
                     // A box face where the lattice misses crossings (near where a curve
                     // leaves) is left out like an exit face.
                     None if box_face_hides(probe, inp.volume, lat, edge_memo, c, f) => continue,
@@ -664,26 +752,100 @@ fn heal_component(
             }
         }
     }
+    Ok(Trace { next, has_prev })
+}
 
-    // Network nodes and edges in this zone.
-    let node_in = |k: usize| set.contains(&lat.cube(lat.cube_of(net.nodes[k].p)));
-    let nodes: Vec<u32> = (0..net.nodes.len()).filter(|&k| node_in(k)).map(|k| k as u32).collect();
-    let node_set: FxHashSet<u32> = nodes.iter().copied().collect();
-    let edges: Vec<u32> = (0..net.edges.len() as u32)
-        .filter(|&e| {
-            let [a, b] = net.edges[e as usize];
-            node_set.contains(&a) || node_set.contains(&b)
-        })
-        .collect();
-    if nodes.is_empty() {
-        return Err("no self-intersection in the zone".into());
+impl Trace {
+    /// The trace's pieces: paths from their first vertex (in vertex order), then loops
+    /// (closed: the first vertex repeated at the end), each with whether it is closed.
+    fn components(&self) -> Result<Vec<(Vec<u32>, bool)>, String> {
+        let next = &self.next;
+        let mut starts: Vec<u32> =
+            next.keys().copied().filter(|v| !self.has_prev.contains(v)).collect();
+        starts.sort_unstable();
+        let mut used: FxHashSet<u32> = FxHashSet::default();
+        let mut components: Vec<(Vec<u32>, bool)> = Vec::new();
+        for s in starts {
+            let mut path = vec![s];
+            let mut v = s;
+            used.insert(s);
+            while let Some(&w) = next.get(&v) {
+                if !used.insert(w) {
+                    return Err("a trace path runs into itself".into());
+                }
+                path.push(w);
+                v = w;
+            }
+            components.push((path, false));
+        }
+        let mut rest: Vec<u32> = next.keys().copied().filter(|v| !used.contains(v)).collect();
+        rest.sort_unstable();
+        for s in rest {
+            if used.contains(&s) {
+                continue;
+            }
+            let mut path = vec![s];
+            used.insert(s);
+            let mut v = s;
+            loop {
+                let Some(&w) = next.get(&v) else {
+                    return Err("a trace loop does not close".into());
+                };
+                if w == s {
+                    break;
+                }
+                if !used.insert(w) {
+                    return Err("a trace loop runs into another".into());
+                }
+                path.push(w);
+                v = w;
+            }
+            path.push(s);
+            components.push((path, true));
+        }
+        Ok(components)
     }
-    let mut buckets: FxHashMap<[usize; 3], Vec<u32>> = FxHashMap::default();
-    for &k in &nodes {
-        buckets.entry(lat.cube_of(net.nodes[k as usize].p)).or_default().push(k);
+}
+
+/// The network inside one zone: its nodes and the edges touching them, with the nodes
+/// bucketed by cube for nearest-node queries.
+struct ZoneNetwork<'n> {
+    net: &'n Network,
+    lat: Lattice,
+    nodes: Vec<u32>,
+    edges: Vec<u32>,
+    buckets: FxHashMap<[usize; 3], Vec<u32>>,
+}
+
+impl<'n> ZoneNetwork<'n> {
+    /// The network of the zone of cubes `set`; an error when no curve passes through it.
+    fn new(net: &'n Network, lat: &Lattice, set: &FxHashSet<usize>) -> Result<Self, String> {
+        let node_in = |k: usize| set.contains(&lat.cube(lat.cube_of(net.nodes[k].p)));
+        let nodes: Vec<u32> =
+            (0..net.nodes.len()).filter(|&k| node_in(k)).map(|k| k as u32).collect();
+        let node_set: FxHashSet<u32> = nodes.iter().copied().collect();
+        let edges: Vec<u32> = (0..net.edges.len() as u32)
+            .filter(|&e| {
+                let [a, b] = net.edges[e as usize];
+                node_set.contains(&a) || node_set.contains(&b)
+            })
+            .collect();
+        if nodes.is_empty() {
+            return Err("no self-intersection in the zone".into());
+        }
+        let mut buckets: FxHashMap<[usize; 3], Vec<u32>> = FxHashMap::default();
+        for &k in &nodes {
+            buckets.entry(lat.cube_of(net.nodes[k as usize].p)).or_default().push(k);
+        }
+        Ok(ZoneNetwork { net, lat: *lat, nodes, edges, buckets })
     }
-    let reach = lat.cubes.iter().copied().max().unwrap_or(1);
-    let nearest = |p: DVec3| -> Option<u32> {
+
+    /// The zone's node nearest `p` (the lowest-numbered of equally near ones), searched in
+    /// rings of cubes outward until no farther ring can hold a nearer one.
+    fn nearest(&self, p: DVec3) -> Option<u32> {
+        let (lat, net) = (&self.lat, self.net);
+        let h = lat.grid.cell;
+        let reach = lat.cubes.iter().copied().max().unwrap_or(1);
         let c = lat.cube_of(p);
         let mut best: Option<(f64, u32)> = None;
         for r in 0..=reach {
@@ -702,7 +864,7 @@ fn heal_component(
                         if ring.iter().copied().max().unwrap_or(0) != r {
                             continue;
                         }
-                        for &n in buckets.get(&[i, j, k]).into_iter().flatten() {
+                        for &n in self.buckets.get(&[i, j, k]).into_iter().flatten() {
                             let d = (net.nodes[n as usize].p - p).length();
                             if best.is_none_or(|b| d < b.0 || (d == b.0 && n < b.1)) {
                                 best = Some((d, n));
@@ -713,261 +875,209 @@ fn heal_component(
             }
         }
         best.map(|b| b.1)
-    };
+    }
+}
+
+/// The walk a trace piece follows on the network: each trace vertex's nearest node, joined
+/// by shortest network paths (within four cells). Returns the walk and, for each trace
+/// vertex, the walk position it maps to.
+fn walk_along(
+    inp: &Input,
+    zone: &ZoneNetwork,
+    trace: &[u32],
+) -> Result<(Vec<u32>, Vec<usize>), String> {
+    let limit = 4.0 * inp.grid.cell;
+    let mut walk: Vec<u32> = Vec::new();
+    let mut w: Vec<usize> = Vec::with_capacity(trace.len());
+    for &v in trace {
+        let Some(n) = zone.nearest(inp.positions[v as usize]) else {
+            return Err("no node near a trace".into());
+        };
+        match walk.last() {
+            None => walk.push(n),
+            Some(&last) if last != n => {
+                let Some(path) = shortest_path(zone.net, last, n, limit) else {
+                    return Err("a trace jumps between unconnected curves".into());
+                };
+                walk.extend_from_slice(&path[1..]);
+            }
+            _ => {}
+        }
+        w.push(walk.len() - 1);
+    }
+    Ok((walk, w))
+}
+
+/// Removes a walk's back-and-forth moves, which are wiggles of the nearest-node mapping,
+/// except round the end of a curve: a sheet that folds round a pinch point turns there, and
+/// the nearest nodes may turn one node early, so the walk is taken on to the end and back.
+/// Keeps `w` (trace vertex → walk position) pointing at the same nodes.
+fn remove_wiggles(net: &Network, walk: &mut Vec<u32>, w: &mut [usize], h: f64) {
     let is_leaf = |n: u32| net.degree(n) <= 1;
-    let limit = 4.0 * h;
-
-    // Components of the trace: paths from their first vertex, then loops.
-    let mut starts: Vec<u32> = next.keys().copied().filter(|v| !has_prev.contains(v)).collect();
-    starts.sort_unstable();
-    let mut used: FxHashSet<u32> = FxHashSet::default();
-    let mut components: Vec<(Vec<u32>, bool)> = Vec::new();
-    for s in starts {
-        let mut path = vec![s];
-        let mut v = s;
-        used.insert(s);
-        while let Some(&w) = next.get(&v) {
-            if !used.insert(w) {
-                return Err("a trace path runs into itself".into());
-            }
-            path.push(w);
-            v = w;
-        }
-        components.push((path, false));
-    }
-    let mut rest: Vec<u32> = next.keys().copied().filter(|v| !used.contains(v)).collect();
-    rest.sort_unstable();
-    for s in rest {
-        if used.contains(&s) {
-            continue;
-        }
-        let mut path = vec![s];
-        used.insert(s);
-        let mut v = s;
-        loop {
-            let Some(&w) = next.get(&v) else {
-                return Err("a trace loop does not close".into());
-            };
-            if w == s {
-                break;
-            }
-            if !used.insert(w) {
-                return Err("a trace loop runs into another".into());
-            }
-            path.push(w);
-            v = w;
-        }
-        path.push(s);
-        components.push((path, true));
-    }
-
-    let mut bands = Bands { triangles: Vec::new(), band_of: Vec::new(), edges: Vec::new() };
-    let mut usage: FxHashMap<u32, u32> = FxHashMap::default();
-    let mut cone_fans: FxHashMap<u32, u32> = FxHashMap::default();
-    for (band, (trace, closed)) in components.iter().enumerate() {
-        let pos = |v: u32| inp.positions[v as usize];
-        // Walk: nearest nodes joined by shortest paths.
-        let mut walk: Vec<u32> = Vec::new();
-        let mut w: Vec<usize> = Vec::with_capacity(trace.len());
-        for &v in trace {
-            let Some(n) = nearest(pos(v)) else { return Err("no node near a trace".into()) };
-            match walk.last() {
-                None => walk.push(n),
-                Some(&last) if last != n => {
-                    let Some(path) = shortest_path(net, last, n, limit) else {
-                        return Err("a trace jumps between unconnected curves".into());
-                    };
-                    walk.extend_from_slice(&path[1..]);
-                }
-                _ => {}
-            }
-            w.push(walk.len() - 1);
-        }
-        // Back-and-forth moves are wiggles, except round the end of a curve: a sheet that
-        // folds round a pinch point turns there, and the nearest nodes may turn one node early.
-        let mut from = 1;
-        while let Some(j) = (from..walk.len().saturating_sub(1))
-            .find(|&j| walk[j - 1] == walk[j + 1] && !is_leaf(walk[j]))
-        {
-            if let Some(path) = path_to_end(net, walk[j], walk[j - 1], 2.5 * h) {
-                // Go on to the end and back.
-                let extra = 2 * (path.len() - 1);
-                let mut round: Vec<u32> = path[1..].to_vec();
-                round.extend(path[..path.len() - 1].iter().rev());
-                walk.splice(j + 1..j + 1, round);
-                for x in w.iter_mut() {
-                    if *x > j {
-                        *x += extra;
-                    }
-                }
-                from = j + extra + 1;
-                continue;
-            }
-            walk.drain(j..j + 2);
+    let mut from = 1;
+    while let Some(j) = (from..walk.len().saturating_sub(1))
+        .find(|&j| walk[j - 1] == walk[j + 1] && !is_leaf(walk[j]))
+    {
+        if let Some(path) = path_to_end(net, walk[j], walk[j - 1], 2.5 * h) {
+            // Go on to the end and back.
+            let extra = 2 * (path.len() - 1);
+            let mut round: Vec<u32> = path[1..].to_vec();
+            round.extend(path[..path.len() - 1].iter().rev());
+            walk.splice(j + 1..j + 1, round);
             for x in w.iter_mut() {
-                if *x == j || *x == j + 1 {
-                    *x = j - 1;
-                } else if *x > j + 1 {
-                    *x -= 2;
-                }
-            }
-            from = 1;
-        }
-        // Open traces end on the domain box, as do the curves they follow.
-        if !closed {
-            let first = trace[0];
-            let last = *trace.last().unwrap_or(&first);
-            if on_box(&inp.vertices[first as usize], inp.grid.dims)
-                && let Some(path) = path_to_exit(net, walk[0], 2.5 * h)
-            {
-                let extra = path.len() - 1;
-                let mut nw: Vec<u32> = path.into_iter().rev().collect();
-                nw.extend_from_slice(&walk[1..]);
-                walk = nw;
-                for x in w.iter_mut() {
+                if *x > j {
                     *x += extra;
                 }
             }
-            let end = *walk.last().unwrap_or(&0);
-            if on_box(&inp.vertices[last as usize], inp.grid.dims)
-                && let Some(path) = path_to_exit(net, end, 2.5 * h)
-            {
-                walk.extend_from_slice(&path[1..]);
+            from = j + extra + 1;
+            continue;
+        }
+        walk.drain(j..j + 2);
+        for x in w.iter_mut() {
+            if *x == j || *x == j + 1 {
+                *x = j - 1;
+            } else if *x > j + 1 {
+                *x -= 2;
             }
         }
-        let trivial = walk.len() == 1;
-        if trivial {
-            let n = walk[0];
-            if !closed {
-                return Err("an open trace along no self-intersection curve".into());
-            }
-            if net.nodes[n as usize].kind != NodeKind::Cone {
-                // A sheet piece that enters the zone and leaves it without reaching a curve
-                // (a tangential graze, a corner cut off): a disk, fanned from its first
-                // vertex. Were it really a piece round a curve, that curve's edges would lack
-                // it, and the check below would refuse the zone.
-                for k in 1..trace.len().saturating_sub(2) {
-                    bands.triangles.push([trace[0], trace[k], trace[k + 1]]);
-                    bands.band_of.push(band as u32);
-                }
-                continue;
-            }
-            *cone_fans.entry(n).or_insert(0) += 1;
+        from = 1;
+    }
+}
+
+/// Open traces end on the domain box, as do the curves they follow: a walk whose trace
+/// starts (or ends) on the box is extended to the curve's exit node there.
+fn extend_to_exits(inp: &Input, trace: &[u32], walk: &mut Vec<u32>, w: &mut [usize]) {
+    let (net, h) = (inp.net, inp.grid.cell);
+    let first = trace[0];
+    let last = *trace.last().unwrap_or(&first);
+    if on_box(&inp.vertices[first as usize], inp.grid.dims)
+        && let Some(path) = path_to_exit(net, walk[0], 2.5 * h)
+    {
+        let extra = path.len() - 1;
+        let mut nw: Vec<u32> = path.into_iter().rev().collect();
+        nw.extend_from_slice(&walk[1..]);
+        *walk = nw;
+        for x in w.iter_mut() {
+            *x += extra;
         }
-        if !trivial && walk.iter().any(|&n| net.nodes[n as usize].kind == NodeKind::Cone) {
-            return Err("a trace runs through a cone apex".into());
+    }
+    let end = *walk.last().unwrap_or(&0);
+    if on_box(&inp.vertices[last as usize], inp.grid.dims)
+        && let Some(path) = path_to_exit(net, end, 2.5 * h)
+    {
+        walk.extend_from_slice(&path[1..]);
+    }
+}
+
+/// Zips a trace piece (marching-cubes vertices) with its walk (network nodes) into a band:
+/// a sequence of steps, each one triangle, `true` for a step along the trace. Returns the
+/// steps and the triangles (node `k` numbered `mc_vertices + k`).
+fn zip_band(inp: &Input, trace: &[u32], walk: &[u32], w: &[usize]) -> (Vec<bool>, Vec<[u32; 3]>) {
+    let net = inp.net;
+    let n_mc = inp.vertices.len() as u32;
+    let pos = |v: u32| inp.positions[v as usize];
+    let (nt, nw) = (trace.len() - 1, walk.len() - 1);
+    let mut steps: Vec<bool> = Vec::with_capacity(nt + nw);
+    let (mut i, mut j) = (0usize, 0usize);
+    let mut turned_at: Option<usize> = None;
+    while i < nt || j < nw {
+        // Round the end of a curve the walk comes straight back: the trace must move on
+        // between the two steps, or the second triangle would fold onto the first.
+        let folds = j >= 1 && j < nw && walk[j + 1] == walk[j - 1] && turned_at == Some(i);
+        let advance_trace = if i == nt {
+            false
+        } else if j == nw || j >= w[i + 1] || folds {
+            true
+        } else if j < w[i] {
+            false
+        } else {
+            // The shorter rung.
+            let (ti, tn) = (pos(trace[i]), pos(trace[i + 1]));
+            let (wj, wn) = (net.nodes[walk[j] as usize].p, net.nodes[walk[j + 1] as usize].p);
+            (tn - wj).length() <= (ti - wn).length()
+        };
+        if advance_trace {
+            i += 1;
+        } else {
+            turned_at = Some(i);
+            j += 1;
         }
-        // Zip the trace (i) with the walk (j): a sequence of steps, each one triangle.
-        let (nt, nw) = (trace.len() - 1, walk.len() - 1);
-        let mut steps: Vec<bool> = Vec::with_capacity(nt + nw); // true: along the trace
-        let (mut i, mut j) = (0usize, 0usize);
-        let mut turned_at: Option<usize> = None;
-        while i < nt || j < nw {
-            // Round the end of a curve the walk comes straight back: the trace must move on
-            // between the two steps, or the second triangle would fold onto the first.
-            let folds = j >= 1 && j < nw && walk[j + 1] == walk[j - 1] && turned_at == Some(i);
-            let advance_trace = if i == nt {
-                false
-            } else if j == nw || j >= w[i + 1] || folds {
-                true
-            } else if j < w[i] {
-                false
-            } else {
-                // The shorter rung.
-                let (ti, tn) = (pos(trace[i]), pos(trace[i + 1]));
-                let (wj, wn) = (net.nodes[walk[j] as usize].p, net.nodes[walk[j + 1] as usize].p);
-                (tn - wj).length() <= (ti - wn).length()
-            };
-            if advance_trace {
+        steps.push(advance_trace);
+    }
+    let tri_of = |steps: &[bool], k: usize, i: usize, j: usize| -> [u32; 3] {
+        if steps[k] {
+            [trace[i], trace[i + 1], n_mc + walk[j]]
+        } else {
+            [trace[i], n_mc + walk[j + 1], n_mc + walk[j]]
+        }
+    };
+    let place = |v: u32| {
+        if v < n_mc { inp.positions[v as usize] } else { net.nodes[(v - n_mc) as usize].p }
+    };
+    let normal = |t: [u32; 3]| {
+        let q = t.map(place);
+        (q[1] - q[0]).cross(q[2] - q[0])
+    };
+    let flat = |t: [u32; 3]| {
+        let q = t.map(place);
+        let e = (q[1] - q[0]).length_squared()
+            + (q[2] - q[1]).length_squared()
+            + (q[0] - q[2]).length_squared();
+        normal(t).length() <= 1e-6 * e
+    };
+    let emit = |steps: &[bool]| {
+        let (mut i, mut j) = (0, 0);
+        let mut out = Vec::with_capacity(steps.len());
+        for k in 0..steps.len() {
+            out.push(tri_of(steps, k, i, j));
+            if steps[k] {
                 i += 1;
             } else {
-                turned_at = Some(i);
                 j += 1;
             }
-            steps.push(advance_trace);
         }
-        let tri_of = |steps: &[bool], k: usize, i: usize, j: usize| -> [u32; 3] {
-            if steps[k] {
-                [trace[i], trace[i + 1], n_mc + walk[j]]
-            } else {
-                [trace[i], n_mc + walk[j + 1], n_mc + walk[j]]
-            }
-        };
-        let place = |v: u32| {
-            if v < n_mc { inp.positions[v as usize] } else { net.nodes[(v - n_mc) as usize].p }
-        };
-        let normal = |t: [u32; 3]| {
-            let q = t.map(place);
-            (q[1] - q[0]).cross(q[2] - q[0])
-        };
-        let flat = |t: [u32; 3]| {
-            let q = t.map(place);
-            let e = (q[1] - q[0]).length_squared()
-                + (q[2] - q[1]).length_squared()
-                + (q[0] - q[2]).length_squared();
-            normal(t).length() <= 1e-6 * e
-        };
-        let emit = |steps: &[bool]| {
-            let (mut i, mut j) = (0, 0);
-            let mut out = Vec::with_capacity(steps.len());
-            for k in 0..steps.len() {
-                out.push((tri_of(steps, k, i, j), i, j));
-                if steps[k] {
-                    i += 1;
-                } else {
-                    j += 1;
-                }
-            }
-            out
-        };
-        // A triangle whose three points are on one line (a curve crossing the lattice plane a
-        // trace runs in) is flipped with a neighbour: swapping two unlike steps moves the rung
-        // between them to the quad's other diagonal.
-        let mut tris = emit(&steps);
-        for k in 0..steps.len() {
-            if !flat(tris[k].0) {
+        out
+    };
+    // A triangle whose three points are on one line (a curve crossing the lattice plane a
+    // trace runs in) is flipped with a neighbour: swapping two unlike steps moves the rung
+    // between them to the quad's other diagonal.
+    let mut tris = emit(&steps);
+    for k in 0..steps.len() {
+        if !flat(tris[k]) {
+            continue;
+        }
+        for m in [k.wrapping_sub(1), k + 1] {
+            if m >= steps.len() || steps[m] == steps[k] {
                 continue;
             }
-            for m in [k.wrapping_sub(1), k + 1] {
-                if m >= steps.len() || steps[m] == steps[k] {
-                    continue;
-                }
-                let (a, b) = (k.min(m), k.max(m));
-                let mut trial = steps.clone();
-                trial.swap(a, b);
-                let t2 = emit(&trial);
-                let (x, y) = (t2[a].0, t2[b].0);
-                let distinct = |t: [u32; 3]| t[0] != t[1] && t[1] != t[2] && t[0] != t[2];
-                if distinct(x)
-                    && distinct(y)
-                    && !flat(x)
-                    && !flat(y)
-                    && normal(x).dot(normal(y)) > 0.0
-                {
-                    steps = trial;
-                    tris = t2;
-                    break;
-                }
-            }
-        }
-        for (t, _, _) in &tris {
-            bands.triangles.push(*t);
-            bands.band_of.push(band as u32);
-        }
-        let mut j = 0usize;
-        for &along_trace in &steps {
-            if !along_trace {
-                let Some(e) = net.edge_between(walk[j], walk[j + 1]) else {
-                    return Err("a walk step is not a network edge".into());
-                };
-                *usage.entry(e).or_insert(0) += 1;
-                j += 1;
+            let (a, b) = (k.min(m), k.max(m));
+            let mut trial = steps.clone();
+            trial.swap(a, b);
+            let t2 = emit(&trial);
+            let (x, y) = (t2[a], t2[b]);
+            let distinct = |t: [u32; 3]| t[0] != t[1] && t[1] != t[2] && t[0] != t[2];
+            if distinct(x) && distinct(y) && !flat(x) && !flat(y) && normal(x).dot(normal(y)) > 0.0
+            {
+                steps = trial;
+                tris = t2;
+                break;
             }
         }
     }
+    (steps, tris)
+}
 
-    // Two sheets cross along every curve: each edge carries four bands.
-    for &e in &edges {
+/// The zone's acceptance test: two sheets cross along every curve, so each network edge in
+/// the zone carries four bands (then it goes into `bands.edges`), and every cone apex in it
+/// got at least one fan.
+fn check_sheets(
+    net: &Network,
+    zone: &ZoneNetwork,
+    usage: &FxHashMap<u32, u32>,
+    cone_fans: &FxHashMap<u32, u32>,
+    bands: &mut Bands,
+) -> Result<(), String> {
+    for &e in &zone.edges {
         let n = usage.get(&e).copied().unwrap_or(0);
         if n != 4 {
             let [a, b] = net.edges[e as usize];
@@ -979,14 +1089,14 @@ fn heal_component(
         }
         bands.edges.push(net.edges[e as usize]);
     }
-    for &k in &nodes {
+    for &k in &zone.nodes {
         if net.nodes[k as usize].kind == NodeKind::Cone
             && cone_fans.get(&k).copied().unwrap_or(0) == 0
         {
             return Err("no sheet reaches the cone apex".into());
         }
     }
-    Ok(bands)
+    Ok(())
 }
 
 /// A path from `a` (not back through `not`) to the end of a curve inside the domain (a pinch

@@ -62,6 +62,7 @@ pub struct Options {
     /// Start points within about half a cell of a surface of interest; with none, the
     /// domain is searched every `search_stride` cells.
     pub seeds: Vec<DVec3>,
+    /// Stride of the domain search, in cells: regions thinner than that can be missed.
     pub search_stride: usize,
     /// Visit every cube of the domain instead of propagating from starts.
     pub full_grid: bool,
@@ -83,6 +84,7 @@ pub struct Options {
     /// contour between them is followed and a vertex put where it is farthest from the
     /// edge, so the poke is made rather than cut off. Off: the chapter's truncation.
     pub loops: bool,
+    /// Stop propagating after visiting this many cubes (then `Stats::reached_budget`).
     pub max_cells: u64,
 }
 
@@ -112,16 +114,24 @@ impl Default for Options {
 #[derive(Clone, Debug, Default, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct Stats {
+    /// Side of the cubes (each split into five tetrahedra), in the region function's units.
     pub cell: f64,
+    /// Accuracy to which edge and face vertices are placed (the chapter's ε).
     pub epsilon: f64,
+    /// Evaluations of the region function: the run's cost, compared in
+    /// `conventional_evaluations`.
     pub region_evaluations: u64,
     /// What a conventional (manifold) tetrahedral polygonizer would evaluate on the same
     /// cells: the corners, and eight bisection steps on each edge whose ends differ (the
     /// chapter's comparison, about four times fewer).
     pub conventional_evaluations: u64,
+    /// Cubes visited (by propagation from the starts, or every cube in full-grid mode).
     pub cells_visited: u64,
+    /// Vertices on tetrahedron edges, where the region changes along the edge.
     pub edge_vertices: usize,
+    /// Vertices inside tetrahedron faces, where three or more regions meet on the face.
     pub face_vertices: usize,
+    /// Vertices inside tetrahedra, where the region contours of its faces meet.
     pub internal_vertices: usize,
     /// Face vertices the contour follower could not reach (placed at the mean of the
     /// face's crossings instead).
@@ -129,15 +139,23 @@ pub struct Stats {
     /// Face vertices put on an edge crossing because a third region lies within 2ε of it
     /// along its edge (the follower's first triangle would already hold it).
     pub face_vertices_at_crossing: usize,
+    /// Looped crossings ((a,b) then (b,a) on one edge: a surface poking through) left out, as
+    /// the chapter does.
     pub looped_pairs_ignored: usize,
     /// Looped pairs kept (`Options::loops`), and their face vertices placed by following
     /// the contour (the rest by a fallback half a crossing gap into the face).
     pub looped_pairs_kept: usize,
+    /// Face vertices placed for kept looped pairs.
     pub loop_vertices: usize,
+    /// Of those, the ones placed half a crossing gap into the face because the contour could
+    /// not be followed.
     pub loop_vertex_fallbacks: usize,
+    /// Vertices merged into a neighbour closer than `close_factor · ε` along a triangle edge
+    /// (post-processing).
     pub merged_vertices: usize,
     /// Vertices of thin triangles moved onto the midpoint of the opposite side.
     pub snapped_to_edges: usize,
+    /// Triangles removed by post-processing because merging or snapping collapsed them.
     pub dropped_triangles: usize,
     /// Vertex normals taken from the region function's per-pair gradient (the rest are
     /// area-weighted triangle normals).
@@ -148,16 +166,23 @@ pub struct Stats {
         feature = "serde",
         serde(rename = "surfaces", serialize_with = "crate::summary::surfaces")
     )]
+    /// Triangles of each surface, by region pair, in pair order.
     pub triangles_per_pair: Vec<(RegionPair, usize)>,
     #[cfg_attr(
         feature = "serde",
         serde(rename = "curves", serialize_with = "crate::summary::curves")
     )]
+    /// Length of each intersection curve, by the three regions meeting there.
     pub curve_length_per_triple: Vec<(RegionTriple, f64)>,
+    /// Whether a surface reached the domain box (the mesh is open there).
     pub reached_domain: bool,
+    /// Whether propagation ran out of cells (`max_cells`) with surface left to visit.
     pub reached_budget: bool,
+    /// Vertices in the mesh (copies per region pair included).
     pub vertices: usize,
+    /// Triangles in the mesh.
     pub triangles: usize,
+    /// Wall time of the whole run.
     #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub time: Duration,
 }

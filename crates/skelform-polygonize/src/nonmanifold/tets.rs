@@ -5,6 +5,8 @@
 /// `(c & 1, c >> 1 & 1, c >> 2 & 1)`), for even (`i + j + k` even) and odd cubes.
 pub const EVEN: [[usize; 4]; 5] =
     [[0, 3, 5, 6], [1, 0, 3, 5], [2, 0, 3, 6], [4, 0, 5, 6], [7, 3, 5, 6]];
+/// [`EVEN`] mirrored (`x` flipped), for odd cubes: the neighbour across each face then cuts
+/// that face along the same diagonal.
 pub const ODD: [[usize; 4]; 5] =
     [[1, 2, 4, 7], [0, 1, 2, 4], [3, 1, 2, 7], [5, 1, 4, 7], [6, 2, 4, 7]];
 

@@ -20,6 +20,7 @@ use skelform_mesh::Mesh;
 pub struct Verification {
     /// Vertices away from curves, and those of them stepping into their two regions.
     pub vertices: usize,
+    /// See `vertices`: the ones whose steps land in their pair's two regions, lesser in front.
     pub vertices_between: usize,
     /// Vertices (away from curves) whose steps land in their regions the wrong way round.
     pub vertices_reversed: usize,
@@ -27,6 +28,7 @@ pub struct Verification {
     pub curve_vertices: usize,
     /// Triangles with no vertex on a curve, and those of them facing their lesser region.
     pub triangles: usize,
+    /// See `triangles`: the ones whose normal points into their lesser region.
     pub triangles_facing_lesser: usize,
     /// Triangles with a vertex on a curve: a step from their centre can reach the third
     /// region, so they count only when reversed.

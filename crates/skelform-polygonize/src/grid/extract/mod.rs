@@ -1,0 +1,563 @@
+//! Marching cubes over a sampled [`Volume`], in parallel z-slabs joined in a fixed order.
+//!
+//! Vertices are named as in Flying Edges: the crossed edges of each sample layer, and those
+//! between two layers, are numbered in a fixed order computed from the layers' sign bits
+//! alone (`numbering`), so a cube finds the vertex on its edge by a
+//! population count, with no map to look it up in, and each edge vertex is made once, in
+//! number order. Each slab owns the edge vertices on its own sample layers (the last slab
+//! also owns the top layer); the slab below refers to the layer it shares with the slab
+//! above by those numbers, which land on the next slab's first vertices. The mesh is the
+//! slabs in order (`slabs`), each placed as soon as the slabs below it are counted.
+//! Slab boundaries depend only on the grid, never on the thread count, so the output is the
+//! same bit for bit on any number of threads.
+//!
+//! The parts: `numbering` names the vertices, `signs` finds the cubes the surface passes
+//! through from sign bits, `slabs` schedules the slabs over the threads and joins them, and
+//! `streaming` feeds slabs from a [`LayerSource`] instead of a whole volume.
+
+use std::ops::ControlFlow;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use skelform_field::control::{Control, Progress};
+use skelform_field::grid::{Grid, Volume};
+
+use super::cell::{CubeSink, polygonize_case};
+use super::cube::CORNERS;
+
+mod numbering;
+mod signs;
+mod slabs;
+mod streaming;
+
+pub use signs::surface_cubes;
+pub use slabs::Workspace;
+pub use streaming::{
+    LayerSource, StreamError, StreamStats, Streamed, extract_streamed, extract_streamed_with,
+};
+
+use numbering::{LayerNumbering, ZNumbering};
+use signs::{for_each_mixed_cube, layer_signs, prefetch};
+use slabs::{SlabStore, run_slabs};
+
+/// Cube layers per slab. A constant, so that results never depend on the thread count.
+pub const SLAB: usize = 8;
+
+/// Marks a vertex number as one of the layer above, which the next slab makes (see
+/// `SlabStore::finish`).
+const BORROWED: u32 = 1 << 31;
+
+/// Where a mesh vertex lies, relative to lattice point `base`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GridVertex {
+    /// The lattice point the vertex is placed from.
+    pub base: [u32; 3],
+    /// On which segment or in which cell from `base`.
+    pub place: Place,
+}
+
+/// Where from its lattice point a vertex lies: kept symbolically (not as a position) so
+/// that refinement knows which segment to search and which samples bracket the root.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Place {
+    /// On the lattice segment from `base` to `base + dir` (a bit mask: 1 = x, 2 = y, 4 = z;
+    /// one bit for a cell edge, more for the face and body diagonals that tetrahedra use), at
+    /// fraction `t`. Refinement moves `t` by root finding along the segment.
+    Edge {
+        /// The segment's direction, as a bit mask.
+        dir: u8,
+        /// The fraction along it.
+        t: f64,
+    },
+    /// Inside the cell whose lowest corner is `base`, at `offset` (in cells). Only the few
+    /// configurations whose loop cannot be triangulated from its own crossings use one;
+    /// refinement projects it onto the surface.
+    Cell {
+        /// The position in the cell, in cells from `base`.
+        offset: [f64; 3],
+    },
+}
+
+/// The offset a direction mask stands for.
+pub fn dir_vector(dir: u8) -> [u32; 3] {
+    [(dir & 1) as u32, ((dir >> 1) & 1) as u32, ((dir >> 2) & 1) as u32]
+}
+
+impl GridVertex {
+    /// The lattice point at the other end of an edge vertex's segment.
+    pub fn tip(&self) -> Option<[u32; 3]> {
+        match self.place {
+            Place::Edge { dir, .. } => {
+                let d = dir_vector(dir);
+                Some(std::array::from_fn(|i| self.base[i] + d[i]))
+            }
+            Place::Cell { .. } => None,
+        }
+    }
+
+    /// The position, given the lattice.
+    pub fn position(&self, grid: &Grid) -> glam::DVec3 {
+        let p0 = grid.point(self.base[0] as usize, self.base[1] as usize, self.base[2] as usize);
+        let d = match self.place {
+            Place::Edge { dir, t } => dir_vector(dir).map(|x| x as f64 * t),
+            Place::Cell { offset } => offset,
+        };
+        p0 + glam::DVec3::from_array(d) * grid.cell
+    }
+}
+
+/// The raw output of extraction: triangles over edge vertices.
+#[derive(Clone, Debug, Default)]
+pub struct Extraction {
+    /// The vertices, by lattice place (for refinement on the field).
+    pub vertices: Vec<GridVertex>,
+    /// The triangles, wound with their normals towards `f > 0`.
+    pub triangles: Vec<[u32; 3]>,
+    /// Ambiguous faces decided by the asymptotic decider (each counted once per cube).
+    pub ambiguous_faces: u64,
+    /// Cubes whose interior tunnel test joined two loops.
+    pub tunnels: u64,
+}
+
+/// Cancellation during extraction.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Cancelled;
+
+/// What a slab records for each vertex it makes: the lattice place ([`GridVertex`], for
+/// refinement on the field) or the interpolated position at once (extraction only).
+pub trait SlabVertex: Copy + Default + Send + Sync + 'static {
+    /// The record of vertex `v`; `ends` are the samples at the two ends of its lattice
+    /// segment (zero for vertices inside a cell).
+    fn make(grid: &Grid, v: GridVertex, ends: [f32; 2]) -> Self;
+}
+
+impl SlabVertex for GridVertex {
+    #[inline]
+    fn make(_: &Grid, v: GridVertex, _: [f32; 2]) -> Self {
+        v
+    }
+}
+
+impl SlabVertex for [f32; 3] {
+    #[inline]
+    fn make(grid: &Grid, v: GridVertex, _: [f32; 2]) -> Self {
+        v.position(grid).as_vec3().to_array()
+    }
+}
+
+/// A vertex with the samples at its segment's ends: what refinement needs when the volume
+/// itself is not kept (streamed extraction).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SampledVertex {
+    /// Where the vertex lies.
+    pub vertex: GridVertex,
+    /// The samples at its segment's two ends (zero for a vertex inside a cell): the
+    /// bracket refinement starts from, without the volume.
+    pub ends: [f32; 2],
+}
+
+impl std::borrow::Borrow<GridVertex> for SampledVertex {
+    fn borrow(&self) -> &GridVertex {
+        &self.vertex
+    }
+}
+
+impl SlabVertex for SampledVertex {
+    #[inline]
+    fn make(_: &Grid, vertex: GridVertex, ends: [f32; 2]) -> Self {
+        SampledVertex { vertex, ends }
+    }
+}
+
+impl Default for GridVertex {
+    fn default() -> Self {
+        GridVertex { base: [0; 3], place: Place::Cell { offset: [0.0; 3] } }
+    }
+}
+
+/// A thread's working memory, reused for every slab it runs: the sign words and edge
+/// numberings of the layers it works on, and the sample layers of a streamed slab.
+struct Scratch {
+    /// Sign words of the sample layers below and above the current layer of cubes.
+    below: Vec<u64>,
+    above: Vec<u64>,
+    /// The numbered x/y-edges of those two layers, and the z-edges between them.
+    lower: LayerNumbering,
+    upper: LayerNumbering,
+    z: ZNumbering,
+    /// The sample layers of the slab, when they are streamed from a [`LayerSource`].
+    layers: Vec<f32>,
+    /// Which layer the last of `layers` is, and how many of its samples were not finite:
+    /// the next slab starts with it, if this thread runs that slab.
+    top: Option<(usize, u64)>,
+}
+
+impl Scratch {
+    fn new(nx: usize, ny: usize) -> Self {
+        let words = nx.div_ceil(64);
+        Scratch {
+            below: vec![0; ny * words],
+            above: vec![0; ny * words],
+            lower: LayerNumbering::default(),
+            upper: LayerNumbering::default(),
+            z: ZNumbering::default(),
+            layers: Vec::new(),
+            top: None,
+        }
+    }
+}
+
+/// Runs marching cubes over the whole volume.
+pub fn extract(volume: &Volume, control: &Control) -> Result<Extraction, Cancelled> {
+    extract_with(volume, control, Workspace::shared())
+}
+
+/// [`extract`] with the slab buffers of `workspace`.
+pub fn extract_with(
+    volume: &Volume,
+    control: &Control,
+    workspace: &Workspace,
+) -> Result<Extraction, Cancelled> {
+    let (vertices, triangles, ambiguous_faces, tunnels) =
+        extract_as::<GridVertex>(volume, control, workspace)?;
+    Ok(Extraction { vertices, triangles, ambiguous_faces, tunnels })
+}
+
+/// Runs marching cubes over the whole volume and returns the vertices' interpolated
+/// positions (no refinement), without the intermediate [`GridVertex`] records.
+pub fn extract_positions(volume: &Volume, control: &Control) -> Result<Positions, Cancelled> {
+    let (vertices, triangles, _, _) = extract_as::<[f32; 3]>(volume, control, Workspace::shared())?;
+    Ok((vertices, triangles))
+}
+
+type Extracted<V> = (Vec<V>, Vec<[u32; 3]>, u64, u64);
+
+/// Interpolated vertex positions and triangles.
+pub type Positions = (Vec<[f32; 3]>, Vec<[u32; 3]>);
+
+fn extract_as<V: SlabVertex>(
+    volume: &Volume,
+    control: &Control,
+    workspace: &Workspace,
+) -> Result<Extracted<V>, Cancelled> {
+    let grid = volume.grid;
+    let [nx, ny, _] = grid.dims;
+    let cube_layers = grid.dims[2] - 1;
+    let done = AtomicU64::new(0);
+    let (vertices, triangles, counts) =
+        run_slabs(cube_layers.div_ceil(SLAB), [nx, ny], workspace, |s, scratch, store| {
+            let z0 = s * SLAB;
+            let z1 = (z0 + SLAB).min(cube_layers);
+            let vals = &volume.values[z0 * nx * ny..];
+            let counts = extract_slab(&grid, vals, (z0, z1), scratch, store, control)?;
+            slab_done(control, &done, z1 - z0, cube_layers, "extracting").map(|()| counts)
+        })?;
+    let (ambiguous_faces, tunnels) = counts.iter().fold((0, 0), |(a, t), c| (a + c.0, t + c.1));
+    Ok((vertices, triangles, ambiguous_faces, tunnels))
+}
+
+/// Adds a slab's `layers` cube layers to the progress count and reports it.
+fn slab_done(
+    control: &Control,
+    done: &AtomicU64,
+    layers: usize,
+    total: usize,
+    phase: &'static str,
+) -> Result<(), Cancelled> {
+    let d = done.fetch_add(layers as u64, Ordering::Relaxed) + layers as u64;
+    match control.report(Progress { phase, done: d, total: Some(total as u64) }) {
+        ControlFlow::Continue(()) => Ok(()),
+        ControlFlow::Break(()) => Err(Cancelled),
+    }
+}
+
+/// Marching cubes over the cube layers `z0..z1`; `vals` holds the sample layers
+/// `z0..=z1` (and possibly more), starting with layer `z0`. The slab's vertices and
+/// triangles go to `store`; returns the ambiguous faces decided and the tunnels made.
+///
+/// Flying Edges' way of naming vertices: the crossed edges of each sample layer and
+/// between two layers are numbered by counting sign changes, so a cube finds the vertex on
+/// its edge by a population count, and every edge vertex is made once, in number order,
+/// before the cubes that use it. Order in the slab: the bottom layer's x/y-edges, then per
+/// layer of cubes the x/y-edges of the layer above (unless they are the next slab's), the
+/// z-edges, and the vertices inside the cubes.
+fn extract_slab<V: SlabVertex>(
+    grid: &Grid,
+    vals: &[f32],
+    (z0, z1): (usize, usize),
+    scratch: &mut Scratch,
+    store: &mut SlabStore<'_, V>,
+    control: &Control,
+) -> Result<(u64, u64), Cancelled> {
+    let [nx, ny, nz] = grid.dims;
+    let layer = nx * ny;
+    let last = z1 == nz - 1;
+    let Scratch { below, above, lower, upper, z, .. } = scratch;
+    let local = |k: usize| &vals[(k - z0) * layer..(k - z0 + 1) * layer];
+    let offsets: [usize; 8] = CORNERS.map(|[x, y, z]| x + nx * y + layer * z);
+    // Sign bits of the sample layers: a cube has the surface in it when its eight bits are
+    // not all equal, which 64 cubes at a time reduce to a few word operations; only those
+    // cubes are visited.
+    let words = nx.div_ceil(64);
+    layer_signs(local(z0), nx, words, below);
+    lower.build(below, nx, ny, words);
+    store.begin();
+    lower.offset = store.made();
+    lower.emit(grid, local(z0), z0, store);
+    let (mut ambiguous_faces, mut tunnels) = (0, 0);
+    for k in z0..z1 {
+        if control.is_cancelled() {
+            return Err(Cancelled);
+        }
+        layer_signs(local(k + 1), nx, words, above);
+        upper.build(above, nx, ny, words);
+        // The x- and y-edges on the slab's top layer belong to the slab above (except for
+        // the last slab, which owns the volume's top): refer to them by number.
+        if k + 1 == z1 && !last {
+            upper.offset = BORROWED;
+            store.borrow_top();
+        } else {
+            upper.offset = store.made();
+            upper.emit(grid, local(k + 1), k + 1, store);
+        }
+        z.build(below, above, nx, words);
+        z.offset = store.made();
+        z.emit(grid, local(k), local(k + 1), k, store);
+        let mut sink = SlabSink {
+            store: &mut *store,
+            lower: &*lower,
+            upper: &*upper,
+            z: &*z,
+            grid,
+            at: [0, 0, k],
+            _vertex: std::marker::PhantomData,
+        };
+        // The samples of the layer after next, row by row with the rows of cubes: fetched
+        // while the cubes are worked on, they are in the cache when the next layer's sign
+        // pass reads them, instead of that pass waiting on memory.
+        let ahead = (k + 2 <= z1).then(|| local(k + 2));
+        let fetch = |j: usize| {
+            if let Some(next) = ahead {
+                let end = if j + 2 == ny { ny } else { j + 1 };
+                prefetch(&next[j * nx..end * nx]);
+            }
+        };
+        for_each_mixed_cube(below, above, nx, ny, fetch, |i, j, case| {
+            let base = nx * j + layer * (k - z0) + i;
+            let v: [f32; 8] = offsets.map(|o| vals[base + o]);
+            sink.at = [i, j, k];
+            let outcome = polygonize_case(case, &v, &mut sink);
+            ambiguous_faces += outcome.ambiguous_faces as u64;
+            tunnels += outcome.tunnel as u64;
+        });
+        std::mem::swap(below, above);
+        std::mem::swap(lower, upper);
+    }
+    store.finish();
+    Ok((ambiguous_faces, tunnels))
+}
+
+/// The slab's side of [`CubeSink`]: a cube's edge vertices by their numbers.
+struct SlabSink<'a, 's, V> {
+    store: &'a mut SlabStore<'s, V>,
+    /// The numbered edges of the sample layers below and above the cube, and between them.
+    lower: &'a LayerNumbering,
+    upper: &'a LayerNumbering,
+    z: &'a ZNumbering,
+    grid: &'a Grid,
+    at: [usize; 3],
+    _vertex: std::marker::PhantomData<V>,
+}
+
+impl<V: SlabVertex> CubeSink for SlabSink<'_, '_, V> {
+    #[inline]
+    fn edge_vertex(&mut self, e: usize, _: [f32; 2]) -> u32 {
+        // Edge 4·a + u + 2·v runs along axis a at offsets u, v on the other two axes.
+        let [i, j, _] = self.at;
+        let (u, v) = (e & 1, (e >> 1) & 1);
+        let side = if v == 0 { self.lower } else { self.upper };
+        match e >> 2 {
+            0 => side.id(0, i, j + u),
+            1 => side.id(1, i + u, j),
+            _ => self.z.id(i + u, j + v),
+        }
+    }
+
+    fn cell_vertex(&mut self, offset: [f64; 3]) -> u32 {
+        let [i, j, k] = self.at;
+        let v = GridVertex { base: [i as u32, j as u32, k as u32], place: Place::Cell { offset } };
+        let id = self.store.made();
+        self.store.push_vertex(V::make(self.grid, v, [0.0; 2]));
+        id
+    }
+
+    fn triangle(&mut self, t: [u32; 3]) {
+        self.store.push_triangle(t);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::signs::signs_scalar;
+    use super::*;
+    use glam::DVec3;
+
+    /// Samples in (-1, 1) from a small deterministic generator, with some exact zeros.
+    fn noise(n: usize, seed: u64) -> Vec<f32> {
+        let mut s = seed;
+        (0..n)
+            .map(|_| {
+                s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                let v = ((s >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0;
+                if v.abs() < 0.05 { 0.0 } else { v }
+            })
+            .collect()
+    }
+
+    /// The vector sign words (AVX2 where the CPU has it, else SSE2) say `v < 0` exactly as
+    /// the scalar form, for rows that end mid-word and for −0, NaN and infinities.
+    #[test]
+    fn sign_words_match_the_scalar_test() {
+        let (nx, ny) = (141, 3);
+        let mut values = noise(nx * ny, 3);
+        for (i, v) in [-0.0, f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -f32::MIN_POSITIVE]
+            .into_iter()
+            .enumerate()
+        {
+            values[17 * i + 5] = v;
+        }
+        let words = nx.div_ceil(64);
+        let mut signs = vec![0; ny * words];
+        layer_signs(&values, nx, words, &mut signs);
+        for j in 0..ny {
+            for w in 0..words {
+                let row = &values[j * nx..(j + 1) * nx];
+                let chunk = &row[64 * w..(64 * w + 64).min(nx)];
+                assert_eq!(signs[j * words + w], signs_scalar(chunk), "row {j}, word {w}");
+            }
+        }
+    }
+
+    #[test]
+    fn layer_numbers_are_the_crossed_edges_in_row_order() {
+        let (nx, ny) = (70, 5);
+        let values = noise(nx * ny, 7);
+        let words = nx.div_ceil(64);
+        let mut signs = vec![0; ny * words];
+        layer_signs(&values, nx, words, &mut signs);
+        let mut numbers = LayerNumbering::default();
+        numbers.build(&signs, nx, ny, words);
+        let inside = |i: usize, j: usize| values[i + nx * j] < 0.0;
+        let mut expected = 0;
+        for j in 0..ny {
+            for i in 0..nx - 1 {
+                if inside(i, j) != inside(i + 1, j) {
+                    assert_eq!(numbers.number(0, i, j), expected, "x-edge ({i}, {j})");
+                    expected += 1;
+                }
+            }
+            if j + 1 == ny {
+                continue;
+            }
+            for i in 0..nx {
+                if inside(i, j) != inside(i, j + 1) {
+                    assert_eq!(numbers.number(1, i, j), expected, "y-edge ({i}, {j})");
+                    expected += 1;
+                }
+            }
+        }
+        assert_eq!(numbers.total, expected);
+    }
+
+    /// Slabs of very different sizes (empty ones, then dense noise) finish out of order on
+    /// several threads and are placed by whichever thread completes the chain; the mesh is
+    /// the one thread's, bit for bit, also when the threads extract again.
+    #[test]
+    fn slabs_placed_out_of_order_make_the_one_thread_mesh() {
+        let dims = [40, 30, 9 * SLAB + 3];
+        let grid = Grid { origin: DVec3::ZERO, cell: 1.0, dims };
+        let mut values = noise(dims.iter().product(), 5);
+        let empty = dims[0] * dims[1] * 4 * SLAB;
+        values[..empty].iter_mut().for_each(|v| *v = 1.0);
+        let volume = Volume::from_values(grid, values);
+        // Twice on each pool: the second run reuses the slab buffers its threads kept.
+        let run = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build();
+            let pool = pool.unwrap_or_else(|e| panic!("{e}"));
+            let once = || extract(&volume, &Control::default()).unwrap_or_else(|_| unreachable!());
+            pool.install(|| [once(), once()])
+        };
+        let [one, _] = run(1);
+        assert!(one.triangles.len() > 10_000);
+        for threads in [2, 4] {
+            for (n, many) in run(threads).iter().enumerate() {
+                let what = format!("run {n} on {threads} threads");
+                assert!(many.vertices == one.vertices, "vertices differ, {what}");
+                assert!(many.triangles == one.triangles, "triangles differ, {what}");
+                assert_eq!(many.tunnels, one.tunnels);
+            }
+        }
+    }
+
+    /// A source that fails part way stops every thread and its error comes back.
+    #[test]
+    fn a_failing_source_stops_the_run() {
+        struct Failing;
+        impl LayerSource for Failing {
+            type Error = usize;
+            fn layer(&self, k: usize, out: &mut [f32]) -> Result<u64, usize> {
+                if k >= 20 {
+                    return Err(k);
+                }
+                out.iter_mut().enumerate().for_each(|(i, v)| *v = (i % 7) as f32 - 3.5);
+                Ok(0)
+            }
+        }
+        let grid = Grid { origin: DVec3::ZERO, cell: 1.0, dims: [9, 8, 6 * SLAB] };
+        for threads in [1, 3] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build();
+            let pool = pool.unwrap_or_else(|e| panic!("{e}"));
+            let run = pool
+                .install(|| extract_streamed::<[f32; 3], _>(&Failing, &grid, &Control::default()));
+            match run {
+                Err(StreamError::Source(k)) => assert!(k >= 20, "layer {k} did not fail"),
+                _ => panic!("the source's failure was not reported ({threads} threads)"),
+            }
+        }
+    }
+
+    /// Noise over several slabs: every vertex is used, lies on a crossed lattice edge and is
+    /// the only one there, whatever slab made it; no edge has more than two triangles.
+    #[test]
+    fn slabs_share_their_boundary_vertices() {
+        let dims = [67, 6, 3 * SLAB + 4];
+        let grid = Grid { origin: DVec3::ZERO, cell: 1.0, dims };
+        let volume = Volume::from_values(grid, noise(dims.iter().product(), 11));
+        let x = extract(&volume, &Control::default()).unwrap_or_else(|_| unreachable!());
+        let mut used = vec![false; x.vertices.len()];
+        let mut edges = std::collections::HashMap::new();
+        for t in &x.triangles {
+            for k in 0..3 {
+                used[t[k] as usize] = true;
+                let (a, b) = (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3]));
+                *edges.entry((a, b)).or_insert(0) += 1;
+            }
+        }
+        assert!(used.iter().all(|&u| u), "a vertex no triangle uses");
+        assert!(edges.values().all(|&n| n <= 2), "an edge of more than two triangles");
+        let mut places = std::collections::HashSet::new();
+        let at = |p: [u32; 3]| {
+            volume.values[p[0] as usize + dims[0] * (p[1] as usize + dims[1] * p[2] as usize)]
+        };
+        for v in &x.vertices {
+            if let Place::Edge { dir, .. } = v.place {
+                let tip = v.tip().unwrap_or_else(|| unreachable!());
+                assert_ne!(
+                    at(v.base) < 0.0,
+                    at(tip) < 0.0,
+                    "{v:?} is on an edge the surface does not cross"
+                );
+                assert!(places.insert((v.base, dir)), "two vertices on the edge of {v:?}");
+            }
+        }
+    }
+}

@@ -1,0 +1,197 @@
+//! Vertex numbering, as in Flying Edges: the crossed edges of a sample layer, and those
+//! between two layers, are numbered in a fixed order computed from the layers' sign bits
+//! alone, so a cube finds the vertex on its edge by a population count (no map to look it up
+//! in), and two slabs that share a layer agree on its numbers without looking at each
+//! other's work.
+
+use skelform_field::grid::Grid;
+
+use super::signs::word_mask;
+use super::slabs::SlabStore;
+use super::{GridVertex, Place, SlabVertex};
+use crate::grid::cell::crossing;
+
+/// One word of a row of edges: the crossed ones (bit `i`: the edge from sample `64·w + i`)
+/// and how many crossed edges come before the word in their numbering.
+#[derive(Clone, Copy, Default)]
+pub(super) struct Counted {
+    pub(super) bits: u64,
+    pub(super) before: u32,
+}
+
+impl Counted {
+    /// The number of crossed edge `i % 64` of the word.
+    #[inline]
+    pub(super) fn number(&self, i: usize) -> u32 {
+        debug_assert!(self.bits >> (i % 64) & 1 == 1, "edge {i} is not crossed");
+        self.before + (self.bits & ((1u64 << (i % 64)) - 1)).count_ones()
+    }
+}
+
+/// The crossed x- and y-edges of one sample layer (corners of both signs), numbered row by
+/// row: in each row its x-edges, then the y-edges to the next row, each by x. The numbers
+/// come from the layer's sign words alone, so the two slabs that share a layer agree on them
+/// without looking at each other's work, as Flying Edges numbers its edges by counting.
+#[derive(Default)]
+pub(super) struct LayerNumbering {
+    pub(super) words: usize,
+    /// Per row and word, the crossed x- and y-edges.
+    pub(super) x: Vec<Counted>,
+    pub(super) y: Vec<Counted>,
+    pub(super) total: u32,
+    /// The number of the layer's first vertex in its slab's output, or [`BORROWED`] when
+    /// the layer's vertices are the next slab's.
+    pub(super) offset: u32,
+}
+
+impl LayerNumbering {
+    /// Numbers the edges of a layer of `ny` rows of sign words (see [`layer_signs`]).
+    pub(super) fn build(&mut self, signs: &[u64], nx: usize, ny: usize, words: usize) {
+        self.words = words;
+        self.x.resize(ny * words, Counted::default());
+        self.y.resize(ny * words, Counted::default());
+        let (x_last, y_last) = (word_mask(words - 1, nx - 1), word_mask(words - 1, nx));
+        let mut count = 0u32;
+        for j in 0..ny {
+            let row = &signs[j * words..][..words];
+            let xs = &mut self.x[j * words..][..words];
+            for w in 0..words {
+                let (bits, mask) = match row.get(w + 1) {
+                    Some(next) => (row[w] ^ ((row[w] >> 1) | (next << 63)), u64::MAX),
+                    None => (row[w] ^ (row[w] >> 1), x_last),
+                };
+                let bits = bits & mask;
+                xs[w] = Counted { bits, before: count };
+                count += bits.count_ones();
+            }
+            if j + 1 < ny {
+                let up = &signs[(j + 1) * words..][..words];
+                count_across(row, up, y_last, &mut self.y[j * words..][..words], &mut count);
+            }
+        }
+        self.total = count;
+    }
+
+    /// The output number (or `BORROWED |` number) of the crossed x (`axis` 0) or y edge
+    /// from sample `(i, j)`.
+    #[inline]
+    pub(super) fn id(&self, axis: usize, i: usize, j: usize) -> u32 {
+        self.offset + self.number(axis, i, j)
+    }
+
+    /// Makes the layer's vertices in the order of their numbers, from the layer's samples
+    /// (`nx·ny`, x fastest); `k` is the layer's index.
+    pub(super) fn emit<V: SlabVertex>(
+        &self,
+        grid: &Grid,
+        vals: &[f32],
+        k: usize,
+        store: &mut SlabStore<'_, V>,
+    ) {
+        let [nx, ny, _] = grid.dims;
+        for j in 0..ny {
+            let row = j * self.words..(j + 1) * self.words;
+            for_each_bit(&self.x[row.clone()], |i| {
+                let at = i + nx * j;
+                store.push_vertex(edge_record(grid, [i, j, k], 0, [vals[at], vals[at + 1]]));
+            });
+            if j + 1 < ny {
+                for_each_bit(&self.y[row], |i| {
+                    let at = i + nx * j;
+                    store.push_vertex(edge_record(grid, [i, j, k], 1, [vals[at], vals[at + nx]]));
+                });
+            }
+        }
+    }
+
+    /// The number of the crossed x (`axis` 0) or y edge from sample `(i, j)`.
+    #[inline]
+    pub(super) fn number(&self, axis: usize, i: usize, j: usize) -> u32 {
+        let words = if axis == 0 { &self.x } else { &self.y };
+        words[j * self.words + i / 64].number(i)
+    }
+}
+
+/// The crossed z-edges between two sample layers, numbered row by row like
+/// [`LayerNumbering`]'s edges.
+#[derive(Default)]
+pub(super) struct ZNumbering {
+    pub(super) words: usize,
+    pub(super) edges: Vec<Counted>,
+    /// The output number of the first of them.
+    pub(super) offset: u32,
+}
+
+impl ZNumbering {
+    pub(super) fn build(&mut self, lower: &[u64], upper: &[u64], nx: usize, words: usize) {
+        self.words = words;
+        self.edges.resize(lower.len(), Counted::default());
+        let last = word_mask(words - 1, nx);
+        let mut count = 0u32;
+        let rows = lower.chunks_exact(words).zip(upper.chunks_exact(words));
+        for ((a, b), out) in rows.zip(self.edges.chunks_exact_mut(words)) {
+            count_across(a, b, last, out, &mut count);
+        }
+    }
+
+    #[inline]
+    pub(super) fn id(&self, i: usize, j: usize) -> u32 {
+        self.offset + self.edges[j * self.words + i / 64].number(i)
+    }
+
+    /// Makes the vertices in the order of their numbers; `lower` and `upper` are the two
+    /// layers' samples, `k` the lower one's index.
+    pub(super) fn emit<V: SlabVertex>(
+        &self,
+        grid: &Grid,
+        lower: &[f32],
+        upper: &[f32],
+        k: usize,
+        store: &mut SlabStore<'_, V>,
+    ) {
+        let nx = grid.dims[0];
+        for (j, row) in self.edges.chunks(self.words).enumerate() {
+            for_each_bit(row, |i| {
+                let at = i + nx * j;
+                store.push_vertex(edge_record(grid, [i, j, k], 2, [lower[at], upper[at]]));
+            });
+        }
+    }
+}
+
+/// Numbers the crossed edges from each sample of row `a` to the same sample of row `b` (the
+/// next row, or the row above in the next layer) into `out`, continuing from `count`; `last`
+/// masks the samples past the row's end in its last word.
+#[inline]
+fn count_across(a: &[u64], b: &[u64], last: u64, out: &mut [Counted], count: &mut u32) {
+    let words = out.len();
+    for (w, o) in out.iter_mut().enumerate() {
+        let mask = if w + 1 < words { u64::MAX } else { last };
+        let bits = (a[w] ^ b[w]) & mask;
+        *o = Counted { bits, before: *count };
+        *count += bits.count_ones();
+    }
+}
+
+/// Calls `f(i)` for each crossed edge `i` of a row, in order.
+#[inline]
+fn for_each_bit(words: &[Counted], mut f: impl FnMut(usize)) {
+    for (w, word) in words.iter().enumerate() {
+        let mut bits = word.bits;
+        while bits != 0 {
+            f(w * 64 + bits.trailing_zeros() as usize);
+            bits &= bits - 1;
+        }
+    }
+}
+
+/// The record of the vertex where the surface crosses the lattice edge from sample `base`
+/// along `axis`, whose end samples are `ends`.
+#[inline]
+fn edge_record<V: SlabVertex>(grid: &Grid, base: [usize; 3], axis: usize, ends: [f32; 2]) -> V {
+    let v = GridVertex {
+        base: base.map(|x| x as u32),
+        place: Place::Edge { dir: 1 << axis, t: crossing(ends[0], ends[1]) },
+    };
+    V::make(grid, v, ends)
+}

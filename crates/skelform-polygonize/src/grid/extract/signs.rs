@@ -1,0 +1,220 @@
+//! Sign bits: one bit per sample (`f < 0`), 64 samples to a word, so that the cubes the
+//! surface passes through (corners of both signs) are found 64 at a time by a few word
+//! operations, and only those are visited. The sign pass reads every sample of the volume,
+//! so it uses SIMD compares (SSE2 always on x86-64, AVX2 where the CPU has it); all of the
+//! extraction's `unsafe` for speed is here, each block with the reason it is sound.
+
+use rayon::prelude::*;
+use skelform_field::grid::Volume;
+
+/// The bits of word `w` of a row that stand for the items `0..count` of the row (samples,
+/// or cubes and x-edges, which are one fewer).
+#[inline]
+pub(super) fn word_mask(w: usize, count: usize) -> u64 {
+    let n = count.saturating_sub(w * 64).min(64);
+    if n == 64 { u64::MAX } else { (1u64 << n) - 1 }
+}
+
+/// Bit `i` of the row words: whether sample `i` of the row is inside (`f < 0`), with
+/// `signs64` for each whole word.
+#[inline(always)]
+fn row_signs(values: &[f32], out: &mut [u64], signs64: impl Fn(&[f32]) -> u64) {
+    for (w, chunk) in out.iter_mut().zip(values.chunks(64)) {
+        *w = if chunk.len() == 64 { signs64(chunk) } else { signs_scalar(chunk) };
+    }
+}
+
+pub(super) fn signs_scalar(chunk: &[f32]) -> u64 {
+    let mut bits = 0u64;
+    for (b, &v) in chunk.iter().enumerate() {
+        bits |= ((v < 0.0) as u64) << b;
+    }
+    bits
+}
+
+/// [`signs_scalar`] of 64 samples, four at a time with SSE2 (part of every x86-64 CPU):
+/// sixteen compares and mask extractions instead of 64 compares, shifts and ors. `v < 0`
+/// exactly as the scalar form (false for −0 and NaN).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn signs64(chunk: &[f32]) -> u64 {
+    use std::arch::x86_64::{_mm_cmplt_ps, _mm_loadu_ps, _mm_movemask_ps, _mm_setzero_ps};
+    assert_eq!(chunk.len(), 64);
+    let mut bits = 0u64;
+    for q in 0..16 {
+        // SAFETY: SSE2 is in the x86-64 baseline, and `4 * q + 3 < 64 == chunk.len()`
+        // (asserted above), so the unaligned load reads inside the slice.
+        let m = unsafe {
+            let v = _mm_loadu_ps(chunk.as_ptr().add(4 * q));
+            _mm_movemask_ps(_mm_cmplt_ps(v, _mm_setzero_ps()))
+        };
+        bits |= (m as u64) << (4 * q);
+    }
+    bits
+}
+
+#[cfg(not(target_arch = "x86_64"))]
+fn signs64(chunk: &[f32]) -> u64 {
+    signs_scalar(chunk)
+}
+
+/// Sign words with AVX2 where the CPU has it: eight samples per compare. The sign pass
+/// reads every sample of the volume, so its instruction count matters as much as memory.
+#[cfg(target_arch = "x86_64")]
+mod wide {
+    pub(super) fn available() -> bool {
+        std::arch::is_x86_feature_detected!("avx2")
+    }
+
+    /// [`super::signs64`] eight samples at a time (`_CMP_LT_OQ`: false for NaN and −0, as
+    /// `v < 0`).
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 ([`available`]).
+    #[target_feature(enable = "avx2")]
+    unsafe fn signs64(chunk: &[f32]) -> u64 {
+        use std::arch::x86_64::{
+            _CMP_LT_OQ, _mm256_cmp_ps, _mm256_loadu_ps, _mm256_movemask_ps, _mm256_setzero_ps,
+        };
+        assert_eq!(chunk.len(), 64);
+        let mut bits = 0u64;
+        for q in 0..8 {
+            // SAFETY: AVX2 is there (the caller's promise), and `8 * q + 7 < 64 ==
+            // chunk.len()` (asserted above), so the unaligned load reads inside the slice.
+            let m = unsafe {
+                let v = _mm256_loadu_ps(chunk.as_ptr().add(8 * q));
+                _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(v, _mm256_setzero_ps()))
+            };
+            bits |= (m as u32 as u64) << (8 * q);
+        }
+        bits
+    }
+
+    /// # Safety
+    /// The CPU must support AVX2 ([`available`]).
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn layer_signs(layer: &[f32], nx: usize, words: usize, out: &mut [u64]) {
+        for (row, o) in layer.chunks(nx).zip(out.chunks_mut(words)) {
+            // SAFETY: AVX2 is there: the caller's promise.
+            super::row_signs(row, o, |c| unsafe { signs64(c) });
+        }
+    }
+}
+
+/// Sign words of every row of layer `k`: `ny` rows of `words` words.
+pub(super) fn layer_signs(layer: &[f32], nx: usize, words: usize, out: &mut [u64]) {
+    #[cfg(target_arch = "x86_64")]
+    if wide::available() {
+        // SAFETY: AVX2 was detected at run time.
+        unsafe { wide::layer_signs(layer, nx, words, out) };
+        return;
+    }
+    for (row, o) in layer.chunks(nx).zip(out.chunks_mut(words)) {
+        row_signs(row, o, signs64);
+    }
+}
+
+/// Asks the CPU to bring `values` into its cache ahead of use: a hint, with no effect on
+/// the values or on correctness.
+#[inline]
+pub(super) fn prefetch(values: &[f32]) {
+    #[cfg(target_arch = "x86_64")]
+    for line in values.chunks(16) {
+        use std::arch::x86_64::{_MM_HINT_T1, _mm_prefetch};
+        // SAFETY: a prefetch never faults or changes memory, whatever the address; SSE is in
+        // the x86-64 baseline.
+        unsafe { _mm_prefetch::<_MM_HINT_T1>(line.as_ptr().cast()) };
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = values;
+}
+
+/// The sign words of the four sample rows around row `j` of cubes: rows `j` and `j + 1` of
+/// the layer below, then of the layer above (corner bit order: y, then z).
+#[inline]
+fn cube_rows<'a>(below: &'a [u64], above: &'a [u64], j: usize, words: usize) -> [&'a [u64]; 4] {
+    let row = |layer: &'a [u64], j: usize| &layer[j * words..(j + 1) * words];
+    [row(below, j), row(below, j + 1), row(above, j), row(above, j + 1)]
+}
+
+/// Bit `b` of the result: whether cube `64·w + b` of a row of cubes has corners of both
+/// signs, from the sign words of the four sample rows around it (bits past the row's last
+/// cube are garbage: mask them).
+#[inline]
+fn mixed_cubes(rows: &[&[u64]; 4], w: usize) -> u64 {
+    let any = |w: usize| rows.iter().fold(0u64, |m, r| m | r[w]);
+    let all = |w: usize| rows.iter().fold(u64::MAX, |m, r| m & r[w]);
+    let (or, and) = (any(w), all(w));
+    let words = rows[0].len();
+    let (or_next, and_next) = if w + 1 < words { (any(w + 1) & 1, all(w + 1) & 1) } else { (0, 0) };
+    // Cube i spans samples i and i + 1.
+    let some_inside = or | (or >> 1) | (or_next << 63);
+    let all_inside = and & ((and >> 1) | (and_next << 63));
+    some_inside & !all_inside
+}
+
+/// How many cubes of the volume the surface passes through (corners of both signs): the
+/// classification phase of extraction on its own, for statistics and benchmarks.
+pub fn surface_cubes(volume: &Volume) -> u64 {
+    let [nx, ny, nz] = volume.grid.dims;
+    let layer = nx * ny;
+    let words = nx.div_ceil(64);
+    (0..nz - 1)
+        .into_par_iter()
+        .map(|k| {
+            let (mut below, mut above) = (vec![0u64; ny * words], vec![0u64; ny * words]);
+            layer_signs(&volume.values[k * layer..(k + 1) * layer], nx, words, &mut below);
+            layer_signs(&volume.values[(k + 1) * layer..(k + 2) * layer], nx, words, &mut above);
+            let mut count = 0u64;
+            for j in 0..ny - 1 {
+                let rows = cube_rows(&below, &above, j, words);
+                for w in 0..words {
+                    count += (mixed_cubes(&rows, w) & word_mask(w, nx - 1)).count_ones() as u64;
+                }
+            }
+            count
+        })
+        .sum()
+}
+
+/// Calls `f(i, j, case)` for every cube of a layer of cubes whose corners have both signs,
+/// in row order, given the sign words of the sample layers below and above it; `row(j)`
+/// before the cubes of row `j`.
+#[inline(always)]
+pub(super) fn for_each_mixed_cube(
+    below: &[u64],
+    above: &[u64],
+    nx: usize,
+    ny: usize,
+    mut row: impl FnMut(usize),
+    mut f: impl FnMut(usize, usize, usize),
+) {
+    let words = nx.div_ceil(64);
+    for j in 0..ny - 1 {
+        row(j);
+        let rows = cube_rows(below, above, j, words);
+        for w in 0..words {
+            // Cubes are i < nx - 1: the last sample's bit and those past it are masked out.
+            let mut mixed = mixed_cubes(&rows, w) & word_mask(w, nx - 1);
+            while mixed != 0 {
+                let i = w * 64 + mixed.trailing_zeros() as usize;
+                mixed &= mixed - 1;
+                let case = two_bits(rows[0], i)
+                    | two_bits(rows[1], i) << 2
+                    | two_bits(rows[2], i) << 4
+                    | two_bits(rows[3], i) << 6;
+                f(i, j, case);
+            }
+        }
+    }
+}
+
+/// Bits `i` and `i + 1` of a row of sign words: the inside flags of a cube's two corners
+/// on that row.
+#[inline]
+fn two_bits(row: &[u64], i: usize) -> usize {
+    let (w, b) = (i / 64, i % 64);
+    let lo = row[w] >> b;
+    let bits = if b == 63 { (lo & 1) | ((row[w + 1] & 1) << 1) } else { lo & 3 };
+    bits as usize
+}

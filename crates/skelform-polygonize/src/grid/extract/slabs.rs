@@ -1,0 +1,289 @@
+//! Slab scheduling: the volume's cube layers are cut into slabs of [`SLAB`] layers (fixed,
+//! so results never depend on the thread count); threads claim slabs lowest first, run each
+//! into a buffer of their own and hand it over, and each slab is placed in the mesh as soon
+//! as every slab below it is, by whichever thread completes that chain.
+
+use std::any::Any;
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+
+use super::{BORROWED, Scratch, SlabVertex};
+use crate::grid::assembly::Assembly;
+
+/// Vertices and triangles, appended to by [`SlabStore`]: the mesh itself when one thread
+/// runs every slab, else a thread's buffer for the slab it is running.
+#[derive(Default)]
+pub(super) struct Output<V> {
+    pub(super) vertices: Vec<V>,
+    pub(super) triangles: Vec<[u32; 3]>,
+}
+
+/// Makes room for at least `more` elements past the end of `v`, and for a few huge pages'
+/// worth: room costs address space only until it is written, and growing by small steps
+/// would copy into memory the kernel has not been asked to back with huge pages.
+fn make_room<T>(v: &mut Vec<T>, more: usize) {
+    if v.capacity() - v.len() < more {
+        let step = skelform_field::pages::ROOM / std::mem::size_of::<T>().max(1);
+        v.reserve(more.max(v.capacity()).max(step));
+        skelform_field::pages::advise_huge(v.as_ptr(), v.capacity());
+    }
+}
+
+/// What [`run_slabs`] returns: the mesh's vertices and triangles, and each slab's result in
+/// slab order.
+type Assembled<V, T> = (Vec<V>, Vec<[u32; 3]>, Vec<T>);
+
+/// Runs `slab` on every slab and joins their pieces into one mesh, in slab order.
+///
+/// On one thread the slabs run in order straight into the mesh's arrays. On more, each
+/// thread claims the lowest slab no one has claimed, runs it into a buffer of its own and
+/// hands it over; a slab is placed in the mesh (an [`Assembly`]) as soon as every slab below
+/// it has been handed over, by the thread that completes that chain, so no thread ever waits
+/// for another, and every byte of the mesh is written once into fresh memory. A slab's
+/// vertices go after all those of the slabs below it, its triangles' numbers shifted by as
+/// many (a reference to the layer above, numbered just past the slab's own vertices, lands on
+/// the next slab's first ones).
+pub(super) fn run_slabs<V, T, E>(
+    slabs: usize,
+    [nx, ny]: [usize; 2],
+    workspace: &Workspace,
+    slab: impl Fn(usize, &mut Scratch, &mut SlabStore<V>) -> Result<T, E> + Sync,
+) -> Result<Assembled<V, T>, E>
+where
+    V: SlabVertex,
+    T: Send,
+    E: Send,
+{
+    let threads = rayon::current_num_threads().min(slabs);
+    if threads <= 1 {
+        let (mut out, mut scratch) = (Output::default(), Scratch::new(nx, ny));
+        let (mut hint, mut results) = ((0, 0), Vec::with_capacity(slabs));
+        for k in 0..slabs {
+            let before = (out.vertices.len(), out.triangles.len());
+            results.push(slab(k, &mut scratch, &mut SlabStore::new(&mut out, hint))?);
+            hint = (out.vertices.len() - before.0, out.triangles.len() - before.1);
+        }
+        out.vertices.shrink_to_fit();
+        out.triangles.shrink_to_fit();
+        return Ok((out.vertices, out.triangles, results));
+    }
+    let chain = Mutex::new(Chain::new(slabs));
+    let lock = || chain.lock().unwrap_or_else(|e| e.into_inner());
+    let (next, stop) = (AtomicUsize::new(0), AtomicBool::new(false));
+    let (vertices, triangles) = (Assembly::new(), Assembly::new());
+    let work = || {
+        let mut scratch = Scratch::new(nx, ny);
+        let mut hint = (0, 0);
+        while !stop.load(Ordering::Relaxed) {
+            let k = next.fetch_add(1, Ordering::Relaxed);
+            if k >= slabs {
+                break;
+            }
+            let spare = lock().spare.pop();
+            let mut out = spare.or_else(|| workspace.take()).unwrap_or_default();
+            out.vertices.clear();
+            out.triangles.clear();
+            let result = slab(k, &mut scratch, &mut SlabStore::new(&mut out, hint));
+            hint = (out.vertices.len(), out.triangles.len());
+            let (ready, [nv, nt], placed) = match result {
+                Ok(r) => lock().hand_over(k, r, out),
+                Err(e) => {
+                    lock().fail(k, e);
+                    stop.store(true, Ordering::Relaxed);
+                    break;
+                }
+            };
+            if !ready.is_empty() {
+                // Room for the placed slabs, and for the rest if they are like them, with a
+                // margin: growing copies what has been placed, unless the allocator can
+                // remap it.
+                let guess = |n: usize| n + n / placed * (slabs - placed + 1) * 5 / 4;
+                vertices.reserve(nv, guess(nv));
+                triangles.reserve(nt, guess(nt));
+            }
+            for (o, [v0, t0]) in &ready {
+                vertices.place(*v0, &o.vertices, |v| v);
+                let shift = *v0 as u32;
+                triangles.place(*t0, &o.triangles, |t| t.map(|i| i + shift));
+            }
+            lock().spare.extend(ready.into_iter().map(|(o, _)| o));
+        }
+    };
+    rayon::scope(|s| {
+        for _ in 0..threads {
+            s.spawn(|_| work());
+        }
+    });
+    let mut chain = chain.into_inner().unwrap_or_else(|e| e.into_inner());
+    workspace.keep(std::mem::take(&mut chain.spare), 2 * threads);
+    if let Some((_, e)) = chain.error {
+        return Err(e);
+    }
+    assert_eq!(chain.placed, slabs, "a slab was never placed");
+    let [nv, nt] = chain.end;
+    // SAFETY: every slab was placed: slab k wrote vertices and triangles from the ends of
+    // slab k − 1's, as many as it has, so together they cover 0..nv and 0..nt.
+    let (vertices, triangles) = unsafe { (vertices.into_vec(nv), triangles.into_vec(nt)) };
+    let results = chain.results.into_iter().flatten().collect();
+    Ok((vertices, triangles, results))
+}
+
+/// Slab buffers kept from one extraction to the next, so that a program that extracts again
+/// (frames of an animation, a benchmark's runs) does not fault in fresh pages for them every
+/// time: memory the size of a few slabs' meshes per thread.
+///
+/// Extraction without one of its own uses a workspace shared by the whole process, which is
+/// right for a command line run; a long-lived program that wants that memory back, or
+/// separate runs that should not share it, passes its own (see
+/// [`crate::grid::Options::workspace`]) and drops it when done. Buffers are reused only
+/// between runs, never by two runs at once, so the mesh never depends on the workspace.
+#[derive(Default)]
+pub struct Workspace {
+    kept: Mutex<Vec<Box<dyn Any + Send>>>,
+}
+
+impl std::fmt::Debug for Workspace {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let held = self.kept.lock().map_or(0, |k| k.len());
+        f.debug_struct("Workspace").field("buffers", &held).finish()
+    }
+}
+
+impl Workspace {
+    /// An empty workspace: buffers are allocated by the first run and kept for the next.
+    pub const fn new() -> Self {
+        Workspace { kept: Mutex::new(Vec::new()) }
+    }
+
+    /// The process's workspace, for runs that bring none.
+    pub fn shared() -> &'static Workspace {
+        static SHARED: Workspace = Workspace::new();
+        &SHARED
+    }
+
+    /// A kept buffer for vertices of type `V`, if there is one.
+    fn take<V: Send + 'static>(&self) -> Option<Output<V>> {
+        let mut kept = self.kept.lock().unwrap_or_else(|e| e.into_inner());
+        let at = kept.iter().position(|b| b.is::<Output<V>>())?;
+        kept.swap_remove(at).downcast().ok().map(|b| *b)
+    }
+
+    /// Keeps `buffers` for the next extraction, and no more than `most` of their type.
+    fn keep<V: Send + 'static>(&self, buffers: Vec<Output<V>>, most: usize) {
+        let mut kept = self.kept.lock().unwrap_or_else(|e| e.into_inner());
+        let held = kept.iter().filter(|b| b.is::<Output<V>>()).count();
+        let room = most.saturating_sub(held);
+        kept.extend(buffers.into_iter().take(room).map(|b| Box::new(b) as Box<dyn Any + Send>));
+    }
+}
+
+/// Which slabs have been handed over and placed, for [`run_slabs`].
+struct Chain<V, T, E> {
+    /// The slabs below this one are placed.
+    placed: usize,
+    /// Where the next slab to place starts: its first vertex and first triangle.
+    end: [usize; 2],
+    /// Handed-over slabs not yet placed, by index.
+    waiting: Vec<Option<Output<V>>>,
+    results: Vec<Option<T>>,
+    /// The failure of the lowest slab that failed.
+    error: Option<(usize, E)>,
+    /// Buffers of placed slabs, for the next slabs to run.
+    spare: Vec<Output<V>>,
+}
+
+/// Slabs ready to be placed: each slab's output, with where its vertices and triangles start.
+type Ready<V> = Vec<(Output<V>, [usize; 2])>;
+
+impl<V, T, E> Chain<V, T, E> {
+    fn new(slabs: usize) -> Self {
+        Chain {
+            placed: 0,
+            end: [0, 0],
+            waiting: (0..slabs).map(|_| None).collect(),
+            results: (0..slabs).map(|_| None).collect(),
+            error: None,
+            spare: Vec::new(),
+        }
+    }
+
+    /// Takes slab `k`'s output; returns the slabs that can now be placed (`k` and those
+    /// after it, if all before it are placed), the end of the last of them, and how many
+    /// slabs are then placed.
+    fn hand_over(&mut self, k: usize, result: T, out: Output<V>) -> (Ready<V>, [usize; 2], usize) {
+        self.results[k] = Some(result);
+        self.waiting[k] = Some(out);
+        let mut ready = Vec::new();
+        while let Some(o) = self.waiting.get_mut(self.placed).and_then(Option::take) {
+            let start = self.end;
+            self.end = [start[0] + o.vertices.len(), start[1] + o.triangles.len()];
+            self.placed += 1;
+            ready.push((o, start));
+        }
+        (ready, self.end, self.placed)
+    }
+
+    /// Records slab `k`'s failure; the lowest slab's failure is the one reported.
+    fn fail(&mut self, k: usize, e: E) {
+        if self.error.as_ref().is_none_or(|(at, _)| k < *at) {
+            self.error = Some((k, e));
+        }
+    }
+}
+
+/// Where a slab's vertices and triangles go: the end of an [`Output`]. A vertex's number is
+/// its index there; a triangle may name vertex `n` of the layer above, which the next slab
+/// makes, as `BORROWED | n` until [`SlabStore::finish`] numbers it.
+pub(super) struct SlabStore<'a, V> {
+    out: &'a mut Output<V>,
+    /// The sizes of the thread's previous slab: neighbouring slabs of a smooth surface make
+    /// about as many vertices and triangles.
+    hint: (usize, usize),
+    /// The first triangle that may refer to the layer above.
+    borrowing: usize,
+}
+
+impl<'a, V: SlabVertex> SlabStore<'a, V> {
+    pub(super) fn new(out: &'a mut Output<V>, hint: (usize, usize)) -> Self {
+        let borrowing = usize::MAX;
+        SlabStore { out, hint, borrowing }
+    }
+
+    pub(super) fn begin(&mut self) {
+        make_room(&mut self.out.vertices, 2 * self.hint.0);
+        make_room(&mut self.out.triangles, 2 * self.hint.1);
+        debug_assert!(self.out.vertices.len() < BORROWED as usize);
+    }
+
+    /// The number of the next vertex.
+    #[inline]
+    pub(super) fn made(&self) -> u32 {
+        self.out.vertices.len() as u32
+    }
+
+    #[inline]
+    pub(super) fn push_vertex(&mut self, v: V) {
+        self.out.vertices.push(v);
+    }
+
+    #[inline]
+    pub(super) fn push_triangle(&mut self, t: [u32; 3]) {
+        self.out.triangles.push(t);
+    }
+
+    /// Triangles from now on may refer to the layer above.
+    pub(super) fn borrow_top(&mut self) {
+        self.borrowing = self.out.triangles.len();
+    }
+
+    /// Ends the slab: the next slab's vertices will be numbered from here, its bottom
+    /// layer's first, so `BORROWED | n` becomes the number `n` past the slab's last vertex.
+    pub(super) fn finish(&mut self) {
+        let next = self.made();
+        if let Some(ts) = self.out.triangles.get_mut(self.borrowing..) {
+            for t in ts {
+                *t = t.map(|i| if i & BORROWED == 0 { i } else { next + (i & !BORROWED) });
+            }
+        }
+    }
+}
