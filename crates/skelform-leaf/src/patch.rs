@@ -214,8 +214,6 @@ impl RegionField for PatchBlend {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use skelform_field::FnField;
-    use skelform_field::region::{OrderedRegions, Otherwise};
 
     /// The flat patch z = 0 over [-1, 1]², with the saucer's bump at its centre.
     fn flat_blend() -> PatchBlend {
@@ -235,45 +233,6 @@ mod tests {
         // The normal is +z (Pₛ × Pₜ with s along x, t along y): region 2 is on its side.
         assert_eq!(b.gradient(DVec3::new(0.7, 0.2, 0.1), (2, 3)), Some(DVec3::Z));
         assert_eq!(b.gradient(DVec3::new(0.7, 0.2, 0.1), (0, 2)), None);
-    }
-
-    /// Formulas in front of a built-in region function: they claim first, the built-in
-    /// takes the rest (in batches too), its ids join theirs, and a formula gradient for a
-    /// pair replaces the built-in's.
-    #[test]
-    fn formulas_in_front_of_a_built_in() {
-        let ball = |p: DVec3| (p - DVec3::new(0.7, 0.0, 0.0)).length() - 0.2;
-        let r = OrderedRegions {
-            regions: vec![(4, Box::new(FnField(ball)))],
-            default: Otherwise::Regions(Box::new(flat_blend())),
-            gradients: vec![((3, 4), Box::new(FnField(ball)))],
-        };
-        assert_eq!(r.region(DVec3::new(0.7, 0.0, 0.1)), 4);
-        assert_eq!(r.region(DVec3::new(0.0, 0.0, 0.1)), 1);
-        assert_eq!(r.region(DVec3::new(0.0, 0.7, -0.1)), 3);
-        let pts: Vec<DVec3> = (0..600)
-            .map(|i| {
-                DVec3::new(
-                    (i % 10) as f64 * 0.27 - 1.3,
-                    (i / 10 % 10) as f64 * 0.27 - 1.3,
-                    (i / 100) as f64 * 0.1 - 0.3,
-                )
-            })
-            .collect();
-        let mut out = vec![99; pts.len()];
-        r.region_many(&pts, &mut out);
-        for (p, o) in pts.iter().zip(&out) {
-            assert_eq!(*o, r.region(*p), "{p}");
-        }
-        for id in 0..5 {
-            assert!(out.contains(&id), "no point in region {id}");
-        }
-        assert_eq!(r.region_ids(), Some(vec![0, 1, 2, 3, 4]));
-        let p = DVec3::new(0.7, 0.3, 0.0);
-        assert_eq!(r.gradient(p, (2, 3)), Some(DVec3::Z), "the built-in's");
-        let g = r.gradient(p, (3, 4)).unwrap();
-        assert!((g - DVec3::Y).length() < 1e-6, "the formula's: {g}");
-        assert_eq!(r.gradient(p, (0, 4)), None);
     }
 
     #[test]
