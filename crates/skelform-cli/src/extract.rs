@@ -132,7 +132,8 @@ pub fn extract(a: ExtractArgs) -> Result<(), Failure> {
     }
     // Positions are stored as f32: the far corner of the lattice must be one.
     let far = a.origin.iter().zip(a.dims).map(|(o, d)| o + a.spacing * (d - 1) as f64);
-    if a.origin.iter().copied().chain(far).any(|c| !(c.abs() <= f32::MAX as f64)) {
+    // NaN is not finite either, so `is_finite` and the range check together refuse it.
+    if a.origin.iter().copied().chain(far).any(|c| !c.is_finite() || c.abs() > f32::MAX as f64) {
         return Err(input(anyhow!(
             "{}: --origin and --spacing put the lattice beyond the range of 32-bit coordinates",
             a.volume.display()
