@@ -79,7 +79,7 @@ pub struct StreamStats {
 /// sample layers of one slab from `source`, extracts it and drops them, so memory follows the
 /// number of threads, not the volume. The layer between two slabs is fetched once when one
 /// thread runs both (on one thread, always), by each otherwise. The mesh is identical to
-/// [`extract`]'s on the same samples, on any number of threads.
+/// [`extract_positions`](super::extract_positions)'s on the same samples, on any number of threads.
 pub fn extract_streamed<V: SlabVertex, S: LayerSource>(
     source: &S,
     grid: &Grid,
