@@ -229,6 +229,7 @@ fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats)
     stats.tunnels = ex.tunnels;
 
     let t = Instant::now();
+    phase(&lattice.control, "refinement", ex.vertices.len())?;
     let (positions, evals) =
         place_extracted(field, &volume, &ex, lattice.refine, lattice.tolerance);
     stats.refine_evaluations = evals;
@@ -238,6 +239,16 @@ fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats)
     }
 
     finish(field, positions, ex.triangles, options, stats)
+}
+
+/// Says that a phase of `items` has begun, so a progress display shows its name instead of
+/// the last phase's full bar (root finding and normals have no finer steps to report).
+fn phase(control: &Control, name: &'static str, items: usize) -> Result<(), Error> {
+    let p = skelform_field::control::Progress { phase: name, done: 0, total: Some(items as u64) };
+    match control.report(p) {
+        std::ops::ControlFlow::Continue(()) => Ok(()),
+        std::ops::ControlFlow::Break(()) => Err(Error::Cancelled),
+    }
 }
 
 /// Normals, and the mesh.
@@ -250,6 +261,7 @@ fn finish(
 ) -> Result<(Mesh, Stats), Error> {
     let t = Instant::now();
     let normals = if options.lattice.normals && !triangles.is_empty() {
+        phase(&options.lattice.control, "normals", positions.len())?;
         let (n, evals) = gradient_normals(field, &positions, &triangles);
         stats.normal_evaluations = evals;
         n
@@ -298,6 +310,7 @@ fn polygonize_streamed(
     stats.tunnels = s.tunnels;
 
     let t = Instant::now();
+    phase(&options.lattice.control, "refinement", sampled.len())?;
     let how = Placement::for_grid(options.lattice.refine, options.lattice.tolerance);
     let ends = |i: usize| sampled[i].ends.map(f64::from);
     let (positions, evals) = place_vertices(field, grid, &sampled, ends, &how);
