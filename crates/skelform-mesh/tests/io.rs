@@ -150,7 +150,11 @@ fn obj_groups_interleaved_labels_in_stable_order() {
 fn obj_without_normals_or_labels() {
     let mut m = sample();
     m.labels.clear();
-    let bytes = to_bytes(&m, Format::Obj, &WriteOptions { ascii: false, normals: false, ..WriteOptions::default() });
+    let bytes = to_bytes(
+        &m,
+        Format::Obj,
+        &WriteOptions { ascii: false, normals: false, ..WriteOptions::default() },
+    );
     let text = String::from_utf8_lossy(&bytes);
     assert!(text.contains("\nf 1 3 5\n") && !text.contains("vn ") && !text.contains("region_"));
     let back = read_obj(&bytes[..]).expect("read");
@@ -448,7 +452,11 @@ fn truncated_binary_ply_names_element_and_offset() {
 
 #[test]
 fn truncated_ascii_ply_names_the_line() {
-    let bytes = to_bytes(&sample(), Format::Ply, &WriteOptions { ascii: true, normals: true, ..WriteOptions::default() });
+    let bytes = to_bytes(
+        &sample(),
+        Format::Ply,
+        &WriteOptions { ascii: true, normals: true, ..WriteOptions::default() },
+    );
     let text = String::from_utf8(bytes).unwrap();
     let cut = text.find("\n3 0 2 4").unwrap();
     let (line, msg) = parse_error(read_ply(&text.as_bytes()[..cut]).unwrap_err());

@@ -508,8 +508,7 @@ impl Placement {
         }
         let p = p.map(f64::from);
         std::array::from_fn(|r| {
-            (self.m[r] * p[0] + self.m[4 + r] * p[1] + self.m[8 + r] * p[2] + self.m[12 + r])
-                as f32
+            (self.m[r] * p[0] + self.m[4 + r] * p[1] + self.m[8 + r] * p[2] + self.m[12 + r]) as f32
         })
     }
 
@@ -713,13 +712,15 @@ impl<'a> Reader<'a> {
             let scene =
                 scenes.get(s).ok_or_else(|| json_err(format!("scene {s} does not exist")))?;
             let list = scene.get("nodes").and_then(Value::as_array).map_or(&[][..], |v| v);
-            list.iter().map(|v| Self::index(Some(v), "a scene's node")).map(|r| {
-                r.map(Option::unwrap_or_default)
-            }).collect::<Result<_, _>>()?
+            list.iter()
+                .map(|v| Self::index(Some(v), "a scene's node"))
+                .map(|r| r.map(Option::unwrap_or_default))
+                .collect::<Result<_, _>>()?
         };
         let mut seen = vec![false; nodes.len()];
         let mut out = Vec::new();
-        let mut stack: Vec<(usize, Matrix)> = roots.into_iter().rev().map(|r| (r, IDENTITY)).collect();
+        let mut stack: Vec<(usize, Matrix)> =
+            roots.into_iter().rev().map(|r| (r, IDENTITY)).collect();
         while let Some((k, parent)) = stack.pop() {
             let node = nodes.get(k).ok_or_else(|| json_err(format!("node {k} does not exist")))?;
             if std::mem::replace(&mut seen[k], true) {

@@ -643,8 +643,7 @@ fn read_body(header: &Header, body: &mut Body) -> Result<Contents, IoError> {
             |body: &Body, i: usize, msg: String| body.error(format!("{} {i}: {msg}", el.name));
         if el.name == "vertex" && !seen_vertex {
             seen_vertex = true;
-            let (roles, has) =
-                roles(el, &["x", "y", "z", "nx", "ny", "nz", "mesh_index"], false)?;
+            let (roles, has) = roles(el, &["x", "y", "z", "nx", "ny", "nz", "mesh_index"], false)?;
             if let Some(missing) = ["x", "y", "z"].iter().zip(has).find(|(_, h)| !h) {
                 return Err(IoError::parse(
                     el.line,
@@ -792,7 +791,8 @@ pub(crate) fn is_our_curves_file(path: &Path) -> bool {
     if f.take(256).read_to_end(&mut head).is_err() {
         return false;
     }
-    head.starts_with(b"ply\n") && head.windows(CURVES_COMMENT.len()).any(|w| w == CURVES_COMMENT.as_bytes())
+    head.starts_with(b"ply\n")
+        && head.windows(CURVES_COMMENT.len()).any(|w| w == CURVES_COMMENT.as_bytes())
 }
 
 /// Adds the curves of a curves file (the [`PlyCurves::Separate`] layout) to `mesh`. Vertices
@@ -823,7 +823,8 @@ pub fn attach_curves(mesh: &mut Mesh, r: impl BufRead) -> Result<(), IoError> {
         }
         None => {
             let base = mesh.positions.len();
-            let total = base.checked_add(curves.positions.len()).filter(|&n| n <= limits::MAX_VERTICES);
+            let total =
+                base.checked_add(curves.positions.len()).filter(|&n| n <= limits::MAX_VERTICES);
             if total.is_none() {
                 return Err(IoError::parse(1, "too many vertices with the curves file's"));
             }
@@ -834,10 +835,9 @@ pub fn attach_curves(mesh: &mut Mesh, r: impl BufRead) -> Result<(), IoError> {
             (0..curves.positions.len()).map(|k| (base + k) as u32).collect()
         }
     };
-    mesh.curves.extend(curves.curves.iter().map(|c| CurveEdge {
-        v: c.v.map(|v| map[v as usize]),
-        label: c.label,
-    }));
+    mesh.curves.extend(
+        curves.curves.iter().map(|c| CurveEdge { v: c.v.map(|v| map[v as usize]), label: c.label }),
+    );
     Ok(())
 }
 
