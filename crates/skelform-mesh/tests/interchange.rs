@@ -15,11 +15,11 @@ use skelform_mesh::{CurveEdge, Mesh, RegionPair, RegionTriple};
 /// A `.glb` file of `doc` and, when not empty, a BIN chunk of `bin`.
 fn glb(doc: &Value, bin: &[u8]) -> Vec<u8> {
     let mut text = serde_json::to_vec(doc).unwrap();
-    while text.len() % 4 != 0 {
+    while !text.len().is_multiple_of(4) {
         text.push(b' ');
     }
     let mut bin = bin.to_vec();
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let total = 12 + 8 + text.len() + if bin.is_empty() { 0 } else { 8 + bin.len() };

@@ -30,7 +30,7 @@
 //! exactly as in the PLY and OBJ of the same mesh (the same components in `check`). Curve
 //! vertices are joined to the surface vertex at the same coordinates where there is one.
 //! Labels come from the `extras` above when every triangle primitive has them. Everything
-//! read is counted against [`limits`](super::limits) before it is allocated: a file that
+//! read is counted against [`limits`] before it is allocated: a file that
 //! reuses accessors to expand beyond `MAX_ELEMENTS_PER_BYTE` elements per byte is refused.
 //! Sparse accessors, external buffer files, node trees where a node has two parents, and
 //! other primitive modes are reported as errors.
@@ -522,6 +522,9 @@ impl Placement {
     }
 }
 
+/// A line primitive read but not yet joined: its placed positions, indices and label.
+type Lines = (Vec<[f32; 3]>, Vec<u32>, [u32; 3]);
+
 struct Reader<'a> {
     doc: &'a Value,
     /// Each buffer's bytes, or why it cannot be used (reported when an accessor needs it).
@@ -747,7 +750,7 @@ impl<'a> Reader<'a> {
         let mut mesh = Mesh::default();
         let mut labels: Vec<Option<RegionPair>> = Vec::new();
         // Line primitives wait until every triangle is read, to be joined to the surfaces.
-        let mut lines: Vec<(Vec<[f32; 3]>, Vec<u32>, [u32; 3])> = Vec::new();
+        let mut lines: Vec<Lines> = Vec::new();
         let meshes = self.list("meshes");
         for (mi, matrix) in self.instances()? {
             let place = Placement::new(matrix);

@@ -2,8 +2,10 @@
 //!
 //! Writers to a path are atomic ([`atomic`], which every file skelform writes goes
 //! through): the mesh is written into a temporary file in the target directory
-//! (`.NAME.tmp-PID-N`), flushed and synced, then renamed over the target. On any error the
-//! temporary file is removed and the target is left as it was.
+//! (`.NAME.tmp-PID-N`), flushed and synced, then renamed over the target. On any error, and
+//! on `SIGINT`/`SIGTERM`/`SIGHUP`, the temporary file is removed and the target is left as
+//! it was. [`write_mesh`] also writes the files that go beside some meshes: a PLY's curves
+//! file ([`PlyCurves::Separate`]) and an OBJ's material library.
 //!
 //! Readers take whole files written by other programs (see each module for what is
 //! accepted) and never panic on malformed input: every error says where (the line for text,
@@ -30,14 +32,17 @@ pub use stl::{read_stl, write_stl};
 /// A mesh file format, chosen by file extension.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Format {
-    /// Stanford PLY: binary little-endian (default) or ASCII; keeps normals, labels, curves.
+    /// Stanford PLY: binary little-endian (default) or ASCII; keeps normals, labels (with
+    /// colours), curves (in a file beside it by default, see [`PlyCurves`]).
     Ply,
-    /// Wavefront OBJ: text; keeps normals, labels (as groups) and curves (as `l` lines).
+    /// Wavefront OBJ: text; keeps normals, labels (as groups, coloured by an `.mtl` beside
+    /// it) and curves (as `l` lines).
     Obj,
     /// Binary STL: unlabelled triangle soup, welded on reading.
     Stl,
     /// Binary glTF 2.0: one primitive and material per region pair, normals, curves as
-    /// lines; what Blender, MeshLab and web viewers open.
+    /// lines; what Blender, MeshLab and web viewers open. Read without welding, node
+    /// transforms applied.
     Glb,
 }
 
@@ -137,7 +142,7 @@ impl WriteOptions {
 /// glTF can: accessors are shared by reference, and a 124 KB file whose 2000 primitives use
 /// one index accessor describes 20 million triangles. Its reader therefore also counts every
 /// vertex and index it reads (each primitive and each node instance anew) against
-/// [`MAX_ELEMENTS_PER_BYTE`] per byte of the file.
+/// [`MAX_ELEMENTS_PER_BYTE`](limits::MAX_ELEMENTS_PER_BYTE) per byte of the file.
 pub mod limits {
     /// The most vertices a mesh read from a file may have.
     pub const MAX_VERTICES: usize = i32::MAX as usize;
