@@ -14,6 +14,10 @@
 //! labels the following `l` lines; any other name means no label (curves then get
 //! `RegionTriple([0, 0, 0])`).
 //!
+//! Sizes: at most [`MAX_VERTICES`](super::limits::MAX_VERTICES) vertices and
+//! [`MAX_TRIANGLES`](super::limits::MAX_TRIANGLES) triangles (text cannot expand further:
+//! every vertex and face takes bytes of the file).
+//!
 //! Labels: when no face has a label, `labels` is empty. When only some faces have one, the
 //! others get `RegionPair(0, 1)`, the label of a plain manifold surface (inside region 0,
 //! outside region 1).
@@ -26,7 +30,7 @@
 use std::io::{BufRead, Write};
 use std::path::{Path, PathBuf};
 
-use super::{IoError, WriteOptions, buffered, finish, three_numbers};
+use super::{IoError, WriteOptions, buffered, finish, limits, three_numbers};
 use crate::mesh::{CurveEdge, Mesh, RegionPair, RegionTriple};
 use crate::palette::region_colour;
 
@@ -104,6 +108,15 @@ impl Reader {
         match keyword {
             "v" => {
                 let p = three_numbers(&mut words, line, "v")?;
+                if self.positions.len() >= limits::MAX_VERTICES {
+                    return Err(IoError::parse(
+                        line,
+                        format!(
+                            "more than {} vertices; skelform reads at most that many",
+                            limits::MAX_VERTICES
+                        ),
+                    ));
+                }
                 self.positions.push(p);
             }
             "vn" => {
@@ -171,6 +184,15 @@ impl Reader {
             ));
         }
         let c = &self.corners;
+        if self.triangles.len().saturating_add(c.len() - 2) > limits::MAX_TRIANGLES {
+            return Err(IoError::parse(
+                line,
+                format!(
+                    "more than {} triangles; skelform reads at most that many",
+                    limits::MAX_TRIANGLES
+                ),
+            ));
+        }
         for k in 2..c.len() {
             self.triangles.push([c[0].0, c[k - 1].0, c[k].0]);
             self.corner_normals.push([c[0].1, c[k - 1].1, c[k].1]);
