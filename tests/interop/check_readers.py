@@ -174,6 +174,28 @@ def other_format(path, ref, trimesh, meshio, pymeshlab):
                    f"{path.name}: pymeshlab takes the .mtl colours")
 
 
+def written_by_trimesh(folder, skelform, trimesh):
+    """The other way round: skelform reads the .glb trimesh writes (nodes with transforms)."""
+    box = trimesh.creation.box(extents=(1.0, 2.0, 3.0))
+    scene = trimesh.Scene()
+    move = trimesh.transformations.translation_matrix((10.0, 0.0, 0.0))
+    turn = trimesh.transformations.rotation_matrix(np.pi / 2, (0.0, 0.0, 1.0))
+    scene.add_geometry(box, node_name="box", transform=move @ turn)
+    path = folder / "from-trimesh.glb"
+    path.write_bytes(scene.export(file_type="glb"))
+    print(path.name)
+    ref = reference(skelform, path)
+    expect(ref["faces"] == 12, f"{path.name}: skelform reads 12 faces ({ref['faces']})")
+    lo, hi = ref["bounds"]["min"], ref["bounds"]["max"]
+    # Turned a quarter about z, the box's 2-long side lies along x, centred at x = 10.
+    want_lo, want_hi = (9.0, -0.5, -1.5), (11.0, 0.5, 1.5)
+    expect(all(abs(a - b) < 1e-5 for a, b in zip(lo + hi, want_lo + want_hi)),
+           f"{path.name}: skelform applies the node transform (bounds {lo} {hi})")
+    expect(closed(ref) and ref["components"][0].get("outward") is True,
+           f"{path.name}: closed and outward after the transform")
+    path.unlink()
+
+
 def main():
     if len(sys.argv) != 3:
         sys.exit(__doc__)
@@ -192,6 +214,7 @@ def main():
             ply_mesh(path, reference(skelform, path), trimesh, meshio, pymeshlab)
         else:
             other_format(path, reference(skelform, path), trimesh, meshio, pymeshlab)
+    written_by_trimesh(folder, skelform, trimesh)
     print(f"{len(files)} files, {checks} checks, {len(failures)} failed")
     sys.exit(1 if failures or not files else 0)
 

@@ -3,6 +3,8 @@
 #
 #   tests/interop/run.sh            # builds skelform (dev profile) unless SKELFORM names a binary
 #   SKELFORM=target/release/skelform tests/interop/run.sh
+#   SKELFORM=target/debug/skelform tests/interop/run.sh   # after `cargo test -p skelform-cli`
+#                                                         # (no second build of the binary)
 #
 # Makes a virtual environment in target/interop-venv (once; PyPI must be reachable the first
 # time) and writes the meshes to target/interop-out.
