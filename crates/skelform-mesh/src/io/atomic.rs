@@ -142,8 +142,7 @@ pub fn write_with<E>(
             )));
         }
     }
-    let (tmp, mut file) = create_temp(dir, file_name).map_err(AtomicError::Io)?;
-    let guard = signals::Registered::new(&tmp);
+    let (tmp, mut file, guard) = create_temp(dir, file_name).map_err(AtomicError::Io)?;
     let result = existing
         .filter(fs::Metadata::is_file)
         .map_or(Ok(()), |m| file.set_permissions(m.permissions()))
@@ -191,8 +190,11 @@ fn resolve_links(path: &Path) -> io::Result<PathBuf> {
 
 /// Creates a new temporary file `DIR/.NAME.tmp-PID-N` that did not exist before. The
 /// process id and a counter keep concurrent writers (threads, processes) apart; the leading
-/// dot keeps it out of ordinary listings while it exists.
-fn create_temp(dir: &Path, file_name: &OsStr) -> io::Result<(PathBuf, File)> {
+/// dot keeps it out of ordinary listings while it exists. The path is registered for
+/// removal on a signal *before* the file is created, so that no signal can come between
+/// the file's creation and its registration (the handler unlinking a path not created yet
+/// is harmless); a name that turns out to be taken is unregistered before the next try.
+fn create_temp(dir: &Path, file_name: &OsStr) -> io::Result<(PathBuf, File, signals::Registered)> {
     static COUNTER: AtomicU64 = AtomicU64::new(0);
     let pid = std::process::id();
     let mut attempts = 0;
@@ -203,8 +205,9 @@ fn create_temp(dir: &Path, file_name: &OsStr) -> io::Result<(PathBuf, File)> {
         name.push(file_name);
         name.push(format!(".tmp-{pid}-{n}"));
         let tmp = dir.join(name);
+        let guard = signals::Registered::new(&tmp);
         match fs::OpenOptions::new().write(true).create_new(true).open(&tmp) {
-            Ok(f) => return Ok((tmp, f)),
+            Ok(f) => return Ok((tmp, f, guard)),
             Err(e) if e.kind() == io::ErrorKind::AlreadyExists && attempts < 100 => continue,
             Err(e) => return Err(e),
         }
