@@ -214,8 +214,13 @@ pub fn extract(a: ExtractArgs) -> Result<(), Failure> {
         )));
     }
     let t = Instant::now();
-    write_mesh(&a.output, &mesh, format, &WriteOptions { ascii: a.ascii, normals: false })
-        .map_err(runtime)?;
+    write_mesh(
+        &a.output,
+        &mesh,
+        format,
+        &WriteOptions { ascii: a.ascii, normals: false, ..WriteOptions::default() },
+    )
+    .map_err(runtime)?;
     let writing = t.elapsed();
     let scaling = Scaling::of(&pools, &times);
     if a.json {

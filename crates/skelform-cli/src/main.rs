@@ -20,7 +20,7 @@ use std::time::Instant;
 
 use anyhow::anyhow;
 use clap::{Args, Parser, Subcommand};
-use skelform::mesh::io::{Format, WriteOptions, read_mesh, write_mesh};
+use skelform::mesh::io::{Format, PlyCurves, WriteOptions, read_mesh, write_mesh};
 
 #[derive(Parser)]
 #[command(name = "skelform", version, about = "Implicit surfaces, skeletal forms and their meshes")]
@@ -75,6 +75,33 @@ struct MeshArgs {
     /// Write PLY as text instead of binary.
     #[arg(long)]
     ascii: bool,
+    /// Where a PLY file's curves go: `separate`, in OUT.curves.ply beside it (the mesh file
+    /// then has only vertices and faces, which trimesh, meshio and pymeshlab read); `inline`,
+    /// as an `edge` element in the mesh file (one file, read by skelform); `none`.
+    #[arg(long, value_enum, default_value_t = PlyCurvesArg::Separate, value_name = "WHERE")]
+    ply_curves: PlyCurvesArg,
+    /// Leave the curves out of the file, whatever the format (glTF line primitives, which
+    /// pymeshlab cannot read; OBJ `l` lines; PLY curves).
+    #[arg(long)]
+    no_curves: bool,
+}
+
+/// `--ply-curves`: [`PlyCurves`] for the command line.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum PlyCurvesArg {
+    Separate,
+    Inline,
+    None,
+}
+
+impl From<PlyCurvesArg> for PlyCurves {
+    fn from(a: PlyCurvesArg) -> Self {
+        match a {
+            PlyCurvesArg::Separate => PlyCurves::Separate,
+            PlyCurvesArg::Inline => PlyCurves::Inline,
+            PlyCurvesArg::None => PlyCurves::None,
+        }
+    }
 }
 
 #[derive(Args)]
@@ -227,8 +254,12 @@ fn mesh(a: MeshArgs) -> Result<(), Failure> {
     run::surface(&scene, &meshed, a.run.quiet)?;
     let mesh = &meshed.mesh;
     let t = Instant::now();
-    let write_opts =
-        WriteOptions { ascii: a.ascii || scene.output.ascii, normals: !a.run.no_normals };
+    let write_opts = WriteOptions {
+        ascii: a.ascii || scene.output.ascii,
+        normals: !a.run.no_normals,
+        curves: !a.no_curves,
+        ply_curves: a.ply_curves.into(),
+    };
     write_mesh(&out, mesh, format, &write_opts).map_err(runtime)?;
     let writing = t.elapsed();
     let total = started.elapsed();

@@ -290,9 +290,10 @@ fn glb_has_a_material_and_primitive_per_region_pair() {
     let (path, counts) = labelled_glb(dir.path());
     let (doc, triangles) = glb_structure(&path);
     let materials = doc["materials"].as_array().unwrap();
-    assert_eq!(materials.len(), 3);
+    // One per region pair, and one for the curves (lines without one are drawn white).
+    assert_eq!(materials.len(), 4);
     let names: Vec<&str> = materials.iter().map(|m| m["name"].as_str().unwrap()).collect();
-    assert_eq!(names, ["region 1_2", "region 1_3", "region 2_3"]);
+    assert_eq!(names, ["region 1_2", "region 1_3", "region 2_3", "curves"]);
     assert_eq!(triangles, counts.iter().map(|c| c.1).collect::<Vec<_>>());
     // skelform reads its own .glb back with the labels.
     let o = skelform(&["check", s(&path), "--json"]);

@@ -1,10 +1,24 @@
 //! Indexed triangle meshes: the type, readers and writers, and a topology checker.
 //!
 //! Guarantees: writers are atomic (a temporary file in the target directory, renamed into
-//! place), so a failed write never leaves a partial file; readers never panic on malformed
-//! input and say where it is malformed. Not guaranteed: a mesh read from elsewhere is not
-//! repaired; the checker reports what it finds (open edges, non-manifold edges, flipped
+//! place; removed on `SIGINT`, `SIGTERM` and `SIGHUP` too), so a failed or interrupted write
+//! never leaves a partial file; a replaced file keeps its permissions; readers never panic on
+//! malformed input, say where it is malformed, and refuse files that would expand beyond
+//! [`io::limits`] before allocating for them. Not guaranteed: a mesh read from elsewhere is
+//! not repaired; the checker reports what it finds (open edges, non-manifold edges, flipped
 //! faces, degenerate and duplicate faces) and changes nothing.
+//!
+//! What each format keeps (details in each module of [`io`]):
+//!
+//! | format | positions, triangles | normals | labels | curves | read by others |
+//! |---|---|---|---|---|---|
+//! | PLY | exact (`f32`, indices kept) | yes | `region_a`/`region_b` per face, with palette colours | `OUT.curves.ply` beside it (default), inline, or none | trimesh, meshio (labels: ASCII only), pymeshlab, MeshLab, Open3D |
+//! | OBJ | exact (shortest round-trip text), faces grouped by label | yes, when one per vertex | groups `region_A_B`, colours in `OUT.mtl` | `l` lines | trimesh, meshio, pymeshlab |
+//! | STL | triangle soup, welded on reading | no | no | no | everyone |
+//! | glTF binary | one primitive per label, vertices not shared between labels | yes (oriented to the winding) | per primitive (`extras`), palette materials | line primitives with a material, optional | trimesh, Blender, three.js; pymeshlab without curves |
+//!
+//! PLY, OBJ and glTF of one mesh read back to the same topology (`check` finds the same
+//! components); STL, having no indices, joins sheets that meet along a curve.
 //!
 //! ```
 //! use skelform_mesh::{Mesh, check::check};

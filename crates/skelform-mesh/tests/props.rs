@@ -55,7 +55,7 @@ fn bits(v: &[[f32; 3]]) -> Vec<[u32; 3]> {
 proptest! {
     #[test]
     fn ply_round_trips_exactly(m in any_mesh(), ascii in any::<bool>()) {
-        let opts = WriteOptions { ascii, normals: true };
+        let opts = WriteOptions { ascii, ply_curves: skelform_mesh::io::PlyCurves::Inline, ..WriteOptions::default() };
         let back = read_mesh_from(&write(&m, Format::Ply, &opts), Format::Ply).unwrap();
         prop_assert_eq!(bits(&back.positions), bits(&m.positions));
         prop_assert_eq!(bits(&back.normals), bits(&m.normals));
@@ -107,7 +107,7 @@ proptest! {
         cut in any::<prop::sample::Index>(),
     ) {
         let (f, ascii) = [(Format::Ply, false), (Format::Ply, true), (Format::Obj, false), (Format::Stl, false)][format];
-        let mut bytes = write(&m, f, &WriteOptions { ascii, normals: true });
+        let mut bytes = write(&m, f, &WriteOptions { ascii, ply_curves: skelform_mesh::io::PlyCurves::Inline, ..WriteOptions::default() });
         for (at, b) in edits {
             let i = at.index(bytes.len());
             bytes[i] = b;

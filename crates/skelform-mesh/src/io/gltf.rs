@@ -2,32 +2,44 @@
 //!
 //! Written: one mesh with one triangle primitive per region pair (one primitive for an
 //! unlabelled mesh), each with its own material, and a second mesh of line primitives, one
-//! per curve label, when the mesh has curves. Every primitive has its own `POSITION`
-//! accessor (with the `min` and `max` glTF requires), a `NORMAL` accessor when normals are
-//! written, and 32-bit indices; a vertex shared by two region pairs is written once for
-//! each. Normals are unit length and turned, where needed, to agree with the winding of
-//! the primitive's triangles (counter-clockwise from the lesser region, glTF's front face),
-//! so viewers light each sheet from its front; meshes without normals get area-weighted
-//! ones from the faces. Materials are double sided, because the sheets of non-manifold
-//! meshes and open surfaces are seen from both sides. Materials take the shared palette
-//! ([`region_colour`], also used by the renderer) in the order of the sorted labels. Labels
-//! are kept in each primitive's `extras` (`{"skelform": {"regions": [a, b]}}` and
+//! per curve label, when the mesh has curves and `WriteOptions::curves` is on (pymeshlab's
+//! reader fails on line primitives: leave them out for it). Every primitive has its own
+//! `POSITION` accessor (with the `min` and `max` glTF requires), a `NORMAL` accessor when
+//! normals are written (triangles only), and 32-bit indices; a vertex shared by two region
+//! pairs is written once for each. Normals are unit length and turned, where needed, to
+//! agree with the winding of the primitive's triangles (counter-clockwise from the lesser
+//! region, glTF's front face), so viewers light each sheet from its front; meshes without
+//! normals get area-weighted ones from the faces. Surface materials are double sided,
+//! because the sheets of non-manifold meshes and open surfaces are seen from both sides,
+//! and take the shared palette ([`region_colour`], also used by the renderer and the PLY and
+//! OBJ writers) in the order of the sorted labels; curves share one near-black material.
+//! Labels are kept in each primitive's `extras` (`{"skelform": {"regions": [a, b]}}` and
 //! `{"curve": [a, b, c]}`), so skelform reads them back. All little-endian; both chunks
 //! padded to 4 bytes (JSON with spaces, BIN with zeros).
 //!
-//! Read: GLB files with their buffer in the BIN chunk, float `VEC3` positions and normals,
-//! indices of any unsigned type (or none), triangle and line primitives. Nodes are not
-//! walked: every mesh is read in its own coordinates, so files whose nodes move, turn or
-//! scale meshes are refused rather than misread. Vertices with identical coordinates are
-//! welded across primitives (region boundaries meet again); labels come from the
-//! `extras` above when every triangle primitive has them. Sparse accessors, external or
-//! embedded-URI buffers, and other primitive modes are reported as errors.
+//! Read: GLB files with their buffers in the BIN chunk or in base64 `data:` URIs (as
+//! Open3D and others write them), float `VEC3` positions and normals, indices of any
+//! unsigned type (or none), triangle and line primitives. The nodes of the default scene
+//! are walked (or the root nodes when there is no scene, or every mesh once when there are
+//! no nodes), and each node's transform (`matrix`, or `translation`, `rotation`, `scale`),
+//! composed down the tree, is applied to its mesh's positions and, by the inverse
+//! transpose, to its normals; a mirroring transform reverses the triangles' winding, as
+//! glTF's front faces do. A mesh used by two nodes is read twice. Vertices are *not*
+//! welded: primitives that share a `POSITION` accessor share vertices, others have their
+//! own, as the file stores them, so the region-pair sheets skelform writes stay apart
+//! exactly as in the PLY and OBJ of the same mesh (the same components in `check`). Curve
+//! vertices are joined to the surface vertex at the same coordinates where there is one.
+//! Labels come from the `extras` above when every triangle primitive has them. Everything
+//! read is counted against [`limits`] before it is allocated: a file that
+//! reuses accessors to expand beyond `MAX_ELEMENTS_PER_BYTE` elements per byte is refused.
+//! Sparse accessors, external buffer files, node trees where a node has two parents, and
+//! other primitive modes are reported as errors.
 
 use std::io::Write;
 
 use serde_json::{Value, json};
 
-use super::{IoError, Welder, WriteOptions, buffered, finish};
+use super::{IoError, WriteOptions, buffered, finish, limits};
 use crate::mesh::{CurveEdge, Mesh, RegionPair, RegionTriple};
 use crate::palette::{SURFACE_COLOUR, region_colour};
 
@@ -40,6 +52,8 @@ const FLOAT: u32 = 5126;
 const UNSIGNED_INT: u32 = 5125;
 const MODE_LINES: u32 = 1;
 const MODE_TRIANGLES: u32 = 4;
+/// The colour of curve lines (sRGB): near black, distinct from every palette colour.
+const CURVE_COLOUR: [u8; 3] = [24, 24, 24];
 
 /// An sRGB byte as the linear value glTF's `baseColorFactor` wants.
 fn linear(c: u8) -> f64 {
@@ -229,7 +243,18 @@ pub fn encode_glb(mesh: &Mesh, opts: &WriteOptions) -> Result<Vec<u8>, IoError> 
     }
 
     let mut curve_primitives = Vec::new();
-    if !mesh.curves.is_empty() {
+    if opts.curves && !mesh.curves.is_empty() {
+        // One material for every curve: without one, viewers draw lines in their default
+        // (three.js: white, invisible on a light background).
+        materials.push(json!({
+            "name": "curves",
+            "pbrMetallicRoughness": {
+                "baseColorFactor": [linear(CURVE_COLOUR[0]), linear(CURVE_COLOUR[1]), linear(CURVE_COLOUR[2]), 1.0],
+                "metallicFactor": 0.0,
+                "roughnessFactor": 1.0,
+            },
+        }));
+        let curve_material = materials.len() - 1;
         let mut map = std::collections::BTreeMap::<RegionTriple, Vec<[u32; 2]>>::new();
         for c in &mesh.curves {
             map.entry(c.label).or_default().push(c.v);
@@ -243,6 +268,7 @@ pub fn encode_glb(mesh: &Mesh, opts: &WriteOptions) -> Result<Vec<u8>, IoError> 
             curve_primitives.push(json!({
                 "attributes": { "POSITION": pos },
                 "indices": ind,
+                "material": curve_material,
                 "mode": MODE_LINES,
                 "extras": { "skelform": { "curve": label.0 } },
             }));
@@ -362,20 +388,179 @@ pub fn read_glb(bytes: &[u8]) -> Result<Mesh, IoError> {
         }
         at = end;
     }
-    Reader { doc: &doc, bin }.mesh()
-}
-
-struct Reader<'a> {
-    doc: &'a Value,
-    bin: &'a [u8],
+    let budget = limits::MAX_ELEMENTS_PER_BYTE
+        .saturating_mul(len as u64)
+        .saturating_add(limits::MIN_ELEMENTS);
+    let reader = Reader::new(&doc, bin, budget);
+    reader.mesh()
 }
 
 fn json_err(msg: String) -> IoError {
     IoError::binary(20, msg)
 }
 
-impl Reader<'_> {
-    fn list(&self, key: &str) -> &[Value] {
+/// Decodes standard base64 (`A–Z a–z 0–9 + /`, `=` padding optional; the URL-safe `-` and
+/// `_` are accepted too), or says what is wrong.
+fn base64_decode(text: &[u8]) -> Result<Vec<u8>, String> {
+    let text = text.strip_suffix(b"==").or_else(|| text.strip_suffix(b"=")).unwrap_or(text);
+    let mut out = Vec::with_capacity(text.len() / 4 * 3 + 3);
+    let (mut acc, mut bits) = (0u32, 0u32);
+    for (k, &c) in text.iter().enumerate() {
+        let v = match c {
+            b'A'..=b'Z' => c - b'A',
+            b'a'..=b'z' => c - b'a' + 26,
+            b'0'..=b'9' => c - b'0' + 52,
+            b'+' | b'-' => 62,
+            b'/' | b'_' => 63,
+            _ => return Err(format!("character {k} of the base64 data is not base64")),
+        };
+        acc = (acc << 6) | u32::from(v);
+        bits += 6;
+        if bits >= 8 {
+            bits -= 8;
+            out.push((acc >> bits) as u8);
+            acc &= (1 << bits) - 1;
+        }
+    }
+    if bits >= 6 {
+        return Err("the base64 data ends in the middle of a byte".into());
+    }
+    Ok(out)
+}
+
+/// A 4×4 matrix, column-major as glTF stores it.
+type Matrix = [f64; 16];
+
+const IDENTITY: Matrix = [1., 0., 0., 0., 0., 1., 0., 0., 0., 0., 1., 0., 0., 0., 0., 1.];
+
+fn multiply(a: &Matrix, b: &Matrix) -> Matrix {
+    std::array::from_fn(|i| {
+        let (col, row) = (i / 4, i % 4);
+        (0..4).map(|k| a[k * 4 + row] * b[col * 4 + k]).sum()
+    })
+}
+
+/// The node's local transform: its `matrix`, or `translation · rotation · scale`.
+fn local_transform(node: &Value, k: usize) -> Result<Matrix, IoError> {
+    let numbers = |key: &str, n: usize| -> Result<Option<Vec<f64>>, IoError> {
+        let Some(v) = node.get(key) else { return Ok(None) };
+        let got: Option<Vec<f64>> =
+            v.as_array().and_then(|a| a.iter().map(Value::as_f64).collect());
+        match got {
+            Some(g) if g.len() == n && g.iter().all(|x| x.is_finite()) => Ok(Some(g)),
+            _ => Err(json_err(format!("node {k}: {key} must be {n} finite numbers"))),
+        }
+    };
+    if let Some(m) = numbers("matrix", 16)? {
+        return Ok(std::array::from_fn(|i| m[i]));
+    }
+    let t = numbers("translation", 3)?.unwrap_or(vec![0.0; 3]);
+    let q = numbers("rotation", 4)?.unwrap_or(vec![0.0, 0.0, 0.0, 1.0]);
+    let s = numbers("scale", 3)?.unwrap_or(vec![1.0; 3]);
+    let n = (q.iter().map(|c| c * c).sum::<f64>()).sqrt();
+    if n == 0.0 {
+        return Err(json_err(format!("node {k}: the rotation quaternion is zero")));
+    }
+    let [x, y, z, w] = [q[0] / n, q[1] / n, q[2] / n, q[3] / n];
+    // Columns of the rotation, each scaled by its axis's scale.
+    let r = [
+        [1. - 2. * (y * y + z * z), 2. * (x * y + z * w), 2. * (x * z - y * w)],
+        [2. * (x * y - z * w), 1. - 2. * (x * x + z * z), 2. * (y * z + x * w)],
+        [2. * (x * z + y * w), 2. * (y * z - x * w), 1. - 2. * (x * x + y * y)],
+    ];
+    let mut m = IDENTITY;
+    for c in 0..3 {
+        for row in 0..3 {
+            m[c * 4 + row] = r[c][row] * s[c];
+        }
+        m[12 + c] = t[c];
+    }
+    Ok(m)
+}
+
+/// How one instance of a mesh is placed: the matrix for positions, the one for normals
+/// (the cofactor matrix of the upper 3×3, the inverse transpose up to a positive factor)
+/// and whether it mirrors (then the winding is reversed to keep the front faces).
+struct Placement {
+    m: Matrix,
+    normal: [[f64; 3]; 3],
+    mirrors: bool,
+    identity: bool,
+}
+
+impl Placement {
+    fn new(m: Matrix) -> Self {
+        let a = |r: usize, c: usize| m[c * 4 + r];
+        let cof = |r: usize, c: usize| {
+            let (r1, r2) = ((r + 1) % 3, (r + 2) % 3);
+            let (c1, c2) = ((c + 1) % 3, (c + 2) % 3);
+            a(r1, c1) * a(r2, c2) - a(r1, c2) * a(r2, c1)
+        };
+        let det = a(0, 0) * cof(0, 0) + a(0, 1) * cof(0, 1) + a(0, 2) * cof(0, 2);
+        let sign = if det < 0.0 { -1.0 } else { 1.0 };
+        let normal = std::array::from_fn(|r| std::array::from_fn(|c| sign * cof(r, c)));
+        Placement { m, normal, mirrors: det < 0.0, identity: m == IDENTITY }
+    }
+
+    fn point(&self, p: [f32; 3]) -> [f32; 3] {
+        if self.identity {
+            return p;
+        }
+        let p = p.map(f64::from);
+        std::array::from_fn(|r| {
+            (self.m[r] * p[0] + self.m[4 + r] * p[1] + self.m[8 + r] * p[2] + self.m[12 + r]) as f32
+        })
+    }
+
+    fn normal(&self, n: [f32; 3]) -> [f32; 3] {
+        if self.identity {
+            return n;
+        }
+        let n = n.map(f64::from);
+        let v: [f64; 3] = std::array::from_fn(|r| (0..3).map(|c| self.normal[r][c] * n[c]).sum());
+        unit(v).unwrap_or([0.0; 3])
+    }
+}
+
+/// A line primitive read but not yet joined: its placed positions, indices and label.
+type Lines = (Vec<[f32; 3]>, Vec<u32>, [u32; 3]);
+
+struct Reader<'a> {
+    doc: &'a Value,
+    /// Each buffer's bytes, or why it cannot be used (reported when an accessor needs it).
+    buffers: Vec<Result<std::borrow::Cow<'a, [u8]>, String>>,
+    /// Vertices and index entries that may still be read (see [`limits`]).
+    budget: std::cell::Cell<u64>,
+}
+
+impl<'a> Reader<'a> {
+    fn new(doc: &'a Value, bin: &'a [u8], budget: u64) -> Self {
+        let list = doc.get("buffers").and_then(Value::as_array).map_or(&[][..], |v| v.as_slice());
+        let buffers = list
+            .iter()
+            .enumerate()
+            .map(|(i, b)| match b.get("uri") {
+                None if i == 0 => Ok(std::borrow::Cow::Borrowed(bin)),
+                None => Err(format!("buffer {i} has no uri and is not the BIN chunk")),
+                Some(uri) => {
+                    let uri = uri.as_str().unwrap_or("");
+                    match uri.strip_prefix("data:").and_then(|r| r.split_once(";base64,")) {
+                        Some((_, data)) => base64_decode(data.as_bytes())
+                            .map(std::borrow::Cow::Owned)
+                            .map_err(|e| format!("buffer {i}: {e}")),
+                        None => Err(format!(
+                            "buffer {i} is an external file ('{}'); only the BIN chunk and \
+                             base64 data: URIs are supported",
+                            uri.chars().take(60).collect::<String>()
+                        )),
+                    }
+                }
+            })
+            .collect();
+        Reader { doc, buffers, budget: std::cell::Cell::new(budget) }
+    }
+
+    fn list(&self, key: &str) -> &'a [Value] {
         self.doc.get(key).and_then(Value::as_array).map_or(&[], |v| v.as_slice())
     }
 
@@ -384,8 +569,25 @@ impl Reader<'_> {
             None => Ok(None),
             Some(v) => v
                 .as_u64()
-                .map(|i| Some(i as usize))
+                .and_then(|i| usize::try_from(i).ok())
+                .map(Some)
                 .ok_or_else(|| json_err(format!("{what} must be a whole number"))),
+        }
+    }
+
+    /// Takes `n` elements from the budget, or refuses the file before they are allocated.
+    fn spend(&self, n: usize) -> Result<(), IoError> {
+        let left = self.budget.get();
+        match left.checked_sub(n as u64) {
+            Some(rest) => {
+                self.budget.set(rest);
+                Ok(())
+            }
+            None => Err(json_err(format!(
+                "the file expands to more vertices and indices than {} per byte of file \
+                 (accessors reused by many primitives or nodes); refused before reading them",
+                limits::MAX_ELEMENTS_PER_BYTE
+            ))),
         }
     }
 
@@ -413,7 +615,11 @@ impl Reader<'_> {
                 )));
             }
         };
-        let count = a.get("count").and_then(Value::as_u64).unwrap_or(0) as usize;
+        let count = a
+            .get("count")
+            .and_then(Value::as_u64)
+            .and_then(|c| usize::try_from(c).ok())
+            .unwrap_or(0);
         let elem = size * if want == "VEC3" { 3 } else { 1 };
         let view_i = Self::index(a.get("bufferView"), "bufferView")?
             .ok_or_else(|| json_err(format!("accessor {i} has no buffer view")))?;
@@ -421,21 +627,24 @@ impl Reader<'_> {
             .list("bufferViews")
             .get(view_i)
             .ok_or_else(|| json_err(format!("buffer view {view_i} does not exist")))?;
-        let buffer = view.get("buffer").and_then(Value::as_u64).unwrap_or(u64::MAX);
-        let uri = self.list("buffers").get(buffer as usize).and_then(|b| b.get("uri"));
-        if buffer != 0 || uri.is_some() {
-            return Err(json_err(format!(
-                "buffer view {view_i} is not in the file's BIN chunk; external buffers are not supported"
-            )));
-        }
-        let v_off = view.get("byteOffset").and_then(Value::as_u64).unwrap_or(0) as usize;
-        let v_len = view.get("byteLength").and_then(Value::as_u64).unwrap_or(0) as usize;
-        let stride = view.get("byteStride").and_then(Value::as_u64).map_or(elem, |s| s as usize);
-        let a_off = a.get("byteOffset").and_then(Value::as_u64).unwrap_or(0) as usize;
+        let buffer = Self::index(view.get("buffer"), "buffer")?
+            .ok_or_else(|| json_err(format!("buffer view {view_i} names no buffer")))?;
+        let bytes: &[u8] = match self.buffers.get(buffer) {
+            Some(Ok(b)) => b,
+            Some(Err(e)) => return Err(json_err(format!("buffer view {view_i}: {e}"))),
+            None => return Err(json_err(format!("buffer {buffer} does not exist"))),
+        };
+        let number = |v: &Value, key: &str| {
+            v.get(key).and_then(Value::as_u64).and_then(|x| usize::try_from(x).ok())
+        };
+        let v_off = number(view, "byteOffset").unwrap_or(0);
+        let v_len = number(view, "byteLength").unwrap_or(0);
+        let stride = number(view, "byteStride").unwrap_or(elem);
+        let a_off = number(a, "byteOffset").unwrap_or(0);
         let data = v_off
             .checked_add(v_len)
-            .and_then(|end| self.bin.get(v_off..end))
-            .ok_or_else(|| json_err(format!("buffer view {view_i} runs past the BIN chunk")))?;
+            .and_then(|end| bytes.get(v_off..end))
+            .ok_or_else(|| json_err(format!("buffer view {view_i} runs past its buffer")))?;
         let needed = if count == 0 {
             Some(0)
         } else {
@@ -447,6 +656,7 @@ impl Reader<'_> {
         if stride < elem || needed.is_none_or(|n| n > data.len()) {
             return Err(json_err(format!("accessor {i} runs past its buffer view")));
         }
+        self.spend(count)?;
         Ok((&data[a_off..], count, stride, component))
     }
 
@@ -479,78 +689,90 @@ impl Reader<'_> {
             .collect())
     }
 
-    fn mesh(&self) -> Result<Mesh, IoError> {
-        for (k, n) in self.list("nodes").iter().enumerate() {
-            let moved = ["matrix", "translation", "rotation", "scale"].iter().any(|key| {
-                n.get(*key).is_some_and(|v| {
-                    let identity: &[f64] = match *key {
-                        "matrix" => {
-                            &[1., 0., 0., 0., 0., 1., 0., 0., 0., 0., 1., 0., 0., 0., 0., 1.]
-                        }
-                        "translation" => &[0., 0., 0.],
-                        "rotation" => &[0., 0., 0., 1.],
-                        _ => &[1., 1., 1.],
-                    };
-                    let got: Vec<f64> = v
-                        .as_array()
-                        .map_or(Vec::new(), |a| a.iter().filter_map(Value::as_f64).collect());
-                    got != identity
-                })
-            });
-            if moved {
+    /// The meshes to read and where each instance goes: the nodes of the default scene (or
+    /// of the first, or the nodes no node has as a child), walked depth first with their
+    /// transforms composed; a file without nodes has every mesh once, untransformed.
+    fn instances(&self) -> Result<Vec<(usize, Matrix)>, IoError> {
+        let nodes = self.list("nodes");
+        if nodes.is_empty() {
+            return Ok((0..self.list("meshes").len()).map(|m| (m, IDENTITY)).collect());
+        }
+        let scenes = self.list("scenes");
+        let roots: Vec<usize> = if scenes.is_empty() {
+            let mut child = vec![false; nodes.len()];
+            for n in nodes {
+                for c in n.get("children").and_then(Value::as_array).into_iter().flatten() {
+                    if let Some(c) = c.as_u64().and_then(|c| usize::try_from(c).ok())
+                        && let Some(slot) = child.get_mut(c)
+                    {
+                        *slot = true;
+                    }
+                }
+            }
+            (0..nodes.len()).filter(|&k| !child[k]).collect()
+        } else {
+            let s = Self::index(self.doc.get("scene"), "scene")?.unwrap_or(0);
+            let scene =
+                scenes.get(s).ok_or_else(|| json_err(format!("scene {s} does not exist")))?;
+            let list = scene.get("nodes").and_then(Value::as_array).map_or(&[][..], |v| v);
+            list.iter()
+                .map(|v| Self::index(Some(v), "a scene's node"))
+                .map(|r| r.map(Option::unwrap_or_default))
+                .collect::<Result<_, _>>()?
+        };
+        let mut seen = vec![false; nodes.len()];
+        let mut out = Vec::new();
+        let mut stack: Vec<(usize, Matrix)> =
+            roots.into_iter().rev().map(|r| (r, IDENTITY)).collect();
+        while let Some((k, parent)) = stack.pop() {
+            let node = nodes.get(k).ok_or_else(|| json_err(format!("node {k} does not exist")))?;
+            if std::mem::replace(&mut seen[k], true) {
                 return Err(json_err(format!(
-                    "node {k} transforms its mesh; node transforms are not supported"
+                    "node {k} is reached twice: glTF nodes form trees (a node has one parent)"
                 )));
             }
+            let world = multiply(&parent, &local_transform(node, k)?);
+            if let Some(m) = Self::index(node.get("mesh"), "mesh")? {
+                out.push((m, world));
+            }
+            let children = node.get("children").and_then(Value::as_array).map_or(&[][..], |v| v);
+            for c in children.iter().rev() {
+                let c = Self::index(Some(c), "a child node")?.unwrap_or_default();
+                stack.push((c, world));
+            }
         }
-        let mut welder = Welder::new();
+        Ok(out)
+    }
+
+    fn mesh(&self) -> Result<Mesh, IoError> {
+        let mut positions: Vec<[f32; 3]> = Vec::new();
         let mut normals: Vec<Option<[f32; 3]>> = Vec::new();
         let mut mesh = Mesh::default();
         let mut labels: Vec<Option<RegionPair>> = Vec::new();
-        for (mi, m) in self.list("meshes").iter().enumerate() {
+        // Line primitives wait until every triangle is read, to be joined to the surfaces.
+        let mut lines: Vec<Lines> = Vec::new();
+        let meshes = self.list("meshes");
+        for (mi, matrix) in self.instances()? {
+            let place = Placement::new(matrix);
+            let m = meshes.get(mi).ok_or_else(|| json_err(format!("mesh {mi} does not exist")))?;
             let prims =
                 m.get("primitives").and_then(Value::as_array).map_or(&[][..], |v| v.as_slice());
+            // Vertices read once per instance and accessor pair: primitives that share a
+            // POSITION accessor share vertices, as the file says; others do not.
+            let mut shared = std::collections::HashMap::<(usize, Option<usize>), u32>::new();
             for (pi, p) in prims.iter().enumerate() {
                 let attrs = p.get("attributes");
                 let pos_i = Self::index(attrs.and_then(|a| a.get("POSITION")), "POSITION")?
                     .ok_or_else(|| json_err(format!("mesh {mi} primitive {pi} has no POSITION")))?;
-                let positions = self.vec3(pos_i)?;
-                let prim_normals = match Self::index(attrs.and_then(|a| a.get("NORMAL")), "NORMAL")?
-                {
-                    Some(i) => {
-                        let n = self.vec3(i)?;
-                        if n.len() != positions.len() {
-                            return Err(json_err(format!(
-                                "mesh {mi} primitive {pi}: {} normals for {} positions",
-                                n.len(),
-                                positions.len()
-                            )));
-                        }
-                        Some(n)
-                    }
-                    None => None,
-                };
-                let index = match Self::index(p.get("indices"), "indices")? {
-                    Some(i) => self.scalars(i)?,
-                    None => (0..positions.len() as u32).collect(),
-                };
-                if let Some(&bad) = index.iter().find(|&&v| v as usize >= positions.len()) {
+                let nrm_i = Self::index(attrs.and_then(|a| a.get("NORMAL")), "NORMAL")?;
+                let mode =
+                    p.get("mode").and_then(Value::as_u64).unwrap_or(u64::from(MODE_TRIANGLES));
+                if mode != u64::from(MODE_TRIANGLES) && mode != u64::from(MODE_LINES) {
                     return Err(json_err(format!(
-                        "mesh {mi} primitive {pi} uses vertex {bad} of {}",
-                        positions.len()
+                        "mesh {mi} primitive {pi} has mode {mode}; only triangles (4) and \
+                         lines (1) are supported"
                     )));
                 }
-                let global: Vec<u32> = positions
-                    .iter()
-                    .enumerate()
-                    .map(|(k, q)| {
-                        let g = welder.index(*q);
-                        if g as usize == normals.len() {
-                            normals.push(prim_normals.as_ref().map(|n| n[k]));
-                        }
-                        g
-                    })
-                    .collect();
                 let extras = p.get("extras").and_then(|e| e.get("skelform"));
                 let ids = |key: &str| -> Option<Vec<u32>> {
                     extras?
@@ -560,42 +782,122 @@ impl Reader<'_> {
                         .map(|v| v.as_u64().and_then(|x| u32::try_from(x).ok()))
                         .collect()
                 };
-                match p.get("mode").and_then(Value::as_u64).unwrap_or(u64::from(MODE_TRIANGLES))
-                    as u32
-                {
-                    MODE_TRIANGLES => {
-                        let label = ids("regions").and_then(|r| match r[..] {
-                            [a, b] if a != b => Some(RegionPair::new(a, b)),
-                            _ => None,
-                        });
-                        for t in index.chunks_exact(3) {
-                            mesh.triangles.push([0, 1, 2].map(|j| global[t[j] as usize]));
-                            labels.push(label);
-                        }
+                let pos = self.vec3(pos_i)?;
+                let n = pos.len();
+                let index = match Self::index(p.get("indices"), "indices")? {
+                    Some(i) => self.scalars(i)?,
+                    None => (0..u32::try_from(n).unwrap_or(u32::MAX)).collect(),
+                };
+                if let Some(&bad) = index.iter().find(|&&v| v as usize >= n) {
+                    return Err(json_err(format!(
+                        "mesh {mi} primitive {pi} uses vertex {bad} of {n}"
+                    )));
+                }
+                if mode == u64::from(MODE_LINES) {
+                    if let Some(label) =
+                        ids("curve").as_deref().and_then(|r| <[u32; 3]>::try_from(r).ok())
+                    {
+                        let pos = pos.into_iter().map(|q| place.point(q)).collect();
+                        lines.push((pos, index, label));
                     }
-                    MODE_LINES => {
-                        if let Some([a, b, c]) =
-                            ids("curve").as_deref().and_then(|r| <[u32; 3]>::try_from(r).ok())
-                        {
-                            for e in index.chunks_exact(2) {
-                                mesh.curves.push(CurveEdge {
-                                    v: [global[e[0] as usize], global[e[1] as usize]],
-                                    label: RegionTriple::new([a, b, c]),
-                                });
+                    continue;
+                }
+                let base = match shared.get(&(pos_i, nrm_i)) {
+                    Some(&b) => b,
+                    None => {
+                        let prim_normals = match nrm_i {
+                            Some(i) => {
+                                let v = self.vec3(i)?;
+                                if v.len() != n {
+                                    return Err(json_err(format!(
+                                        "mesh {mi} primitive {pi}: {} normals for {n} positions",
+                                        v.len()
+                                    )));
+                                }
+                                Some(v)
                             }
+                            None => None,
+                        };
+                        let base = positions.len();
+                        if base.saturating_add(n) > limits::MAX_VERTICES {
+                            return Err(json_err(format!(
+                                "more than {} vertices; skelform reads at most that many",
+                                limits::MAX_VERTICES
+                            )));
                         }
+                        positions.extend(pos.iter().map(|&q| place.point(q)));
+                        match prim_normals {
+                            Some(v) => normals.extend(v.into_iter().map(|q| Some(place.normal(q)))),
+                            None => normals.resize(positions.len(), None),
+                        }
+                        shared.insert((pos_i, nrm_i), base as u32);
+                        base as u32
                     }
-                    other => {
-                        return Err(json_err(format!(
-                            "mesh {mi} primitive {pi} has mode {other}; only triangles (4) and lines (1) are supported"
-                        )));
+                };
+                let label = ids("regions").and_then(|r| match r[..] {
+                    [a, b] if a != b => Some(RegionPair::new(a, b)),
+                    _ => None,
+                });
+                if mesh.triangles.len().saturating_add(index.len() / 3) > limits::MAX_TRIANGLES {
+                    return Err(json_err(format!(
+                        "more than {} triangles; skelform reads at most that many",
+                        limits::MAX_TRIANGLES
+                    )));
+                }
+                for t in index.chunks_exact(3) {
+                    let mut t = [t[0], t[1], t[2]].map(|v| base + v);
+                    if place.mirrors {
+                        t.swap(1, 2);
                     }
+                    mesh.triangles.push(t);
+                    labels.push(label);
                 }
             }
         }
-        mesh.positions = welder.positions;
-        if !normals.is_empty() && normals.iter().all(Option::is_some) {
-            mesh.normals = normals.into_iter().flatten().collect();
+        // Curves lie on the surfaces: a curve vertex at the coordinates of a surface vertex
+        // is that vertex (the first such one); others are added.
+        let mut at = std::collections::HashMap::<[u32; 3], u32>::new();
+        if !lines.is_empty() {
+            for (k, p) in positions.iter().enumerate().rev() {
+                at.insert(p.map(|c| (c + 0.0).to_bits()), k as u32);
+            }
+        }
+        for (pos, index, label) in lines {
+            let global: Vec<u32> = pos
+                .iter()
+                .map(|q| {
+                    *at.entry(q.map(|c| (c + 0.0).to_bits())).or_insert_with(|| {
+                        positions.push(*q);
+                        normals.push(None);
+                        (positions.len() - 1) as u32
+                    })
+                })
+                .collect();
+            if positions.len() > limits::MAX_VERTICES {
+                return Err(json_err(format!(
+                    "more than {} vertices; skelform reads at most that many",
+                    limits::MAX_VERTICES
+                )));
+            }
+            for e in index.chunks_exact(2) {
+                mesh.curves.push(CurveEdge {
+                    v: [global[e[0] as usize], global[e[1] as usize]],
+                    label: RegionTriple::new(label),
+                });
+            }
+        }
+        mesh.positions = positions;
+        let with_normals: Vec<bool> = {
+            let mut used = vec![false; mesh.positions.len()];
+            mesh.triangles.iter().flatten().for_each(|&v| used[v as usize] = true);
+            used
+        };
+        // Normals when every vertex a triangle uses has one; curve-only vertices get zero.
+        if !normals.is_empty()
+            && normals.iter().zip(&with_normals).all(|(n, &used)| n.is_some() || !used)
+            && normals.iter().any(Option::is_some)
+        {
+            mesh.normals = normals.into_iter().map(|n| n.unwrap_or([0.0; 3])).collect();
         }
         if !labels.is_empty() && labels.iter().all(Option::is_some) {
             mesh.labels = labels.into_iter().flatten().collect();
@@ -670,9 +972,10 @@ mod tests {
         let (doc, bin) = chunks(&glb);
         assert_eq!(doc["buffers"][0]["byteLength"].as_u64(), Some(bin.len() as u64));
         let materials = doc["materials"].as_array().unwrap();
-        assert_eq!(materials.len(), 3);
+        assert_eq!(materials.len(), 4);
         assert_eq!(materials[0]["name"], "region 1_2");
         assert_eq!(materials[2]["name"], "region 2_3");
+        assert_eq!(materials[3]["name"], "curves");
         let prims = doc["meshes"][0]["primitives"].as_array().unwrap();
         let counts: Vec<u64> = prims
             .iter()
@@ -695,7 +998,7 @@ mod tests {
             assert_eq!(a["count"].as_u64().unwrap() * per, v["byteLength"].as_u64().unwrap());
         }
         // POSITION min and max are the exact bounds of what is stored.
-        let reader = Reader { doc: &doc, bin };
+        let reader = Reader::new(&doc, bin, u64::MAX);
         for p in prims {
             let i = p["attributes"]["POSITION"].as_u64().unwrap() as usize;
             let pos = reader.vec3(i).unwrap();
@@ -712,10 +1015,16 @@ mod tests {
                 assert!((v.iter().map(|c| c * c).sum::<f32>() - 1.0).abs() < 1e-5, "{v:?}");
             }
         }
-        // The curve is a line primitive without a material.
+        // The curve is a line primitive with the curves' material.
         let curves = &doc["meshes"][1]["primitives"][0];
         assert_eq!(curves["mode"], 1);
-        assert!(curves.get("material").is_none());
+        assert_eq!(curves["material"], 3);
+        // Without curves: no line primitive, no curve material.
+        let opts = WriteOptions { curves: false, ..WriteOptions::default() };
+        let (doc, _) = chunks(&encode_glb(&m, &opts).unwrap());
+        assert_eq!(doc["meshes"].as_array().unwrap().len(), 1);
+        assert_eq!(doc["materials"].as_array().unwrap().len(), 3);
+        assert!(read_glb(&encode_glb(&m, &opts).unwrap()).unwrap().curves.is_empty());
     }
 
     #[test]
@@ -725,7 +1034,7 @@ mod tests {
         let m = three_pairs();
         let glb = encode_glb(&m, &WriteOptions::default()).unwrap();
         let (doc, bin) = chunks(&glb);
-        let reader = Reader { doc: &doc, bin };
+        let reader = Reader::new(&doc, bin, u64::MAX);
         let p = &doc["meshes"][0]["primitives"][0];
         let n = reader.vec3(p["attributes"]["NORMAL"].as_u64().unwrap() as usize).unwrap();
         assert_eq!(n[0], [0.0, 0.0, -1.0]);
@@ -733,7 +1042,7 @@ mod tests {
         flipped.normals[0] = [0.0, 0.0, 3.0];
         let glb = encode_glb(&flipped, &WriteOptions::default()).unwrap();
         let (doc, bin) = chunks(&glb);
-        let n = Reader { doc: &doc, bin }
+        let n = Reader::new(&doc, bin, u64::MAX)
             .vec3(p["attributes"]["NORMAL"].as_u64().unwrap() as usize)
             .unwrap();
         assert_eq!(n[0], [0.0, 0.0, -1.0]);
@@ -743,7 +1052,12 @@ mod tests {
     fn round_trip_keeps_triangles_labels_and_curves() {
         let m = three_pairs();
         let back = read_glb(&encode_glb(&m, &WriteOptions::default()).unwrap()).unwrap();
-        assert_eq!(back.positions.len(), m.positions.len());
+        // Not welded: each region pair's primitive has its own vertices (5 + 3 + 3), and the
+        // curve's vertices are the surface vertices at the same places.
+        assert_eq!(back.positions.len(), 11);
+        for c in &back.curves {
+            assert!(back.triangles.iter().flatten().any(|&v| v == c.v[0]));
+        }
         assert_eq!(back.label_counts(), m.label_counts());
         assert_eq!(back.curves.len(), 2);
         assert_eq!(back.normals.len(), back.positions.len());

@@ -2,8 +2,10 @@
 //!
 //! Writers to a path are atomic ([`atomic`], which every file skelform writes goes
 //! through): the mesh is written into a temporary file in the target directory
-//! (`.NAME.tmp-PID-N`), flushed and synced, then renamed over the target. On any error the
-//! temporary file is removed and the target is left as it was.
+//! (`.NAME.tmp-PID-N`), flushed and synced, then renamed over the target. On any error, and
+//! on `SIGINT`/`SIGTERM`/`SIGHUP`, the temporary file is removed and the target is left as
+//! it was. [`write_mesh`] also writes the files that go beside some meshes: a PLY's curves
+//! file ([`PlyCurves::Separate`]) and an OBJ's material library.
 //!
 //! Readers take whole files written by other programs (see each module for what is
 //! accepted) and never panic on malformed input: every error says where (the line for text,
@@ -23,21 +25,24 @@ pub mod ply;
 pub mod stl;
 
 pub use gltf::{read_glb, write_glb};
-pub use obj::{read_obj, write_obj};
-pub use ply::{read_ply, write_ply};
+pub use obj::{read_obj, write_obj, write_obj_with_mtl};
+pub use ply::{read_ply, write_ply, write_ply_curves};
 pub use stl::{read_stl, write_stl};
 
 /// A mesh file format, chosen by file extension.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Format {
-    /// Stanford PLY: binary little-endian (default) or ASCII; keeps normals, labels, curves.
+    /// Stanford PLY: binary little-endian (default) or ASCII; keeps normals, labels (with
+    /// colours), curves (in a file beside it by default, see [`PlyCurves`]).
     Ply,
-    /// Wavefront OBJ: text; keeps normals, labels (as groups) and curves (as `l` lines).
+    /// Wavefront OBJ: text; keeps normals, labels (as groups, coloured by an `.mtl` beside
+    /// it) and curves (as `l` lines).
     Obj,
     /// Binary STL: unlabelled triangle soup, welded on reading.
     Stl,
     /// Binary glTF 2.0: one primitive and material per region pair, normals, curves as
-    /// lines; what Blender, MeshLab and web viewers open.
+    /// lines; what Blender, MeshLab and web viewers open. Read without welding, node
+    /// transforms applied.
     Glb,
 }
 
@@ -77,19 +82,80 @@ impl fmt::Display for Format {
     }
 }
 
-/// How to write a mesh.
+/// Where the PLY writer puts a mesh's curves.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum PlyCurves {
+    /// In a file of their own beside the mesh, `OUT.curves.ply` for `OUT.ply` (see
+    /// [`ply::curves_path`]): vertex and `edge` elements that trimesh and MeshLab read as a
+    /// path, while the mesh file keeps only `vertex` and `face` elements, the layout every
+    /// PLY reader accepts (meshio refuses any other element). The default. Writers to a
+    /// stream ([`write_mesh_to`]) write the mesh part only; [`ply::write_ply_curves`] writes
+    /// the other.
+    #[default]
+    Separate,
+    /// In the mesh file, as an `edge` element `int vertex1, vertex2, region_a, region_b,
+    /// region_c` after the faces: one self-contained file, which skelform reads but trimesh,
+    /// meshio and pymeshlab refuse.
+    Inline,
+    /// Not written.
+    None,
+}
+
+/// How to write a mesh. Build it from [`WriteOptions::default`] and change the fields you
+/// need (`WriteOptions { ascii: true, ..WriteOptions::default() }`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct WriteOptions {
     /// PLY only: write `format ascii 1.0` instead of binary little-endian.
     pub ascii: bool,
-    /// Write per-vertex normals when the mesh has them (PLY and OBJ).
+    /// Write per-vertex normals when the mesh has them (PLY, OBJ and glTF).
     pub normals: bool,
+    /// Write the mesh's curves where the format has room for them (PLY as
+    /// [`ply_curves`](Self::ply_curves) says, OBJ `l` lines, glTF line primitives); `false`
+    /// leaves them out of every format (some readers, pymeshlab's glTF reader for one, fail
+    /// on line primitives).
+    pub curves: bool,
+    /// PLY only: where the curves go (when [`curves`](Self::curves) is set).
+    pub ply_curves: PlyCurves,
 }
 
 impl Default for WriteOptions {
     fn default() -> Self {
-        WriteOptions { ascii: false, normals: true }
+        WriteOptions { ascii: false, normals: true, curves: true, ply_curves: PlyCurves::Separate }
     }
+}
+
+impl WriteOptions {
+    /// Where PLY curves go, once [`curves`](Self::curves) is taken into account.
+    pub fn effective_ply_curves(&self) -> PlyCurves {
+        if self.curves { self.ply_curves } else { PlyCurves::None }
+    }
+}
+
+/// Bounds on what a file may expand to when read, checked before anything is allocated for
+/// it, so that a small or lying file cannot make a reader claim gigabytes.
+///
+/// The absolute caps are what skelform's own PLY writer can index (`int` vertex indices),
+/// far beyond any mesh the polygonizers make on one machine; a header declaring more is
+/// refused at once rather than after reading. Text formats and PLY cannot expand beyond a
+/// small constant per byte (every vertex and face takes bytes of the file, and the readers
+/// reserve only what the bytes left can hold), so for them the caps are the only limit.
+/// glTF can: accessors are shared by reference, and a 124 KB file whose 2000 primitives use
+/// one index accessor describes 20 million triangles. Its reader therefore also counts every
+/// vertex and index it reads (each primitive and each node instance anew) against
+/// [`MAX_ELEMENTS_PER_BYTE`](limits::MAX_ELEMENTS_PER_BYTE) per byte of the file.
+pub mod limits {
+    /// The most vertices a mesh read from a file may have.
+    pub const MAX_VERTICES: usize = i32::MAX as usize;
+    /// The most triangles a mesh read from a file may have (after fan triangulation).
+    pub const MAX_TRIANGLES: usize = i32::MAX as usize;
+    /// glTF: the most vertices plus index entries read, per byte of the file (plus
+    /// [`MIN_ELEMENTS`]). A file that stores each vertex and index once stays below one
+    /// element per byte (a `u8` index is the smallest item); 16 leaves room for meshes
+    /// instanced by several nodes and accessors shared by a few primitives.
+    pub const MAX_ELEMENTS_PER_BYTE: u64 = 16;
+    /// glTF: elements any file may expand to, whatever its size, so tiny files with a little
+    /// sharing are never refused.
+    pub const MIN_ELEMENTS: u64 = 1 << 16;
 }
 
 /// Why a mesh could not be read or written. The `Display` text is one line meant for users;
@@ -237,11 +303,24 @@ pub fn read_mesh(path: &Path) -> Result<Mesh, IoError> {
     read_mesh_as(path, format)
 }
 
-/// Reads a mesh in the given format, whatever the extension of `path`.
+/// Reads a mesh in the given format, whatever the extension of `path`. A PLY file without
+/// curves takes them from `OUT.curves.ply` beside it when that file exists (see
+/// [`PlyCurves::Separate`]); a curves file that does not match the mesh is an error.
 pub fn read_mesh_as(path: &Path, format: Format) -> Result<Mesh, IoError> {
     let bytes =
         fs::read(path).map_err(|source| IoError::Read { path: Some(path.into()), source })?;
-    read_mesh_from(&bytes, format).map_err(|e| e.with_path(path))
+    let mut mesh = read_mesh_from(&bytes, format).map_err(|e| e.with_path(path))?;
+    if format == Format::Ply && mesh.curves.is_empty() {
+        let side = ply::curves_path(path);
+        match fs::read(&side) {
+            Ok(bytes) => {
+                ply::attach_curves(&mut mesh, &bytes[..]).map_err(|e| e.with_path(&side))?
+            }
+            Err(e) if e.kind() == io::ErrorKind::NotFound => {}
+            Err(source) => return Err(IoError::Read { path: Some(side), source }),
+        }
+    }
+    Ok(mesh)
 }
 
 /// Reads a mesh in the given format from the whole contents of a file.
@@ -273,6 +352,14 @@ pub fn write_mesh_to(
 /// Writes `mesh` to `path` atomically: into a temporary file in the same directory, flushed
 /// and synced, then renamed over `path`. On error the temporary file is removed and `path`
 /// is untouched.
+///
+/// Files beside the mesh, each written atomically too (before the mesh, so a mesh never
+/// names a file that is not there):
+/// - PLY with [`PlyCurves::Separate`] and curves: `OUT.curves.ply` ([`ply::curves_path`]).
+///   Otherwise a curves file left there by an earlier run (one whose header says skelform
+///   wrote it) is removed, so it is never read back as this mesh's curves.
+/// - OBJ of a labelled mesh or one with curves: `OUT.mtl` ([`obj::mtl_path`]), the palette
+///   colour of each region pair as a material, named by the `mtllib` line.
 pub fn write_mesh(
     path: &Path,
     mesh: &Mesh,
@@ -280,12 +367,56 @@ pub fn write_mesh(
     opts: &WriteOptions,
 ) -> Result<(), IoError> {
     mesh.validate().map_err(|e| IoError::invalid(e).with_path(path))?;
-    atomic::write_with(path, |file| write_mesh_to(file, mesh, format, opts))
-        .map_err(|e| match e {
-            atomic::AtomicError::Io(e) => IoError::write(e),
-            atomic::AtomicError::Write(e) => e,
-        })
-        .map_err(|e| e.with_path(path))
+    let write = |path: &Path, f: &dyn Fn(&mut fs::File) -> Result<(), IoError>| {
+        atomic::write_with(path, f)
+            .map_err(|e| match e {
+                atomic::AtomicError::Io(e) => IoError::write(e),
+                atomic::AtomicError::Write(e) => e,
+            })
+            .map_err(|e| e.with_path(path))
+    };
+    match format {
+        Format::Ply => {
+            let side = ply::curves_path(path);
+            if opts.effective_ply_curves() == PlyCurves::Separate && !mesh.curves.is_empty() {
+                write(&side, &|file| write_ply_curves(file, mesh, opts))?;
+                let written = write(path, &|file| write_mesh_to(file, mesh, format, opts));
+                if written.is_err() {
+                    // No curves file without its mesh.
+                    let _ = fs::remove_file(&side);
+                }
+                return written;
+            }
+            if ply::is_our_curves_file(&side) {
+                fs::remove_file(&side)
+                    .map_err(|source| IoError::Write { path: Some(side.clone()), source })?;
+            }
+            write(path, &|file| write_mesh_to(file, mesh, format, opts))
+        }
+        Format::Obj if obj::wants_mtl(mesh, opts) => {
+            let mtl = obj::mtl_path(path);
+            write(&mtl, &|file| obj::write_mtl(file, mesh, opts))?;
+            let name = mtl.file_name().map(|n| n.to_string_lossy().into_owned());
+            write(path, &|file| write_obj_with_mtl(file, mesh, opts, name.as_deref()))
+        }
+        _ => write(path, &|file| write_mesh_to(file, mesh, format, opts)),
+    }
+}
+
+/// `path` with `.SUFFIX` put before its extension (`out.ply` → `out.curves.ply`), or added
+/// when it has none.
+pub(crate) fn beside(path: &Path, suffix: &str, ext: Option<&str>) -> PathBuf {
+    let stem = path.file_stem().map(|s| s.to_os_string()).unwrap_or_default();
+    let mut name = stem;
+    if !suffix.is_empty() {
+        name.push(".");
+        name.push(suffix);
+    }
+    if let Some(e) = ext.map(std::ffi::OsStr::new).or_else(|| path.extension()) {
+        name.push(".");
+        name.push(e);
+    }
+    path.with_file_name(name)
 }
 
 /// A buffered writer over `w` for the format writers.

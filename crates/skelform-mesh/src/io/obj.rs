@@ -9,10 +9,14 @@
 //! `v`, `v/vt`, `v//vn` and `v/vt/vn` corners, negative (relative) indices and forward
 //! references, polygons fan-triangulated; `l` polylines of two or more vertices become curve
 //! segments; `\` line continuations; `#` comments, blank lines, `mtllib`, `usemtl`, `s` and
-//! every other keyword are ignored. Each `g` or `o` line sets the current labels from its
+//! every other keyword are ignored (labels come from the group names alone). Each `g` or `o` line sets the current labels from its
 //! names: `region_A_B` labels the following faces `RegionPair::new(A, B)`, `curve_A_B_C`
 //! labels the following `l` lines; any other name means no label (curves then get
 //! `RegionTriple([0, 0, 0])`).
+//!
+//! Sizes: at most [`MAX_VERTICES`](super::limits::MAX_VERTICES) vertices and
+//! [`MAX_TRIANGLES`](super::limits::MAX_TRIANGLES) triangles (text cannot expand further:
+//! every vertex and face takes bytes of the file).
 //!
 //! Labels: when no face has a label, `labels` is empty. When only some faces have one, the
 //! others get `RegionPair(0, 1)`, the label of a plain manifold surface (inside region 0,
@@ -24,9 +28,11 @@
 //! Vertices that no face uses then get a zero normal.
 
 use std::io::{BufRead, Write};
+use std::path::{Path, PathBuf};
 
-use super::{IoError, WriteOptions, buffered, finish, three_numbers};
+use super::{IoError, WriteOptions, buffered, finish, limits, three_numbers};
 use crate::mesh::{CurveEdge, Mesh, RegionPair, RegionTriple};
+use crate::palette::region_colour;
 
 /// No normal index for a corner.
 const NONE: u32 = u32::MAX;
@@ -102,6 +108,15 @@ impl Reader {
         match keyword {
             "v" => {
                 let p = three_numbers(&mut words, line, "v")?;
+                if self.positions.len() >= limits::MAX_VERTICES {
+                    return Err(IoError::parse(
+                        line,
+                        format!(
+                            "more than {} vertices; skelform reads at most that many",
+                            limits::MAX_VERTICES
+                        ),
+                    ));
+                }
                 self.positions.push(p);
             }
             "vn" => {
@@ -169,6 +184,15 @@ impl Reader {
             ));
         }
         let c = &self.corners;
+        if self.triangles.len().saturating_add(c.len() - 2) > limits::MAX_TRIANGLES {
+            return Err(IoError::parse(
+                line,
+                format!(
+                    "more than {} triangles; skelform reads at most that many",
+                    limits::MAX_TRIANGLES
+                ),
+            ));
+        }
         for k in 2..c.len() {
             self.triangles.push([c[0].0, c[k - 1].0, c[k].0]);
             self.corner_normals.push([c[0].1, c[k - 1].1, c[k].1]);
@@ -308,24 +332,88 @@ pub fn read_obj(mut r: impl BufRead) -> Result<Mesh, IoError> {
     reader.finish()
 }
 
-/// Writes `mesh` as OBJ (see the module docs for the layout).
+/// Writes `mesh` as OBJ (see the module docs for the layout), without a material library.
 pub fn write_obj(w: &mut impl Write, mesh: &Mesh, opts: &WriteOptions) -> Result<(), IoError> {
+    write_obj_with_mtl(w, mesh, opts, None)
+}
+
+/// Writes `mesh` as OBJ naming the material library `mtl` (a file name beside the OBJ, as
+/// [`write_mtl`] writes it): a `mtllib` line and a `usemtl` after each group line. With
+/// `None`, the same as [`write_obj`].
+pub fn write_obj_with_mtl(
+    w: &mut impl Write,
+    mesh: &Mesh,
+    opts: &WriteOptions,
+    mtl: Option<&str>,
+) -> Result<(), IoError> {
     mesh.validate().map_err(IoError::invalid)?;
     let mut w = buffered(w);
-    write_body(&mut w, mesh, opts).map_err(IoError::write)?;
+    write_body(&mut w, mesh, opts, mtl).map_err(IoError::write)?;
     finish(w)
 }
 
-fn write_body(w: &mut impl Write, mesh: &Mesh, opts: &WriteOptions) -> std::io::Result<()> {
+/// Whether writing `mesh` to a path comes with a material library: it has labels, or curves
+/// that are written.
+pub(crate) fn wants_mtl(mesh: &Mesh, opts: &WriteOptions) -> bool {
+    !mesh.labels.is_empty() || (opts.curves && !mesh.curves.is_empty())
+}
+
+/// The material library that goes with the OBJ file `path`: `OUT.mtl` for `OUT.obj`.
+pub fn mtl_path(path: &Path) -> PathBuf {
+    super::beside(path, "", Some("mtl"))
+}
+
+/// The colour of curves in the material library (near black, so they stand out on the
+/// palette's colours).
+const CURVE_COLOUR: [u8; 3] = [24, 24, 24];
+
+/// Writes the material library of `mesh`: `region_A_B` for each distinct label in sorted
+/// order with its palette colour, and `curve` when curves are written.
+pub fn write_mtl(w: &mut impl Write, mesh: &Mesh, opts: &WriteOptions) -> Result<(), IoError> {
+    let mut distinct = mesh.labels.clone();
+    distinct.sort_unstable();
+    distinct.dedup();
+    let mut w = buffered(w);
+    let mut body = || -> std::io::Result<()> {
+        writeln!(w, "# generated by skelform: the colours of the region pairs")?;
+        let material = |w: &mut dyn Write, name: &str, c: [u8; 3]| {
+            let [r, g, b] = c.map(|v| f64::from(v) / 255.0);
+            writeln!(
+                w,
+                "\nnewmtl {name}\nKd {r:.4} {g:.4} {b:.4}\nKa 0 0 0\nKs 0 0 0\nd 1\nillum 1"
+            )
+        };
+        for (k, l) in distinct.iter().enumerate() {
+            material(&mut w, &format!("region_{l}"), region_colour(k))?;
+        }
+        if opts.curves && !mesh.curves.is_empty() {
+            material(&mut w, "curve", CURVE_COLOUR)?;
+        }
+        Ok(())
+    };
+    body().map_err(IoError::write)?;
+    finish(w)
+}
+
+fn write_body(
+    w: &mut impl Write,
+    mesh: &Mesh,
+    opts: &WriteOptions,
+    mtl: Option<&str>,
+) -> std::io::Result<()> {
     let normals = opts.normals && !mesh.normals.is_empty();
+    let curves: &[CurveEdge] = if opts.curves { &mesh.curves } else { &[] };
     writeln!(w, "# generated by skelform")?;
     writeln!(
         w,
         "# {} vertices, {} triangles, {} curve segments",
         mesh.positions.len(),
         mesh.triangles.len(),
-        mesh.curves.len()
+        curves.len()
     )?;
+    if let Some(name) = mtl {
+        writeln!(w, "mtllib {name}")?;
+    }
     for p in &mesh.positions {
         writeln!(w, "v {} {} {}", p[0], p[1], p[2])?;
     }
@@ -354,17 +442,23 @@ fn write_body(w: &mut impl Write, mesh: &Mesh, opts: &WriteOptions) -> std::io::
             let label = mesh.labels[i];
             if current != Some(label) {
                 writeln!(w, "g region_{label}")?;
+                if mtl.is_some() {
+                    writeln!(w, "usemtl region_{label}")?;
+                }
                 current = Some(label);
             }
             face(w, &mesh.triangles[i])?;
         }
     }
-    let mut order: Vec<&CurveEdge> = mesh.curves.iter().collect();
+    let mut order: Vec<&CurveEdge> = curves.iter().collect();
     order.sort_by_key(|c| c.label);
     let mut current = None;
     for c in order {
         if current != Some(c.label) {
             writeln!(w, "g curve_{}", c.label)?;
+            if mtl.is_some() {
+                writeln!(w, "usemtl curve")?;
+            }
             current = Some(c.label);
         }
         writeln!(w, "l {} {}", c.v[0] as u64 + 1, c.v[1] as u64 + 1)?;

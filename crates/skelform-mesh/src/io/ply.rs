@@ -2,8 +2,19 @@
 //!
 //! Written: `format binary_little_endian 1.0` (or `ascii 1.0`); vertex `float x, y, z` and,
 //! when normals are written, `float nx, ny, nz`; face `list uchar int vertex_indices` and,
-//! for labelled meshes, `int region_a, int region_b`; when the mesh has curves, an `edge`
-//! element `int vertex1, vertex2, region_a, region_b, region_c`.
+//! for labelled meshes, `int region_a, int region_b` and `uchar red, green, blue` (the
+//! pair's palette colour, [`region_colour`] by rank of the sorted labels, as in the glTF
+//! writer and the renderer), so MeshLab, Open3D and PyVista show the regions and trimesh and
+//! meshio keep the labels as face attributes. Unlabelled meshes have no colours. Curves, as
+//! [`PlyCurves`] says: by default in a second file ([`curves_path`], written by
+//! [`write_ply_curves`]): `comment skelform curves`, vertex `float x, y, z, int
+//! mesh_index` (the vertex's index in the mesh file), `edge` `int vertex1, vertex2` and
+//! `curve` `int region_a, region_b, region_c` (one per edge, its label); or inline, in the
+//! mesh file, as an `edge` element `int vertex1, vertex2, region_a, region_b, region_c`.
+//! The mesh file of the default layout has only `vertex` and `face` elements, which
+//! trimesh, meshio and pymeshlab read; the curves file is read by trimesh (as a path) and
+//! pymeshlab (as edges), not by meshio, whose PLY reader knows no element but `vertex` and
+//! `face`.
 //!
 //! Read: `ascii`, `binary_little_endian` and `binary_big_endian`; every scalar type and its
 //! sized alias (`char`/`int8` ... `double`/`float64`); extra properties and extra elements
@@ -12,14 +23,24 @@
 //! fan-triangulated (a polygon of fewer than 3 corners gives no triangle); normals are read
 //! when `nx, ny, nz` are all present, labels when faces have `region_a` and `region_b`
 //! (stored as `RegionPair::new(a, b)`), curves from an `edge` element with `vertex1` and
-//! `vertex2` (labelled when `region_a, region_b, region_c` are all present, otherwise
-//! `RegionTriple([0, 0, 0])`). Header lines may end in CRLF. Truncated data, malformed
-//! numbers and out-of-range indices are errors naming the line (ASCII) or byte (binary).
+//! `vertex2` (labelled when `region_a, region_b, region_c` are all present, or by a `curve`
+//! element of as many labels, otherwise `RegionTriple([0, 0, 0])`). Both layouts are read:
+//! [`read_mesh`](super::read_mesh) of a PLY file without curves attaches those of its
+//! curves file when there is one ([`attach_curves`]). Header lines may end in CRLF.
+//! Truncated data, malformed numbers and out-of-range indices are errors naming the line
+//! (ASCII) or byte (binary); so are element counts beyond [`limits`] or, in binary files,
+//! beyond what the bytes after the header can hold (checked before reading).
 
 use std::io::{BufRead, Write};
 
-use super::{IoError, WriteOptions, buffered, finish};
+use std::path::{Path, PathBuf};
+
+use super::{IoError, PlyCurves, WriteOptions, buffered, finish, limits};
 use crate::mesh::{CurveEdge, Mesh, RegionPair, RegionTriple};
+use crate::palette::region_colour;
+
+/// The comment that marks a curves file as skelform's (see [`is_our_curves_file`]).
+const CURVES_COMMENT: &str = "comment skelform curves";
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Scalar {
@@ -461,7 +482,7 @@ enum Role {
     Indices,
 }
 
-const SLOTS: usize = 6;
+const SLOTS: usize = 7;
 
 /// The roles of `el`'s properties for the given slot names (and the index list for faces).
 /// Returns the roles and which slots are present.
@@ -572,13 +593,46 @@ fn region(v: f64) -> Result<u32, String> {
     Ok(v as u32)
 }
 
-fn read_body(header: &Header, body: &mut Body) -> Result<Mesh, IoError> {
+/// What a PLY file holds: the mesh, and for a curves file the `mesh_index` of each vertex.
+struct Contents {
+    mesh: Mesh,
+    mesh_index: Option<Vec<u32>>,
+}
+
+/// Refuses an element whose declared count is beyond [`limits`], before anything is
+/// allocated or read for it. (Counts the rest of the file cannot hold are refused by
+/// reading: allocations are bounded by the bytes left, and the first missing value is
+/// reported where it should be.)
+fn check_count(el: &Element) -> Result<(), IoError> {
+    let cap = match el.name.as_str() {
+        "vertex" => limits::MAX_VERTICES,
+        "face" => limits::MAX_TRIANGLES,
+        _ => usize::MAX,
+    };
+    if el.count > cap {
+        return Err(IoError::parse(
+            el.line,
+            format!(
+                "the header declares {} '{}' elements; skelform reads at most {cap}",
+                el.count, el.name
+            ),
+        ));
+    }
+    Ok(())
+}
+
+fn read_body(header: &Header, body: &mut Body) -> Result<Contents, IoError> {
     let vertices = header.elements.iter().find(|e| e.name == "vertex").map_or(0, |e| e.count);
     let mut mesh = Mesh::default();
-    let (mut seen_vertex, mut seen_face, mut seen_edge) = (false, false, false);
+    let mut mesh_index = None;
+    let (mut seen_vertex, mut seen_face, mut seen_edge, mut seen_curve) =
+        (false, false, false, false);
     let mut vals = [0.0; SLOTS];
     let mut poly = Vec::new();
     for el in &header.elements {
+        if !el.props.is_empty() {
+            check_count(el)?;
+        }
         // An upper bound on the instances the rest of the file can hold.
         let min_size = match body {
             Body::Ascii(_) => 2 * el.props.len(),
@@ -589,7 +643,7 @@ fn read_body(header: &Header, body: &mut Body) -> Result<Mesh, IoError> {
             |body: &Body, i: usize, msg: String| body.error(format!("{} {i}: {msg}", el.name));
         if el.name == "vertex" && !seen_vertex {
             seen_vertex = true;
-            let (roles, has) = roles(el, &["x", "y", "z", "nx", "ny", "nz"], false)?;
+            let (roles, has) = roles(el, &["x", "y", "z", "nx", "ny", "nz", "mesh_index"], false)?;
             if let Some(missing) = ["x", "y", "z"].iter().zip(has).find(|(_, h)| !h) {
                 return Err(IoError::parse(
                     el.line,
@@ -601,13 +655,20 @@ fn read_body(header: &Header, body: &mut Body) -> Result<Mesh, IoError> {
             if normals {
                 mesh.normals.reserve(capacity);
             }
+            let mut index = has[6].then(|| Vec::with_capacity(capacity));
             for i in 0..el.count {
                 read_instance(body, el, &roles, i, vertices, &mut vals, &mut poly)?;
                 mesh.positions.push([vals[0] as f32, vals[1] as f32, vals[2] as f32]);
                 if normals {
                     mesh.normals.push([vals[3] as f32, vals[4] as f32, vals[5] as f32]);
                 }
+                if let Some(index) = &mut index {
+                    index.push(region(vals[6]).map_err(|_| {
+                        fail(body, i, format!("expected a mesh_index, found {}", vals[6]))
+                    })?);
+                }
             }
+            mesh_index = index;
         } else if el.name == "face" && !seen_face {
             seen_face = true;
             let (roles, has) = roles(el, &["region_a", "region_b"], true)?;
@@ -622,6 +683,16 @@ fn read_body(header: &Header, body: &mut Body) -> Result<Mesh, IoError> {
                 } else {
                     None
                 };
+                if mesh.triangles.len().saturating_add(poly.len()) > limits::MAX_TRIANGLES {
+                    return Err(fail(
+                        body,
+                        i,
+                        format!(
+                            "more than {} triangles; skelform reads at most that many",
+                            limits::MAX_TRIANGLES
+                        ),
+                    ));
+                }
                 for k in 2..poly.len() {
                     mesh.triangles.push([poly[0], poly[k - 1], poly[k]]);
                     mesh.labels.extend(label);
@@ -649,6 +720,32 @@ fn read_body(header: &Header, body: &mut Body) -> Result<Mesh, IoError> {
                 }
                 mesh.curves.push(CurveEdge { v: [a, b], label: RegionTriple::new(label) });
             }
+        } else if el.name == "curve"
+            && seen_edge
+            && !seen_curve
+            && ["region_a", "region_b", "region_c"].iter().all(|p| el.find(p).is_some())
+        {
+            // The labels of the edges before, one per edge (the curves file's layout).
+            seen_curve = true;
+            if el.count != mesh.curves.len() {
+                return Err(IoError::parse(
+                    el.line,
+                    format!(
+                        "{} curve labels for {} edges: expected one label per edge",
+                        el.count,
+                        mesh.curves.len()
+                    ),
+                ));
+            }
+            let (roles, _) = roles(el, &["region_a", "region_b", "region_c"], false)?;
+            for i in 0..el.count {
+                read_instance(body, el, &roles, i, vertices, &mut vals, &mut poly)?;
+                let mut label = [0; 3];
+                for (l, v) in label.iter_mut().zip(&vals[0..3]) {
+                    *l = region(*v).map_err(|m| fail(body, i, m))?;
+                }
+                mesh.curves[i].label = RegionTriple::new(label);
+            }
         } else if !el.props.is_empty() {
             // (An element without properties holds no data, whatever its count.)
             let roles = vec![Role::Skip; el.props.len()];
@@ -662,11 +759,10 @@ fn read_body(header: &Header, body: &mut Body) -> Result<Mesh, IoError> {
     {
         return Err(body.error("unexpected data after the last element".to_string()));
     }
-    Ok(mesh)
+    Ok(Contents { mesh, mesh_index })
 }
 
-/// Reads a PLY file (ASCII or binary of either byte order) from `r`.
-pub fn read_ply(mut r: impl BufRead) -> Result<Mesh, IoError> {
+fn read_contents(mut r: impl BufRead) -> Result<Contents, IoError> {
     let header = read_header(&mut r)?;
     let mut data = Vec::new();
     r.read_to_end(&mut data).map_err(|source| IoError::Read { path: None, source })?;
@@ -680,9 +776,101 @@ pub fn read_ply(mut r: impl BufRead) -> Result<Mesh, IoError> {
     read_body(&header, &mut body)
 }
 
+/// The curves file that goes with the PLY file `path`: `OUT.curves.ply` for `OUT.ply`
+/// (the extension kept as given).
+pub fn curves_path(path: &Path) -> PathBuf {
+    super::beside(path, "curves", None)
+}
+
+/// Whether `path` is a curves file skelform wrote (its header's comment says so), so that
+/// writing a mesh without one may remove it.
+pub(crate) fn is_our_curves_file(path: &Path) -> bool {
+    let Ok(f) = std::fs::File::open(path) else { return false };
+    let mut head = Vec::new();
+    use std::io::Read;
+    if f.take(256).read_to_end(&mut head).is_err() {
+        return false;
+    }
+    head.starts_with(b"ply\n")
+        && head.windows(CURVES_COMMENT.len()).any(|w| w == CURVES_COMMENT.as_bytes())
+}
+
+/// Adds the curves of a curves file (the [`PlyCurves::Separate`] layout) to `mesh`. Vertices
+/// with a `mesh_index` are the mesh's own vertices and must have the same coordinates
+/// there (bit for bit): otherwise the file belongs to another mesh and is refused. A curves
+/// file without `mesh_index` (another program's) adds its vertices to the mesh, with zero
+/// normals when the mesh has normals.
+pub fn attach_curves(mesh: &mut Mesh, r: impl BufRead) -> Result<(), IoError> {
+    let Contents { mesh: curves, mesh_index } = read_contents(r)?;
+    let map: Vec<u32> = match mesh_index {
+        Some(index) => {
+            for (k, (&i, p)) in index.iter().zip(&curves.positions).enumerate() {
+                let same = mesh
+                    .positions
+                    .get(i as usize)
+                    .is_some_and(|q| q.map(f32::to_bits) == p.map(f32::to_bits));
+                if !same {
+                    return Err(IoError::parse(
+                        1,
+                        format!(
+                            "curve vertex {k} is not vertex {i} of the mesh: this curves file \
+                             belongs to another mesh (remove it, or write the mesh again)"
+                        ),
+                    ));
+                }
+            }
+            index
+        }
+        None => {
+            let base = mesh.positions.len();
+            let total =
+                base.checked_add(curves.positions.len()).filter(|&n| n <= limits::MAX_VERTICES);
+            if total.is_none() {
+                return Err(IoError::parse(1, "too many vertices with the curves file's"));
+            }
+            mesh.positions.extend_from_slice(&curves.positions);
+            if !mesh.normals.is_empty() {
+                mesh.normals.resize(mesh.positions.len(), [0.0; 3]);
+            }
+            (0..curves.positions.len()).map(|k| (base + k) as u32).collect()
+        }
+    };
+    mesh.curves.extend(
+        curves.curves.iter().map(|c| CurveEdge { v: c.v.map(|v| map[v as usize]), label: c.label }),
+    );
+    Ok(())
+}
+
+/// Reads a PLY file (ASCII or binary of either byte order) from `r`.
+pub fn read_ply(r: impl BufRead) -> Result<Mesh, IoError> {
+    read_contents(r).map(|c| c.mesh)
+}
+
 /// Writes `mesh` as PLY: binary little-endian, or ASCII when `opts.ascii`; normals when the
-/// mesh has them and `opts.normals`.
+/// mesh has them and `opts.normals`; curves inline only with [`PlyCurves::Inline`] (the
+/// default, [`PlyCurves::Separate`], leaves them to [`write_ply_curves`]).
 pub fn write_ply(w: &mut impl Write, mesh: &Mesh, opts: &WriteOptions) -> Result<(), IoError> {
+    check_writable(mesh)?;
+    let mut w = buffered(w);
+    write_body(&mut w, mesh, opts).map_err(IoError::write)?;
+    finish(w)
+}
+
+/// Writes the curves file of `mesh` (the [`PlyCurves::Separate`] layout, see the module
+/// documentation): the vertices the curves use, each with its `mesh_index`, the segments
+/// as an `edge` element and their labels as a `curve` element. ASCII when `opts.ascii`.
+pub fn write_ply_curves(
+    w: &mut impl Write,
+    mesh: &Mesh,
+    opts: &WriteOptions,
+) -> Result<(), IoError> {
+    check_writable(mesh)?;
+    let mut w = buffered(w);
+    write_curves(&mut w, mesh, opts).map_err(IoError::write)?;
+    finish(w)
+}
+
+fn check_writable(mesh: &Mesh) -> Result<(), IoError> {
     mesh.validate().map_err(IoError::invalid)?;
     let int_max = i32::MAX as usize;
     if mesh.positions.len() > int_max {
@@ -699,14 +887,26 @@ pub fn write_ply(w: &mut impl Write, mesh: &Mesh, opts: &WriteOptions) -> Result
     if let Some(r) = regions.into_iter().find(|&r| r as usize > int_max) {
         return Err(IoError::unsupported(format!("region id {r} does not fit a PLY int")));
     }
-    let mut w = buffered(w);
-    write_body(&mut w, mesh, opts).map_err(IoError::write)?;
-    finish(w)
+    Ok(())
+}
+
+/// The palette colour of each triangle's label: the rank of the label among the mesh's
+/// distinct labels, sorted, picks the colour (as in the glTF writer).
+fn face_colours(mesh: &Mesh) -> Vec<[u8; 3]> {
+    let mut distinct = mesh.labels.clone();
+    distinct.sort_unstable();
+    distinct.dedup();
+    mesh.labels
+        .iter()
+        .map(|l| region_colour(distinct.binary_search(l).unwrap_or_default()))
+        .collect()
 }
 
 fn write_body(w: &mut impl Write, mesh: &Mesh, opts: &WriteOptions) -> std::io::Result<()> {
     let normals = opts.normals && !mesh.normals.is_empty();
     let labelled = !mesh.labels.is_empty();
+    let colours = if labelled { face_colours(mesh) } else { Vec::new() };
+    let curves = opts.effective_ply_curves() == PlyCurves::Inline && !mesh.curves.is_empty();
     let format = if opts.ascii { "ascii" } else { "binary_little_endian" };
     writeln!(w, "ply\nformat {format} 1.0\ncomment generated by skelform")?;
     writeln!(w, "element vertex {}", mesh.positions.len())?;
@@ -718,8 +918,9 @@ fn write_body(w: &mut impl Write, mesh: &Mesh, opts: &WriteOptions) -> std::io::
     writeln!(w, "property list uchar int vertex_indices")?;
     if labelled {
         writeln!(w, "property int region_a\nproperty int region_b")?;
+        writeln!(w, "property uchar red\nproperty uchar green\nproperty uchar blue")?;
     }
-    if !mesh.curves.is_empty() {
+    if curves {
         writeln!(w, "element edge {}", mesh.curves.len())?;
         writeln!(w, "property int vertex1\nproperty int vertex2")?;
         writeln!(w, "property int region_a\nproperty int region_b\nproperty int region_c")?;
@@ -738,14 +939,16 @@ fn write_body(w: &mut impl Write, mesh: &Mesh, opts: &WriteOptions) -> std::io::
         for (i, t) in mesh.triangles.iter().enumerate() {
             write!(w, "3 {} {} {}", t[0], t[1], t[2])?;
             if labelled {
-                let l = mesh.labels[i];
-                write!(w, " {} {}", l.0, l.1)?;
+                let (l, [r, g, b]) = (mesh.labels[i], colours[i]);
+                write!(w, " {} {} {r} {g} {b}", l.0, l.1)?;
             }
             writeln!(w)?;
         }
-        for c in &mesh.curves {
-            let [a, b, r] = c.label.0;
-            writeln!(w, "{} {} {a} {b} {r}", c.v[0], c.v[1])?;
+        if curves {
+            for c in &mesh.curves {
+                let [a, b, r] = c.label.0;
+                writeln!(w, "{} {} {a} {b} {r}", c.v[0], c.v[1])?;
+            }
         }
     } else {
         let mut buf = Vec::with_capacity(32);
@@ -765,14 +968,77 @@ fn write_body(w: &mut impl Write, mesh: &Mesh, opts: &WriteOptions) -> std::io::
                 let l = mesh.labels[i];
                 buf.extend_from_slice(&(l.0 as i32).to_le_bytes());
                 buf.extend_from_slice(&(l.1 as i32).to_le_bytes());
+                buf.extend_from_slice(&colours[i]);
             }
+            w.write_all(&buf)?;
+        }
+        if curves {
+            for c in &mesh.curves {
+                buf.clear();
+                c.v.iter()
+                    .chain(&c.label.0)
+                    .for_each(|&v| buf.extend_from_slice(&(v as i32).to_le_bytes()));
+                w.write_all(&buf)?;
+            }
+        }
+    }
+    Ok(())
+}
+
+fn write_curves(w: &mut impl Write, mesh: &Mesh, opts: &WriteOptions) -> std::io::Result<()> {
+    // The vertices the curves use, in order of first use, and the segments renumbered.
+    let mut local = std::collections::HashMap::new();
+    let mut used: Vec<u32> = Vec::new();
+    let edges: Vec<[u32; 2]> = mesh
+        .curves
+        .iter()
+        .map(|c| {
+            c.v.map(|v| {
+                *local.entry(v).or_insert_with(|| {
+                    used.push(v);
+                    (used.len() - 1) as u32
+                })
+            })
+        })
+        .collect();
+    let format = if opts.ascii { "ascii" } else { "binary_little_endian" };
+    writeln!(w, "ply\nformat {format} 1.0\n{CURVES_COMMENT}")?;
+    writeln!(w, "comment mesh_index: the vertex's index in the mesh file beside this one")?;
+    writeln!(w, "element vertex {}", used.len())?;
+    writeln!(w, "property float x\nproperty float y\nproperty float z\nproperty int mesh_index")?;
+    writeln!(w, "element edge {}", edges.len())?;
+    writeln!(w, "property int vertex1\nproperty int vertex2")?;
+    writeln!(w, "element curve {}", edges.len())?;
+    writeln!(w, "property int region_a\nproperty int region_b\nproperty int region_c")?;
+    writeln!(w, "end_header")?;
+    if opts.ascii {
+        for &v in &used {
+            let p = mesh.positions[v as usize];
+            writeln!(w, "{} {} {} {v}", p[0], p[1], p[2])?;
+        }
+        for e in &edges {
+            writeln!(w, "{} {}", e[0], e[1])?;
+        }
+        for c in &mesh.curves {
+            let [a, b, r] = c.label.0;
+            writeln!(w, "{a} {b} {r}")?;
+        }
+    } else {
+        let mut buf = Vec::with_capacity(16);
+        for &v in &used {
+            buf.clear();
+            mesh.positions[v as usize].iter().for_each(|c| buf.extend_from_slice(&c.to_le_bytes()));
+            buf.extend_from_slice(&(v as i32).to_le_bytes());
+            w.write_all(&buf)?;
+        }
+        for e in &edges {
+            buf.clear();
+            e.iter().for_each(|&v| buf.extend_from_slice(&(v as i32).to_le_bytes()));
             w.write_all(&buf)?;
         }
         for c in &mesh.curves {
             buf.clear();
-            c.v.iter()
-                .chain(&c.label.0)
-                .for_each(|&v| buf.extend_from_slice(&(v as i32).to_le_bytes()));
+            c.label.0.iter().for_each(|&v| buf.extend_from_slice(&(v as i32).to_le_bytes()));
             w.write_all(&buf)?;
         }
     }

@@ -8,11 +8,13 @@
 //! Read: binary and ASCII STL. A file is read as ASCII when it starts with `solid` and
 //! parses as ASCII; otherwise as binary, which needs exactly `84 + 50·n` bytes for its `n`
 //! triangles. Vertices with identical coordinates (bit for bit, `-0.0` taken as `0.0`) are
-//! welded into one; facet normals are ignored.
+//! welded into one; facet normals are ignored. At most
+//! [`MAX_TRIANGLES`](super::limits::MAX_TRIANGLES) triangles (a binary count beyond it is
+//! refused before reading).
 
 use std::io::Write;
 
-use super::{IoError, Welder, buffered, finish, three_numbers};
+use super::{IoError, Welder, buffered, finish, limits, three_numbers};
 use crate::mesh::Mesh;
 
 const HEADER: &[u8] = b"binary STL written by skelform";
@@ -71,6 +73,13 @@ fn read_binary(bytes: &[u8]) -> Result<Mesh, IoError> {
         ));
     }
     let mut welder = Welder::new();
+    if count as usize > limits::MAX_TRIANGLES {
+        return Err(IoError::binary(
+            80,
+            format!("{count} triangles; skelform reads at most {}", limits::MAX_TRIANGLES),
+        ));
+    }
+    // The size matches the count (checked above), so this is backed by the file's bytes.
     let mut triangles = Vec::with_capacity(count as usize);
     for record in bytes[84..].chunks_exact(50) {
         let mut t = [0u32; 3];
