@@ -507,6 +507,12 @@ impl Reader<'_> {
         let mut normals: Vec<Option<[f32; 3]>> = Vec::new();
         let mut mesh = Mesh::default();
         let mut labels: Vec<Option<RegionPair>> = Vec::new();
+        // Primitives may share accessors, and each reads its own again: without a bound, a
+        // small file listing one primitive many times would ask for gigabytes. Every value
+        // a file holds takes at least a byte of the BIN chunk; sharing is allowed up to 16
+        // reads per byte.
+        let budget = self.bin.len().saturating_mul(16).saturating_add(1 << 12);
+        let mut read = 0usize;
         for (mi, m) in self.list("meshes").iter().enumerate() {
             let prims =
                 m.get("primitives").and_then(Value::as_array).map_or(&[][..], |v| v.as_slice());
@@ -534,6 +540,14 @@ impl Reader<'_> {
                     Some(i) => self.scalars(i)?,
                     None => (0..positions.len() as u32).collect(),
                 };
+                read = read.saturating_add(positions.len()).saturating_add(index.len());
+                if read > budget {
+                    return Err(json_err(format!(
+                        "mesh {mi} primitive {pi}: the primitives read more than {budget} values \
+                         from a BIN chunk of {} bytes (accessors shared by too many primitives)",
+                        self.bin.len()
+                    )));
+                }
                 if let Some(&bad) = index.iter().find(|&&v| v as usize >= positions.len()) {
                     return Err(json_err(format!(
                         "mesh {mi} primitive {pi} uses vertex {bad} of {}",
