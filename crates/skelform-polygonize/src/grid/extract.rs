@@ -392,6 +392,12 @@ pub fn extract_positions(volume: &Volume, control: &Control) -> Result<Positions
 
 type Extracted<V> = (Vec<V>, Vec<[u32; 3]>, u64, u64);
 
+/// Whether a lattice has a cube: a [`Grid`] built by hand may have fewer than 2 samples
+/// along an axis, and then there is nothing to extract.
+fn has_cells(grid: &Grid) -> bool {
+    grid.dims.iter().all(|&d| d >= 2)
+}
+
 /// Interpolated vertex positions and triangles.
 pub type Positions = (Vec<[f32; 3]>, Vec<[u32; 3]>);
 
@@ -408,6 +414,9 @@ fn extract_as<V: SlabVertex>(
     control: &Control,
 ) -> Result<Extracted<V>, Cancelled> {
     let grid = volume.grid;
+    if !has_cells(&grid) {
+        return Ok((Vec::new(), Vec::new(), 0, 0));
+    }
     let [nx, ny, _] = grid.dims;
     let cube_layers = grid.dims[2] - 1;
     let done = AtomicU64::new(0);
@@ -493,6 +502,13 @@ pub fn extract_streamed<V: SlabVertex, S: LayerSource>(
     control: &Control,
 ) -> Result<Streamed<V>, StreamError<S::Error>> {
     use std::time::Instant;
+    if !has_cells(grid) {
+        return Ok(Streamed {
+            vertices: Vec::new(),
+            triangles: Vec::new(),
+            stats: StreamStats::default(),
+        });
+    }
     let [nx, ny, nz] = grid.dims;
     let layer = nx * ny;
     let cube_layers = nz - 1;
