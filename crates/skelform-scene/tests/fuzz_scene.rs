@@ -295,7 +295,7 @@ fn values(text: &str) -> Vec<(usize, usize)> {
     for line in text.split_inclusive('\n') {
         if let Some(eq) = line.find('=') {
             let end = line.trim_end_matches(['\n', '\r']).len();
-            if eq + 1 <= end {
+            if eq < end {
                 out.push((at + eq + 1, at + end));
             }
         }
@@ -635,7 +635,7 @@ fn value_for(key: &str, pick: u8, any: String, num: String, pt: String) -> Strin
         "file" => "\"out.ply\"".to_string(),
         "polygon_method" => "\"image\"".to_string(),
         "refine" | "split_sheets" | "clamp" | "angle_scaled" | "full_grid" | "loops" | "ascii"
-        | "normals" => (pick % 2 == 0).to_string(),
+        | "normals" => pick.is_multiple_of(2).to_string(),
         "parameters" => format!("{{ R = {num} }}"),
         "name" | "description" | "figure" | "parent" | "joint" | "pose" => "\"a\"".to_string(),
         "resolution" | "id" | "default" | "lobes" | "seed" | "max_cells" | "limit"
