@@ -401,7 +401,7 @@ fn random_strings_are_errors_or_formulas() {
 
 #[test]
 fn pathological_shapes_are_refused_or_evaluated() {
-    harness::fuzz("formula shapes", 48, LIMIT, (pathological(), points()), |(text, points)| {
+    harness::fuzz("formula shapes", 32, LIMIT, (pathological(), points()), |(text, points)| {
         let short = |s: &str| s.chars().take(60).collect::<String>();
         parse_and_exercise(&text, &points)
             .map_err(|e| format!("{e} (text starts {:?})", short(&text)))

@@ -1,9 +1,10 @@
 //! Fuzzing the inputs of `skelform extract` through the library (`skelform::volume`): the
 //! raw-volume path, with random dims, iso values, spacings, origins and samples.
 //!
-//! Generators: lattices of 1 to 12 samples a side (up to 40 layers, so several slabs), and
+//! Generators: lattices of 2 to 12 samples a side (up to 40 layers, so several slabs), and
 //! lattices with an axis of 0 or 1 sample; origins and spacings ordinary, tiny (5e-324),
-//! huge (1e30, past f32) and negative; iso values ordinary, ±0, NaN, ±∞, 1e300; samples
+//! huge (1e30, past f32), and (given to the library though the command line
+//! refuses them) zero, negative, NaN and infinite; iso values ordinary, ±0, NaN, ±∞, 1e300; samples
 //! from smooth fields (spheres, planes, gyroids) with noise, from a palette of extremes
 //! (NaN, ±∞, ±f32::MAX, subnormals, exact zeros), and uniform noise; and domains and cells
 //! for `Grid::with_cell` and `Grid::with_resolution`, extremes included.
@@ -94,7 +95,10 @@ struct Case {
 fn coordinate() -> impl Strategy<Value = f64> {
     prop_oneof![
         6 => -10.0..10.0f64,
-        1 => prop::sample::select(vec![0.0, -0.0, 1e30, -1e30, 3e38, -3e38, 1e-300, 5e-324, 1e39]),
+        1 => prop::sample::select(vec![
+            0.0, -0.0, 1e30, -1e30, 3e38, -3e38, 1e-300, 5e-324, 1e39, f64::NAN,
+            f64::NEG_INFINITY,
+        ]),
     ]
 }
 
@@ -106,6 +110,8 @@ fn case(max_side: usize, max_layers: usize) -> impl Strategy<Value = Case> {
         prop_oneof![
             6 => 0.01..2.0f64,
             1 => prop::sample::select(vec![5e-324, 1e-300, 1e-30, 1e-7, 1e30, 1e38, 1e300]),
+            // What the command line refuses, given to the library anyway.
+            1 => prop::sample::select(vec![0.0, -0.0, -1.0, f64::NAN, f64::INFINITY]),
         ],
         prop_oneof![
             6 => -0.5..0.5f64,
@@ -205,6 +211,11 @@ fn extract(volume: &Volume, threads: usize) -> Result<Mesh, String> {
         .map_err(|e| format!("extraction failed: {e}"))
 }
 
+/// Positions equal bit for bit (NaN coordinates included, from a NaN origin).
+fn same_bits(a: &[[f32; 3]], b: &[[f32; 3]]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).all(|(p, q)| p.map(f32::to_bits) == q.map(f32::to_bits))
+}
+
 fn run(c: &Case) -> Result<(), String> {
     let values = relative(&raw(c), c.iso);
     let volume = Volume::from_values(grid(c), values.clone());
@@ -222,19 +233,14 @@ fn run(c: &Case) -> Result<(), String> {
         }
     }
     let again = extract(&volume, 3)?;
-    if again.positions != mesh.positions || again.triangles != mesh.triangles {
+    if !same_bits(&again.positions, &mesh.positions) || again.triangles != mesh.triangles {
         return Err("the mesh on three threads differs from the mesh on one".into());
     }
     let layer = c.dims[0] * c.dims[1];
     let streamed =
         extract_streamed::<[f32; 3], _>(&Layers(&values, layer), &volume.grid, &Control::default())
             .map_err(|e| format!("streamed extraction failed: {e:?}"))?;
-    let same_positions = streamed.vertices.len() == mesh.positions.len()
-        && streamed
-            .vertices
-            .iter()
-            .zip(&mesh.positions)
-            .all(|(a, b)| a.map(f32::to_bits) == b.map(f32::to_bits));
+    let same_positions = same_bits(&streamed.vertices, &mesh.positions);
     if !same_positions || streamed.triangles != mesh.triangles {
         return Err(format!(
             "streaming gives {} vertices and {} triangles, the whole volume {} and {}",
