@@ -750,3 +750,22 @@ fn a_quoted_line_break_keeps_the_error_on_one_line() {
     assert!(!shown.contains('\n'), "{shown}");
     assert!(shown.starts_with("fuzz.toml:8:9: unknown group 'q\\nr'"), "{shown}");
 }
+
+/// Regression (found by the long run of `generated_scenes_are_errors_or_scenes`): `[leaf]
+/// max_area` had no lower bound. `1e-320` overflowed the count of margin samples ("attempt
+/// to add with overflow" in `skelform-leaf`'s `margin_splines`, the sample step being
+/// `0.5·√max_area·size`), and `1e-8` took four minutes to load. It is now refused below
+/// 1e-5 (about the most polygons refinement makes anyway), with its position.
+#[test]
+fn a_tiny_leaf_max_area_is_refused() {
+    for v in ["1e-320", "1e-8", "5e-324", "0.0000099"] {
+        let text = format!(
+            "[domain]\nmin = [-1, -1, -1]\nmax = [1, 1, 1]\n[field]\nformula = \"x\"\n\
+             [leaf]\nmax_area = {v}\n"
+        );
+        let t = std::time::Instant::now();
+        let e = Scene::parse(&text, ORIGIN).expect_err(v).to_string();
+        assert!(e.starts_with("fuzz.toml:7:12: max_area must be"), "{v}: {e}");
+        assert!(t.elapsed() < Duration::from_secs(1), "{v}: {:?}", t.elapsed());
+    }
+}
