@@ -15,8 +15,9 @@
 //!
 //! CI runs a few hundred cases per property in a few seconds. A longer run:
 //! `SKELFORM_FUZZ_SECONDS=3600 cargo test --release -p skelform-scene --test fuzz_scene -- --nocapture`
-//! runs every property for an hour, with fresh seeds each round (`SKELFORM_FUZZ_CASES=N`
-//! sets the cases per round; see `fuzz/harness.rs`).
+//! runs every property for an hour, side by side as the test harness runs them (as many at
+//! once as there are cores, or `--test-threads`), with fresh seeds each round
+//! (`SKELFORM_FUZZ_CASES=N` sets the cases per round; see `fuzz/harness.rs`).
 
 #[path = "../../../fuzz/harness.rs"]
 mod harness;
