@@ -302,7 +302,7 @@ fn encoding() -> impl Strategy<Value = Encoding> {
 #[test]
 fn damaged_files_are_errors_or_valid_meshes() {
     let strategy = (small_mesh(), encoding(), any::<bool>(), prop::collection::vec(damage(), 0..5));
-    harness::fuzz("mesh readers", 640, LIMIT, strategy, |(mesh, e, normals, damages)| {
+    harness::fuzz("mesh readers", 1024, LIMIT, strategy, |(mesh, e, normals, damages)| {
         let mut bytes = write(&mesh, e, normals);
         if damages.is_empty() {
             let back = verdict(&bytes, e.format())?

@@ -435,7 +435,7 @@ fn expensive_by_design(text: &str) -> bool {
 fn damaged_examples_are_errors_or_scenes() {
     let n = examples().len();
     let strategy = (0..n, prop::collection::vec(damage(), 1..5));
-    harness::fuzz("scene mutations", 320, LIMIT, strategy, move |(k, damages)| {
+    harness::fuzz("scene mutations", 640, LIMIT, strategy, move |(k, damages)| {
         let (name, text) = &examples()[k];
         let text = damages.iter().fold(text.clone(), apply);
         if expensive_by_design(&text) {
@@ -720,7 +720,7 @@ fn generated_scene() -> impl Strategy<Value = String> {
 
 #[test]
 fn generated_scenes_are_errors_or_scenes() {
-    harness::fuzz("generated scenes", 384, LIMIT, generated_scene(), |text| {
+    harness::fuzz("generated scenes", 768, LIMIT, generated_scene(), |text| {
         if expensive_by_design(&text) {
             return Ok(());
         }
@@ -736,7 +736,7 @@ fn random_text_is_an_error_or_a_scene() {
         prop::collection::vec(any::<u8>(), 0..200)
             .prop_map(|b| String::from_utf8_lossy(&b).into_owned()),
     ];
-    harness::fuzz("scene text", 256, LIMIT, strategy, |text| verdict(&text).map(|_| ()));
+    harness::fuzz("scene text", 512, LIMIT, strategy, |text| verdict(&text).map(|_| ()));
 }
 
 /// Regression (found by `generated_scenes_are_errors_or_scenes`): a message that quotes a
