@@ -105,6 +105,13 @@ pub fn extract(a: ExtractArgs) -> Result<(), Failure> {
     if !(a.spacing.is_finite() && a.spacing > 0.0) {
         return Err(input(anyhow!("--spacing must be a positive length")));
     }
+    // As `mesh --threads` does: each count is a pool of that many threads, built up front.
+    if let Some(n) = a.threads.iter().find(|&&n| !(1..=skelform::MAX_THREADS).contains(&n)) {
+        return Err(input(anyhow!(
+            "--threads must be between 1 and {} (got {n})",
+            skelform::MAX_THREADS
+        )));
+    }
     let [nx, ny, nz] = a.dims;
     if a.dims.iter().any(|&d| d > MAX_SAMPLES_PER_AXIS) {
         return Err(input(anyhow!(

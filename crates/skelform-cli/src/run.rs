@@ -108,8 +108,7 @@ pub struct RunArgs {
     /// continuation/tetra: stop this many cubes from each start, in every direction.
     #[arg(long)]
     pub limit: Option<u32>,
-    /// Worker threads, 1 to 256 (default, or 0: all cores). The mesh is the same for any
-    /// count.
+    /// Worker threads, 1 to 256 (default: all cores). The mesh is the same for any count.
     #[arg(long)]
     pub threads: Option<usize>,
     /// Leave out vertex normals.

@@ -108,7 +108,8 @@ pub struct LeafParams {
     /// Smooth the margin with natural splines through the vein tips (§7.6, note 1) instead of
     /// straight sides.
     pub smooth_margin: bool,
-    /// Web refinement: largest polygon area, as a fraction of `size²`.
+    /// Web refinement: largest polygon area, as a fraction of `size²`, from [`MIN_MAX_AREA`]
+    /// to 1.
     pub max_area: f64,
     /// Web refinement: largest perimeter/area ratio, in units of 1/size.
     pub max_ratio: f64,
@@ -138,6 +139,9 @@ impl Default for LeafParams {
         }
     }
 }
+
+/// The smallest `max_area` [`LeafParams::check`] accepts, as a fraction of `size²`.
+pub const MIN_MAX_AREA: f64 = 1e-5;
 
 impl LeafParams {
     /// Checks every parameter; the error names the first bad one.
@@ -190,8 +194,11 @@ impl LeafParams {
         if !(self.secondary_radius.is_finite() && self.secondary_radius >= 0.0) {
             return bad("secondary_radius", self.secondary_radius, "a length of 0 or more");
         }
-        if !(pos(self.max_area) && self.max_area <= 1.0) {
-            return bad("max_area", self.max_area, "a fraction of size² above 0 and at most 1");
+        // About 1/max_area polygons, and the margin sampled at steps of its square root:
+        // below 1e-5 the refinement would pass its cap of polygons anyway, and ever smaller
+        // values made loading take minutes (1e-8) or overflow the margin's sample count.
+        if !(self.max_area.is_finite() && (MIN_MAX_AREA..=1.0).contains(&self.max_area)) {
+            return bad("max_area", self.max_area, "a fraction of size² from 1e-5 to 1");
         }
         if !(self.max_ratio.is_finite() && self.max_ratio >= 10.0) {
             return bad("max_ratio", self.max_ratio, "a number of at least 10 (1/size)");

@@ -26,10 +26,13 @@ pub(crate) struct Source<'a> {
 }
 
 impl Source<'_> {
-    /// The error for `message` at byte `offset` of the text.
+    /// The error for `message` at byte `offset` of the text. Line breaks in the message
+    /// (from a value it quotes, such as a name) are shown as `\n`, so that every error
+    /// stays on one line.
     pub(crate) fn at(&self, offset: usize, message: impl Into<String>) -> SceneError {
         let (line, column) = line_col(self.text, offset);
-        SceneError::At { path: self.origin.to_string(), line, column, message: message.into() }
+        let message = one_line(message.into());
+        SceneError::At { path: self.origin.to_string(), line, column, message }
     }
 
     /// A TOML syntax or schema error (unknown key, wrong type), on one line, with serde's
@@ -66,6 +69,15 @@ pub(crate) fn line_col(text: &str, offset: usize) -> (usize, usize) {
     let line = before.matches('\n').count() + 1;
     let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
     (line, col)
+}
+
+/// `message` with its line breaks written as `\n` and `\r`.
+fn one_line(message: String) -> String {
+    if message.contains(['\n', '\r']) {
+        message.replace('\n', "\\n").replace('\r', "\\r")
+    } else {
+        message
+    }
 }
 
 /// serde names Rust types in its messages; say what they mean instead.

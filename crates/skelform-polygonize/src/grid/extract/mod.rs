@@ -234,12 +234,21 @@ type Extracted<V> = (Vec<V>, Vec<[u32; 3]>, u64, u64);
 /// Interpolated vertex positions and triangles.
 pub type Positions = (Vec<[f32; 3]>, Vec<[u32; 3]>);
 
+/// Whether a lattice has a cube: a [`Grid`] built by hand may have fewer than 2 samples
+/// along an axis, and then there is nothing to extract.
+pub(crate) fn has_cells(grid: &Grid) -> bool {
+    grid.dims.iter().all(|&d| d >= 2)
+}
+
 fn extract_as<V: SlabVertex>(
     volume: &Volume,
     control: &Control,
     workspace: &Workspace,
 ) -> Result<Extracted<V>, Cancelled> {
     let grid = volume.grid;
+    if !has_cells(&grid) {
+        return Ok((Vec::new(), Vec::new(), 0, 0));
+    }
     let [nx, ny, _] = grid.dims;
     let cube_layers = grid.dims[2] - 1;
     let done = AtomicU64::new(0);

@@ -96,6 +96,13 @@ pub fn extract_streamed_with<V: SlabVertex, S: LayerSource>(
     workspace: &Workspace,
 ) -> Result<Streamed<V>, StreamError<S::Error>> {
     use std::time::Instant;
+    if !super::has_cells(grid) {
+        return Ok(Streamed {
+            vertices: Vec::new(),
+            triangles: Vec::new(),
+            stats: StreamStats::default(),
+        });
+    }
     let [nx, ny, nz] = grid.dims;
     let layer = nx * ny;
     let cube_layers = nz - 1;
