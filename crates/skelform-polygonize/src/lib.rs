@@ -58,9 +58,9 @@ pub enum Error {
     /// A dense run would need more memory than [`LatticeOptions::max_memory`] allows; refused
     /// before anything is allocated, so asking is cheap.
     #[error(
-        "the grid of {} × {} × {} samples would need {:.2} GiB, over the limit of {:.2} GiB; \
+        "the grid of {} × {} × {} samples would need {}, over the limit of {}; \
          use a coarser resolution or raise the limit",
-        dims[0], dims[1], dims[2], *needed as f64 / (1u64 << 30) as f64, *limit as f64 / (1u64 << 30) as f64
+        dims[0], dims[1], dims[2], memory::human(*needed), memory::human(*limit)
     )]
     TooMuchMemory {
         /// Bytes the run would need before its first triangle.
@@ -78,14 +78,14 @@ pub enum Error {
     /// the same cube on any thread count. Unlike [`Error::TooMuchMemory`] (refused before
     /// anything was allocated), this is a failure of the run, not of its input.
     #[error(
-        "the {method} run reached the memory limit: it held {} after visiting {cells} cubes, over the limit of {}; \
+        "the {method} run reached the memory limit of {} after visiting {cells} cubes; \
          use a coarser cell, a smaller domain or fewer cells (max_cells), or raise the limit (--max-memory)",
-        memory::human(*held), memory::human(*limit)
+        memory::human(*limit)
     )]
     MemoryLimit {
         /// The polygonizer (`continuation`, `tetra`, `nonmanifold`, `healed`).
         method: &'static str,
-        /// Bytes its account held when it stopped.
+        /// Bytes its account held when it stopped (over `limit`).
         held: u64,
         /// The limit it was given.
         limit: u64,

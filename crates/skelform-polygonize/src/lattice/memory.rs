@@ -62,7 +62,8 @@ pub(crate) fn check(method: &'static str, held: u64, limit: u64, cells: u64) -> 
     if held > limit { Err(over(method, held, limit, cells)) } else { Ok(()) }
 }
 
-/// A byte count for people: B, KiB, MiB or GiB.
+/// A byte count for people: B, KiB, MiB or GiB (always GiB from 1 GiB up, as the messages
+/// of large grids have said).
 pub(crate) fn human(bytes: u64) -> String {
     let b = bytes as f64;
     match bytes {
