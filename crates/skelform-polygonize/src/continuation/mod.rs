@@ -220,6 +220,7 @@ fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats)
     }
     let t = Instant::now();
     let starts = find_starts(&mut run)?;
+    run.starts_bytes = vec_bytes(&starts);
     run.stats.search = t.elapsed();
 
     let t = Instant::now();
@@ -258,6 +259,8 @@ struct Run<'a> {
     vertices: Vec<GridVertex>,
     triangles: Vec<[u32; 3]>,
     stats: Stats,
+    /// Bytes of the list of starts, held while the components are propagated.
+    starts_bytes: u64,
 }
 
 impl<'a> Run<'a> {
@@ -272,6 +275,7 @@ impl<'a> Run<'a> {
             vertices: Vec::new(),
             triangles: Vec::new(),
             stats: Stats { cell: grid.cell, ..Stats::default() },
+            starts_bytes: 0,
         }
     }
 
@@ -369,12 +373,13 @@ impl<'a> Run<'a> {
         }
     }
 
-    /// Bytes held: the lattice's bricks, the vertices and triangles, and what placing the
+    /// Bytes held: the lattice's bricks, the starts, the vertices and triangles, and what placing the
     /// vertices will add (an `f64` position each, and the mesh's `f32` positions and
     /// normals).
     fn held(&self) -> u64 {
         let placed = (size_of::<DVec3>() + 2 * size_of::<[f32; 3]>()) as u64;
         self.lattice.bytes()
+            + self.starts_bytes
             + vec_bytes(&self.ends)
             + vec_bytes(&self.vertices)
             + vec_bytes(&self.triangles)
