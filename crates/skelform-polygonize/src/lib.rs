@@ -78,7 +78,7 @@ pub enum Error {
     /// the same cube on any thread count. Unlike [`Error::TooMuchMemory`] (refused before
     /// anything was allocated), this is a failure of the run, not of its input.
     #[error(
-        "the {method} run reached the memory limit of {} after visiting {cells} cubes; \
+        "the {method} run reached the memory limit of {} after {cells} cubes; \
          use a coarser cell, a smaller domain or fewer cells (max_cells), or raise the limit (--max-memory)",
         memory::human(*limit)
     )]
@@ -89,7 +89,7 @@ pub enum Error {
         held: u64,
         /// The limit it was given.
         limit: u64,
-        /// Cubes it had visited (for healing: the cubes it had healed).
+        /// Cubes it had polygonized (for healing: the cubes of the grid it heals).
         cells: u64,
     },
     /// The run's [`Control`](skelform_field::control::Control) asked it to stop; whatever

@@ -60,8 +60,8 @@ pub struct LatticeOptions {
     /// the sizes and capacities of what is held, not a measurement: a hash map that grows
     /// briefly holds its old and new tables together, and the field's own storage and the
     /// caller's copy of the mesh are not counted, so the process can peak some tens of
-    /// percent above it (measured: a propagating run's peak 0.9–1.1× its final account, a
-    /// full-grid run's about 1.4×). Leave that room.
+    /// percent above it (measured: a propagating run's peak 0.85–1.15× its final account, a
+    /// full-grid run's about 1.5×). Leave that room.
     pub max_memory: u64,
     /// Progress reports and cancellation.
     pub control: Control,

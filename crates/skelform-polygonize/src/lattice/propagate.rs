@@ -82,6 +82,10 @@ pub(crate) fn propagate(
     phase: &'static str,
 ) -> Result<Stops, Error> {
     let mut stops = Stops::default();
+    // Cubes polygonized so far: those visited before (each processed by an earlier call)
+    // and those processed here. (Visited counts a whole wave as soon as it is found, and in
+    // full-grid mode every cube at once.)
+    let before = cubes.visited();
     let mut wave: Vec<[u32; 3]> = Vec::new();
     for c in starts {
         if !cubes.is_visited(c) {
@@ -97,7 +101,7 @@ pub(crate) fn propagate(
             processed += 1;
             if processed.is_multiple_of(CHECK_EVERY) {
                 let now = cubes.held() + vec_bytes(&wave) + vec_bytes(&next);
-                check(limits.method, now, limits.max_memory, cubes.visited())?;
+                check(limits.method, now, limits.max_memory, before + processed)?;
             }
             let faces = cubes.process(cube);
             for f in (0..6).filter(|f| faces & (1 << f) != 0) {
@@ -128,7 +132,7 @@ pub(crate) fn propagate(
             Order::Coordinates => next.sort_unstable(),
         }
         let now = cubes.held() + vec_bytes(&wave) + vec_bytes(&next);
-        check(limits.method, now, limits.max_memory, cubes.visited())?;
+        check(limits.method, now, limits.max_memory, before + processed)?;
         wave = next;
         let p = Progress { phase, done: cubes.visited(), total: None };
         if control.report(p).is_break() {
