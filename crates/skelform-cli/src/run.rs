@@ -117,7 +117,8 @@ pub struct RunArgs {
     /// Place vertices by linear interpolation only (no root finding on the field).
     #[arg(long)]
     pub no_refine: bool,
-    /// Refuse grids that would need more memory than this, e.g. 512M, 4G (default 4G).
+    /// Hold no more memory than this, e.g. 512M, 4G (default 4G): what the lattice shows
+    /// cannot fit is refused up front (exit 2), a run that reaches it as it goes stops (exit 1).
     #[arg(long, value_parser = parse_bytes, default_value = "4G")]
     pub max_memory: u64,
     /// grid: sample the volume slab by slab as it is extracted instead of holding it whole

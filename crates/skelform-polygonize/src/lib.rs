@@ -43,6 +43,8 @@ mod summary;
 
 use skelform_field::grid::GridError;
 
+use lattice::memory;
+
 pub use lattice::{LatticeOptions, MAX_THREADS, Resolution, Threads};
 
 /// Why a polygonizer could not run.
@@ -56,9 +58,9 @@ pub enum Error {
     /// A dense run would need more memory than [`LatticeOptions::max_memory`] allows; refused
     /// before anything is allocated, so asking is cheap.
     #[error(
-        "the grid of {} × {} × {} samples would need {:.2} GiB, over the limit of {:.2} GiB; \
+        "the grid of {} × {} × {} samples would need {}, over the limit of {}; \
          use a coarser resolution or raise the limit",
-        dims[0], dims[1], dims[2], *needed as f64 / (1u64 << 30) as f64, *limit as f64 / (1u64 << 30) as f64
+        dims[0], dims[1], dims[2], memory::human(*needed), memory::human(*limit)
     )]
     TooMuchMemory {
         /// Bytes the run would need before its first triangle.
@@ -67,6 +69,28 @@ pub enum Error {
         limit: u64,
         /// Samples per axis of the lattice asked for.
         dims: [usize; 3],
+    },
+    /// A propagating run (continuation, tetra, non-manifold) or healing held more memory
+    /// than [`LatticeOptions::max_memory`] allows and stopped there. What it holds grows with
+    /// the surface, so it is known only as the run goes: its running account (maps of
+    /// visited cubes, corner values, edge vertices and faces, and the mesh arrays) is
+    /// compared with the limit every 1024 cubes and after each wave, and the run stops at
+    /// the same cube on any thread count. Unlike [`Error::TooMuchMemory`] (refused before
+    /// anything was allocated), this is a failure of the run, not of its input.
+    #[error(
+        "the {method} run reached the memory limit of {} after {cells} cubes; \
+         use a coarser cell, a smaller domain or fewer cells (max_cells), or raise the limit (--max-memory)",
+        memory::human(*limit)
+    )]
+    MemoryLimit {
+        /// The polygonizer (`continuation`, `tetra`, `nonmanifold`, `healed`).
+        method: &'static str,
+        /// Bytes its account held when it stopped (over `limit`).
+        held: u64,
+        /// The limit it was given.
+        limit: u64,
+        /// Cubes it had polygonized (for healing: the cubes of the grid it heals).
+        cells: u64,
     },
     /// The run's [`Control`](skelform_field::control::Control) asked it to stop; whatever
     /// phase it was in, and whichever polygonizer, this is the one error a cancelled run

@@ -35,7 +35,11 @@ pub enum Error {
 
 impl Error {
     /// True when the input (scene, overrides) is at fault rather than the run: a bad file, a
-    /// bad value, a lattice over the limits, a seed outside the domain.
+    /// bad value, a lattice over the limits, a seed outside the domain. A lattice refused up
+    /// front for memory ([`TooMuchMemory`](skelform_polygonize::Error::TooMuchMemory)) is
+    /// input; a run that reached the memory limit as it went
+    /// ([`MemoryLimit`](skelform_polygonize::Error::MemoryLimit): what it holds grows with
+    /// the surface, known only by running) is the run's failure.
     pub fn is_input(&self) -> bool {
         use skelform_polygonize::Error as P;
         match self {

@@ -48,8 +48,10 @@ pub struct Overrides {
     pub normals: Option<bool>,
     /// Grid method: hold the sampled volume whole or stream it slab by slab.
     pub streaming: Option<Streaming>,
-    /// Refuse work that needs more memory than this many bytes (default
-    /// [`DEFAULT_MAX_MEMORY`]).
+    /// Hold no more memory than this many bytes (default [`DEFAULT_MAX_MEMORY`]): work known
+    /// up front to need more is refused before it starts (an input error), a run whose
+    /// account reaches it as it goes stops (a run error); see
+    /// [`LatticeOptions::max_memory`](skelform_polygonize::LatticeOptions::max_memory).
     pub max_memory: Option<u64>,
     /// Grid method: the slab buffers to reuse (`None`: the process's shared ones). A front end
     /// that meshes on every edit keeps its own, so its runs neither wait for nor grow the

@@ -7,6 +7,8 @@
 
 use rustc_hash::FxHashMap;
 
+use crate::lattice::memory::{map_bytes, vec_bytes};
+
 const SHIFT: u32 = 3;
 const SIDE: u32 = 1 << SHIFT;
 const MASK: u32 = SIDE - 1;
@@ -37,6 +39,8 @@ pub struct Lattice {
     dims: [u64; 3],
     last: Option<(u64, u32)>,
     visited: u64,
+    /// Bricks whose `edges` are allocated.
+    edge_bricks: u64,
 }
 
 #[inline]
@@ -55,6 +59,7 @@ impl Lattice {
             dims: points.map(|n| (n as u64).div_ceil(SIDE as u64)),
             last: None,
             visited: 0,
+            edge_bricks: 0,
         }
     }
 
@@ -149,6 +154,7 @@ impl Lattice {
         let brick = &mut self.bricks[i];
         if brick.edges.is_empty() {
             brick.edges = vec![u32::MAX; CELLS * n];
+            self.edge_bricks += 1;
         }
         let e = &mut brick.edges[slot(p) * n + d];
         if *e == u32::MAX {
@@ -160,6 +166,12 @@ impl Lattice {
     /// Cubes visited so far.
     pub fn visited(&self) -> u64 {
         self.visited
+    }
+
+    /// Bytes held: the bricks, their edge tables and the index.
+    pub fn bytes(&self) -> u64 {
+        let edges = self.edge_bricks * (CELLS * self.directions * size_of::<u32>()) as u64;
+        vec_bytes(&self.bricks) + edges + map_bytes(&self.index)
     }
 }
 

@@ -29,6 +29,7 @@ use crate::grid::cell::{CubeSink, case_of, crossing, polygonize_cube};
 use crate::grid::cube::{CORNERS, EDGES, FACES};
 use crate::grid::{GridVertex, Place, Placement, place_vertices};
 use crate::lattice::cubes::CubeLattice;
+use crate::lattice::memory::vec_bytes;
 use crate::lattice::propagate::{Cubes, Limits, Order, propagate};
 use crate::lattice::search::CoarseSearch;
 use crate::refine::{RootMethod, RootOptions, gradient_normals};
@@ -51,8 +52,9 @@ pub enum Cells {
 pub struct Options {
     /// The lattice (propagation never leaves its domain), vertex placement, progress and
     /// threads. The lattice is the grid polygonizer's for the same domain and resolution,
-    /// so a component comes out as the grid polygonizer makes it. `max_memory` is not read:
-    /// storage grows with the surface, and `max_cells` bounds it.
+    /// so a component comes out as the grid polygonizer makes it. Storage grows with the
+    /// surface: its running account is held to `max_memory` as propagation goes (a run that
+    /// reaches it stops with [`Error::MemoryLimit`]), and `max_cells` bounds it too.
     pub lattice: LatticeOptions,
     /// Points on or near the surface to start from, one or more per component. When empty,
     /// the domain is searched on a coarse lattice (see `search_stride`).
@@ -213,8 +215,12 @@ fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats)
         )));
     }
     let mut run = Run::new(field, grid, options);
+    if options.seeds.is_empty() {
+        CoarseSearch::refuse(&grid, options.search_stride, 8, options.lattice.max_memory)?;
+    }
     let t = Instant::now();
     let starts = find_starts(&mut run)?;
+    run.starts_bytes = vec_bytes(&starts);
     run.stats.search = t.elapsed();
 
     let t = Instant::now();
@@ -253,6 +259,8 @@ struct Run<'a> {
     vertices: Vec<GridVertex>,
     triangles: Vec<[u32; 3]>,
     stats: Stats,
+    /// Bytes of the list of starts, held while the components are propagated.
+    starts_bytes: u64,
 }
 
 impl<'a> Run<'a> {
@@ -267,6 +275,7 @@ impl<'a> Run<'a> {
             vertices: Vec::new(),
             triangles: Vec::new(),
             stats: Stats { cell: grid.cell, ..Stats::default() },
+            starts_bytes: 0,
         }
     }
 
@@ -325,8 +334,13 @@ impl<'a> Run<'a> {
 
     /// Breadth-first propagation from one cube, in waves processed in lattice order.
     fn propagate(&mut self, start: [u32; 3], seed_index: usize) -> Result<(), Error> {
-        let limits =
-            Limits { max_cells: self.opts.max_cells, limit: self.opts.limit, origin: start };
+        let limits = Limits {
+            max_cells: self.opts.max_cells,
+            limit: self.opts.limit,
+            origin: start,
+            max_memory: self.opts.lattice.max_memory,
+            method: self.method(),
+        };
         let (lattice, control) = (self.cubes, &self.opts.lattice.control);
         let mut walk = Walk { run: self, seed: seed_index };
         let stops = propagate(
@@ -349,6 +363,27 @@ impl<'a> Run<'a> {
             }
         }
         Ok(())
+    }
+
+    /// The method's name, for errors.
+    fn method(&self) -> &'static str {
+        match self.opts.cells {
+            Cells::Cubes => "continuation",
+            Cells::Tetrahedra => "tetra",
+        }
+    }
+
+    /// Bytes held: the lattice's bricks, the starts, the vertices and triangles, and what placing the
+    /// vertices will add (an `f64` position each, and the mesh's `f32` positions and
+    /// normals).
+    fn held(&self) -> u64 {
+        let placed = (size_of::<DVec3>() + 2 * size_of::<[f32; 3]>()) as u64;
+        self.lattice.bytes()
+            + self.starts_bytes
+            + vec_bytes(&self.ends)
+            + vec_bytes(&self.vertices)
+            + vec_bytes(&self.triangles)
+            + self.vertices.len() as u64 * placed
     }
 
     fn polygonize(&mut self, base: [u32; 3], v: &[f32; 8]) {
@@ -442,6 +477,10 @@ impl Cubes for Walk<'_, '_> {
 
     fn visited(&self) -> u64 {
         self.run.lattice.visited()
+    }
+
+    fn held(&self) -> u64 {
+        self.run.held()
     }
 }
 

@@ -307,6 +307,32 @@ fn report(control: &Control, phase: &'static str, done: u64, total: u64) -> Resu
     }
 }
 
+/// Refuses to go on healing when what healing adds to the grid's run (`grid_bytes`, the
+/// volume and extraction buffers, still held) would pass `max_memory`: per marching-cubes
+/// vertex its `f64` position, gradient, critical flag, the positions and normals of the
+/// healed mesh and the output mesh's arrays; per triangle the cube it lies in, the kept copy
+/// and the output's. Known once the marching-cubes mesh is, so checked then: a failure of
+/// the run ([`Error::MemoryLimit`]), not of its input.
+fn check_added(
+    grid: &Grid,
+    grid_bytes: u64,
+    vertices: &Vec<grid::GridVertex>,
+    triangles: &Vec<[u32; 3]>,
+    max_memory: u64,
+) -> Result<(), Error> {
+    use crate::lattice::memory::{check, vec_bytes};
+    let per_vertex =
+        (4 * size_of::<DVec3>() + 1 + size_of::<DVec3>() + 2 * size_of::<[f32; 3]>()) as u64;
+    let per_triangle = (size_of::<Option<usize>>() + 2 * size_of::<[u32; 3]>()) as u64;
+    let held = grid_bytes
+        + vec_bytes(vertices)
+        + vec_bytes(triangles)
+        + vertices.len() as u64 * per_vertex
+        + triangles.len() as u64 * per_triangle;
+    let cubes = grid.dims.iter().map(|&d| d as u64 - 1).product();
+    check("healed", held, max_memory, cubes)
+}
+
 /// Polygonizes `field` (zero set, inside negative), healing its self-intersections.
 ///
 /// ```
@@ -360,6 +386,7 @@ fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats)
     if control.is_cancelled() {
         return Err(Error::Cancelled);
     }
+    check_added(&grid, needed, &ex.vertices, &ex.triangles, lattice.max_memory)?;
 
     // 2. Gradients everywhere (normals and the critical test).
     let t = Instant::now();

@@ -10,6 +10,7 @@
 use skelform_field::control::{Control, Progress};
 
 use super::cubes::CubeLattice;
+use super::memory::{CHECK_EVERY, check, vec_bytes};
 use crate::Error;
 
 /// What propagation asks of the polygonizer it walks for.
@@ -26,6 +27,9 @@ pub(crate) trait Cubes {
     fn visit(&mut self, cube: [u32; 3]);
     /// Cubes visited so far, by every component: what the budget counts.
     fn visited(&self) -> u64;
+    /// Bytes held now (see [`super::memory`]): what the memory limit counts. Called every
+    /// [`CHECK_EVERY`] cubes, so it must be cheap (lengths and capacities, not a walk).
+    fn held(&self) -> u64;
 }
 
 /// In which order a wave's cubes are processed. It fixes vertex numbering, so each
@@ -47,6 +51,10 @@ pub(crate) struct Limits {
     pub limit: Option<u32>,
     /// The cube distances are measured from (the component's first cube).
     pub origin: [u32; 3],
+    /// Hold no more than this many bytes ([`Cubes::held`] and the waves).
+    pub max_memory: u64,
+    /// The polygonizer, for the error at the memory limit.
+    pub method: &'static str,
 }
 
 /// Why a propagation left faces uncrossed.
@@ -61,7 +69,9 @@ pub(crate) struct Stops {
 }
 
 /// Propagates from `starts` (those not yet visited), reporting progress as `phase` after each
-/// wave; a cancelled control ends it with [`Error::Cancelled`].
+/// wave; a cancelled control ends it with [`Error::Cancelled`], and holding more than
+/// `limits.max_memory` (checked every [`CHECK_EVERY`] cubes and after each wave) with
+/// [`Error::MemoryLimit`].
 pub(crate) fn propagate(
     cubes: &mut impl Cubes,
     lattice: &CubeLattice,
@@ -72,6 +82,10 @@ pub(crate) fn propagate(
     phase: &'static str,
 ) -> Result<Stops, Error> {
     let mut stops = Stops::default();
+    // Cubes polygonized so far: those visited before (each processed by an earlier call)
+    // and those processed here. (Visited counts a whole wave as soon as it is found, and in
+    // full-grid mode every cube at once.)
+    let before = cubes.visited();
     let mut wave: Vec<[u32; 3]> = Vec::new();
     for c in starts {
         if !cubes.is_visited(c) {
@@ -79,10 +93,16 @@ pub(crate) fn propagate(
             wave.push(c);
         }
     }
+    let mut processed = 0u64;
     while !wave.is_empty() {
         cubes.prepare(&wave);
         let mut next = Vec::new();
         for &cube in &wave {
+            processed += 1;
+            if processed.is_multiple_of(CHECK_EVERY) {
+                let now = cubes.held() + vec_bytes(&wave) + vec_bytes(&next);
+                check(limits.method, now, limits.max_memory, before + processed)?;
+            }
             let faces = cubes.process(cube);
             for f in (0..6).filter(|f| faces & (1 << f) != 0) {
                 let Some(n) = lattice.across(cube, f) else {
@@ -111,6 +131,8 @@ pub(crate) fn propagate(
             Order::Lattice => next.sort_unstable_by_key(|c| [c[2], c[1], c[0]]),
             Order::Coordinates => next.sort_unstable(),
         }
+        let now = cubes.held() + vec_bytes(&wave) + vec_bytes(&next);
+        check(limits.method, now, limits.max_memory, before + processed)?;
         wave = next;
         let p = Progress { phase, done: cubes.visited(), total: None };
         if control.report(p).is_break() {

@@ -6,6 +6,8 @@
 use glam::DVec3;
 use skelform_field::grid::Grid;
 
+use crate::Error;
+
 /// A lattice of every `stride`-th point of a grid, the last point of each axis included.
 pub(crate) struct CoarseSearch {
     /// The stride, in cells (at least 1).
@@ -17,6 +19,27 @@ pub(crate) struct CoarseSearch {
 }
 
 impl CoarseSearch {
+    /// Refuses, before anything is allocated, a search whose points (and a value of
+    /// `value_bytes` each) need more than `max_memory` bytes.
+    pub fn refuse(
+        grid: &Grid,
+        stride: usize,
+        value_bytes: u64,
+        max_memory: u64,
+    ) -> Result<(), Error> {
+        let stride = stride.max(1);
+        let per_point = size_of::<DVec3>() as u64 + value_bytes;
+        let needed = grid
+            .dims
+            .iter()
+            .try_fold(per_point, |n, &d| n.checked_mul(((d - 1).div_ceil(stride) + 1) as u64))
+            .unwrap_or(u64::MAX);
+        if needed > max_memory {
+            return Err(Error::TooMuchMemory { needed, limit: max_memory, dims: grid.dims });
+        }
+        Ok(())
+    }
+
     /// The coarse lattice of `grid` at `stride` cells (0 is taken as 1).
     pub fn new(grid: &Grid, stride: usize) -> Self {
         let stride = stride.max(1);

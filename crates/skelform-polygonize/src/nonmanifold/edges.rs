@@ -42,6 +42,7 @@ impl Run<'_> {
         let (lo, hi) = if a < b { (a, b) } else { (b, a) };
         if !self.edges.contains_key(&(lo, hi)) {
             let c = self.sample_edge(lo, hi);
+            self.inner_bytes += crate::lattice::memory::vec_bytes(&c);
             self.edges.insert((lo, hi), c);
         }
         let c = &self.edges[&(lo, hi)];

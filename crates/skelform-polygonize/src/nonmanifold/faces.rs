@@ -7,6 +7,7 @@ use skelform_mesh::RegionPair;
 
 use super::Run;
 use crate::lattice::cubes::Key;
+use crate::lattice::memory::vec_bytes;
 
 /// A crossing met while walking a face boundary in one direction.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -79,7 +80,10 @@ impl Run<'_> {
                     unmatched.iter().map(|w| (w.vertex, RegionPair::new(w.from, w.to))).collect();
             }
         }
-        self.faces.insert(sorted, info.clone());
+        let kept = info.clone();
+        self.inner_bytes +=
+            vec_bytes(&kept.lines) + vec_bytes(&kept.spokes) + vec_bytes(&kept.regions);
+        self.faces.insert(sorted, kept);
         info
     }
 

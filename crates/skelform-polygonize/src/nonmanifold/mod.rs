@@ -47,6 +47,8 @@ use skelform_field::grid::Grid;
 use skelform_mesh::{CurveEdge, Mesh, RegionPair, RegionTriple};
 
 use crate::lattice::cubes::{CubeLattice, Key};
+use crate::lattice::memory;
+use crate::lattice::search::CoarseSearch;
 use crate::{Error, LatticeOptions, Resolution};
 use edges::Crossing;
 use faces::FaceInfo;
@@ -54,10 +56,12 @@ use faces::FaceInfo;
 /// Settings of the non-manifold polygonizer.
 #[derive(Clone, Debug)]
 pub struct Options {
-    /// The lattice, progress and threads. Vertices are placed by bisection on the region
-    /// function to `epsilon`, so `refine`, `tolerance` and `normals` are not read (normals
-    /// always come out), and storage grows with the surfaces (bounded by `max_cells`), so
-    /// `max_memory` is not read either.
+    /// The lattice, progress, threads and memory limit. Vertices are placed by bisection on
+    /// the region function to `epsilon`, so `refine`, `tolerance` and `normals` are not read
+    /// (normals always come out). Storage grows with the surfaces: its running account is
+    /// held to `max_memory` as propagation goes ([`Error::MemoryLimit`]); full-grid mode,
+    /// whose cube list and caches are known from the lattice, is refused up front when they
+    /// cannot fit ([`Error::TooMuchMemory`]).
     pub lattice: LatticeOptions,
     /// Start points within about half a cell of a surface of interest; with none, the
     /// domain is searched every `search_stride` cells.
@@ -207,6 +211,9 @@ struct Run<'a> {
     labels: Vec<RegionPair>,
     curves: Vec<CurveEdge>,
     visited: FxHashSet<Key>,
+    /// Bytes held by the vectors inside `edges` and `faces` entries (charged as they are
+    /// made): the rest of the account is read off lengths and capacities ([`Run::held`]).
+    inner_bytes: u64,
     stats: Stats,
 }
 
@@ -277,8 +284,18 @@ fn polygonize_here(regions: &dyn RegionField, options: &Options) -> Result<(Mesh
         labels: Vec::new(),
         curves: Vec::new(),
         visited: FxHashSet::default(),
+        inner_bytes: 0,
         stats: Stats { cell: grid.cell, epsilon: eps, ..Stats::default() },
     };
+    let max_memory = options.lattice.max_memory;
+    if options.full_grid {
+        let needed = full_grid_need(&grid).unwrap_or(u64::MAX);
+        if needed > max_memory {
+            return Err(Error::TooMuchMemory { needed, limit: max_memory, dims: grid.dims });
+        }
+    } else if options.seeds.is_empty() {
+        CoarseSearch::refuse(&grid, options.search_stride, 4, max_memory)?;
+    }
     let starts = if options.full_grid { run.all_cubes() } else { run.starts()? };
     run.propagate(starts)?;
     run.orient();
@@ -288,8 +305,59 @@ fn polygonize_here(regions: &dyn RegionField, options: &Options) -> Result<(Mesh
     Ok((mesh, stats))
 }
 
+/// What full-grid mode holds at the least, from the lattice alone (`None` when it does not
+/// even fit in a `u64`): the list of every cube (twice: the starts and the wave made of
+/// them), the set of visited cubes, the region at every lattice point, and the cached faces
+/// and segments (each cube brings at least its three lower square faces, cut in two, its
+/// four inner tetrahedron faces, and the three edges and three face diagonals at its lowest
+/// corner). Tables are counted full to the brim and the crossings and mesh not at all.
+fn full_grid_need(grid: &Grid) -> Option<u64> {
+    let cubes = grid.dims.iter().try_fold(1u64, |n, &d| n.checked_mul(d as u64 - 1))?;
+    let points = grid.dims.iter().try_fold(1u64, |n, &d| n.checked_mul(d as u64))?;
+    let list = cubes.checked_mul(2 * size_of::<[u32; 3]>() as u64)?;
+    let visited = memory::entries_bytes::<Key, ()>(cubes)?;
+    let regions = memory::entries_bytes::<Key, u32>(points)?;
+    let faces = memory::entries_bytes::<[Key; 3], FaceInfo>(cubes.checked_mul(10)?)?;
+    let edges = memory::entries_bytes::<(Key, Key), Vec<Crossing>>(cubes.checked_mul(6)?)?;
+    [visited, regions, faces, edges].into_iter().try_fold(list, u64::checked_add)
+}
+
 /// What every step shares: keys of lattice points and region evaluation, counted.
 impl Run<'_> {
+    /// Bytes held: the caches, the vertices, triangles and curves, and what
+    /// post-processing will add for each vertex and triangle (merging, the copies per
+    /// region pair, normals, and the mesh's own arrays).
+    fn held(&self) -> u64 {
+        use memory::{map_bytes, set_bytes, vec_bytes};
+        // Per vertex: the union-find parent, its entry in the merged sums, the merged
+        // positions, a copy per pair with its map entry, its accumulated normal, and the
+        // mesh's position and normal; per triangle: the kept triangle with its pair, and
+        // the mesh's triangle and label.
+        let per_vertex = (size_of::<u32>()
+            + 2 * size_of::<(u32, (DVec3, f64))>()
+            + size_of::<DVec3>()
+            + 2 * size_of::<((u32, RegionPair), u32)>()
+            + size_of::<(DVec3, RegionPair)>()
+            + size_of::<DVec3>()
+            + 2 * size_of::<[f32; 3]>()) as u64;
+        let per_triangle = (size_of::<([u32; 3], RegionPair)>()
+            + size_of::<[u32; 3]>()
+            + size_of::<RegionPair>()) as u64;
+        map_bytes(&self.point_region)
+            + map_bytes(&self.edges)
+            + map_bytes(&self.faces)
+            + self.inner_bytes
+            + vec_bytes(&self.positions)
+            + map_bytes(&self.on_edge)
+            + vec_bytes(&self.crossing)
+            + vec_bytes(&self.triangles)
+            + vec_bytes(&self.labels)
+            + vec_bytes(&self.curves)
+            + set_bytes(&self.visited)
+            + self.positions.len() as u64 * per_vertex
+            + self.triangles.len() as u64 * per_triangle
+    }
+
     fn key(&self, p: [u32; 3]) -> Key {
         self.cubes.key(p)
     }

@@ -11,8 +11,9 @@ use crate::lattice::search::CoarseSearch;
 
 impl Run<'_> {
     pub(super) fn all_cubes(&self) -> Vec<[u32; 3]> {
+        // The caller has refused lattices whose cube list cannot fit, so the product fits.
         let [nx, ny, nz] = self.grid.dims.map(|d| d as u32 - 1);
-        let mut v = Vec::with_capacity((nx * ny * nz) as usize);
+        let mut v = Vec::with_capacity(nx as usize * ny as usize * nz as usize);
         for k in 0..nz {
             for j in 0..ny {
                 for i in 0..nx {
@@ -65,7 +66,13 @@ impl Run<'_> {
     }
 
     pub(super) fn propagate(&mut self, starts: Vec<[u32; 3]>) -> Result<(), Error> {
-        let limits = Limits { max_cells: self.opts.max_cells, limit: None, origin: [0; 3] };
+        let limits = Limits {
+            max_cells: self.opts.max_cells,
+            limit: None,
+            origin: [0; 3],
+            max_memory: self.opts.lattice.max_memory,
+            method: "nonmanifold",
+        };
         let (lattice, control) = (self.cubes, &self.opts.lattice.control);
         let stops = propagate(
             self,
@@ -104,5 +111,9 @@ impl Cubes for Run<'_> {
 
     fn visited(&self) -> u64 {
         self.visited.len() as u64
+    }
+
+    fn held(&self) -> u64 {
+        Run::held(self)
     }
 }
