@@ -14,8 +14,20 @@ use crate::Failure;
 
 /// Writes to standard output; a closed pipe or a write error becomes a [`Failure`].
 pub fn out(args: fmt::Arguments<'_>) -> Result<(), Failure> {
+    to_stdout(|w| w.write_fmt(args))
+}
+
+/// Writes bytes (a mesh) to standard output, with the same handling of failure as [`out`].
+pub fn out_bytes(bytes: &[u8]) -> Result<(), Failure> {
+    to_stdout(|w| w.write_all(bytes))
+}
+
+/// Runs `write` on standard output and flushes it, turning failure into a [`Failure`].
+fn to_stdout(
+    write: impl FnOnce(&mut io::StdoutLock<'static>) -> io::Result<()>,
+) -> Result<(), Failure> {
     let mut stdout = io::stdout().lock();
-    stdout.write_fmt(args).and_then(|()| stdout.flush()).map_err(|e| match e.kind() {
+    write(&mut stdout).and_then(|()| stdout.flush()).map_err(|e| match e.kind() {
         io::ErrorKind::BrokenPipe => Failure::quiet(),
         _ => Failure { code: 1, error: Some(anyhow!("cannot write to standard output: {e}")) },
     })

@@ -261,11 +261,7 @@ pub fn gallery(a: GalleryArgs) -> Result<(), Failure> {
     }
     std::fs::create_dir_all(&a.out)
         .map_err(|e| runtime(anyhow!("cannot create {}: {e}", a.out.display())))?;
-    let threads = a.run.threads.unwrap_or(0);
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .map_err(|e| runtime(anyhow!("cannot start {threads} threads: {e}")))?;
+    let pool = run::pool(&a.run)?;
     let mut entries = Vec::new();
     for scene in &list {
         let e = pool.install(|| one(&a, &settings, scene));

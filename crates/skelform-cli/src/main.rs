@@ -60,10 +60,13 @@ enum Command {
 struct MeshArgs {
     /// The scene file (TOML).
     scene: PathBuf,
-    /// Output mesh; the extension picks the format (.ply, .obj, .stl, .glb). Defaults to the
-    /// scene's [output] file.
+    /// Output mesh; the extension picks the format (.ply, .obj, .stl, .glb); `-` writes to
+    /// standard output (with --format). Defaults to the scene's [output] file.
     #[arg(short, long)]
     output: Option<PathBuf>,
+    /// The output format when the path does not say (`-o -`), or to override its extension.
+    #[arg(long, value_enum)]
+    format: Option<FormatArg>,
     #[command(flatten)]
     run: run::RunArgs,
     /// Print statistics: samples, evaluations, vertices, triangles, time per phase.
@@ -86,6 +89,52 @@ struct MeshArgs {
     no_curves: bool,
 }
 
+/// `--format`: a mesh file format.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum FormatArg {
+    Ply,
+    Obj,
+    Stl,
+    Glb,
+}
+
+impl From<FormatArg> for Format {
+    fn from(a: FormatArg) -> Self {
+        match a {
+            FormatArg::Ply => Format::Ply,
+            FormatArg::Obj => Format::Obj,
+            FormatArg::Stl => Format::Stl,
+            FormatArg::Glb => Format::Glb,
+        }
+    }
+}
+
+/// Whether a path argument means a standard stream.
+fn is_stdio(path: &Path) -> bool {
+    path.as_os_str() == "-"
+}
+
+/// The format of a mesh read from a stream, from its first bytes: glTF and PLY say so,
+/// binary STL has a size that its triangle count fixes, ASCII STL starts with `solid` and
+/// has facets; anything else is taken as OBJ.
+fn sniff(bytes: &[u8]) -> Format {
+    let stl_binary = bytes.len() >= 84 && {
+        let n = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as u64;
+        n.checked_mul(50).and_then(|b| b.checked_add(84)) == Some(bytes.len() as u64)
+    };
+    let head = &bytes[..bytes.len().min(512)];
+    if bytes.starts_with(b"glTF") {
+        Format::Glb
+    } else if bytes.starts_with(b"ply") {
+        Format::Ply
+    } else if stl_binary || (bytes.starts_with(b"solid") && head.windows(5).any(|w| w == b"facet"))
+    {
+        Format::Stl
+    } else {
+        Format::Obj
+    }
+}
+
 /// `--ply-curves`: [`PlyCurves`] for the command line.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 enum PlyCurvesArg {
@@ -106,8 +155,12 @@ impl From<PlyCurvesArg> for PlyCurves {
 
 #[derive(Args)]
 struct CheckArgs {
-    /// The mesh (PLY ascii or binary, OBJ, STL, glTF binary).
+    /// The mesh (PLY ascii or binary, OBJ, STL, glTF binary); `-` reads standard input (the
+    /// format from --format, else from the first bytes).
     mesh: PathBuf,
+    /// The format of the input, when its name does not say (`-`) or says wrong.
+    #[arg(long, value_enum)]
+    format: Option<FormatArg>,
     /// Print the report as JSON.
     #[arg(long)]
     json: bool,
@@ -238,7 +291,19 @@ fn mesh(a: MeshArgs) -> Result<(), Failure> {
     let out = a.output.clone().or(declared).ok_or_else(|| {
         input(anyhow!("no output file: give -o OUT.ply (or set [output] file in the scene)"))
     })?;
-    let format = output_format(&out)?;
+    let to_stdout = is_stdio(&out);
+    let format = match a.format {
+        Some(f) => f.into(),
+        None if to_stdout => {
+            return Err(input(anyhow!("-o - writes to standard output: give its --format")));
+        }
+        None => output_format(&out)?,
+    };
+    if to_stdout && (a.json || a.stats) {
+        return Err(input(anyhow!(
+            "-o - writes the mesh to standard output; --json and --stats would be mixed into it"
+        )));
+    }
     if let Some(sf) = scene.output.format
         && a.output.is_none()
         && sf != format
@@ -260,6 +325,21 @@ fn mesh(a: MeshArgs) -> Result<(), Failure> {
         curves: !a.no_curves,
         ply_curves: a.ply_curves.into(),
     };
+    if to_stdout {
+        // One stream: a PLY's curves go inline (there is no file beside it), OBJ without
+        // a material file.
+        let opts = WriteOptions {
+            ply_curves: match write_opts.ply_curves {
+                PlyCurves::Separate => PlyCurves::Inline,
+                other => other,
+            },
+            ..write_opts
+        };
+        let mut bytes = Vec::new();
+        skelform::mesh::io::write_mesh_to(&mut bytes, mesh, format, &opts).map_err(runtime)?;
+        console::out_bytes(&bytes)?;
+        return Ok(());
+    }
     write_mesh(&out, mesh, format, &write_opts).map_err(runtime)?;
     let writing = t.elapsed();
     let total = started.elapsed();
@@ -292,7 +372,20 @@ fn completions(shell: clap_complete::Shell) -> Result<(), Failure> {
 }
 
 fn check(a: CheckArgs) -> Result<(), Failure> {
-    let mesh = read_mesh(&a.mesh).map_err(input)?;
+    let mesh = if is_stdio(&a.mesh) {
+        let mut bytes = Vec::new();
+        std::io::Read::read_to_end(&mut std::io::stdin().lock(), &mut bytes)
+            .map_err(|e| runtime(anyhow!("cannot read standard input: {e}")))?;
+        let format = a.format.map_or_else(|| sniff(&bytes), Format::from);
+        skelform::mesh::io::read_mesh_from(&bytes, format)
+            .map_err(|e| input(anyhow!("standard input: {e}")))?
+    } else {
+        match a.format {
+            Some(f) => skelform::mesh::io::read_mesh_as(&a.mesh, f.into()),
+            None => read_mesh(&a.mesh),
+        }
+        .map_err(input)?
+    };
     let report = match a.weld {
         Some(t) if !(t.is_finite() && t >= 0.0) => {
             return Err(input(anyhow!("--weld takes a tolerance of 0 or more")));

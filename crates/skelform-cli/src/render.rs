@@ -125,11 +125,7 @@ pub fn render(a: RenderArgs) -> Result<(), Failure> {
     // Settings first: a bad size or view should not wait for a scene to be meshed.
     s.validate().map_err(failure)?;
     let mesh = load(&a.input, &a.run)?;
-    let threads = a.run.threads.unwrap_or(0);
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .map_err(|e| runtime(anyhow!("cannot start {threads} threads: {e}")))?;
+    let pool = run::pool(&a.run)?;
     let with_input = |e: RenderError| {
         let f = failure(e);
         Failure { code: f.code, error: f.error.map(|e| anyhow!("{}: {e}", a.input.display())) }

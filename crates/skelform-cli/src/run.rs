@@ -175,6 +175,25 @@ impl RunArgs {
     }
 }
 
+/// A thread pool for the work the command line runs itself (drawing pictures), bounded as
+/// the polygonizers bound theirs: `--threads` from 1 to 256, all cores by default.
+pub fn pool(a: &RunArgs) -> Result<rayon::ThreadPool, Failure> {
+    let threads = match a.threads {
+        Some(n) if !(1..=skelform::MAX_THREADS).contains(&n) => {
+            return Err(input(anyhow!(
+                "--threads must be between 1 and {} (got {n})",
+                skelform::MAX_THREADS
+            )));
+        }
+        Some(n) => n,
+        None => 0,
+    };
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| runtime(anyhow!("cannot start {threads} threads: {e}")))
+}
+
 /// A library error as a command-line failure: the input's fault exits 2, the run's 1.
 pub fn failure(e: skelform::Error) -> Failure {
     if e.is_input() { input(e) } else { runtime(e) }

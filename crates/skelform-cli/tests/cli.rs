@@ -445,3 +445,41 @@ fn shell_completions_know_the_commands() {
         }
     }
 }
+
+/// `-` is standard output for `mesh -o` (with --format) and standard input for `check`
+/// (format from --format or the first bytes): pipelines without temporary files.
+#[test]
+fn a_dash_is_a_standard_stream() {
+    use std::io::Write as _;
+    for format in ["ply", "obj", "stl", "glb"] {
+        let o = skelform(&[
+            "mesh",
+            &example("torus.toml"),
+            "-o",
+            "-",
+            "--format",
+            format,
+            "--resolution",
+            "16",
+            "-q",
+        ]);
+        assert!(o.status.success(), "{format}: {}", stderr(&o));
+        assert!(o.stdout.len() > 1000, "{format}: the mesh on standard output");
+        let mut check = Command::new(env!("CARGO_BIN_EXE_skelform"))
+            .args(["check", "-", "--json", "--strict"])
+            .stdin(std::process::Stdio::piped())
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        check.stdin.take().unwrap().write_all(&o.stdout).unwrap();
+        let c = check.wait_with_output().unwrap();
+        assert!(c.status.success(), "{format}: {}", stderr(&c));
+        let j: serde_json::Value = serde_json::from_slice(&c.stdout).unwrap();
+        assert_eq!(j["components"][0]["genus"], 1, "{format}");
+    }
+    let o = skelform(&["mesh", &example("torus.toml"), "-o", "-"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("give its --format"), "{}", stderr(&o));
+    assert!(o.stdout.is_empty());
+}

@@ -570,3 +570,20 @@ fn the_gallery_leaves_what_it_did_not_write() {
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("give --examples DIR"), "{}", stderr(&o));
 }
+
+/// Drawing is bounded like meshing: a mistyped thread count is refused, not started.
+#[test]
+fn render_refuses_absurd_thread_counts() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = dir.path().join("t.ply");
+    assert!(
+        skelform(&["mesh", &example("torus.toml"), "-o", s(&mesh), "--resolution", "12", "-q"])
+            .status
+            .success()
+    );
+    let png = dir.path().join("t.png");
+    let o = skelform(&["render", s(&mesh), "-o", s(&png), "--threads", "100000"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--threads must be between 1 and 256"), "{}", stderr(&o));
+    assert!(!png.exists());
+}

@@ -59,6 +59,10 @@ struct RegionEntry {
     formula: Spanned<String>,
 }
 
+/// The largest region id a scene may use: labels are written as 32-bit signed integers (PLY
+/// `int region_a`), so a larger id would be accepted here and fail only when writing.
+pub const MAX_REGION_ID: u32 = i32::MAX as u32;
+
 /// A scene's regions, ready for the non-manifold polygonizer.
 #[derive(Clone)]
 pub struct Regions {
@@ -103,12 +107,11 @@ pub(crate) fn build(
 ) -> Result<Regions, SceneError> {
     let sec = section.get_ref();
     let id = |v: &Spanned<i64>, what: &str| -> Result<u32, SceneError> {
-        u32::try_from(*v.get_ref()).map_err(|_| {
+        u32::try_from(*v.get_ref()).ok().filter(|&r| r <= MAX_REGION_ID).ok_or_else(|| {
             at(
                 v.span().start,
                 format!(
-                    "{what} must be a whole number from 0 to {} (got {})",
-                    u32::MAX,
+                    "{what} must be a whole number from 0 to {MAX_REGION_ID} (got {})",
                     v.get_ref()
                 ),
             )

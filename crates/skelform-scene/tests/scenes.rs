@@ -138,3 +138,16 @@ fn tempdir() -> std::path::PathBuf {
     std::fs::create_dir_all(&d).unwrap();
     d
 }
+
+/// Region ids are written as 32-bit signed integers, so the scene check refuses larger ones
+/// where they are given (not at writing time).
+#[test]
+fn region_ids_fit_the_files_they_are_written_to() {
+    let scene = |id: &str| {
+        format!("{HEAD}[regions]\ndefault = 0\n[[regions.region]]\nid = {id}\nformula = \"x\"\n")
+    };
+    assert!(Scene::parse(&scene("2147483647"), "s.toml").is_ok());
+    let (line, col, m) = err(&scene("2147483648"));
+    assert_eq!((line, col), (7, 6), "{m}");
+    assert!(m.contains("from 0 to 2147483647 (got 2147483648)"), "{m}");
+}
