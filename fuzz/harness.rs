@@ -256,3 +256,28 @@ where
         start.elapsed().as_secs_f64()
     );
 }
+
+/// Spans of the tokens of `text` for mutations that swap or replace whole tokens: runs of
+/// characters for which `word` holds, and each other character that is not white space.
+pub fn tokens(text: &str, word: impl Fn(char) -> bool) -> Vec<(usize, usize)> {
+    let mut out = Vec::new();
+    let mut start = None;
+    for (i, c) in text.char_indices() {
+        let is_word = word(c);
+        match (start, is_word) {
+            (None, true) => start = Some(i),
+            (Some(s), false) => {
+                out.push((s, i));
+                start = None;
+            }
+            _ => {}
+        }
+        if !is_word && !c.is_whitespace() {
+            out.push((i, i + c.len_utf8()));
+        }
+    }
+    if let Some(s) = start {
+        out.push((s, text.len()));
+    }
+    out
+}

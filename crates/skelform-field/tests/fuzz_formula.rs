@@ -177,29 +177,6 @@ fn mutation() -> impl Strategy<Value = Mutation> {
     ]
 }
 
-fn tokens(text: &str) -> Vec<(usize, usize)> {
-    let mut out = Vec::new();
-    let mut start = None;
-    for (i, c) in text.char_indices() {
-        let word = c.is_alphanumeric() || c == '_' || c == '.';
-        match (start, word) {
-            (None, true) => start = Some(i),
-            (Some(s), false) => {
-                out.push((s, i));
-                start = None;
-            }
-            _ => {}
-        }
-        if !word && !c.is_whitespace() {
-            out.push((i, i + c.len_utf8()));
-        }
-    }
-    if let Some(s) = start {
-        out.push((s, text.len()));
-    }
-    out
-}
-
 /// Applies mutations to `text` (bytes, then read back as UTF-8 with replacement).
 fn mutate(text: &str, mutations: &[Mutation]) -> String {
     let mut text = text.to_string();
@@ -228,7 +205,7 @@ fn mutate(text: &str, mutations: &[Mutation]) -> String {
                 text.insert_str(i, s);
             }
             Mutation::SwapTokens(a, b) => {
-                let t = tokens(&text);
+                let t = formula_tokens(&text);
                 if t.len() >= 2 {
                     let (i, j) = (pos(*a, t.len() - 1), pos(*b, t.len() - 1));
                     let (i, j) = (i.min(j), i.max(j));
@@ -241,7 +218,7 @@ fn mutate(text: &str, mutations: &[Mutation]) -> String {
                 }
             }
             Mutation::Extreme(f, s) => {
-                let t = tokens(&text);
+                let t = formula_tokens(&text);
                 if !t.is_empty() {
                     let (i, j) = t[pos(*f, t.len() - 1)];
                     text.replace_range(i..j, s);
@@ -425,4 +402,9 @@ fn constants_may_be_anything() {
             Err(e) => check_error(&text, &e),
         }
     });
+}
+
+/// Spans of the tokens of formula text: names and numbers, or single operators.
+fn formula_tokens(text: &str) -> Vec<(usize, usize)> {
+    harness::tokens(text, |c| c.is_alphanumeric() || c == '_' || c == '.')
 }

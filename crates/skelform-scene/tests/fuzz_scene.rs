@@ -250,37 +250,19 @@ fn damage() -> impl Strategy<Value = Damage> {
     ]
 }
 
+/// Spans of tokens of TOML text: runs of word characters (numbers with their signs), or single
+/// punctuation.
+fn scene_tokens(text: &str) -> Vec<(usize, usize)> {
+    harness::tokens(text, |c| c.is_alphanumeric() || matches!(c, '_' | '.' | '-' | '+'))
+}
+
 fn pick(f: f64, len: usize) -> usize {
     ((f * len as f64) as usize).min(len.saturating_sub(1))
 }
 
-/// Spans of tokens: runs of word characters, or single punctuation.
-fn tokens(text: &str) -> Vec<(usize, usize)> {
-    let mut out = Vec::new();
-    let mut start = None;
-    for (i, c) in text.char_indices() {
-        let word = c.is_alphanumeric() || matches!(c, '_' | '.' | '-' | '+');
-        match (start, word) {
-            (None, true) => start = Some(i),
-            (Some(s), false) => {
-                out.push((s, i));
-                start = None;
-            }
-            _ => {}
-        }
-        if !word && !c.is_whitespace() {
-            out.push((i, i + c.len_utf8()));
-        }
-    }
-    if let Some(s) = start {
-        out.push((s, text.len()));
-    }
-    out
-}
-
 /// Spans of numbers: tokens that start with a digit or a sign and a digit.
 fn numbers(text: &str) -> Vec<(usize, usize)> {
-    tokens(text)
+    scene_tokens(text)
         .into_iter()
         .filter(|&(i, j)| {
             let t = text[i..j].trim_start_matches(['-', '+']);
@@ -368,7 +350,7 @@ fn apply(text: String, d: &Damage) -> String {
             text = l.concat();
         }
         Damage::SwapTokens(a, b) => {
-            let t = tokens(&text);
+            let t = scene_tokens(&text);
             if t.len() >= 2 {
                 let (i, j) = (pick(*a, t.len()), pick(*b, t.len()));
                 let (i, j) = (i.min(j), i.max(j));
