@@ -281,3 +281,11 @@ pub fn tokens(text: &str, word: impl Fn(char) -> bool) -> Vec<(usize, usize)> {
     }
     out
 }
+
+/// Swaps the text of two spans of `text`, `x` before `y` and apart (token spans from
+/// [`tokens`]): the later one is replaced first, so the earlier one's offsets still hold.
+pub fn swap_spans(text: &mut String, x: (usize, usize), y: (usize, usize)) {
+    let (sx, sy) = (text[x.0..x.1].to_string(), text[y.0..y.1].to_string());
+    text.replace_range(y.0..y.1, &sx);
+    text.replace_range(x.0..x.1, &sy);
+}

@@ -355,10 +355,7 @@ fn apply(text: String, d: &Damage) -> String {
                 let (i, j) = (pick(*a, t.len()), pick(*b, t.len()));
                 let (i, j) = (i.min(j), i.max(j));
                 if i != j {
-                    let (x, y) = (t[i], t[j]);
-                    let (sx, sy) = (text[x.0..x.1].to_string(), text[y.0..y.1].to_string());
-                    text.replace_range(y.0..y.1, &sx);
-                    text.replace_range(x.0..x.1, &sy);
+                    harness::swap_spans(&mut text, t[i], t[j]);
                 }
             }
         }
