@@ -6,7 +6,7 @@
 //! continuation polygonizer in a hash map. Both therefore make exactly the same surface.
 
 use super::cube::{EDGES, FACES, edge_point};
-use super::interior::tunnel;
+use super::interior::{level_on_ray, onto_level, tunnel};
 use super::table::{CENTER, table};
 
 /// Where the surface crosses edges whose end values have opposite signs is never closer
@@ -119,11 +119,18 @@ pub fn polygonize_case(case: usize, v: &[f32; 8], sink: &mut impl CubeSink) -> C
         // A ring shaped like loop b, half its size, around the saddle: the tube runs
         // a → ring → b, so every rung has one end that only this cube has.
         let cb = centroid(b.iter().map(|x| x.1));
+        // Each ring vertex lies on the interpolant's level set, on the ray from the saddle
+        // in the direction of its loop-b vertex from loop b's centre (the tube's waist:
+        // the saddle has the tube's sign, and across the tube the interpolant changes it);
+        // where that ray stays on the saddle's side inside the cube, the vertex is put at half
+        // the way instead.
         let ring: Vec<(u32, [f64; 3])> = b
             .iter()
             .map(|&(_, p)| {
-                let offset: [f64; 3] =
-                    std::array::from_fn(|d| (saddle.p[d] + 0.5 * (p[d] - cb[d])).clamp(0.0, 1.0));
+                let dir: [f64; 3] = std::array::from_fn(|d| p[d] - cb[d]);
+                let offset = level_on_ray(v, saddle.p, dir).unwrap_or_else(|| {
+                    std::array::from_fn(|d| (saddle.p[d] + 0.5 * dir[d]).clamp(0.0, 1.0))
+                });
                 (sink.cell_vertex(offset), offset)
             })
             .collect();
@@ -133,8 +140,10 @@ pub fn polygonize_case(case: usize, v: &[f32; 8], sink: &mut impl CubeSink) -> C
     } else {
         if let Some(l) = entry.center_loop {
             let edges = t.loop_edges(entry, l as usize);
-            local[CENTER as usize] =
-                sink.cell_vertex(centroid(edges.iter().map(|e| cube_point(*e, v))));
+            // The loop's centroid moved along the gradient line onto the interpolant's
+            // level set, where the loop's own (edge) vertices are.
+            let c = centroid(edges.iter().map(|e| cube_point(*e, v)));
+            local[CENTER as usize] = sink.cell_vertex(onto_level(v, c));
         }
         for tri in t.triangles(entry) {
             sink.triangle(tri.map(|e| local[e as usize]));

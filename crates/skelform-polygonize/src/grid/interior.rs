@@ -45,34 +45,180 @@ pub struct Saddle {
     pub joins_inside: bool,
 }
 
+/// The gradient of the interpolant with coefficients `k` at `p`.
+fn gradient(k: &[f64; 8], p: [f64; 3]) -> [f64; 3] {
+    let [_, b, c, d, e, f, g, h] = *k;
+    let [x, y, z] = p;
+    [b + e * y + g * z + h * y * z, c + e * x + f * z + h * x * z, d + f * y + g * x + h * x * y]
+}
+
+/// The Hessian's three off-diagonal entries `(∂xy, ∂yz, ∂xz)` at `p` (its diagonal is zero).
+fn hessian(k: &[f64; 8], p: [f64; 3]) -> [f64; 3] {
+    let [_, _, _, _, e, f, g, h] = *k;
+    let [x, y, z] = p;
+    [e + h * z, f + h * x, g + h * y]
+}
+
+/// One Newton step towards a zero of the gradient from `p`, or `None` where the Hessian is
+/// singular (the critical set is then a line or a curve, never an isolated point).
+fn newton_step(k: &[f64; 8], p: [f64; 3], scale: f64) -> Option<[f64; 3]> {
+    let [u, v, w] = hessian(k, p); // H = [[0, u, w], [u, 0, v], [w, v, 0]]
+    let det = 2.0 * u * v * w;
+    if det.abs() <= 1e-24 * scale * scale * scale || !det.is_finite() {
+        return None;
+    }
+    let [gx, gy, gz] = gradient(k, p);
+    // H⁻¹ = adj(H) / det, adj(H) = [[-v², vw, uv], [vw, -w², uw], [uv, uw, -u²]].
+    let dx = (-v * v * gx + v * w * gy + u * v * gz) / det;
+    let dy = (v * w * gx - w * w * gy + u * w * gz) / det;
+    let dz = (u * v * gx + u * w * gy - u * u * gz) / det;
+    Some([p[0] - dx, p[1] - dy, p[2] - dz])
+}
+
 /// The interior saddles of the interpolant (zero, one or two).
+///
+/// With a cubic term `h` the critical points come in closed form (below); without one the
+/// gradient is linear, `H·p = −(b, c, d)` with `det H = 2efg`, and there is exactly one
+/// critical point when `efg ≠ 0`. Fields point-symmetric about a cube's centre and integer
+/// volumes have `h = 0` exactly, and there the closed form divides by zero, so small `h`
+/// (relative to the samples) takes Newton's method from the cube's centre instead, which
+/// is exact in one step for `h = 0` and converges to the one critical point near the cube
+/// otherwise (the other lies about `1/h` cells away). Every point found is polished by
+/// Newton steps on the full gradient. Where the Hessian is singular (`efg = 0` with
+/// `h = 0`, or two of the closed form's `κ` zero) the critical set is a line or a curve
+/// whose level set is locally a saddle extruded along it: it meets the cube's faces, whose
+/// decisions already account for it, and it is no isolated saddle to join caps through.
 pub fn saddles(v: &[f32; 8]) -> Vec<Saddle> {
-    let [_, b, c, d, e, f, g, h] = coefficients(v);
+    let k = coefficients(v);
+    let [_, b, c, d, e, f, g, h] = k;
     let scale = v.iter().fold(0f64, |m, &x| m.max((x as f64).abs()));
-    if h.abs() <= 1e-12 * scale {
-        // Without the cubic term the gradient equations are linear in pairs and the critical
-        // set is a line or empty; such cubes have no isolated saddle to join caps through.
+    if scale == 0.0 || !scale.is_finite() {
         return Vec::new();
     }
-    // With X = x + f/h, Y = y + g/h, Z = z + e/h the gradient is
-    // h·(YZ, XZ, XY) + (bx, by, bz), so YZ = P, XZ = Q, XY = R.
-    let p = -(b - e * g / h) / h;
-    let q = -(c - e * f / h) / h;
-    let r = -(d - f * g / h) / h;
-    let w2 = p * q * r;
-    if w2.is_nan() || w2 <= 0.0 || p == 0.0 || q == 0.0 || r == 0.0 {
-        return Vec::new();
-    }
-    let w = w2.sqrt();
-    let mut out = Vec::new();
-    for w in [w, -w] {
-        let pt = [w / p - f / h, w / q - g / h, w / r - e / h];
-        if pt.iter().all(|&t| t > 0.0 && t < 1.0) {
-            // det(Hessian) = 2 h³ XYZ = 2 h³ w; negative ⇔ one descending direction.
-            out.push(Saddle { p: pt, value: trilinear(v, pt), joins_inside: h * h * h * w < 0.0 });
+    let mut candidates: Vec<[f64; 3]> = Vec::with_capacity(2);
+    if h.abs() <= 1e-6 * scale {
+        let mut p = [0.5; 3];
+        for _ in 0..32 {
+            match newton_step(&k, p, scale) {
+                Some(q) if q.iter().all(|t| t.is_finite() && t.abs() < 1e6) => {
+                    let moved = (0..3).map(|i| (q[i] - p[i]).abs()).fold(0.0, f64::max);
+                    p = q;
+                    if moved <= 1e-15 {
+                        break;
+                    }
+                }
+                _ => return Vec::new(),
+            }
+        }
+        candidates.push(p);
+    } else {
+        // With X = x + f/h, Y = y + g/h, Z = z + e/h the gradient is
+        // h·(YZ, XZ, XY) + (κx, κy, κz), so YZ = P, XZ = Q, XY = R.
+        let p = -(b - e * g / h) / h;
+        let q = -(c - e * f / h) / h;
+        let r = -(d - f * g / h) / h;
+        let w2 = p * q * r;
+        if w2.is_nan() || w2 <= 0.0 || p == 0.0 || q == 0.0 || r == 0.0 {
+            return Vec::new();
+        }
+        let w = w2.sqrt();
+        for w in [w, -w] {
+            let mut pt = [w / p - f / h, w / q - g / h, w / r - e / h];
+            for _ in 0..3 {
+                match newton_step(&k, pt, scale) {
+                    Some(q) if q.iter().all(|t| t.is_finite()) => pt = q,
+                    _ => break,
+                }
+            }
+            candidates.push(pt);
         }
     }
+    let mut out = Vec::new();
+    for pt in candidates {
+        let residual = gradient(&k, pt).iter().fold(0f64, |m, x| m.max(x.abs()));
+        if !(residual <= 1e-9 * scale) || !pt.iter().all(|&t| t > 0.0 && t < 1.0) {
+            continue;
+        }
+        if out.iter().any(|s: &Saddle| (0..3).all(|i| (s.p[i] - pt[i]).abs() < 1e-9)) {
+            continue;
+        }
+        let [u, vv, w] = hessian(&k, pt);
+        let det = 2.0 * u * vv * w;
+        if det == 0.0 {
+            continue;
+        }
+        // The Hessian has zero trace: det < 0 ⇔ one negative eigenvalue ⇔ one descending
+        // direction.
+        out.push(Saddle { p: pt, value: trilinear(v, pt), joins_inside: det < 0.0 });
+    }
     out
+}
+
+/// The first point of the interpolant's level set `f = 0` on the ray from `from` along
+/// `dir`, within the unit cube, if the interpolant changes sign there (found by sampling the
+/// ray in sixteen steps, then bisection).
+///
+/// Interior vertices are placed by this: a tube's ring vertices on rays from its saddle,
+/// fan centres on the gradient line, so that they lie on the interpolant (whose level set
+/// the edge vertices also lie on) instead of near it.
+pub fn level_on_ray(v: &[f32; 8], from: [f64; 3], dir: [f64; 3]) -> Option<[f64; 3]> {
+    // The ray's exit from the cube.
+    let mut t_max = f64::INFINITY;
+    for i in 0..3 {
+        if dir[i] > 0.0 {
+            t_max = t_max.min((1.0 - from[i]) / dir[i]);
+        } else if dir[i] < 0.0 {
+            t_max = t_max.min(-from[i] / dir[i]);
+        }
+    }
+    if !t_max.is_finite() || t_max <= 0.0 || from.iter().any(|t| !(0.0..=1.0).contains(t)) {
+        return None;
+    }
+    let at = |t: f64| -> [f64; 3] { std::array::from_fn(|i| from[i] + t * dir[i]) };
+    let inside = |t: f64| trilinear(v, at(t)) < 0.0;
+    let start = inside(0.0);
+    const STEPS: usize = 16;
+    let (mut lo, mut hi) = (0.0, f64::NAN);
+    for s in 1..=STEPS {
+        let t = t_max * s as f64 / STEPS as f64;
+        if inside(t) != start {
+            hi = t;
+            break;
+        }
+        lo = t;
+    }
+    if hi.is_nan() {
+        return None;
+    }
+    for _ in 0..48 {
+        let mid = 0.5 * (lo + hi);
+        if inside(mid) == start { lo = mid } else { hi = mid }
+    }
+    Some(at(0.5 * (lo + hi)))
+}
+
+/// The point of the interpolant's level set nearest `p` along its gradient line through
+/// `p` (in either direction), or `p` itself when that line does not meet the level set
+/// inside the cube.
+pub fn onto_level(v: &[f32; 8], p: [f64; 3]) -> [f64; 3] {
+    let k = coefficients(v);
+    let g = gradient(&k, p);
+    if g.iter().all(|&x| x == 0.0) || trilinear(v, p) == 0.0 {
+        return p;
+    }
+    let back = g.map(|x| -x);
+    let dist = |q: [f64; 3]| (0..3).map(|i| (q[i] - p[i]).powi(2)).sum::<f64>();
+    match (level_on_ray(v, p, g), level_on_ray(v, p, back)) {
+        (Some(a), Some(b)) => {
+            if dist(a) <= dist(b) {
+                a
+            } else {
+                b
+            }
+        }
+        (Some(a), None) | (None, Some(a)) => a,
+        (None, None) => p,
+    }
 }
 
 /// The saddle through which caps of the given side join, if there is one.
