@@ -129,7 +129,10 @@ pub fn polygonize_case(case: usize, v: &[f32; 8], sink: &mut impl CubeSink) -> C
             .map(|&(_, p)| {
                 let dir: [f64; 3] = std::array::from_fn(|d| p[d] - cb[d]);
                 let offset = level_on_ray(v, saddle.p, dir).unwrap_or_else(|| {
-                    std::array::from_fn(|d| (saddle.p[d] + 0.5 * dir[d]).clamp(0.0, 1.0))
+                    onto_level(
+                        v,
+                        std::array::from_fn(|d| (saddle.p[d] + 0.5 * dir[d]).clamp(0.01, 0.99)),
+                    )
                 });
                 (sink.cell_vertex(offset), offset)
             })
