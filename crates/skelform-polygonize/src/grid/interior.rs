@@ -136,7 +136,7 @@ pub fn saddles(v: &[f32; 8]) -> Vec<Saddle> {
     let mut out = Vec::new();
     for pt in candidates {
         let residual = gradient(&k, pt).iter().fold(0f64, |m, x| m.max(x.abs()));
-        if !(residual <= 1e-9 * scale) || !pt.iter().all(|&t| t > 0.0 && t < 1.0) {
+        if residual.is_nan() || residual > 1e-9 * scale || !pt.iter().all(|&t| t > 0.0 && t < 1.0) {
             continue;
         }
         if out.iter().any(|s: &Saddle| (0..3).all(|i| (s.p[i] - pt[i]).abs() < 1e-9)) {
