@@ -42,7 +42,9 @@ pub enum MethodArg {
     Grid,
     /// Propagate cubes from seeds across the surface (dissertation ch. 3).
     Continuation,
-    /// Continuation with each cube split into six tetrahedra.
+    /// Continuation with each cube split into six tetrahedra. Its diagonals can cut through
+    /// walls or tubes thinner than a cell's diagonal that the cube method keeps; the cubes
+    /// where the two join corners differently are counted and reported as a warning.
     Tetra,
     /// Marching cubes healed along self-intersections.
     Healed,

@@ -166,6 +166,16 @@ impl continuation::Stats {
             }
         }
         non_finite(self.non_finite, "corner values", &mut w);
+        if self.tetra_disagreements > 0 {
+            let first = self.first_disagreement.map(|p| format!(" (the first at {})", at(p)));
+            w.push(format!(
+                "{} cubes split into tetrahedra join corners the cube method separates (or separate corners it joins){}: \
+                 walls or tubes thinner than a cell's diagonal may be cut through or pinched off, so the topology can \
+                 differ from --method continuation's; use it, or a smaller cell",
+                self.tetra_disagreements,
+                first.unwrap_or_default()
+            ));
+        }
         w
     }
 
@@ -188,6 +198,13 @@ impl fmt::Display for continuation::Stats {
             self.normal_evaluations
         )?;
         writeln!(f, "cells         {} visited", self.cells_visited)?;
+        if self.tetra_disagreements > 0 {
+            writeln!(
+                f,
+                "tetrahedra    {} cubes join corners unlike the cube method",
+                self.tetra_disagreements
+            )?;
+        }
         writeln!(f, "components    {}", self.components.len())?;
         for (i, c) in self.components.iter().enumerate().take(10) {
             writeln!(

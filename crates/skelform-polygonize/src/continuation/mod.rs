@@ -153,6 +153,14 @@ pub struct Stats {
     pub cells_visited: u64,
     /// Corners whose value was NaN or infinite (treated as outside or inside).
     pub non_finite: u64,
+    /// With tetrahedra: cubes where the six tetrahedra join the corners differently from
+    /// the cube method (see [`tetra::disagrees_with_cube`]), typically where a wall or tube
+    /// thinner than a cell's diagonal is cut through or pinched off. Where this is 0 every
+    /// cube has the cube method's pieces; otherwise the topology may differ from the
+    /// continuation (or grid) method's. Always 0 with cubes.
+    pub tetra_disagreements: u64,
+    /// The lowest corner of the first such cube, in lattice order of the propagation.
+    pub first_disagreement: Option<DVec3>,
     /// The components meshed, each with the seed that reached it.
     pub components: Vec<Component>,
     /// Seeds that did not start a component, and why.
@@ -392,7 +400,16 @@ impl<'a> Run<'a> {
             Cells::Cubes => {
                 polygonize_cube(v, &mut sink);
             }
-            Cells::Tetrahedra => polygonize_tetrahedra(v, &mut sink),
+            Cells::Tetrahedra => {
+                polygonize_tetrahedra(v, &mut sink);
+                if tetra::disagrees_with_cube(v) {
+                    let stats = &mut self.stats;
+                    stats.tetra_disagreements += 1;
+                    if stats.first_disagreement.is_none() {
+                        stats.first_disagreement = Some(self.cubes.point(base));
+                    }
+                }
+            }
         }
     }
 
