@@ -119,3 +119,44 @@ fn seed_problems_are_clear() {
     assert!(text(&r.stderr).contains("ran out of cells"), "{}", text(&r.stderr));
     assert!(!text(&r.stderr).contains("panicked"));
 }
+
+/// Issue 18, defect 2: a wall thinner than a cell's diagonal is cut through by the six
+/// tetrahedra's long diagonals; tetra must say so, and must stay quiet where it agrees.
+#[test]
+fn tetra_warns_where_its_topology_differs_from_the_cubes() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = |name: &str, formula: &str, cell: f64| {
+        let path = dir.path().join(name);
+        std::fs::write(
+            &path,
+            format!(
+                "[domain]\nmin = [-0.6, -0.6, -0.6]\nmax = [0.6, 0.6, 0.6]\n[mesh]\ncell = {cell}\n[field]\nformula = \"{formula}\"\n"
+            ),
+        )
+        .unwrap();
+        path
+    };
+    let run = |scene: &Path| {
+        let out = dir.path().join("out.ply");
+        let o = skelform(&[
+            "mesh",
+            scene.to_str().unwrap(),
+            "--method",
+            "tetra",
+            "-o",
+            out.to_str().unwrap(),
+            "--json",
+        ]);
+        assert!(o.status.success(), "{}", text(&o.stderr));
+        let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        (j, text(&o.stderr))
+    };
+    let shell = scene("shell.toml", "abs(sqrt(x^2+y^2+z^2)-0.5)-0.01", 0.015);
+    let (j, err) = run(&shell);
+    assert!(j["tetra_disagreements"].as_u64().unwrap() > 0, "{j}");
+    assert!(err.contains("warning:") && err.contains("cube method"), "{err}");
+    let sphere = scene("sphere.toml", "sqrt(x^2+y^2+z^2)-0.5", 0.05);
+    let (j, err) = run(&sphere);
+    assert_eq!(j["tetra_disagreements"], 0, "{j}");
+    assert!(!err.contains("warning:"), "{err}");
+}
