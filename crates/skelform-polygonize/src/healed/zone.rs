@@ -276,7 +276,18 @@ fn heal_with(inp: &Input, probe: &mut Probe, accept_seeds: bool) -> Outcome {
             let amb = t.ambiguous[case];
             for f in 0..6 {
                 let Some(nb) = lat.neighbour(c, f) else { continue };
-                if zone.contains(&nb) || amb & (1 << f) == 0 {
+                if zone.contains(&nb) {
+                    continue;
+                }
+                // A polygon of a cube outside whose every side lies on the zone's boundary
+                // would be closed off by the zone's trace alone: the zone would fan that
+                // loop as a disk on top of the kept polygon (a duplicate face), or read the
+                // sheet through it as two pieces. The cube belongs to the zone.
+                if enclosed_polygon(inp.volume, &lat, &zone, nb) {
+                    add.push(nb);
+                    continue;
+                }
+                if amb & (1 << f) == 0 {
                     continue;
                 }
                 let o = CORNERS[FACES[f][0]];
@@ -355,6 +366,40 @@ fn heal_with(inp: &Input, probe: &mut Probe, accept_seeds: bool) -> Outcome {
         }
     }
     Outcome::Healed(out)
+}
+
+/// Whether cube `ci` (outside the zone) has a marching-cubes polygon all of whose sides lie
+/// on faces it shares with zone cubes or with the domain box.
+fn enclosed_polygon(volume: &Volume, lat: &Lattice, zone: &FxHashSet<usize>, ci: usize) -> bool {
+    let t = table();
+    let c = lat.coords(ci);
+    let v = lat.corner_values(volume, c);
+    let case = case_of(&v);
+    if case == 0 || case == 255 {
+        return false;
+    }
+    let amb = t.ambiguous[case];
+    let dec = if amb == 0 { 0 } else { face_decisions(&v, amb) };
+    let entry = t.entry(case, dec as usize);
+    (0..entry.loop_count as usize).any(|l| {
+        let edges = t.loop_edges(entry, l);
+        let n = edges.len();
+        let mut touches_zone = false;
+        let all = (0..n).all(|k| {
+            let Some(f) = common_face(edges[k] as usize, edges[(k + 1) % n] as usize) else {
+                return false;
+            };
+            match lat.neighbour(c, f) {
+                Some(nb) => {
+                    let z = zone.contains(&nb);
+                    touches_zone |= z;
+                    z
+                }
+                None => true,
+            }
+        });
+        all && touches_zone
+    })
 }
 
 /// Whether the field crosses zero between the samples of a lattice edge more often than

@@ -1,0 +1,164 @@
+//! Issue 18, defect 6: healing of generic (off-symmetry) transversal crossings must not depend
+//! on where the lattice falls. Random sphere pairs, sphere × torus and tilted plane × sphere,
+//! over resolutions and lattice offsets: every crossing healed (no zone left as marching
+//! cubes made it), no duplicate faces, and the sheets meet along the curve as the healed
+//! method promises (every curve edge has four triangles, no other edge more than two).
+//!
+//! These tests are `#[ignore]`d: they fail on the current healing (see the issue's
+//! reproducers, e.g. two spheres at 50 samples: "2 sheet pieces (not 4) meet the
+//! self-intersection"), and are the acceptance tests for its fix. Run them with
+//! `cargo test -p skelform-polygonize --test healed_generic -- --ignored`.
+
+use std::collections::{BTreeMap, BTreeSet};
+
+use glam::DVec3;
+use proptest::prelude::*;
+use skelform_field::{Aabb, Field, FnField};
+use skelform_mesh::Mesh;
+use skelform_polygonize::healed::{Options, Stats, polygonize};
+use skelform_polygonize::{LatticeOptions, Resolution};
+
+/// Polygonizes on `[-1.6, 1.6]³` shifted by `offset` cells, at `samples` samples a side.
+fn heal(field: &dyn Field, samples: usize, offset: DVec3) -> (Mesh, Stats) {
+    let h = 3.2 / (samples - 1) as f64;
+    let domain = Aabb::new(DVec3::splat(-1.6) + offset * h, DVec3::splat(1.6) + offset * h);
+    let lattice =
+        LatticeOptions { domain, resolution: Resolution::Samples(samples), ..Default::default() };
+    polygonize(field, &Options { lattice, ..Options::default() }).expect("healed")
+}
+
+/// Triangles that have the same three vertices as an earlier one (either winding).
+fn duplicate_faces(m: &Mesh) -> usize {
+    let mut seen = BTreeSet::new();
+    m.triangles
+        .iter()
+        .filter(|t| {
+            let mut k = **t;
+            k.sort_unstable();
+            !seen.insert(k)
+        })
+        .count()
+}
+
+/// What the healed method promises along a crossing, as words (empty when it holds).
+fn violations(m: &Mesh, s: &Stats) -> Vec<String> {
+    let mut out = Vec::new();
+    if s.curves.is_empty() {
+        out.push("no self-intersection curve found".into());
+    }
+    for c in &s.curves {
+        if !c.healed {
+            out.push(format!("a curve of length {:.3} not healed", c.length));
+        }
+    }
+    for u in &s.unresolved {
+        out.push(format!("not healed ({} cubes): {}", u.cubes, u.reason));
+    }
+    let d = duplicate_faces(m);
+    if d > 0 {
+        out.push(format!("{d} duplicate faces"));
+    }
+    let mut degree: BTreeMap<(u32, u32), usize> = BTreeMap::new();
+    for t in &m.triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            *degree.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+        }
+    }
+    let curves: BTreeSet<(u32, u32)> =
+        m.curves.iter().map(|c| (c.v[0].min(c.v[1]), c.v[0].max(c.v[1]))).collect();
+    let bad_curve = curves.iter().filter(|e| degree.get(e).copied().unwrap_or(0) != 4).count();
+    if bad_curve > 0 {
+        out.push(format!("{bad_curve} curve edges without four triangles"));
+    }
+    let stray = degree.iter().filter(|(e, d)| **d > 2 && !curves.contains(e)).count();
+    if stray > 0 {
+        out.push(format!("{stray} edges off the curves with more than two triangles"));
+    }
+    out
+}
+
+fn sphere(c: DVec3, r: f64) -> impl Fn(DVec3) -> f64 {
+    move |p: DVec3| (p - c).length_squared() - r * r
+}
+
+fn offset() -> impl Strategy<Value = DVec3> {
+    (0.0..1.0f64, 0.0..1.0f64, 0.0..1.0f64).prop_map(|(x, y, z)| DVec3::new(x, y, z))
+}
+
+/// The issue's reproducers: two spheres crossing off the lattice's symmetry.
+#[test]
+#[ignore = "issue 18 defect 6: fails on the current healing"]
+fn issue_reproducers_two_spheres() {
+    let f = FnField(|p: DVec3| {
+        sphere(DVec3::ZERO, 1.0)(p) * sphere(DVec3::new(0.7, 0.0, 0.0), 0.5f64.sqrt())(p)
+    });
+    let mut failures = Vec::new();
+    for n in [40, 50, 64, 80, 100] {
+        let (m, s) = heal(&f, n, DVec3::ZERO);
+        let v = violations(&m, &s);
+        if !v.is_empty() {
+            failures.push(format!("{n} samples: {}", v.join("; ")));
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 12, ..ProptestConfig::default() })]
+
+    /// Two spheres of radius 0.6–1 whose centres are 0.4–0.9 of the sum of the radii apart
+    /// (so they cross at an angle the lattice resolves).
+    #[test]
+    #[ignore = "issue 18 defect 6: fails on the current healing"]
+    fn sphere_pairs_heal(
+        r1 in 0.6..1.0f64, r2 in 0.6..1.0f64, t in 0.45..0.85f64,
+        dir in (-1.0..1.0f64, -1.0..1.0f64, -1.0..1.0f64),
+        shift in (-0.1..0.1f64, -0.1..0.1f64, -0.1..0.1f64),
+        samples in 36usize..72, off in offset(),
+    ) {
+        let d = DVec3::new(dir.0, dir.1, dir.2).normalize_or(DVec3::X);
+        let gap = (r1 - r2).abs() + t * (r1 + r2 - (r1 - r2).abs());
+        let c1 = DVec3::new(shift.0, shift.1, shift.2) - d * (0.5 * gap);
+        let c2 = c1 + d * gap;
+        let (a, b) = (sphere(c1, r1), sphere(c2, r2));
+        let f = FnField(move |p: DVec3| a(p) * b(p));
+        let (m, s) = heal(&f, samples, off);
+        let v = violations(&m, &s);
+        prop_assert!(v.is_empty(), "{v:?}");
+    }
+
+    /// A torus (R = 0.8, r = 0.3) and a sphere through its tube.
+    #[test]
+    #[ignore = "issue 18 defect 6: fails on the current healing"]
+    fn sphere_torus_heal(
+        rs in 0.6..0.9f64, cx in 0.5..0.9f64, cz in -0.15..0.15f64,
+        samples in 40usize..72, off in offset(),
+    ) {
+        let (big, small) = (0.8f64, 0.3f64);
+        let torus = move |p: DVec3| {
+            let q = p.length_squared() + big * big - small * small;
+            q * q - 4.0 * big * big * (p.x * p.x + p.y * p.y)
+        };
+        let s = sphere(DVec3::new(cx, 0.0, cz), rs);
+        let f = FnField(move |p: DVec3| torus(p) * s(p));
+        let (m, st) = heal(&f, samples, off);
+        let v = violations(&m, &st);
+        prop_assert!(v.is_empty(), "{v:?}");
+    }
+
+    /// A plane tilted off every lattice axis through a sphere of radius 0.7–1.1.
+    #[test]
+    #[ignore = "issue 18 defect 6: fails on the current healing"]
+    fn tilted_plane_sphere_heal(
+        n in (-1.0..1.0f64, -1.0..1.0f64, 0.2..1.0f64), d in -0.5..0.5f64, r in 0.7..1.1f64,
+        samples in 36usize..72, off in offset(),
+    ) {
+        let n = DVec3::new(n.0, n.1, n.2).normalize();
+        let s = sphere(DVec3::ZERO, r);
+        let f = FnField(move |p: DVec3| (n.dot(p) - d) * s(p));
+        let (m, st) = heal(&f, samples, off);
+        let v = violations(&m, &st);
+        prop_assert!(v.is_empty(), "{v:?}");
+    }
+}
