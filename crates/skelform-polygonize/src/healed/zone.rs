@@ -42,7 +42,7 @@ use super::local::Probe;
 use super::network::{Network, NodeKind};
 use crate::grid::cell::{case_of, face_decisions};
 use crate::grid::cube::{CORNERS, EDGES, FACES, edge_axis, other_axes};
-use crate::grid::table::table;
+use crate::grid::table::{Entry, table};
 use crate::grid::{GridVertex, Place};
 
 /// A zone whose marching-cubes triangles were kept, and why.
@@ -368,19 +368,25 @@ fn heal_with(inp: &Input, probe: &mut Probe, accept_seeds: bool) -> Outcome {
     Outcome::Healed(out)
 }
 
+/// The case-table entry that marching cubes uses for these corner values, with its
+/// ambiguous faces decided; `None` for a cube the surface does not enter.
+fn cube_entry(v: &[f32; 8]) -> Option<&'static Entry> {
+    let case = case_of(v);
+    if case == 0 || case == 255 {
+        return None;
+    }
+    let t = table();
+    Some(t.entry(case, face_decisions(v, t.ambiguous[case]) as usize))
+}
+
 /// Whether cube `ci` (outside the zone) has a marching-cubes polygon all of whose sides lie
 /// on faces it shares with zone cubes or with the domain box.
 fn enclosed_polygon(volume: &Volume, lat: &Lattice, zone: &FxHashSet<usize>, ci: usize) -> bool {
     let t = table();
     let c = lat.coords(ci);
-    let v = lat.corner_values(volume, c);
-    let case = case_of(&v);
-    if case == 0 || case == 255 {
+    let Some(entry) = cube_entry(&lat.corner_values(volume, c)) else {
         return false;
-    }
-    let amb = t.ambiguous[case];
-    let dec = if amb == 0 { 0 } else { face_decisions(&v, amb) };
-    let entry = t.entry(case, dec as usize);
+    };
     (0..entry.loop_count as usize).any(|l| {
         let edges = t.loop_edges(entry, l);
         let n = edges.len();
@@ -755,14 +761,9 @@ fn boundary_trace(
     let mut has_prev: FxHashSet<u32> = FxHashSet::default();
     for &ci in zone.comp {
         let c = lat.coords(ci);
-        let v = lat.corner_values(inp.volume, c);
-        let case = case_of(&v);
-        if case == 0 || case == 255 {
+        let Some(entry) = cube_entry(&lat.corner_values(inp.volume, c)) else {
             continue;
-        }
-        let amb = t.ambiguous[case];
-        let dec = if amb == 0 { 0 } else { face_decisions(&v, amb) };
-        let entry = t.entry(case, dec as usize);
+        };
         let vid = |e: u8| -> Result<u32, String> {
             let e = e as usize;
             let o = CORNERS[EDGES[e][0]];
