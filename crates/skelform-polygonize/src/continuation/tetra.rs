@@ -197,6 +197,7 @@ pub fn disagrees_with_cube(v: &[f32; 8]) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::grid::interior::trilinear;
 
     #[test]
     fn six_tetrahedra_fill_the_cube_and_share_the_diagonal() {
@@ -211,17 +212,6 @@ mod tests {
             assert_eq!((t[0], t[3]), (0, 7));
         }
         assert!((vol - 1.0).abs() < 1e-12);
-    }
-
-    /// The trilinear interpolant of the corner values at `p` (the cube method's surface).
-    fn trilinear(v: &[f32; 8], p: [f64; 3]) -> f64 {
-        (0..8)
-            .map(|c| {
-                let w: f64 =
-                    (0..3).map(|d| if CORNERS[c][d] == 1 { p[d] } else { 1.0 - p[d] }).product();
-                w * v[c] as f64
-            })
-            .sum()
     }
 
     /// The piecewise-linear interpolant over the six tetrahedra at `p`: the tetrahedron
