@@ -48,6 +48,27 @@ impl Scene {
         Scene::build(text.into(), origin, None, None)
     }
 
+    /// A scene of one field over `domain`, with every other setting at its default (the
+    /// grid method, 128 samples along the longest side): for front ends whose field is not
+    /// written in the scene language (a Python function, a field built in Rust). `origin`
+    /// names it in messages. The domain is checked as a scene file's is.
+    pub fn from_field(
+        field: Arc<dyn skelform_field::Field>,
+        domain: skelform_field::Aabb,
+        origin: &str,
+    ) -> Result<Scene, Error> {
+        let (lo, hi) = (domain.min, domain.max);
+        // Written out and checked like any scene's domain, so that the limits and messages
+        // are the same; the formula is a placeholder that the field then replaces.
+        let text = format!(
+            "[domain]\nmin = [{:?}, {:?}, {:?}]\nmax = [{:?}, {:?}, {:?}]\n[field]\nformula = \"0\"\n",
+            lo.x, lo.y, lo.z, hi.x, hi.y, hi.z
+        );
+        let mut scene = Scene::build(text.into(), origin, None, None)?;
+        Arc::make_mut(&mut scene.description).field = field;
+        Ok(scene)
+    }
+
     fn build(
         text: Arc<str>,
         origin: &str,
