@@ -2,7 +2,8 @@
 # Every test of the project, as the README's second command: the Rust workspace (unit,
 # integration, property and fuzz tests, doc tests), then the files it writes loaded by the
 # real libraries other people use (trimesh, meshio, pymeshlab; installed into a virtual
-# environment under target/ on first use), then the browser tests in headless Chromium
+# environment under target/ on first use), the Python package's pytest suite on its wheel in
+# a fresh virtual environment, then the browser tests in headless Chromium
 # (tests/browser: Debian's chromium and npm packages, installed on first use). Installs what
 # is missing; fails on any failure.
 set -euo pipefail
@@ -20,5 +21,7 @@ cargo test --workspace --locked
 echo "== other tools read skelform's files (tests/interop)"
 # The test profile's binary, built by the tests above: no second build.
 SKELFORM=target/debug/skelform tests/interop/run.sh
+echo "== the Python package: its wheel in a fresh virtual environment, pytest (tests/python)"
+tests/python/run.sh
 echo "== skelform's files in three.js, in headless Chromium (tests/browser)"
 SKELFORM=target/debug/skelform tests/browser/run.sh

@@ -13,7 +13,7 @@ if ! python3 -c 'import venv, ensurepip' 2>/dev/null; then
     echo "python3 with venv and ensurepip is needed (Debian: apt-get install python3-venv)" >&2
     exit 1
 fi
-venv=target/python-venv
+venv=$root/target/python-venv
 if [[ -z "${SKELFORM_PY_KEEP_VENV:-}" || ! -x $venv/bin/python ]]; then
     rm -rf "$venv"
     python3 -m venv "$venv"

@@ -52,9 +52,7 @@ pub(crate) fn eval_on<'py>(
     let p = points(&c)?;
     let out = py.detach(|| {
         let mut out = vec![0.0; p.len()];
-        out.par_chunks_mut(CHUNK)
-            .zip(p.par_chunks(CHUNK))
-            .for_each(|(o, p)| field.eval_many(p, o));
+        out.par_chunks_mut(CHUNK).zip(p.par_chunks(CHUNK)).for_each(|(o, p)| field.eval_many(p, o));
         out
     });
     PyArray1::from_vec(py, out).reshape(shape)

@@ -79,15 +79,14 @@ impl PyMesh {
         for r in f.rows() {
             let mut t = [0u32; 3];
             for (o, &i) in t.iter_mut().zip(r.iter()) {
-                *o = u32::try_from(i)
-                    .ok()
-                    .filter(|&i| (i as usize) < positions.len())
-                    .ok_or_else(|| {
+                *o = u32::try_from(i).ok().filter(|&i| (i as usize) < positions.len()).ok_or_else(
+                    || {
                         PyValueError::new_err(format!(
                             "face index {i} is outside the {} vertices",
                             positions.len()
                         ))
-                    })?;
+                    },
+                )?;
             }
             triangles.push(t);
         }
@@ -204,11 +203,7 @@ impl PyMesh {
 
     fn __repr__(&self) -> String {
         let m = &self.mesh;
-        let mut s = format!(
-            "Mesh({} vertices, {} faces",
-            m.positions.len(),
-            m.triangles.len()
-        );
+        let mut s = format!("Mesh({} vertices, {} faces", m.positions.len(), m.triangles.len());
         if !m.labels.is_empty() {
             s.push_str(", labelled");
         }

@@ -123,11 +123,7 @@ pub(crate) fn pool(threads: Option<usize>) -> PyResult<Option<Arc<rayon::ThreadP
             "threads must be between 1 and {MAX_THREADS} (got {n})"
         )));
     }
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(n)
-        .build()
-        .map(|p| Some(Arc::new(p)))
-        .map_err(|e| {
-            pyo3::exceptions::PyRuntimeError::new_err(format!("cannot start {n} threads: {e}"))
-        })
+    rayon::ThreadPoolBuilder::new().num_threads(n).build().map(|p| Some(Arc::new(p))).map_err(|e| {
+        pyo3::exceptions::PyRuntimeError::new_err(format!("cannot start {n} threads: {e}"))
+    })
 }

@@ -118,17 +118,8 @@ impl PyScene {
         progress: Option<Py<PyAny>>,
     ) -> PyResult<PyMesh> {
         let run = Run::new(progress);
-        let choices = Choices {
-            resolution,
-            cell,
-            method,
-            pose,
-            threads,
-            refine,
-            normals,
-            max_memory,
-            seeds,
-        };
+        let choices =
+            Choices { resolution, cell, method, pose, threads, refine, normals, max_memory, seeds };
         mesh_scene(py, &self.scene, choices, None, &run)
     }
 
@@ -213,17 +204,8 @@ pub(crate) fn mesh(
     progress: Option<Py<PyAny>>,
 ) -> PyResult<PyMesh> {
     let run = Run::new(progress);
-    let choices = Choices {
-        resolution,
-        cell,
-        method,
-        pose,
-        threads,
-        refine,
-        normals,
-        max_memory,
-        seeds,
-    };
+    let choices =
+        Choices { resolution, cell, method, pose, threads, refine, normals, max_memory, seeds };
     if let Ok(scene) = field.cast::<PyScene>() {
         if domain.is_some() {
             return Err(PyValueError::new_err(
@@ -251,7 +233,7 @@ pub(crate) fn mesh(
         ));
     }
     let callable = Arc::new(CallableField::new(field.clone().unbind(), run.control.clone()));
-    let scene = skelform::Scene::from_field(callable.clone(), domain, "<callable>")
-        .map_err(error)?;
+    let scene =
+        skelform::Scene::from_field(callable.clone(), domain, "<callable>").map_err(error)?;
     mesh_scene(py, &scene, choices, Some(&callable), &run)
 }

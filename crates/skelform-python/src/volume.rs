@@ -281,7 +281,10 @@ pub(crate) fn marching_cubes_core<'py>(
 }
 
 /// Runs `op` on `pool`, or on the current (global) pool.
-fn install<R: Send>(pool: &Option<std::sync::Arc<rayon::ThreadPool>>, op: impl FnOnce() -> R + Send) -> R {
+fn install<R: Send>(
+    pool: &Option<std::sync::Arc<rayon::ThreadPool>>,
+    op: impl FnOnce() -> R + Send,
+) -> R {
     match pool {
         Some(p) => p.install(op),
         None => op(),
@@ -290,7 +293,11 @@ fn install<R: Send>(pool: &Option<std::sync::Arc<rayon::ThreadPool>>, op: impl F
 
 /// Flat arrays in scikit-image's conventions: vertices and normals in array axis order,
 /// faces wound for the gradient direction, the gradient size as the value.
-fn conventions(s: &Samples, ex: &Extracted, ascent: bool) -> (Vec<f32>, Vec<i32>, Vec<f32>, Vec<f32>) {
+fn conventions(
+    s: &Samples,
+    ex: &Extracted,
+    ascent: bool,
+) -> (Vec<f32>, Vec<i32>, Vec<f32>, Vec<f32>) {
     let v = &s.volume;
     let per_vertex: Vec<([f32; 3], [f32; 3], f32)> = ex
         .positions

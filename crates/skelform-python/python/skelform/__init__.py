@@ -17,7 +17,10 @@ callbacks that may return ``False`` to cancel (raising ``Cancelled``).
 
 from __future__ import annotations
 
+from typing import Any, Callable, Optional, Sequence, Tuple
+
 import numpy as np
+import numpy.typing as npt
 
 from ._skelform import (
     Cancelled,
@@ -47,17 +50,17 @@ _NATIVE = {np.dtype(t) for t in (np.float32, np.float64, np.int8, np.int16, np.i
 
 
 def marching_cubes(
-    volume,
-    level=None,
-    spacing=(1.0, 1.0, 1.0),
+    volume: npt.ArrayLike,
+    level: Optional[float] = None,
+    spacing: Sequence[float] = (1.0, 1.0, 1.0),
     *,
-    gradient_direction="descent",
-    step_size=1,
-    allow_degenerate=True,
-    mask=None,
-    threads=None,
-    progress=None,
-):
+    gradient_direction: str = "descent",
+    step_size: int = 1,
+    allow_degenerate: bool = True,
+    mask: Optional[npt.ArrayLike] = None,
+    threads: Optional[int] = None,
+    progress: Optional[Callable[[str, int, Optional[int]], Optional[bool]]] = None,
+) -> Tuple[npt.NDArray[Any], npt.NDArray[np.int32], npt.NDArray[np.float32], npt.NDArray[np.float32]]:
     """Isosurface of a 3-D volume, as ``skimage.measure.marching_cubes`` returns it.
 
     Parameters are scikit-image's: ``level`` (default: the middle of the data range),
