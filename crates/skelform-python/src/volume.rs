@@ -16,6 +16,7 @@ use pyo3::prelude::*;
 use rayon::prelude::*;
 use skelform::DVec3;
 use skelform::volume::{Grid, MAX_SAMPLES_PER_AXIS, Volume, extract_mesh};
+use std::sync::{Mutex, PoisonError};
 
 use crate::errors::polygonize_error;
 use crate::run::{Run, pool};
@@ -68,15 +69,64 @@ fn samples<T: Sample>(a: ArrayView3<'_, T>, level: f64, step: usize) -> PyResult
     }
     let slab = nb * nc;
     let count = slab.checked_mul(na).ok_or_else(|| PyValueError::new_err("volume too large"))?;
-    let mut values = vec![0f32; count];
-    values.par_chunks_mut(slab).enumerate().for_each(|(k, out)| {
-        let layer = v.index_axis(Axis(0), k);
-        for (o, x) in out.iter_mut().zip(layer.iter()) {
-            *o = (x.to_f64() - level) as f32;
-        }
-    });
+    let mut values = take_buffer(count);
+    let non_finite: u64 = values.spare_capacity_mut()[..count]
+        .par_chunks_mut(slab)
+        .enumerate()
+        .map(|(k, out)| {
+            let layer = v.index_axis(Axis(0), k);
+            let mut bad = 0;
+            // NaN and ±∞ become ±f32::MAX, as `skelform::volume::sanitize` has them; without
+            // branches, so that it vectorises.
+            let mut put = |o: &mut std::mem::MaybeUninit<f32>, x: &T| {
+                let f = (x.to_f64() - level) as f32;
+                let finite = f.is_finite();
+                bad += u64::from(!finite);
+                let far = if f == f32::NEG_INFINITY { -f32::MAX } else { f32::MAX };
+                o.write(if finite { f } else { far });
+            };
+            // A contiguous layer (C or Fortran order, step 1) is read as a slice, which the
+            // compiler vectorises; ndarray's general iterator is several times slower.
+            match layer.as_slice() {
+                Some(row) => out.iter_mut().zip(row).for_each(|(o, x)| put(o, x)),
+                None => out.iter_mut().zip(layer.iter()).for_each(|(o, x)| put(o, x)),
+            }
+            bad
+        })
+        .sum();
+    // SAFETY: the loop above wrote all `count` elements: `slab`-sized chunks of the first
+    // `count`, one per layer `k < na`, each zipped with a layer of exactly `slab` samples.
+    unsafe { values.set_len(count) };
     let grid = Grid { origin: DVec3::ZERO, cell: step as f64, dims };
-    Ok(Samples { volume: Volume::from_values(grid, values), axis_of })
+    Ok(Samples { volume: Volume { grid, values, non_finite }, axis_of })
+}
+
+/// The samples' buffer of the last call, kept for the next: fresh memory costs a page fault
+/// a page (a sixth of a 256³ call's time), and callers extract volume after volume.
+static BUFFER: Mutex<Vec<f32>> = Mutex::new(Vec::new());
+
+/// The largest buffer kept between calls (1 GiB of samples).
+const KEEP: usize = 1 << 28;
+
+/// An empty buffer with room for `count` samples: the kept one when it is large enough,
+/// else a new one in huge pages where the system allows.
+fn take_buffer(count: usize) -> Vec<f32> {
+    let mut kept = std::mem::take(&mut *BUFFER.lock().unwrap_or_else(PoisonError::into_inner));
+    kept.clear();
+    if kept.capacity() >= count {
+        return kept;
+    }
+    drop(kept);
+    let values = Vec::with_capacity(count);
+    skelform::field::pages::advise_huge(values.as_ptr(), count);
+    values
+}
+
+/// Gives a buffer back for the next call.
+fn keep_buffer(values: Vec<f32>) {
+    if values.capacity() <= KEEP {
+        *BUFFER.lock().unwrap_or_else(PoisonError::into_inner) = values;
+    }
 }
 
 /// The gradient of the samples at lattice node `(i, j, k)`: central differences inside,
@@ -101,26 +151,34 @@ fn node_gradient(v: &Volume, n: [usize; 3]) -> [f64; 3] {
 fn gradient_at(v: &Volume, q: [f64; 3]) -> [f64; 3] {
     let mut base = [0usize; 3];
     let mut t = [0.0; 3];
+    // The axes along which the point lies between nodes: one for a vertex on an edge.
+    let mut free = [0usize; 3];
+    let mut nfree = 0;
     for m in 0..3 {
         let last = v.grid.dims[m] - 2;
         let c = (q[m].floor().max(0.0) as usize).min(last);
         base[m] = c;
         t[m] = (q[m] - c as f64).clamp(0.0, 1.0);
+        if t[m] == 1.0 {
+            base[m] += 1;
+            t[m] = 0.0;
+        }
+        if t[m] > 0.0 {
+            free[nfree] = m;
+            nfree += 1;
+        }
     }
     let mut g = [0.0; 3];
-    for corner in 0..8usize {
+    for corner in 0..1usize << nfree {
         let mut w = 1.0;
         let mut n = base;
-        for m in 0..3 {
-            if corner >> m & 1 == 1 {
+        for (bit, &m) in free[..nfree].iter().enumerate() {
+            if corner >> bit & 1 == 1 {
                 w *= t[m];
                 n[m] += 1;
             } else {
                 w *= 1.0 - t[m];
             }
-        }
-        if w == 0.0 {
-            continue;
         }
         let gn = node_gradient(v, n);
         for m in 0..3 {
@@ -137,9 +195,8 @@ struct Extracted {
 }
 
 impl Extracted {
-    /// Keeps the triangles `keep` says yes to and the vertices they use, renumbered in their
-    /// first-use order... of the kept vertices' original order (so the result is the same on
-    /// any thread count).
+    /// Keeps the triangles `keep` says yes to and the vertices they use, renumbered in
+    /// their original order (so the result is the same on any thread count).
     fn retain(&mut self, keep: impl Fn(&[u32; 3]) -> bool) {
         self.triangles.retain(|t| keep(t));
         let mut used = vec![u32::MAX; self.positions.len()];
@@ -241,7 +298,7 @@ pub(crate) fn marching_cubes_core<'py>(
         return Err(PyValueError::new_err("volume and mask must have the same shape."));
     }
     let control = run.control.clone();
-    let (positions, faces, normals, values) = run.run(py, || {
+    let result = run.run(py, || {
         install(&pool, || {
             let mesh = extract_mesh(&s.volume, &control).map_err(polygonize_error)?;
             let mut ex = Extracted { positions: mesh.positions, triangles: mesh.triangles };
@@ -269,7 +326,9 @@ pub(crate) fn marching_cubes_core<'py>(
             }
             Ok(conventions(&s, &ex, ascent))
         })
-    })??;
+    });
+    keep_buffer(s.volume.values);
+    let (positions, faces, normals, values) = result??;
     let n = positions.len() / 3;
     let f = faces.len() / 3;
     Ok((
@@ -299,36 +358,33 @@ fn conventions(
     ascent: bool,
 ) -> (Vec<f32>, Vec<i32>, Vec<f32>, Vec<f32>) {
     let v = &s.volume;
-    let per_vertex: Vec<([f32; 3], [f32; 3], f32)> = ex
-        .positions
-        .par_iter()
-        .map(|p| {
+    let n = ex.positions.len();
+    let mut positions = vec![0f32; 3 * n];
+    let mut normals = vec![0f32; 3 * n];
+    let mut values = vec![0f32; n];
+    positions
+        .par_chunks_mut(3)
+        .zip(normals.par_chunks_mut(3))
+        .zip(values.par_iter_mut())
+        .zip(ex.positions.par_iter())
+        .for_each(|(((pos, normal), value), p)| {
             let q = p.map(|c| f64::from(c) / v.grid.cell);
             let g = gradient_at(v, q);
             let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
-            let mut pos = [0f32; 3];
-            let mut normal = [0f32; 3];
             for (m, &axis) in s.axis_of.iter().enumerate() {
                 pos[axis] = p[m];
                 normal[axis] = if len > 0.0 { (-g[m] / len) as f32 } else { 0.0 };
             }
-            (pos, normal, (g[0].abs() + g[1].abs() + g[2].abs()) as f32)
-        })
-        .collect();
+            *value = (g[0].abs() + g[1].abs() + g[2].abs()) as f32;
+        });
     // The extractor winds counter-clockwise seen from the higher values in its own axes;
     // the array's axis order is a reflection of them when it is (2, 1, 0).
     let reflected = s.axis_of == [2, 1, 0];
     let flip = reflected != ascent;
-    let faces = ex
-        .triangles
-        .iter()
-        .flat_map(|t| {
-            let t = if flip { [t[0], t[2], t[1]] } else { *t };
-            t.map(|i| i as i32)
-        })
-        .collect();
-    let positions = per_vertex.iter().flat_map(|x| x.0).collect();
-    let normals = per_vertex.iter().flat_map(|x| x.1).collect();
-    let values = per_vertex.iter().map(|x| x.2).collect();
+    let mut faces = Vec::with_capacity(3 * ex.triangles.len());
+    for t in &ex.triangles {
+        let t = if flip { [t[0], t[2], t[1]] } else { *t };
+        faces.extend(t.map(|i| i as i32));
+    }
     (positions, faces, normals, values)
 }

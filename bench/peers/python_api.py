@@ -1,0 +1,105 @@
+"""skelform.marching_cubes from Python against scikit-image, PyMCubes and VTK's Flying Edges,
+on the same NumPy arrays in one process and one run.
+
+Every tool gets the same C-ordered float32 volume (the fields of peers.py) and extracts its
+zero level set; the timed call is the library call alone (for VTK, `Update()` of a
+`vtkFlyingEdges3D` over an image that wraps the array without a copy, normals off).
+skelform and scikit-image also return vertex normals and values, which PyMCubes and VTK (as
+set here) do not. The tools take turns within each round, so that a shared machine's drift
+falls on all of them alike; medians of --runs rounds; ratio = peer time / skelform time on one
+thread (above 1: skelform is faster). Writes bench/results/python.md and prints it.
+"""
+
+import argparse
+import os
+import statistics
+import time
+from pathlib import Path
+
+import numpy as np
+
+from peers import FIELDS, ROOT, machine, numpy_volume
+
+
+def tools():
+    import mcubes
+    import vtk
+    from skimage.measure import marching_cubes as sk
+    from vtk.util import numpy_support
+
+    import skelform
+
+    def flying_edges(vol):
+        n = vol.shape
+        img = vtk.vtkImageData()
+        img.SetDimensions(n[2], n[1], n[0])
+        img.GetPointData().SetScalars(
+            numpy_support.numpy_to_vtk(vol.ravel(), deep=False, array_type=vtk.VTK_FLOAT))
+        fe = vtk.vtkFlyingEdges3D()
+        fe.SetInputData(img)
+        fe.SetValue(0, 0.0)
+        fe.ComputeNormalsOff()
+        fe.ComputeGradientsOff()
+        fe.ComputeScalarsOff()
+        t = time.perf_counter()
+        fe.Update()
+        out = fe.GetOutput()
+        return time.perf_counter() - t, out.GetNumberOfPolys()
+
+    def timed(f):
+        def run(vol):
+            t = time.perf_counter()
+            faces = f(vol)[1]
+            return time.perf_counter() - t, len(faces)
+        return run
+
+    cores = os.cpu_count()
+    return {
+        "skelform, 1 thread": timed(lambda v: skelform.marching_cubes(v, 0.0, threads=1)),
+        f"skelform, {cores} threads": timed(lambda v: skelform.marching_cubes(v, 0.0, threads=cores)),
+        "VTK FlyingEdges3D": flying_edges,
+        "PyMCubes": timed(lambda v: mcubes.marching_cubes(v, 0.0)),
+        "scikit-image": timed(lambda v: sk(v, 0.0)),
+    }
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--sizes", default="128,256")
+    ap.add_argument("--fields", default="sphere,torus,gyroid")
+    ap.add_argument("--runs", type=int, default=5)
+    ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "python.md"))
+    a = ap.parse_args()
+    every = tools()
+    lines = ["# skelform.marching_cubes from Python against its peers", "",
+             f"One run of `bench/peers/python.sh` on {time.strftime('%Y-%m-%d')}: {machine()}.",
+             f"Medians of {a.runs} rounds in one process, the tools taking turns in each round;",
+             "ratio = tool time / skelform's single-threaded time is shown as the peer's slowdown",
+             "(above 1: skelform is faster).", "",
+             "| field | samples | tool | ms | ratio | triangles |", "|---|---|---|---|---|---|"]
+    started = time.time()
+    for field in a.fields.split(","):
+        for n in map(int, a.sizes.split(",")):
+            vol = np.ascontiguousarray(numpy_volume(field, n))
+            times = {name: [] for name in every}
+            faces = {}
+            for name, f in every.items():
+                f(vol)  # warm: imports, tables, first-touch of the pools
+            for _ in range(a.runs):
+                for name, f in every.items():
+                    t, faces[name] = f(vol)
+                    times[name].append(t)
+            base = statistics.median(times["skelform, 1 thread"])
+            for name in every:
+                med = statistics.median(times[name])
+                ratio = "" if name == "skelform, 1 thread" else f"{med / base:.2f}"
+                lines.append(f"| {field} | {n}³ | {name} | {med * 1000:.1f} | {ratio} | {faces[name]:,} |")
+                print(lines[-1], flush=True)
+    lines += ["", f"Total benchmark time: {time.time() - started:.0f} s."]
+    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(a.out).write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()
