@@ -100,6 +100,25 @@ fn a_glb_that_reuses_one_accessor_thousands_of_times_is_refused() {
 }
 
 #[test]
+fn an_empty_accessor_with_an_offset_past_its_view_is_an_error() {
+    // Found by fuzzing (`glb json`, seed 17718375055979339359): `count: 0` skipped the
+    // bounds check of `byteOffset`, and the reader sliced past the view and panicked.
+    let bin = triangle_bin();
+    for (accessor, offset) in [(2, 4_294_967_295u64), (0, 40), (2, 13)] {
+        let mut doc = triangle_doc(json!({ "byteLength": bin.len() }));
+        doc["accessors"][accessor]["count"] = json!(0);
+        doc["accessors"][accessor]["byteOffset"] = json!(offset);
+        let e = read_glb(&glb(&doc, &bin)).unwrap_err();
+        assert!(e.is_bad_input() && e.to_string().contains("runs past"), "{offset}: {e}");
+    }
+    // An empty accessor at the end of its view is fine (and makes an empty mesh part).
+    let mut doc = triangle_doc(json!({ "byteLength": bin.len() }));
+    doc["accessors"][2]["count"] = json!(0);
+    doc["accessors"][2]["byteOffset"] = json!(12);
+    assert!(read_glb(&glb(&doc, &bin)).is_ok());
+}
+
+#[test]
 fn data_uri_buffers_are_read() {
     let bin = triangle_bin();
     let base64 = encode64(&bin);

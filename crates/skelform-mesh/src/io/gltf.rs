@@ -645,8 +645,10 @@ impl<'a> Reader<'a> {
             .checked_add(v_len)
             .and_then(|end| bytes.get(v_off..end))
             .ok_or_else(|| json_err(format!("buffer view {view_i} runs past its buffer")))?;
+        // An empty accessor still names an offset, which must lie inside its view: the
+        // data is sliced from it (fuzzing found `byteOffset: 4294967295` with `count: 0`).
         let needed = if count == 0 {
-            Some(0)
+            Some(a_off)
         } else {
             (count - 1)
                 .checked_mul(stride)
