@@ -438,7 +438,8 @@ fn info(a: InfoArgs) -> Result<(), Failure> {
         };
         j["grid"] = match &lattice {
             Ok(l) => serde_json::json!({
-                "dims": l.dims, "cell": l.cell, "memory_bytes": l.memory, "streamed": l.streamed,
+                "dims": l.dims, "cell": l.cell, "memory_bytes": l.memory(),
+                "memory_for": l.need.what(), "streamed": l.streamed(),
             }),
             Err(e) => serde_json::json!({ "invalid": e.to_string() }),
         };
@@ -482,11 +483,14 @@ fn info(a: InfoArgs) -> Result<(), Failure> {
             Ok(l) => {
                 let [nx, ny, nz] = l.dims;
                 outln!("grid        {nx} × {ny} × {nz} samples, cell {:.6}", l.cell);
-                outln!(
-                    "memory      {:.1} MiB before triangles{}",
-                    l.memory as f64 / (1 << 20) as f64,
-                    if l.streamed { " (volume streamed in slabs)" } else { "" }
-                );
+                match l.need {
+                    skelform::MemoryNeed::Surface => outln!("memory      {}", l.need.what()),
+                    _ => outln!(
+                        "memory      {:.1} MiB: {}",
+                        l.memory() as f64 / (1 << 20) as f64,
+                        l.need.what()
+                    ),
+                }
             }
             Err(e) => outln!("grid        invalid: {e}"),
         }

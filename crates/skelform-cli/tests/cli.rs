@@ -483,3 +483,34 @@ fn a_dash_is_a_standard_stream() {
     assert!(stderr(&o).contains("give its --format"), "{}", stderr(&o));
     assert!(o.stdout.is_empty());
 }
+
+#[test]
+fn image_polygons_too_costly_to_build_are_refused_at_their_place_with_the_memory_need_in_info() {
+    let dir = tempfile::tempdir().unwrap();
+    // Two polygons at the largest image resolution with a kernel that is not separable:
+    // hundreds of billions of pixel operations, refused before any image is built.
+    let text = std::fs::read_to_string(example("skeleton/image-polygons.toml"))
+        .unwrap()
+        .replace("image_resolution = 80 ", "image_resolution = 1024")
+        .replace("[skeleton]\n", "[skeleton]\nkernel = \"wyvill\"\n");
+    let p = scene(dir.path(), "costly.toml", &text);
+    let out = dir.path().join("costly.ply");
+    let o = skelform(&["mesh", p.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(e.contains("costly.toml:") && e.contains("pixel operations"), "{e}");
+    assert!(e.contains("polygon_method = \"exact\""), "{e}");
+    assert!(!out.exists());
+    // `info` names what each method holds up front.
+    let o = skelform(&["info", &example("nonmanifold/sphere-and-square.toml")]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("MiB: every cube, region and cache of the full grid"),
+        "{}",
+        stdout(&o)
+    );
+    let o = skelform(&["info", &example("healed/diabolo.toml"), "--json"]);
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(j["grid"]["memory_bytes"].as_u64().unwrap() > 0, "{j}");
+    assert_eq!(j["grid"]["memory_for"], "the sampled volume, before triangles");
+}

@@ -45,7 +45,7 @@ use skelform_field::grid::GridError;
 
 use lattice::memory;
 
-pub use lattice::{LatticeOptions, MAX_THREADS, Resolution, Threads};
+pub use lattice::{LatticeOptions, MAX_THREADS, MemoryNeed, Resolution, Threads};
 
 /// Why a polygonizer could not run.
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]

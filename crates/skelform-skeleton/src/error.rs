@@ -122,6 +122,24 @@ pub enum SkeletonError {
     /// [`PolygonMethod::Image`](crate::PolygonMethod::Image) with a resolution outside
     /// 4 ..= [`MAX_IMAGE_RESOLUTION`](crate::MAX_IMAGE_RESOLUTION) pixels.
     BadImageResolution(usize),
+    #[error(
+        "the {polygons} image-method polygons would take about {work:.1e} pixel operations and {mib} MiB to build, over the limit of {max_work:.0e} operations and {max_mib} MiB: lower image_resolution or use polygon_method = \"exact\"",
+        work = *work as f64,
+        mib = bytes >> 20,
+        max_work = crate::image::MAX_IMAGE_WORK as f64,
+        max_mib = crate::image::MAX_IMAGE_BYTES >> 20
+    )]
+    /// Image-method polygons whose convolution images would together cost more than
+    /// [`MAX_IMAGE_WORK`](crate::MAX_IMAGE_WORK) pixel operations or
+    /// [`MAX_IMAGE_BYTES`](crate::MAX_IMAGE_BYTES) to build; refused before any is built.
+    ImageWorkTooLarge {
+        /// Polygons with the image method.
+        polygons: usize,
+        /// Estimated pixel operations for all of them.
+        work: u64,
+        /// Bytes held while building them.
+        bytes: u64,
+    },
     #[error("joint '{joint}' turns about {axes} axes, so it takes {axes} angles (got {got})")]
     /// A joint given another number of angles than it has rotation axes.
     AngleCount {

@@ -353,6 +353,20 @@ impl SkeletonField {
                 element,
             });
         }
+        // Image polygons are built here, before any sample: refuse a skeleton of them that
+        // would take hours or gigabytes to build.
+        crate::image::check_budget(
+            match blend {
+                Blend::Convolution(k) => k,
+                _ => Kernel::Gaussian,
+            },
+            skeleton.elements().iter().filter_map(|e| match (&e.shape, e.polygon_method()) {
+                (Shape::Polygon(p), PolygonMethod::Image { resolution }) => {
+                    Some((p, e.radii().0, resolution))
+                }
+                _ => None,
+            }),
+        )?;
         let mut items = Vec::with_capacity(skeleton.len());
         let mut bounds: Option<Aabb> = None;
         let mut min_radius = f64::INFINITY;

@@ -64,6 +64,93 @@ impl PolygonMethod {
     }
 }
 
+/// The most pixel operations (rasterizing plus filtering, summed over every image polygon of
+/// a skeleton) that building a field may take: about ten seconds of one core. The filter of
+/// the non-separable kernels grows with the fourth power of the resolution, so a handful of
+/// polygons at the largest resolution would otherwise run for hours before the first sample.
+pub const MAX_IMAGE_WORK: u64 = 10_000_000_000;
+
+/// The most bytes of convolution images a field may hold (all image polygons together).
+pub const MAX_IMAGE_BYTES: u64 = 1 << 30;
+
+/// Where a polygon's image lies and how finely it is sampled, known before any pixel is
+/// touched, so that the cost of the whole skeleton can be refused up front.
+struct Raster {
+    /// The polygon's vertices in radii, plane frame.
+    flat: Vec<DVec2>,
+    /// Position of node (0, 0), in radii.
+    lo: DVec2,
+    /// Pixel size, in radii.
+    px: f64,
+    nx: usize,
+    ny: usize,
+    /// The filter's half-width in pixels.
+    reach: isize,
+}
+
+impl Raster {
+    fn new(kernel: Kernel, poly: &Polygon, radius: f64, resolution: usize) -> Raster {
+        let flat: Vec<DVec2> = poly.flat_vertices().iter().map(|v| *v / radius).collect();
+        let (mut lo, mut hi) = flat
+            .iter()
+            .fold((DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)), |(l, h), v| {
+                (l.min(*v), h.max(*v))
+            });
+        let margin = kernel.support();
+        lo -= DVec2::splat(margin);
+        hi += DVec2::splat(margin);
+        let size = hi - lo;
+        let px = size.max_element() / resolution as f64;
+        // At most resolution + 1 nodes along the longer side, fewer along the other.
+        let nx = (size.x / px).ceil() as usize + 1;
+        let ny = (size.y / px).ceil() as usize + 1;
+        let reach = (kernel.support() / px).ceil() as isize;
+        Raster { flat, lo, px, nx, ny, reach }
+    }
+
+    /// Pixel operations to build the image: 16 coverage samples per pixel, each testing
+    /// every edge, then the filter (two passes of the 1-D kernel for the separable Gaussian,
+    /// the 2-D kernel scattered from every pixel otherwise; an upper bound, since empty
+    /// pixels are skipped).
+    fn work(&self, kernel: Kernel) -> u64 {
+        let pixels = (self.nx as u64).saturating_mul(self.ny as u64);
+        let side = 2 * self.reach.unsigned_abs() as u64 + 1;
+        let cover =
+            pixels.saturating_mul((SUBSAMPLES * SUBSAMPLES) as u64 * self.flat.len() as u64);
+        let filter = if kernel == Kernel::Gaussian {
+            pixels.saturating_mul(2 * side)
+        } else {
+            pixels.saturating_mul(side.saturating_mul(side))
+        };
+        cover.saturating_add(filter)
+    }
+
+    /// Bytes held while the image is built (coverage, a row pass, the image).
+    fn bytes(&self) -> u64 {
+        (self.nx as u64).saturating_mul(self.ny as u64).saturating_mul(3 * 8)
+    }
+}
+
+/// Refuses a skeleton whose image polygons (under `kernel`) would together take more than
+/// [`MAX_IMAGE_WORK`] pixel operations or [`MAX_IMAGE_BYTES`] of images to build, before
+/// any is built. `polygons` gives each image polygon with its radius and resolution.
+pub(crate) fn check_budget<'a>(
+    kernel: Kernel,
+    polygons: impl Iterator<Item = (&'a Polygon, f64, usize)>,
+) -> Result<(), SkeletonError> {
+    let (mut work, mut bytes, mut count) = (0u64, 0u64, 0usize);
+    for (poly, radius, resolution) in polygons {
+        let r = Raster::new(kernel, poly, radius, resolution);
+        work = work.saturating_add(r.work(kernel));
+        bytes = bytes.saturating_add(r.bytes());
+        count += 1;
+    }
+    if work > MAX_IMAGE_WORK || bytes > MAX_IMAGE_BYTES {
+        return Err(SkeletonError::ImageWorkTooLarge { polygons: count, work, bytes });
+    }
+    Ok(())
+}
+
 /// A polygon's convolution image, ready for lookups.
 #[derive(Clone, Debug)]
 pub(crate) struct ImagePolygon {
@@ -92,19 +179,7 @@ impl ImagePolygon {
         resolution: usize,
     ) -> Self {
         let (e1, e2, n) = poly.frame();
-        let flat: Vec<DVec2> = poly.flat_vertices().iter().map(|v| *v / radius).collect();
-        let (mut lo, mut hi) = flat
-            .iter()
-            .fold((DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)), |(l, h), v| {
-                (l.min(*v), h.max(*v))
-            });
-        let margin = kernel.support();
-        lo -= DVec2::splat(margin);
-        hi += DVec2::splat(margin);
-        let size = hi - lo;
-        let px = size.max_element() / resolution as f64;
-        let nx = (size.x / px).ceil() as usize + 1;
-        let ny = (size.y / px).ceil() as usize + 1;
+        let Raster { flat, lo, px, nx, ny, reach } = Raster::new(kernel, poly, radius, resolution);
 
         // Coverage of the pixel around each node.
         let mut cover = vec![0.0; nx * ny];
@@ -125,7 +200,6 @@ impl ImagePolygon {
         }
 
         // Filter: the kernel of the in-plane distance, times the pixel's area.
-        let reach = (kernel.support() / px).ceil() as isize;
         let mut data = vec![0.0; nx * ny];
         let area = px * px;
         if kernel == Kernel::Gaussian {

@@ -105,3 +105,40 @@ fn image_method_gradient_is_the_derivative_of_its_interpolant() {
     .with_polygon_method(PolygonMethod::Image { resolution: 2 });
     assert!(bad.unwrap_err().to_string().contains("between 4 and 1024"));
 }
+
+/// A skeleton of `count` unit squares, each with the image method at `resolution`.
+fn squares(count: usize, resolution: usize) -> Skeleton {
+    let mut s = Skeleton::new();
+    for i in 0..count {
+        let z = i as f64;
+        let v = |x: f64, y: f64| DVec3::new(x, y, z);
+        let square = Polygon::new(vec![v(0.0, 0.0), v(1.0, 0.0), v(1.0, 1.0), v(0.0, 1.0)]);
+        let e = Element::new(Shape::Polygon(square.unwrap()), 0.5)
+            .unwrap()
+            .with_polygon_method(PolygonMethod::Image { resolution })
+            .unwrap();
+        s.push(e).unwrap();
+    }
+    s
+}
+
+#[test]
+fn image_polygons_past_the_work_budget_are_refused_before_any_is_built() {
+    // The non-separable filter grows with the resolution's fourth power: one square at 1024
+    // pixels with the Wyvill kernel is ~3·10¹¹ operations, refused before any image exists
+    // (were it built, this test would run for minutes).
+    let err =
+        SkeletonField::new(&squares(1, 1024), Blend::Convolution(Kernel::Wyvill)).unwrap_err();
+    let msg = err.to_string();
+    assert!(msg.contains("image_resolution") && msg.contains("polygon_method"), "{msg}");
+    assert!(msg.contains("1 image-method polygons"), "{msg}");
+    // Many polygons that are cheap one by one add up (memory: 3 × 8 bytes per pixel).
+    let err =
+        SkeletonField::new(&squares(60, 1024), Blend::Convolution(Kernel::Gaussian)).unwrap_err();
+    assert!(err.to_string().contains("60 image-method polygons"), "{err}");
+    // What the dissertation used (80 pixels) builds, for one polygon and for a hundred.
+    SkeletonField::new(&squares(1, 80), Blend::Convolution(Kernel::Wyvill)).unwrap();
+    SkeletonField::new(&squares(100, 80), Blend::Convolution(Kernel::Gaussian)).unwrap();
+    // High resolutions still build with the separable kernel.
+    SkeletonField::new(&squares(1, 512), Blend::Convolution(Kernel::Gaussian)).unwrap();
+}

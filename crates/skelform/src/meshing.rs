@@ -1,11 +1,12 @@
 //! From a scene and overrides to a polygonizer call: the one place that knows which
 //! polygonizer each [`Method`] is and how a scene's settings map onto its options.
 
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use skelform_field::DVec3;
+use skelform_field::{DVec3, RegionField};
 use skelform_mesh::Mesh;
-use skelform_polygonize::{LatticeOptions, Resolution, grid};
+use skelform_polygonize::{LatticeOptions, MemoryNeed, Resolution, grid};
 use skelform_polygonize::{continuation, healed, nonmanifold};
 use skelform_scene::Method;
 
@@ -64,31 +65,61 @@ pub struct Lattice {
     pub dims: [usize; 3],
     /// Cell side.
     pub cell: f64,
-    /// Bytes the grid method needs before any triangle exists.
-    pub memory: u64,
+    /// The method the run would use (the scene's, or the override).
+    pub method: Method,
+    /// What that method holds before it has made any of the surface; the run is refused up
+    /// front when this is over the memory limit.
+    pub need: MemoryNeed,
+}
+
+impl Lattice {
+    /// Bytes needed up front ([`MemoryNeed::bytes`]).
+    pub fn memory(&self) -> u64 {
+        self.need.bytes()
+    }
+
     /// Whether the grid method would stream the volume slab by slab.
-    pub streamed: bool,
+    pub fn streamed(&self) -> bool {
+        matches!(self.need, MemoryNeed::Lattice { streamed: true, .. })
+    }
+}
+
+/// A method with its options, ready to run: what a scene and overrides come to.
+enum Plan {
+    Grid(grid::Options),
+    NonManifold(Arc<dyn RegionField>, nonmanifold::Options),
+    Continuation(continuation::Options),
+    Healed(healed::Options),
+}
+
+impl Plan {
+    fn lattice(&self) -> &LatticeOptions {
+        match self {
+            Plan::Grid(o) => &o.lattice,
+            Plan::NonManifold(_, o) => &o.lattice,
+            Plan::Continuation(o) => &o.lattice,
+            Plan::Healed(o) => &o.lattice,
+        }
+    }
 }
 
 impl Scene {
     /// The lattice that meshing with `overrides` would use (the grid method's; the
-    /// continuation methods visit part of the same lattice). An error when it is too large.
+    /// continuation methods visit part of the same lattice), with what the method needs up
+    /// front. An error when the overrides are invalid or the lattice too large.
     pub fn lattice(&self, overrides: &Overrides) -> Result<Lattice, Error> {
-        let lattice = LatticeOptions {
-            domain: self.domain,
-            resolution: resolution(self, overrides)?,
-            ..LatticeOptions::default()
-        };
-        let g = lattice
+        let (method, plan) = self.plan(overrides)?;
+        let g = plan
+            .lattice()
             .grid()
             .map_err(|e| Error::Polygonize { origin: self.origin.clone(), source: e.into() })?;
-        let streamed = overrides.streaming.unwrap_or_default().streams(&g);
-        Ok(Lattice {
-            dims: g.dims,
-            cell: g.cell,
-            memory: grid::memory_needed(&g, streamed),
-            streamed,
-        })
+        let need = match &plan {
+            Plan::Grid(o) => grid::memory_need(&g, o),
+            Plan::NonManifold(_, o) => nonmanifold::memory_need(&g, o),
+            Plan::Continuation(o) => continuation::memory_need(&g, o),
+            Plan::Healed(_) => healed::memory_need(&g),
+        };
+        Ok(Lattice { dims: g.dims, cell: g.cell, method, need })
     }
 
     /// Meshes the scene with its own settings, as changed by `overrides`.
@@ -108,7 +139,9 @@ impl Scene {
         self.mesh_here(overrides)
     }
 
-    fn mesh_here(&self, o: &Overrides) -> Result<Meshed, Error> {
+    /// The one place that knows which polygonizer each [`Method`] is and how the scene's
+    /// settings and the overrides map onto its options.
+    fn plan(&self, o: &Overrides) -> Result<(Method, Plan), Error> {
         let method = o.method.unwrap_or(self.method);
         let resolution = resolution(self, o)?;
         let tolerance = match o.tolerance {
@@ -137,16 +170,14 @@ impl Scene {
             control: o.control.clone(),
             threads: o.threads.clone().unwrap_or_default(),
         };
-        let field = self.field.as_ref();
-        let started = Instant::now();
-        let result = match method {
+        let plan = match method {
             Method::Grid => {
                 let options = grid::Options {
                     lattice,
                     streaming: o.streaming.unwrap_or_default(),
                     workspace: o.workspace.clone(),
                 };
-                grid::polygonize(field, &options).map(|(m, s)| (m, Stats::Grid(s)))
+                Plan::Grid(options)
             }
             Method::NonManifold => {
                 let Some(setup) = self.nonmanifold_regions() else {
@@ -173,8 +204,7 @@ impl Scene {
                         .unwrap_or(defaults.max_cells),
                     ..defaults
                 };
-                nonmanifold::polygonize(setup.field.as_ref(), &options)
-                    .map(|(m, s)| (m, Stats::NonManifold(Box::new(s))))
+                Plan::NonManifold(setup.field, options)
             }
             Method::Continuation | Method::Tetra => {
                 let c = &self.continuation;
@@ -192,7 +222,7 @@ impl Scene {
                     max_cells: o.max_cells.or(c.max_cells).unwrap_or(defaults.max_cells),
                     limit: o.limit.or(c.limit),
                 };
-                continuation::polygonize(field, &options).map(|(m, s)| (m, Stats::Continuation(s)))
+                Plan::Continuation(options)
             }
             Method::Healed => {
                 let h = &self.healed;
@@ -206,7 +236,25 @@ impl Scene {
                     split_sheets: h.split_sheets,
                     ..healed::Options::default()
                 };
-                healed::polygonize(field, &options).map(|(m, s)| (m, Stats::Healed(Box::new(s))))
+                Plan::Healed(options)
+            }
+        };
+        Ok((method, plan))
+    }
+
+    fn mesh_here(&self, o: &Overrides) -> Result<Meshed, Error> {
+        let (method, plan) = self.plan(o)?;
+        let field = self.field.as_ref();
+        let started = Instant::now();
+        let result = match plan {
+            Plan::Grid(o) => grid::polygonize(field, &o).map(|(m, s)| (m, Stats::Grid(s))),
+            Plan::NonManifold(regions, o) => nonmanifold::polygonize(regions.as_ref(), &o)
+                .map(|(m, s)| (m, Stats::NonManifold(Box::new(s)))),
+            Plan::Continuation(o) => {
+                continuation::polygonize(field, &o).map(|(m, s)| (m, Stats::Continuation(s)))
+            }
+            Plan::Healed(o) => {
+                healed::polygonize(field, &o).map(|(m, s)| (m, Stats::Healed(Box::new(s))))
             }
         };
         let (mesh, stats) =

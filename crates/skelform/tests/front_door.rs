@@ -122,3 +122,42 @@ fn an_empty_domain_is_explained() {
     let why = m.no_surface(&scene).unwrap();
     assert!(why.starts_with("<empty>: no surface") && why.contains("outside"), "{why}");
 }
+
+#[test]
+fn the_lattice_tells_each_methods_up_front_need_and_a_run_is_refused_by_it() {
+    use skelform::MemoryNeed;
+    let scene = Scene::load(example("torus.toml")).unwrap();
+    let at = |method, resolution, seeds: Option<Vec<DVec3>>| {
+        let o = Overrides {
+            method: Some(method),
+            resolution: Some(Resolution::Samples(resolution)),
+            seeds,
+            ..Overrides::default()
+        };
+        (scene.lattice(&o).unwrap(), o)
+    };
+    let (grid, _) = at(Method::Grid, 64, None);
+    assert!(matches!(grid.need, MemoryNeed::Lattice { streamed: false, .. }), "{grid:?}");
+    assert_eq!(grid.method, Method::Grid);
+    // A volume past the streaming threshold is streamed by the grid method, never by healed,
+    // which looks back at the whole volume.
+    let (streamed, _) = at(Method::Grid, 600, None);
+    assert!(streamed.streamed(), "{streamed:?}");
+    let (healed, _) = at(Method::Healed, 600, None);
+    assert!(!healed.streamed() && healed.memory() > streamed.memory(), "{healed:?}");
+    // Continuation without seeds searches the domain; with seeds nothing is known up front.
+    let (search, o) = at(Method::Continuation, 256, Some(Vec::new()));
+    assert!(matches!(search.need, MemoryNeed::Search(b) if b > 0), "{search:?}");
+    let (seeded, _) = at(Method::Tetra, 256, Some(vec![DVec3::ZERO]));
+    assert_eq!(seeded.need, MemoryNeed::Surface);
+    assert_eq!(seeded.memory(), 0);
+    // What the lattice says is what a run is refused by, before any work.
+    let limit = search.memory() - 1;
+    let err = scene.mesh(&Overrides { max_memory: Some(limit), ..o }).unwrap_err();
+    assert!(err.is_input(), "{err}");
+    assert!(err.to_string().contains("over the limit"), "{err}");
+    // The non-manifold full-grid mode counts every cube.
+    let foam = Scene::load(example("nonmanifold/sphere-and-square.toml")).unwrap();
+    let full = foam.lattice(&Overrides::default()).unwrap();
+    assert!(matches!(full.need, MemoryNeed::FullGrid(b) if b > 1 << 20), "{full:?}");
+}

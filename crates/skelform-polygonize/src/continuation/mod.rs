@@ -213,6 +213,16 @@ pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats),
     options.lattice.threads.install(|| polygonize_here(field, options))
 }
 
+/// What a run with `options` on `grid` holds before it finds the surface: the coarse search
+/// (its points and a value each) when no seed is given; then what grows with the surface.
+pub fn memory_need(grid: &Grid, options: &Options) -> crate::MemoryNeed {
+    if options.seeds.is_empty() {
+        crate::MemoryNeed::Search(CoarseSearch::need(grid, options.search_stride, 8))
+    } else {
+        crate::MemoryNeed::Surface
+    }
+}
+
 /// [`polygonize`] on the current thread pool.
 fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats), Error> {
     let grid = options.lattice.grid()?;
@@ -223,9 +233,7 @@ fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats)
         )));
     }
     let mut run = Run::new(field, grid, options);
-    if options.seeds.is_empty() {
-        CoarseSearch::refuse(&grid, options.search_stride, 8, options.lattice.max_memory)?;
-    }
+    crate::lattice::memory::refuse(memory_need(&grid, options), options.lattice.max_memory, &grid)?;
     let t = Instant::now();
     let starts = find_starts(&mut run)?;
     run.starts_bytes = vec_bytes(&starts);

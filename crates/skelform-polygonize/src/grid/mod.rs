@@ -30,7 +30,7 @@ use skelform_field::grid::{Grid, GridError, LayerSampling, Volume, sample};
 use skelform_mesh::Mesh;
 
 use crate::Error;
-use crate::lattice::LatticeOptions;
+use crate::lattice::{LatticeOptions, MemoryNeed};
 use crate::refine::{Bracket, RootOptions, gradient_normals, project_to_surface, refine_roots};
 pub use extract::{
     Cancelled, Extraction, GridVertex, LayerSource, Place, Positions, SLAB, SampledVertex,
@@ -166,6 +166,12 @@ pub fn memory_needed(grid: &Grid, streamed: bool) -> u64 {
         Volume::bytes_for(grid)
     };
     samples + threads * layer * 4 * 30 + layer * 8 * grid.dims[2] as u64 / 8
+}
+
+/// What a run with `options` on `grid` holds before any triangle (see [`MemoryNeed`]).
+pub fn memory_need(grid: &Grid, options: &Options) -> MemoryNeed {
+    let streamed = options.streaming.streams(grid);
+    MemoryNeed::Lattice { bytes: memory_needed(grid, streamed), streamed }
 }
 
 /// Samples of a field, one layer at a time, for streamed extraction.

@@ -351,16 +351,21 @@ pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats),
     options.lattice.threads.install(|| polygonize_here(field, options))
 }
 
+/// What a healed run on `grid` holds before any triangle: the whole sampled volume (healing
+/// looks back at it), never streamed.
+pub fn memory_need(grid: &Grid) -> crate::MemoryNeed {
+    crate::MemoryNeed::Lattice { bytes: grid::memory_needed(grid, false), streamed: false }
+}
+
 /// [`polygonize`] on the current thread pool.
 fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats), Error> {
     check_options(options)?;
     let lattice = &options.lattice;
     let control = &lattice.control;
     let grid = lattice.grid()?;
-    let needed = grid::memory_needed(&grid, false);
-    if needed > lattice.max_memory {
-        return Err(Error::TooMuchMemory { needed, limit: lattice.max_memory, dims: grid.dims });
-    }
+    let need = memory_need(&grid);
+    crate::lattice::memory::refuse(need, lattice.max_memory, &grid)?;
+    let needed = need.bytes();
     let h = grid.cell;
     let mut stats = Stats { grid_dims: grid.dims, cell: h, ..Stats::default() };
 

@@ -15,6 +15,8 @@
 use std::collections::{HashMap, HashSet};
 use std::mem::size_of;
 
+use skelform_field::grid::Grid;
+
 use crate::Error;
 
 /// Propagation compares what is held with the limit after this many cubes (and after each
@@ -50,6 +52,15 @@ pub(crate) fn vec_bytes<T>(v: &Vec<T>) -> u64 {
 /// full to the brim): for refusing up front what cannot fit, `None` on overflow.
 pub(crate) fn entries_bytes<K, V>(entries: u64) -> Option<u64> {
     entries.checked_mul(size_of::<(K, V)>() as u64 + 1)
+}
+
+/// Refuses, before anything is allocated, a run whose up-front need is over `limit`.
+pub(crate) fn refuse(need: super::MemoryNeed, limit: u64, grid: &Grid) -> Result<(), Error> {
+    let needed = need.bytes();
+    if needed > limit {
+        return Err(Error::TooMuchMemory { needed, limit, dims: grid.dims });
+    }
+    Ok(())
 }
 
 /// The error of a run whose account reached the limit.

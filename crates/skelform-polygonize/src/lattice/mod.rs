@@ -30,6 +30,58 @@ pub enum Resolution {
     Cell(f64),
 }
 
+/// What a run is known to hold before it starts, by the kind of thing that is held: each
+/// method's `memory_need` says it from the lattice and options alone, so that a front end can
+/// show it (`skelform info`) and a run refuses it up front when it is over
+/// [`LatticeOptions::max_memory`]. Every byte count is `u64::MAX` when it does not fit in a
+/// `u64`. Past it, every run holds its mesh, and the propagating methods their maps, which
+/// grow with the surface and are counted as the run goes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MemoryNeed {
+    /// The sampled volume (or, streamed, a few slabs of it) and the extraction buffers: the
+    /// grid and healed methods, before any triangle.
+    Lattice {
+        /// Bytes.
+        bytes: u64,
+        /// Whether the volume is sampled slab by slab as it is extracted.
+        streamed: bool,
+    },
+    /// The non-manifold full-grid mode's list of every cube, its visited set, the region at
+    /// every lattice point and its face and edge caches, at the least.
+    FullGrid(u64),
+    /// The coarse search of the domain for a surface (propagating methods without seeds).
+    Search(u64),
+    /// Nothing known up front: a seeded propagating run holds only what grows with the
+    /// surface it finds.
+    Surface,
+}
+
+impl MemoryNeed {
+    /// Bytes needed up front (0 for [`MemoryNeed::Surface`]).
+    pub fn bytes(&self) -> u64 {
+        match *self {
+            MemoryNeed::Lattice { bytes, .. } | MemoryNeed::FullGrid(bytes) => bytes,
+            MemoryNeed::Search(bytes) => bytes,
+            MemoryNeed::Surface => 0,
+        }
+    }
+
+    /// What the bytes are for, in a few words.
+    pub fn what(&self) -> &'static str {
+        match self {
+            MemoryNeed::Lattice { streamed: false, .. } => "the sampled volume, before triangles",
+            MemoryNeed::Lattice { streamed: true, .. } => {
+                "slabs of the volume streamed as they are extracted, before triangles"
+            }
+            MemoryNeed::FullGrid(_) => {
+                "every cube, region and cache of the full grid, at the least"
+            }
+            MemoryNeed::Search(_) => "the coarse search; then what grows with the surface",
+            MemoryNeed::Surface => "only what grows with the surface (seeded)",
+        }
+    }
+}
+
 /// The lattice a polygonizer works on and how it places vertices, shared by all of them.
 ///
 /// Not every polygonizer reads every field: the non-manifold polygonizer places vertices by

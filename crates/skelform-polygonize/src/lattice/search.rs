@@ -6,8 +6,6 @@
 use glam::DVec3;
 use skelform_field::grid::Grid;
 
-use crate::Error;
-
 /// A lattice of every `stride`-th point of a grid, the last point of each axis included.
 pub(crate) struct CoarseSearch {
     /// The stride, in cells (at least 1).
@@ -19,25 +17,15 @@ pub(crate) struct CoarseSearch {
 }
 
 impl CoarseSearch {
-    /// Refuses, before anything is allocated, a search whose points (and a value of
-    /// `value_bytes` each) need more than `max_memory` bytes.
-    pub fn refuse(
-        grid: &Grid,
-        stride: usize,
-        value_bytes: u64,
-        max_memory: u64,
-    ) -> Result<(), Error> {
+    /// Bytes the search's points (and a value of `value_bytes` each) take; `u64::MAX` when
+    /// that does not fit in a `u64`.
+    pub fn need(grid: &Grid, stride: usize, value_bytes: u64) -> u64 {
         let stride = stride.max(1);
         let per_point = size_of::<DVec3>() as u64 + value_bytes;
-        let needed = grid
-            .dims
+        grid.dims
             .iter()
             .try_fold(per_point, |n, &d| n.checked_mul(((d - 1).div_ceil(stride) + 1) as u64))
-            .unwrap_or(u64::MAX);
-        if needed > max_memory {
-            return Err(Error::TooMuchMemory { needed, limit: max_memory, dims: grid.dims });
-        }
-        Ok(())
+            .unwrap_or(u64::MAX)
     }
 
     /// The coarse lattice of `grid` at `stride` cells (0 is taken as 1).

@@ -288,14 +288,7 @@ fn polygonize_here(regions: &dyn RegionField, options: &Options) -> Result<(Mesh
         stats: Stats { cell: grid.cell, epsilon: eps, ..Stats::default() },
     };
     let max_memory = options.lattice.max_memory;
-    if options.full_grid {
-        let needed = full_grid_need(&grid).unwrap_or(u64::MAX);
-        if needed > max_memory {
-            return Err(Error::TooMuchMemory { needed, limit: max_memory, dims: grid.dims });
-        }
-    } else if options.seeds.is_empty() {
-        CoarseSearch::refuse(&grid, options.search_stride, 4, max_memory)?;
-    }
+    memory::refuse(memory_need(&grid, options), max_memory, &grid)?;
     let starts = if options.full_grid { run.all_cubes() } else { run.starts()? };
     run.propagate(starts)?;
     run.orient();
@@ -303,6 +296,19 @@ fn polygonize_here(regions: &dyn RegionField, options: &Options) -> Result<(Mesh
     let mut stats = run.stats;
     stats.time = started.elapsed();
     Ok((mesh, stats))
+}
+
+/// What a run with `options` on `grid` holds before it finds the surface: the full grid's
+/// cubes and caches in full-grid mode, else the coarse search (its points and a region
+/// each) when no seed is given; then what grows with the surface.
+pub fn memory_need(grid: &Grid, options: &Options) -> crate::MemoryNeed {
+    if options.full_grid {
+        crate::MemoryNeed::FullGrid(full_grid_need(grid).unwrap_or(u64::MAX))
+    } else if options.seeds.is_empty() {
+        crate::MemoryNeed::Search(CoarseSearch::need(grid, options.search_stride, 4))
+    } else {
+        crate::MemoryNeed::Surface
+    }
 }
 
 /// What full-grid mode holds at the least, from the lattice alone (`None` when it does not
