@@ -165,7 +165,8 @@ struct CheckArgs {
     #[arg(long)]
     json: bool,
     /// Exit with status 3 when the mesh is not a clean closed manifold (open, non-manifold,
-    /// inconsistently oriented, invalid or duplicate faces), for print pipelines and scripts.
+    /// inconsistently oriented, invalid, duplicate or coincident faces, folded edges, and
+    /// with --field vertices off the surface), for print pipelines and scripts.
     #[arg(long)]
     strict: bool,
     /// Weld vertices within TOL (default 0: coincident) before the analysis, e.g. to see a
@@ -179,6 +180,17 @@ struct CheckArgs {
         default_missing_value = "0"
     )]
     weld: Option<f32>,
+    /// Also measure how far the vertices lie from this scene's surface (|f| / |∇f| at each
+    /// vertex): a mesh of the right topology can still have vertices off the surface.
+    #[arg(long, value_name = "SCENE")]
+    field: Option<PathBuf>,
+    /// With --field: the scene's pose (see `skelform mesh --pose`).
+    #[arg(long, requires = "field")]
+    pose: Option<String>,
+    /// With --field: vertices farther than this from the surface are counted (and, with
+    /// --strict, are a defect). Default: 1% of the scene's cell.
+    #[arg(long, value_name = "DIST", requires = "field")]
+    field_tolerance: Option<f64>,
 }
 
 #[derive(Args)]
@@ -393,17 +405,52 @@ fn check(a: CheckArgs) -> Result<(), Failure> {
         Some(t) => skelform::mesh::check::check_welded(&mesh, t),
         None => skelform::mesh::check::check(&mesh),
     };
+    let distance = match &a.field {
+        Some(path) => Some(off_surface(&mesh, path, a.pose.as_deref(), a.field_tolerance)?),
+        None => None,
+    };
     if a.json {
-        let json = serde_json::to_string_pretty(&report)
+        let mut json = serde_json::to_value(&report)
+            .map_err(|e| runtime(anyhow!("cannot serialise the report: {e}")))?;
+        if let Some(d) = &distance {
+            json["surface_distance"] = serde_json::json!(d);
+        }
+        let json = serde_json::to_string_pretty(&json)
             .map_err(|e| runtime(anyhow!("cannot serialise the report: {e}")))?;
         outln!("{json}");
     } else {
         outln!("{}", a.mesh.display());
         outp!("{report}");
+        if let Some(d) = &distance {
+            outln!(
+                "off surface   max {:.3e} (vertex {}), mean {:.3e}; {} of {} vertices past {:.3e}{}",
+                d.max,
+                d.max_at.map_or("-".to_string(), |v| v.to_string()),
+                d.mean,
+                d.over,
+                d.vertices,
+                d.tolerance,
+                if d.unmeasured > 0 {
+                    format!(" ({} where the gradient vanishes)", d.unmeasured)
+                } else {
+                    String::new()
+                }
+            );
+        }
     }
     let mut defects = report.problems();
     if report.duplicate_faces > 0 {
         defects.push(format!("{} duplicate faces", report.duplicate_faces));
+    }
+    if report.coincident_faces > 0 {
+        defects.push(format!("{} coincident faces", report.coincident_faces));
+    }
+    if report.folded_edges > 0 {
+        defects.push(format!("{} folded edges", report.folded_edges));
+    }
+    if let Some(d) = distance.as_ref().filter(|d| d.over > 0) {
+        defects
+            .push(format!("{} vertices off the surface by more than {:.3e}", d.over, d.tolerance));
     }
     if a.strict && !defects.is_empty() {
         return Err(Failure {
@@ -416,6 +463,30 @@ fn check(a: CheckArgs) -> Result<(), Failure> {
         });
     }
     Ok(())
+}
+
+/// How far `mesh`'s vertices lie from the surface of the scene at `path`.
+fn off_surface(
+    mesh: &skelform::Mesh,
+    path: &Path,
+    pose: Option<&str>,
+    tolerance: Option<f64>,
+) -> Result<skelform::SurfaceDistance, Failure> {
+    let scene = run::load_scene(path, pose)?;
+    if scene.regions_only {
+        return Err(input(anyhow!(
+            "{}: the scene has [regions] and no [field], so it has no surface to measure against",
+            path.display()
+        )));
+    }
+    let tolerance = match tolerance {
+        Some(t) if !(t.is_finite() && t >= 0.0) => {
+            return Err(input(anyhow!("--field-tolerance takes a distance of 0 or more")));
+        }
+        Some(t) => t,
+        None => 0.01 * scene.lattice(&skelform::Overrides::default()).map_err(run::failure)?.cell,
+    };
+    Ok(skelform::surface_distance(scene.field.as_ref(), mesh, tolerance))
 }
 
 fn info(a: InfoArgs) -> Result<(), Failure> {

@@ -514,3 +514,64 @@ fn image_polygons_too_costly_to_build_are_refused_at_their_place_with_the_memory
     assert!(j["grid"]["memory_bytes"].as_u64().unwrap() > 0, "{j}");
     assert_eq!(j["grid"]["memory_for"], "the sampled volume, before triangles");
 }
+
+#[test]
+fn check_measures_vertices_against_a_scenes_surface() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("sphere.ply");
+    let sphere = example("sphere.toml");
+    let o = skelform(&["mesh", &sphere, "-o", out.to_str().unwrap(), "--resolution", "32", "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // Against its own scene: every vertex on the surface (root finding to 10⁻⁴ of a cell).
+    let o = skelform(&["check", out.to_str().unwrap(), "--field", &sphere, "--json", "--strict"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let d = &j["surface_distance"];
+    assert_eq!(d["over"], 0, "{d}");
+    assert!(d["max"].as_f64().unwrap() < 1e-5, "{d}");
+    assert_eq!(d["vertices"], j["vertices"]);
+    // Against a sphere of radius 0.81 (the mesh's is 0.8): every vertex 0.01 off, past the
+    // default tolerance of 1% of that scene's cell; --strict makes it a defect.
+    let bigger = scene(
+        dir.path(),
+        "bigger.toml",
+        &std::fs::read_to_string(&sphere).unwrap().replace("- 0.8\"", "- 0.81\""),
+    );
+    let o = skelform(&["check", out.to_str().unwrap(), "--field", bigger.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = stdout(&o);
+    assert!(text.contains("off surface   max 1.00"), "{text}");
+    let o = skelform(&[
+        "check",
+        out.to_str().unwrap(),
+        "--field",
+        bigger.to_str().unwrap(),
+        "--strict",
+    ]);
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    assert!(stderr(&o).contains("vertices off the surface by more than"), "{}", stderr(&o));
+    // A looser tolerance accepts it.
+    let o = skelform(&[
+        "check",
+        out.to_str().unwrap(),
+        "--field",
+        bigger.to_str().unwrap(),
+        "--field-tolerance",
+        "0.02",
+        "--strict",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // A scene of regions has no surface to measure against; a bad tolerance is refused.
+    let regions = example("nonmanifold/saucer-and-square.toml");
+    let o = skelform(&["check", out.to_str().unwrap(), "--field", &regions]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("no [field]"), "{}", stderr(&o));
+    let o = skelform(&[
+        "check",
+        out.to_str().unwrap(),
+        "--field",
+        &sphere,
+        "--field-tolerance=-1",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+}

@@ -591,3 +591,55 @@ fn crossing_triangles_are_found_and_neighbours_are_not() {
     m.positions[5] = [-0.4, -0.4, -1.0];
     assert!(crossings(&m, 1e-9).is_empty());
 }
+
+#[test]
+fn coincident_faces_are_found_by_position_whatever_their_indices_and_winding() {
+    // A square sheet, and a copy of it on its own vertices, wound the other way: what a
+    // symmetric partition made when two region pairs claimed the same wall. No index is
+    // shared, so `duplicate_faces` cannot see it.
+    let p = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]];
+    let sheet = mesh(&p, &[[0, 1, 2], [0, 2, 3]]);
+    let flipped = mesh(&p, &[[0, 2, 1], [0, 3, 2]]);
+    let r = check(&union(&sheet, &flipped));
+    assert_eq!(r.duplicate_faces, 0);
+    assert_eq!(r.coincident_faces, 2);
+    assert!(r.to_string().contains("2 coincident faces"), "{r}");
+    // Clean shapes have none, and no folds.
+    for m in [cube(), tetrahedron(), torus(12, 8)] {
+        let r = check(&m);
+        assert_eq!((r.coincident_faces, r.folded_edges), (0, 0), "{r}");
+    }
+}
+
+#[test]
+fn a_surface_that_folds_back_onto_itself_has_folded_edges() {
+    // Two triangles sharing the edge 0–1, consistently wound, the second folded over onto
+    // the first (its far vertex on the first's side): normals opposite.
+    let folded = mesh(
+        &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, 1.0, 0.0], [0.5, 0.8, 0.0]],
+        &[[0, 1, 2], [1, 0, 3]],
+    );
+    let r = check(&folded);
+    assert_eq!(r.folded_edges, 1, "{r}");
+    assert!(r.consistently_oriented);
+    // Unfolded (the far vertex across the edge) it is a flat sheet; bent by 90° it is a
+    // crease, not a fold.
+    let flat = mesh(
+        &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, 1.0, 0.0], [0.5, -0.8, 0.0]],
+        &[[0, 1, 2], [1, 0, 3]],
+    );
+    assert_eq!(check(&flat).folded_edges, 0);
+    let bent = mesh(
+        &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, 1.0, 0.0], [0.5, 0.0, 0.8]],
+        &[[0, 1, 2], [1, 0, 3]],
+    );
+    assert_eq!(check(&bent).folded_edges, 0);
+    // Wound inconsistently and folded: still a fold (the winding is compared, not assumed).
+    let inconsistent = mesh(
+        &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, 1.0, 0.0], [0.5, 0.8, 0.0]],
+        &[[0, 1, 2], [0, 1, 3]],
+    );
+    let r = check(&inconsistent);
+    assert_eq!(r.folded_edges, 1, "{r}");
+    assert!(!r.consistently_oriented);
+}

@@ -54,12 +54,14 @@ mod loaded;
 mod meshing;
 mod overrides;
 mod stats;
+mod surface;
 
 pub use error::Error;
 pub use loaded::Scene;
 pub use meshing::{Lattice, Meshed};
 pub use overrides::{DEFAULT_MAX_MEMORY, Overrides};
 pub use stats::Stats;
+pub use surface::{SurfaceDistance, surface_distance};
 
 /// Fields: the [`Field`] and [`RegionField`] traits, the formula
 /// language, lattices, progress and cancellation.

@@ -79,6 +79,14 @@ pub struct Report {
     pub zero_area_faces: usize,
     /// Faces with the same vertex set as an earlier face, in any order.
     pub duplicate_faces: usize,
+    /// Faces whose three corners lie at the same positions as another face's (extra
+    /// copies), whatever their vertex indices or winding: two sheets meshed twice, or a
+    /// pair of coincident, oppositely wound triangles that no index comparison sees.
+    pub coincident_faces: usize,
+    /// Manifold edges where the surface folds back on itself: the normals of the two faces
+    /// are more than 175° apart, so the faces lie on top of each other (faces too thin to
+    /// have a reliable normal are left out).
+    pub folded_edges: usize,
     /// Whether the mesh carries per-vertex normals; without them the renderer shades with
     /// area-weighted face normals and PLY and OBJ files get none.
     pub has_normals: bool,
@@ -239,6 +247,39 @@ impl Report {
     }
 }
 
+/// Normals of adjacent faces with a dot product below this (more than 175° apart) make a
+/// folded edge.
+const FOLD_COS: f64 = -0.996_194_698;
+
+/// The unit normal of a face, `None` when the face is too thin for its normal to mean
+/// anything (twice its area under 10⁻¹⁰ of its longest edge squared).
+fn unit_normal(mesh: &Mesh, t: &[u32; 3]) -> Option<[f64; 3]> {
+    let p = t.map(|i| mesh.positions[i as usize].map(f64::from));
+    let (u, v, w) = (sub(p[1], p[0]), sub(p[2], p[0]), sub(p[2], p[1]));
+    let n = cross(u, v);
+    let len = dot(n, n).sqrt();
+    let longest = dot(u, u).max(dot(v, v)).max(dot(w, w));
+    (len.is_finite() && len > 1e-10 * longest).then(|| n.map(|x| x / len))
+}
+
+/// Extra copies of valid faces with the same three corner positions.
+fn coincident(mesh: &Mesh, valid: &[bool]) -> usize {
+    let mut keys: Vec<[[u32; 3]; 3]> = mesh
+        .triangles
+        .iter()
+        .enumerate()
+        .filter(|(f, _)| valid[*f])
+        .map(|(_, t)| {
+            // Bit patterns, with -0.0 taken as 0.0 so that equal positions compare equal.
+            let mut k = t.map(|i| mesh.positions[i as usize].map(|c| (c + 0.0).to_bits()));
+            k.sort_unstable();
+            k
+        })
+        .collect();
+    keys.sort_unstable();
+    keys.windows(2).filter(|w| w[0] == w[1]).count()
+}
+
 /// A union-find whose roots are the smallest index of their class.
 struct Dsu {
     parent: Vec<usize>,
@@ -392,6 +433,12 @@ pub fn check(mesh: &Mesh) -> Report {
     let mut orient = ParityDsu::new(nf);
     let mut contradictions = Vec::new();
     let mut edge_degrees = BTreeMap::new();
+    let normals: Vec<Option<[f64; 3]>> = tris
+        .iter()
+        .enumerate()
+        .map(|(f, t)| valid[f].then(|| unit_normal(mesh, t)).flatten())
+        .collect();
+    let mut folded_edges = 0;
     for group in half.chunk_by(|x, y| x.0 == y.0) {
         *edge_degrees.entry(group.len()).or_insert(0) += 1;
         let f0 = face_of(group[0]);
@@ -404,6 +451,12 @@ pub fn check(mesh: &Mesh) -> Report {
             fans.union(corner(f1, a), corner(f2, a));
             fans.union(corner(f1, b), corner(f2, b));
             let same_direction = (h1.1 & 1) == (h2.1 & 1);
+            if let (Some(n1), Some(n2)) = (normals[f1], normals[f2]) {
+                // Faces that traverse the edge the same way are wound oppositely: compare
+                // their normals as if one were flipped.
+                let d = dot(n1, n2) * if same_direction { -1.0 } else { 1.0 };
+                folded_edges += usize::from(d < FOLD_COS);
+            }
             if !orient.union(f1, f2, u8::from(same_direction)) {
                 contradictions.push(f1);
             }
@@ -531,6 +584,7 @@ pub fn check(mesh: &Mesh) -> Report {
         .collect();
     keys.sort_unstable();
     let duplicate_faces = keys.windows(2).filter(|w| w[0] == w[1]).count();
+    let coincident_faces = coincident(mesh, &valid);
 
     let mut components: Vec<Component> = acc
         .into_iter()
@@ -587,6 +641,8 @@ pub fn check(mesh: &Mesh) -> Report {
         faces_with_repeated_vertex: repeated,
         zero_area_faces,
         duplicate_faces,
+        coincident_faces,
+        folded_edges,
         has_normals: !mesh.normals.is_empty(),
         labels: mesh
             .label_counts()
@@ -724,6 +780,13 @@ impl fmt::Display for Report {
             self.degenerate_faces, self.faces_with_repeated_vertex, self.zero_area_faces
         )?;
         writeln!(f, "duplicates    {}", self.duplicate_faces)?;
+        if self.coincident_faces > 0 || self.folded_edges > 0 {
+            writeln!(
+                f,
+                "overlaps      {} coincident faces, {} folded edges",
+                self.coincident_faces, self.folded_edges
+            )?;
+        }
         if !self.labels.is_empty() {
             let labels: Vec<String> =
                 self.labels.iter().map(|l| format!("{}: {}", l.label, l.triangles)).collect();
