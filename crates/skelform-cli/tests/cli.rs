@@ -566,12 +566,6 @@ fn check_measures_vertices_against_a_scenes_surface() {
     let o = skelform(&["check", out.to_str().unwrap(), "--field", &regions]);
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("no [field]"), "{}", stderr(&o));
-    let o = skelform(&[
-        "check",
-        out.to_str().unwrap(),
-        "--field",
-        &sphere,
-        "--field-tolerance=-1",
-    ]);
+    let o = skelform(&["check", out.to_str().unwrap(), "--field", &sphere, "--field-tolerance=-1"]);
     assert_eq!(o.status.code(), Some(2));
 }

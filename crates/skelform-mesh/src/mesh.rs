@@ -4,9 +4,12 @@ use serde::{Deserialize, Serialize};
 
 /// The unordered pair of regions a surface separates, stored with `0 < 1`.
 ///
-/// A manifold surface (one region inside, one outside) is `RegionPair(0, 1)` by convention:
-/// region 0 is inside (`f < 0`), region 1 outside. A triangle labelled `(a, b)` is wound
-/// counter-clockwise seen from region `a`, so its right-hand normal points into `a`.
+/// A triangle labelled `(a, b)` is wound counter-clockwise seen from region `a`, the lesser,
+/// so its right-hand normal points into `a` (the non-manifold polygonizer's surfaces, checked
+/// in its tests: a sphere's region inside, the default region outside, normals inward when
+/// the sphere's id is the lesser). A plain manifold surface, whose triangles are
+/// counter-clockwise seen from outside ([`Mesh::triangles`]), is `RegionPair(0, 1)` when a
+/// label is needed: region 0 outside, region 1 inside (`f < 0`), so that the two rules agree.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
 pub struct RegionPair(pub u32, pub u32);
 
@@ -64,7 +67,8 @@ pub struct Mesh {
     pub positions: Vec<[f32; 3]>,
     /// Unit outward normals, one per vertex, or empty.
     pub normals: Vec<[f32; 3]>,
-    /// Counter-clockwise seen from outside (from the lesser region for labelled meshes).
+    /// Counter-clockwise seen from outside (an unlabelled mesh), or from the lesser region of
+    /// the triangle's label (see [`RegionPair`]).
     pub triangles: Vec<[u32; 3]>,
     /// One label per triangle, or empty for an unlabelled mesh.
     pub labels: Vec<RegionPair>,

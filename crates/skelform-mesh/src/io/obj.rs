@@ -19,8 +19,9 @@
 //! every vertex and face takes bytes of the file).
 //!
 //! Labels: when no face has a label, `labels` is empty. When only some faces have one, the
-//! others get `RegionPair(0, 1)`, the label of a plain manifold surface (inside region 0,
-//! outside region 1).
+//! others get `RegionPair(0, 1)`, the label of a plain manifold surface (outside region 0,
+//! inside region 1, so that its counter-clockwise winding seen from outside is the winding
+//! seen from the lesser region).
 //!
 //! Normals: OBJ normals belong to face corners; they become per-vertex normals when every
 //! face corner has one and each vertex always gets the same normal (the same `vn` index or
