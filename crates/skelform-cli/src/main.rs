@@ -6,6 +6,7 @@
 
 #[macro_use]
 mod console;
+mod animate;
 mod extract;
 mod gallery;
 mod progress;
@@ -45,6 +46,9 @@ enum Command {
     Extract(extract::ExtractArgs),
     /// Draw a scene (meshed first) or a mesh file as a PNG picture.
     Render(render::RenderArgs),
+    /// Turn an articulated scene from one pose to another: an animated PNG, or a mesh per
+    /// frame (DIS §2.8).
+    Animate(animate::AnimateArgs),
     /// Render every example scene into docs/gallery, with a page of figures and statistics.
     Gallery(gallery::GalleryArgs),
     /// Print a shell completion script, e.g. `skelform completions bash >
@@ -272,6 +276,7 @@ fn main() -> ExitCode {
         Command::Extract(a) => extract::extract(a),
         Command::Render(a) => render::render(a),
         Command::Gallery(a) => gallery::gallery(a),
+        Command::Animate(a) => animate::animate(a),
         Command::Completions { shell } => completions(shell),
     };
     match result {

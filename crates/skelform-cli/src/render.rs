@@ -160,7 +160,7 @@ pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
     }
 }
 
-fn parse_view(s: &str) -> Result<(f64, f64), String> {
+pub fn parse_view(s: &str) -> Result<(f64, f64), String> {
     let nums: Vec<Option<f64>> = s.split(',').map(|p| p.trim().parse().ok()).collect();
     match nums[..] {
         [Some(az), Some(el)] if az.is_finite() && (-90.0..=90.0).contains(&el) => Ok((az, el)),

@@ -203,7 +203,8 @@ pub fn failure(e: skelform::Error) -> Failure {
 
 /// Loads a scene, its skeleton in the named pose when one is given.
 pub fn load_scene(path: &Path, pose: Option<&str>) -> Result<Scene, Failure> {
-    Scene::load_with(path, &LoadOptions { pose: pose.map(str::to_string) }).map_err(failure)
+    Scene::load_with(path, &LoadOptions { pose: pose.map(str::to_string), ..Default::default() })
+        .map_err(failure)
 }
 
 /// Meshes the scene as the arguments say. The mesh may be empty (see [`surface`]).

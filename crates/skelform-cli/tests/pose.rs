@@ -75,3 +75,123 @@ fn each_pose_meshes_where_its_bones_are() {
     assert!((x_straight - 1.6).abs() < 0.03, "{x_straight}");
     assert!(z_straight > -0.16 && x_curled < 0.7 && z_curled < -1.0, "{extents:?}");
 }
+
+fn closed_components(mesh: &Path) -> Vec<(bool, i64)> {
+    let o = skelform(&["check", mesh.to_str().unwrap(), "--json"]);
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    j["components"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| (c["closed"].as_bool().unwrap(), c["genus"].as_i64().unwrap_or(-1)))
+        .collect()
+}
+
+#[test]
+fn animate_turns_the_skeleton_from_one_pose_to_the_other() {
+    let dir = tempfile::tempdir().unwrap();
+    let frames = dir.path().join("frames/");
+    let o = skelform(&[
+        "animate",
+        &finger(),
+        "--from",
+        "straight",
+        "--to",
+        "curled",
+        "--frames",
+        "5",
+        "--resolution",
+        "32",
+        "-o",
+        frames.to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let mut names: Vec<String> = std::fs::read_dir(&frames)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(
+        names,
+        ["frame-0000.ply", "frame-0001.ply", "frame-0002.ply", "frame-0003.ply", "frame-0004.ply"]
+    );
+    // The ends are the two poses themselves, byte for byte.
+    for (pose, frame) in [("straight", "frame-0000.ply"), ("curled", "frame-0004.ply")] {
+        let own = dir.path().join(format!("{pose}.ply"));
+        let o = skelform(&[
+            "mesh",
+            &finger(),
+            "--pose",
+            pose,
+            "--resolution",
+            "32",
+            "-o",
+            own.to_str().unwrap(),
+            "-q",
+        ]);
+        assert!(o.status.success(), "{}", text(&o.stderr));
+        assert!(
+            std::fs::read(&own).unwrap() == std::fs::read(frames.join(frame)).unwrap(),
+            "{pose}"
+        );
+    }
+    // Every frame is the finger, one closed surface of genus 0, and each differs from the
+    // last: the joints turn a little at a time.
+    let mut last = Vec::new();
+    for name in &names {
+        let path = frames.join(name);
+        assert_eq!(closed_components(&path), [(true, 0)], "{name}");
+        let bytes = std::fs::read(&path).unwrap();
+        assert!(bytes != last, "{name} repeats the frame before it");
+        last = bytes;
+    }
+
+    // An animated picture: one frame control chunk a frame.
+    let png = dir.path().join("finger.png");
+    let o = skelform(&[
+        "animate",
+        &finger(),
+        "--from",
+        "straight",
+        "--to",
+        "curled",
+        "--frames",
+        "4",
+        "--resolution",
+        "24",
+        "--size",
+        "80x60",
+        "-o",
+        png.to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let bytes = std::fs::read(&png).unwrap();
+    let count = |tag: &[u8]| bytes.windows(4).filter(|w| *w == tag).count();
+    assert_eq!((count(b"acTL"), count(b"fcTL")), (1, 4));
+}
+
+#[test]
+fn animate_refuses_what_it_cannot_do_before_writing_anything() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("a.png");
+    let p = png.to_str().unwrap();
+    let f = finger();
+    for (args, says) in [
+        (vec!["--from", "straight", "--to", "nope"], "unknown pose 'nope'"),
+        (vec!["--from", "nope", "--to", "curled"], "unknown pose 'nope'"),
+        (vec!["--from", "straight", "--to", "curled", "--frames", "0"], "--frames"),
+        (vec!["--from", "straight", "--to", "curled", "--pose", "curled"], "--pose"),
+    ] {
+        let mut all = vec!["animate", f.as_str(), "-o", p];
+        all.extend(args);
+        let o = skelform(&all);
+        assert_eq!(o.status.code(), Some(2), "{all:?}: {}", text(&o.stderr));
+        assert!(text(&o.stderr).contains(says), "{all:?}: {}", text(&o.stderr));
+        assert!(!png.exists());
+    }
+    let o = skelform(&["animate", &f, "--from", "straight", "--to", "curled", "-o", "x.ply"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(text(&o.stderr).contains("(.png) or a folder"), "{}", text(&o.stderr));
+}

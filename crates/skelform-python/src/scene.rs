@@ -169,7 +169,8 @@ impl PyScene {
 #[pyfunction]
 #[pyo3(signature = (path, *, pose=None))]
 pub(crate) fn load_scene(path: PathBuf, pose: Option<String>) -> PyResult<PyScene> {
-    let scene = skelform::Scene::load_with(&path, &LoadOptions { pose }).map_err(error)?;
+    let scene = skelform::Scene::load_with(&path, &LoadOptions { pose, ..Default::default() })
+        .map_err(error)?;
     Ok(PyScene { scene })
 }
 

@@ -82,11 +82,11 @@ pub(crate) fn write_apng_streamed(
     (width, height): (u32, u32),
     count: u32,
     delay_ms: u16,
-    frame: impl Fn(u32) -> Image,
+    mut frame: impl FnMut(u32) -> Result<Image, RenderError>,
 ) -> Result<(), RenderError> {
     skelform_mesh::io::atomic::write_with(path, |file| {
         let mut out = io::BufWriter::new(file);
-        let mut frames = (0..count).map(|k| Ok(std::borrow::Cow::Owned(frame(k))));
+        let mut frames = (0..count).map(|k| frame(k).map(std::borrow::Cow::Owned));
         encode_frames(&mut out, width, height, count, delay_ms, &mut frames)?;
         io::Write::flush(&mut out)
             .map_err(|e| RenderError::Write { path: path.to_path_buf(), source: e })

@@ -115,6 +115,15 @@ pub enum RenderError {
         #[source]
         source: std::io::Error,
     },
+    #[error("frame {frame}: {message}")]
+    /// A frame of an animation ([`write_animation`]) could not be made, for a reason of the
+    /// caller's (a pose that does not mesh, say); nothing is written.
+    Frame {
+        /// The frame, from 0.
+        frame: u32,
+        /// Why.
+        message: String,
+    },
 }
 
 /// The light: a direction in camera space, and how much ambient, diffuse and specular light
@@ -162,6 +171,9 @@ pub struct Settings {
     pub height: u32,
     /// The direction the camera looks from; the camera is then fitted to the mesh.
     pub view: View,
+    /// The box (low and high corners) the camera is fitted to instead of the mesh's bounds:
+    /// the frames of an animation share one camera, so the form moves and the view does not.
+    pub fit: Option<([f32; 3], [f32; 3])>,
     /// Perspective (with its field of view, 0–170 degrees) or orthographic.
     pub projection: Projection,
     /// Space left around the fitted box, as a fraction of the half-width and half-height.
@@ -214,6 +226,7 @@ impl Default for Settings {
             width: 800,
             height: 600,
             view: View::default(),
+            fit: None,
             projection: Projection::default(),
             margin: 0.08,
             supersample: 2,
@@ -348,16 +361,21 @@ impl<'m> Renderer<'m> {
 
     /// The camera a picture with these settings uses.
     pub fn camera(&self, settings: &Settings) -> Camera {
-        let p = &self.prepared;
+        let (lo, hi) = self.fitted_box(settings);
         Camera::fit(
-            p.lo,
-            p.hi,
+            lo,
+            hi,
             settings.view,
             settings.projection,
             settings.width,
             settings.height,
             settings.margin,
         )
+    }
+
+    /// The box the camera is fitted to: the settings' [`Settings::fit`], else the mesh's.
+    fn fitted_box(&self, settings: &Settings) -> ([f32; 3], [f32; 3]) {
+        settings.fit.unwrap_or((self.prepared.lo, self.prepared.hi))
     }
 
     /// The distinct region pairs with the colours the picture gives them, sorted; empty
@@ -447,7 +465,9 @@ impl<'m> Renderer<'m> {
         path: &std::path::Path,
     ) -> Result<(), RenderError> {
         let draw = self.turntable_frames(settings, frames)?;
-        image::write_apng_streamed(path, (settings.width, settings.height), frames, delay_ms, draw)
+        image::write_apng_streamed(path, (settings.width, settings.height), frames, delay_ms, |k| {
+            Ok(draw(k))
+        })
     }
 
     /// The frame-drawing function of a turntable of `frames` views.
@@ -457,8 +477,10 @@ impl<'m> Renderer<'m> {
         frames: u32,
     ) -> Result<impl Fn(u32) -> Image + '_, RenderError> {
         settings.validate()?;
-        if frames == 0 || frames > 3600 {
-            return Err(RenderError::Settings("a turntable needs from 1 to 3600 frames".into()));
+        if frames == 0 || frames > MAX_FRAMES {
+            return Err(RenderError::Settings(format!(
+                "a turntable needs from 1 to {MAX_FRAMES} frames"
+            )));
         }
         let p = &self.prepared;
         let views: Vec<View> = (0..frames)
@@ -467,9 +489,10 @@ impl<'m> Renderer<'m> {
                 elevation: settings.view.elevation,
             })
             .collect();
+        let (lo, hi) = self.fitted_box(settings);
         let (_, cams) = Camera::fit_views(
-            p.lo,
-            p.hi,
+            lo,
+            hi,
             &views,
             settings.projection,
             settings.width,
@@ -486,6 +509,28 @@ impl<'m> Renderer<'m> {
         })
     }
 }
+
+/// Writes an animated PNG at `path` (atomically) of `count` frames that `frame(k)` makes one
+/// at a time, each shown `delay_ms` milliseconds and dropped once encoded, so memory does not
+/// grow with the count. Every frame must be `size` pixels. The first error, the caller's
+/// ([`RenderError::Frame`]) or the encoder's, stops the animation and leaves `path` as it was.
+pub fn write_animation(
+    path: &std::path::Path,
+    size: (u32, u32),
+    count: u32,
+    delay_ms: u16,
+    frame: impl FnMut(u32) -> Result<Image, RenderError>,
+) -> Result<(), RenderError> {
+    if count == 0 || count > MAX_FRAMES {
+        return Err(RenderError::Settings(format!(
+            "an animation needs from 1 to {MAX_FRAMES} frames (got {count})"
+        )));
+    }
+    image::write_apng_streamed(path, size, count, delay_ms, frame)
+}
+
+/// The most frames an animation or turntable may have.
+pub const MAX_FRAMES: u32 = 3600;
 
 /// Renders `mesh` as `settings` say, on the current rayon thread pool.
 pub fn render(mesh: &Mesh, settings: &Settings) -> Result<Image, RenderError> {

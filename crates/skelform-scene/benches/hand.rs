@@ -19,7 +19,7 @@ fn bench(c: &mut Criterion) {
     let mut group = c.benchmark_group("hand");
     group.sample_size(10);
     for pose in ["open", "grip"] {
-        let options = LoadOptions { pose: Some(pose.to_string()) };
+        let options = LoadOptions { pose: Some(pose.to_string()), ..Default::default() };
         let scene = Scene::load_with(&path, &options).expect("the hand scene");
         let field = scene.skeleton.clone().expect("a skeleton");
         // A cube around the posed hand's bounds, so that "n³" is n³ points.

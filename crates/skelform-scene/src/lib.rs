@@ -106,11 +106,24 @@ pub struct Scene {
 }
 
 /// Choices a load makes that the file leaves open (the command line's).
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct LoadOptions {
     /// Build the skeleton in this pose instead of the scene's `pose` (or `rest`); a name the
     /// scene does not define is an error listing the ones it does.
     pub pose: Option<String>,
+    /// Turn the skeleton part of the way from that pose towards another (animation, DIS
+    /// §2.8): each joint's rotation is interpolated, never the elements' positions, so limbs
+    /// keep their lengths.
+    pub toward: Option<PoseBlend>,
+}
+
+/// Part of the way towards another pose: [`LoadOptions::toward`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct PoseBlend {
+    /// The pose turned towards.
+    pub pose: String,
+    /// How far, from 0 (the first pose) to 1 (this one).
+    pub t: f64,
 }
 
 impl std::fmt::Debug for Scene {

@@ -87,6 +87,7 @@ pub(crate) struct Spec<'a> {
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct Choice<'a> {
     pub pose: Option<&'a str>,
+    pub toward: Option<&'a crate::PoseBlend>,
     pub origin: &'a str,
 }
 
@@ -120,7 +121,7 @@ pub(crate) fn articulate(
     let joints = spec.joints.unwrap_or(&[]);
     let attached = marks.iter().any(|(_, j)| j.is_some());
     if joints.is_empty() && spec.poses.is_none() && spec.pose.is_none() && !attached {
-        if let Some(p) = choice.pose {
+        if let Some(p) = choice.pose.or(choice.toward.map(|b| b.pose.as_str())) {
             return Err(SceneError::Invalid {
                 path: choice.origin.to_string(),
                 message: format!("cannot take pose '{p}': the scene has no joints or poses"),
@@ -298,11 +299,36 @@ pub(crate) fn articulate(
             });
         }
     };
-    let posed = art.posed(pose).map_err(|e| SceneError::Invalid {
+    let (pose, chosen) = match choice.toward {
+        None => (pose.clone(), chosen),
+        Some(b) => {
+            let Some((_, target)) = poses.iter().find(|(n, _)| *n == b.pose) else {
+                return Err(SceneError::Invalid {
+                    path: choice.origin.to_string(),
+                    message: format!(
+                        "unknown pose '{}'; the scene's poses are: {}",
+                        b.pose,
+                        names.join(", ")
+                    ),
+                });
+            };
+            if !(0.0..=1.0).contains(&b.t) {
+                return Err(SceneError::Invalid {
+                    path: choice.origin.to_string(),
+                    message: format!(
+                        "the way from one pose to another runs from 0 to 1 (got {})",
+                        b.t
+                    ),
+                });
+            }
+            (pose.interpolate(target, b.t), format!("{chosen} → {} at {}", b.pose, b.t))
+        }
+    };
+    let posed = art.posed(&pose).map_err(|e| SceneError::Invalid {
         path: choice.origin.to_string(),
         message: format!("pose '{chosen}': {e}"),
     })?;
-    let frames = art.frames(pose);
+    let frames = art.frames(&pose);
     let articulation = Articulation {
         joints: joints.iter().map(|j| j.name.get_ref().clone()).collect(),
         poses: names,
@@ -364,7 +390,7 @@ middle = 90
 "#;
 
     fn parse(body: &str, pose: Option<&str>) -> Result<Scene, SceneError> {
-        let options = LoadOptions { pose: pose.map(str::to_string) };
+        let options = LoadOptions { pose: pose.map(str::to_string), ..Default::default() };
         Scene::parse_with(&format!("{HEAD}{body}"), "s.toml", &options)
     }
 
@@ -460,7 +486,7 @@ middle = 90
         }
         assert!(parse(plain, None).unwrap().articulation.is_none());
         let formula = "[domain]\nmin = [-1, -1, -1]\nmax = [1, 1, 1]\n[field]\nformula = \"x\"\n";
-        let options = LoadOptions { pose: Some("open".into()) };
+        let options = LoadOptions { pose: Some("open".into()), ..Default::default() };
         match Scene::parse_with(formula, "f.toml", &options) {
             Err(SceneError::Invalid { message, .. }) => {
                 assert!(message.contains("no [skeleton] joints"), "{message}")

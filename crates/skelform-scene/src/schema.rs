@@ -239,11 +239,15 @@ pub(crate) fn build(
 
     let skeleton = match &file.skeleton {
         Some(s) => {
-            let choice = crate::pose::Choice { pose: options.pose.as_deref(), origin };
+            let choice = crate::pose::Choice {
+                pose: options.pose.as_deref(),
+                toward: options.toward.as_ref(),
+                origin,
+            };
             Some(crate::skeleton::build(s, &|o, m| cx.at(o, m), choice)?)
         }
         None => {
-            if let Some(p) = &options.pose {
+            if let Some(p) = options.pose.as_ref().or(options.toward.as_ref().map(|b| &b.pose)) {
                 return Err(SceneError::Invalid {
                     path: origin.to_string(),
                     message: format!("cannot take pose '{p}': the scene has no [skeleton] joints"),

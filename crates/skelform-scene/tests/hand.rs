@@ -28,7 +28,7 @@ fn hand_path() -> PathBuf {
 }
 
 fn hand(pose: &str) -> Scene {
-    let options = LoadOptions { pose: Some(pose.to_string()) };
+    let options = LoadOptions { pose: Some(pose.to_string()), ..Default::default() };
     Scene::load_with(&hand_path(), &options).unwrap_or_else(|e| panic!("{e}"))
 }
 

@@ -39,13 +39,13 @@ impl Scene {
         let text = std::fs::read_to_string(path)
             .map_err(|source| SceneError::Io { path: shown.clone(), source })?;
         let base = path.parent().map(Path::to_path_buf);
-        Scene::build(text.into(), &shown, base, options.pose.clone())
+        Scene::build(text.into(), &shown, base, options.clone())
     }
 
     /// Checks scene text; `origin` names it in messages (a file name, or `"<string>"`).
     /// Relative output paths in the text are left as they are.
     pub fn parse(text: &str, origin: &str) -> Result<Scene, Error> {
-        Scene::build(text.into(), origin, None, None)
+        Scene::build(text.into(), origin, None, LoadOptions::default())
     }
 
     /// A scene of one field over `domain`, with every other setting at its default (the
@@ -64,7 +64,7 @@ impl Scene {
             "[domain]\nmin = [{:?}, {:?}, {:?}]\nmax = [{:?}, {:?}, {:?}]\n[field]\nformula = \"0\"\n",
             lo.x, lo.y, lo.z, hi.x, hi.y, hi.z
         );
-        let mut scene = Scene::build(text.into(), origin, None, None)?;
+        let mut scene = Scene::build(text.into(), origin, None, LoadOptions::default())?;
         Arc::make_mut(&mut scene.description).field = field;
         Ok(scene)
     }
@@ -73,9 +73,9 @@ impl Scene {
         text: Arc<str>,
         origin: &str,
         base: Option<PathBuf>,
-        pose: Option<String>,
+        options: LoadOptions,
     ) -> Result<Scene, Error> {
-        let options = LoadOptions { pose: pose.clone() };
+        let pose = options.pose.clone();
         let mut description = skelform_scene::Scene::parse_with(&text, origin, &options)?;
         let output_refused = description.output.file.as_deref().and_then(outside_folder);
         if let (Some(file), Some(dir)) = (&description.output.file, &base) {
@@ -96,12 +96,19 @@ impl Scene {
         if current == Some(pose) {
             return Ok(self.clone());
         }
-        Scene::build(
-            self.text.clone(),
-            &self.description.origin,
-            self.base.clone(),
-            Some(pose.to_string()),
-        )
+        let options = LoadOptions { pose: Some(pose.to_string()), ..LoadOptions::default() };
+        Scene::build(self.text.clone(), &self.description.origin, self.base.clone(), options)
+    }
+
+    /// The same scene with its skeleton a fraction `t` (0 to 1) of the way from pose `from`
+    /// to pose `to`: each joint's rotation interpolated (spherically), as the dissertation
+    /// animates an articulated skeleton (§2.8), so limbs keep their lengths.
+    pub fn posed_between(&self, from: &str, to: &str, t: f64) -> Result<Scene, Error> {
+        let options = LoadOptions {
+            pose: Some(from.to_string()),
+            toward: Some(skelform_scene::PoseBlend { pose: to.to_string(), t }),
+        };
+        Scene::build(self.text.clone(), &self.description.origin, self.base.clone(), options)
     }
 
     /// Where the scene asks its mesh to be written (`[output] file`, relative to the scene's

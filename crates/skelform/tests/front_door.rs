@@ -56,7 +56,7 @@ fn a_pose_override_rebuilds_the_skeleton() {
     assert_ne!(rest.mesh.positions, grip.mesh.positions);
     let loaded = Scene::load_with(
         example("skeleton/hand.toml"),
-        &skelform::LoadOptions { pose: Some("grip".into()) },
+        &skelform::LoadOptions { pose: Some("grip".into()), ..Default::default() },
     )
     .unwrap()
     .mesh(&coarse())
