@@ -16,6 +16,15 @@ fn text(b: &[u8]) -> String {
     String::from_utf8_lossy(b).into_owned()
 }
 
+/// Meshes the finger in `pose` into `out`, with `lattice` (a resolution or cell option).
+fn mesh_in_pose(pose: &str, out: &Path, lattice: &[&str]) {
+    let f = finger();
+    let mut args = vec!["mesh", f.as_str(), "--pose", pose, "-o", out.to_str().unwrap(), "-q"];
+    args.extend(lattice);
+    let o = skelform(&args);
+    assert!(o.status.success(), "{pose}: {}", text(&o.stderr));
+}
+
 #[test]
 fn info_lists_the_joints_and_poses() {
     let o = skelform(&["info", &finger()]);
@@ -50,18 +59,7 @@ fn each_pose_meshes_where_its_bones_are() {
     let mut extents = Vec::new();
     for pose in ["straight", "curled"] {
         let out = dir.path().join(format!("{pose}.ply"));
-        let o = skelform(&[
-            "mesh",
-            &finger(),
-            "--pose",
-            pose,
-            "--cell",
-            "0.025",
-            "-o",
-            out.to_str().unwrap(),
-            "-q",
-        ]);
-        assert!(o.status.success(), "{pose}: {}", text(&o.stderr));
+        mesh_in_pose(pose, &out, &["--cell", "0.025"]);
         let o = skelform(&["check", out.to_str().unwrap(), "--json"]);
         let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
         assert_eq!(r["boundary_edges"], 0, "{pose}");
@@ -119,18 +117,7 @@ fn animate_turns_the_skeleton_from_one_pose_to_the_other() {
     // The ends are the two poses themselves, byte for byte.
     for (pose, frame) in [("straight", "frame-0000.ply"), ("curled", "frame-0004.ply")] {
         let own = dir.path().join(format!("{pose}.ply"));
-        let o = skelform(&[
-            "mesh",
-            &finger(),
-            "--pose",
-            pose,
-            "--resolution",
-            "32",
-            "-o",
-            own.to_str().unwrap(),
-            "-q",
-        ]);
-        assert!(o.status.success(), "{}", text(&o.stderr));
+        mesh_in_pose(pose, &own, &["--resolution", "32"]);
         assert!(
             std::fs::read(&own).unwrap() == std::fs::read(frames.join(frame)).unwrap(),
             "{pose}"
