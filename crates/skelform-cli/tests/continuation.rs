@@ -3,16 +3,10 @@
 use std::path::Path;
 
 mod common;
-use common::{example, skelform};
+use common::{check_json as check, example, skelform};
 
 fn text(b: &[u8]) -> String {
     String::from_utf8_lossy(b).into_owned()
-}
-
-fn check(mesh: &Path) -> serde_json::Value {
-    let o = skelform(&["check", mesh.to_str().unwrap(), "--json"]);
-    assert!(o.status.success(), "{}", text(&o.stderr));
-    serde_json::from_slice(&o.stdout).unwrap()
 }
 
 #[test]

@@ -3,7 +3,7 @@
 use std::path::Path;
 
 mod common;
-use common::skelform;
+use common::{check_json, skelform};
 
 fn finger() -> String {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -60,8 +60,7 @@ fn each_pose_meshes_where_its_bones_are() {
     for pose in ["straight", "curled"] {
         let out = dir.path().join(format!("{pose}.ply"));
         mesh_in_pose(pose, &out, &["--cell", "0.025"]);
-        let o = skelform(&["check", out.to_str().unwrap(), "--json"]);
-        let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        let r = check_json(&out);
         assert_eq!(r["boundary_edges"], 0, "{pose}");
         assert_eq!(r["components"].as_array().unwrap().len(), 1, "{pose}");
         let b = &r["bounds"];
@@ -75,9 +74,7 @@ fn each_pose_meshes_where_its_bones_are() {
 }
 
 fn closed_components(mesh: &Path) -> Vec<(bool, i64)> {
-    let o = skelform(&["check", mesh.to_str().unwrap(), "--json"]);
-    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    j["components"]
+    check_json(mesh)["components"]
         .as_array()
         .unwrap()
         .iter()

@@ -2,12 +2,10 @@
 //! the tube must be kept, by `extract` and by `mesh` with both cube-based methods.
 
 mod common;
-use common::skelform;
+use common::{check_json, skelform};
 
 fn components(mesh: &std::path::Path) -> u64 {
-    let c = skelform(&["check", mesh.to_str().unwrap(), "--json"]);
-    assert!(c.status.success(), "{}", String::from_utf8_lossy(&c.stderr));
-    let r: serde_json::Value = serde_json::from_slice(&c.stdout).unwrap();
+    let r = check_json(mesh);
     assert_eq!(r["boundary_edges"], 0);
     assert_eq!(r["outward"], true);
     r["components"].as_array().unwrap().len() as u64
