@@ -19,7 +19,7 @@ use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use skelform_field::control::{Control, Progress};
-use skelform_field::grid::{Grid, Volume};
+use skelform_field::grid::{Grid, Level, Relative, Volume, VolumeView};
 
 use super::cell::{CubeSink, polygonize_case};
 use super::cube::CORNERS;
@@ -218,14 +218,36 @@ pub fn extract_with(
     workspace: &Workspace,
 ) -> Result<Extraction, Cancelled> {
     let (vertices, triangles, ambiguous_faces, tunnels) =
-        extract_as::<GridVertex>(volume, control, workspace)?;
+        extract_as::<GridVertex, _>(&volume.grid, &volume.values, Relative, control, workspace)?;
     Ok(Extraction { vertices, triangles, ambiguous_faces, tunnels })
 }
 
 /// Runs marching cubes over the whole volume and returns the vertices' interpolated
 /// positions (no refinement), without the intermediate [`GridVertex`] records.
 pub fn extract_positions(volume: &Volume, control: &Control) -> Result<Positions, Cancelled> {
-    let (vertices, triangles, _, _) = extract_as::<[f32; 3]>(volume, control, Workspace::shared())?;
+    let (vertices, triangles, _, _) = extract_as::<[f32; 3], _>(
+        &volume.grid,
+        &volume.values,
+        Relative,
+        control,
+        Workspace::shared(),
+    )?;
+    Ok((vertices, triangles))
+}
+
+/// [`extract_positions`] on raw values read in place at a level: the mesh is the one of the
+/// [`Volume`] that converting them would make (bit for bit), without the copy.
+pub fn extract_view_positions(
+    view: &VolumeView<'_>,
+    control: &Control,
+) -> Result<Positions, Cancelled> {
+    let (vertices, triangles, _, _) = extract_as::<[f32; 3], _>(
+        &view.grid,
+        view.values,
+        view.level,
+        control,
+        Workspace::shared(),
+    )?;
     Ok((vertices, triangles))
 }
 
@@ -240,12 +262,15 @@ pub(crate) fn has_cells(grid: &Grid) -> bool {
     grid.dims.iter().all(|&d| d >= 2)
 }
 
-fn extract_as<V: SlabVertex>(
-    volume: &Volume,
+/// Extraction over `values` (`grid.index` order, raw values read through `level`).
+fn extract_as<V: SlabVertex, L: Level>(
+    grid: &Grid,
+    values: &[f32],
+    level: L,
     control: &Control,
     workspace: &Workspace,
 ) -> Result<Extracted<V>, Cancelled> {
-    let grid = volume.grid;
+    let grid = *grid;
     if !has_cells(&grid) {
         return Ok((Vec::new(), Vec::new(), 0, 0));
     }
@@ -256,8 +281,8 @@ fn extract_as<V: SlabVertex>(
         run_slabs(cube_layers.div_ceil(SLAB), [nx, ny], workspace, |s, scratch, store| {
             let z0 = s * SLAB;
             let z1 = (z0 + SLAB).min(cube_layers);
-            let vals = &volume.values[z0 * nx * ny..];
-            let counts = extract_slab(&grid, vals, (z0, z1), scratch, store, control)?;
+            let vals = &values[z0 * nx * ny..];
+            let counts = extract_slab(&grid, vals, level, (z0, z1), scratch, store, control)?;
             slab_done(control, &done, z1 - z0, cube_layers, "extracting").map(|()| counts)
         })?;
     let (ambiguous_faces, tunnels) = counts.iter().fold((0, 0), |(a, t), c| (a + c.0, t + c.1));
@@ -280,7 +305,8 @@ fn slab_done(
 }
 
 /// Marching cubes over the cube layers `z0..z1`; `vals` holds the sample layers
-/// `z0..=z1` (and possibly more), starting with layer `z0`. The slab's vertices and
+/// `z0..=z1` (and possibly more), starting with layer `z0`, as raw values that `level`
+/// reads (for the inside test by its threshold, for everything else as samples). The slab's vertices and
 /// triangles go to `store`; returns the ambiguous faces decided and the tunnels made.
 ///
 /// Flying Edges' way of naming vertices: the crossed edges of each sample layer and
@@ -289,9 +315,10 @@ fn slab_done(
 /// before the cubes that use it. Order in the slab: the bottom layer's x/y-edges, then per
 /// layer of cubes the x/y-edges of the layer above (unless they are the next slab's), the
 /// z-edges, and the vertices inside the cubes.
-fn extract_slab<V: SlabVertex>(
+fn extract_slab<V: SlabVertex, L: Level>(
     grid: &Grid,
     vals: &[f32],
+    level: L,
     (z0, z1): (usize, usize),
     scratch: &mut Scratch,
     store: &mut SlabStore<'_, V>,
@@ -307,17 +334,18 @@ fn extract_slab<V: SlabVertex>(
     // not all equal, which 64 cubes at a time reduce to a few word operations; only those
     // cubes are visited.
     let words = nx.div_ceil(64);
-    layer_signs(local(z0), nx, words, below);
+    let threshold = level.threshold();
+    layer_signs(local(z0), nx, words, below, threshold);
     lower.build(below, nx, ny, words);
     store.begin();
     lower.offset = store.made();
-    lower.emit(grid, local(z0), z0, store);
+    lower.emit(grid, local(z0), level, z0, store);
     let (mut ambiguous_faces, mut tunnels) = (0, 0);
     for k in z0..z1 {
         if control.is_cancelled() {
             return Err(Cancelled);
         }
-        layer_signs(local(k + 1), nx, words, above);
+        layer_signs(local(k + 1), nx, words, above, threshold);
         upper.build(above, nx, ny, words);
         // The x- and y-edges on the slab's top layer belong to the slab above (except for
         // the last slab, which owns the volume's top): refer to them by number.
@@ -326,11 +354,11 @@ fn extract_slab<V: SlabVertex>(
             store.borrow_top();
         } else {
             upper.offset = store.made();
-            upper.emit(grid, local(k + 1), k + 1, store);
+            upper.emit(grid, local(k + 1), level, k + 1, store);
         }
         z.build(below, above, nx, words);
         z.offset = store.made();
-        z.emit(grid, local(k), local(k + 1), k, store);
+        z.emit(grid, local(k), local(k + 1), level, k, store);
         let mut sink = SlabSink {
             store: &mut *store,
             lower: &*lower,
@@ -352,7 +380,7 @@ fn extract_slab<V: SlabVertex>(
         };
         for_each_mixed_cube(below, above, nx, ny, fetch, |i, j, case| {
             let base = nx * j + layer * (k - z0) + i;
-            let v: [f32; 8] = offsets.map(|o| vals[base + o]);
+            let v: [f32; 8] = offsets.map(|o| level.sample(vals[base + o]));
             sink.at = [i, j, k];
             let outcome = polygonize_case(case, &v, &mut sink);
             ambiguous_faces += outcome.ambiguous_faces as u64;
@@ -436,12 +464,12 @@ mod tests {
         }
         let words = nx.div_ceil(64);
         let mut signs = vec![0; ny * words];
-        layer_signs(&values, nx, words, &mut signs);
+        layer_signs(&values, nx, words, &mut signs, 0.0);
         for j in 0..ny {
             for w in 0..words {
                 let row = &values[j * nx..(j + 1) * nx];
                 let chunk = &row[64 * w..(64 * w + 64).min(nx)];
-                assert_eq!(signs[j * words + w], signs_scalar(chunk), "row {j}, word {w}");
+                assert_eq!(signs[j * words + w], signs_scalar(chunk, 0.0), "row {j}, word {w}");
             }
         }
     }
@@ -452,7 +480,7 @@ mod tests {
         let values = noise(nx * ny, 7);
         let words = nx.div_ceil(64);
         let mut signs = vec![0; ny * words];
-        layer_signs(&values, nx, words, &mut signs);
+        layer_signs(&values, nx, words, &mut signs, 0.0);
         let mut numbers = LayerNumbering::default();
         numbers.build(&signs, nx, ny, words);
         let inside = |i: usize, j: usize| values[i + nx * j] < 0.0;
@@ -503,6 +531,52 @@ mod tests {
                 assert!(many.vertices == one.vertices, "vertices differ, {what}");
                 assert!(many.triangles == one.triangles, "triangles differ, {what}");
                 assert_eq!(many.tunnels, one.tunnels);
+            }
+        }
+    }
+
+    /// Raw values read in place at a level make the mesh of the volume their conversion
+    /// would be, bit for bit: with NaN and ±∞ among them, at levels between values, on a
+    /// value, off `f32`'s grid, and on several threads.
+    #[test]
+    fn a_view_at_a_level_makes_the_converted_volume_mesh() {
+        use skelform_field::grid::{Level, Shifted, VolumeView};
+        let dims = [45, 23, 3 * SLAB + 2];
+        let grid = Grid { origin: DVec3::ZERO, cell: 1.0, dims };
+        let mut raw: Vec<f32> =
+            noise(dims.iter().product(), 13).iter().map(|v| 3.0 * v + 2.0).collect();
+        for (n, v) in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 2.0, 2.0].into_iter().enumerate()
+        {
+            for i in (n * 97..raw.len()).step_by(1013) {
+                raw[i] = v;
+            }
+        }
+        for level in [2.0, 1.7, 2.0 + 1e-9, -0.5, f64::NAN] {
+            let converted: Vec<f32> = raw.iter().map(|&x| (f64::from(x) - level) as f32).collect();
+            let volume = Volume::from_values(grid, converted);
+            assert!(
+                volume.values.iter().zip(&raw).all(|(v, &x)| *v == Shifted::new(level).sample(x))
+            );
+            let view = VolumeView::new(grid, &raw, level).unwrap_or_else(|| unreachable!());
+            for threads in [1, 3] {
+                let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build();
+                let pool = pool.unwrap_or_else(|e| panic!("{e}"));
+                let (a, b) = pool.install(|| {
+                    let control = Control::default();
+                    let a = extract_positions(&volume, &control).unwrap_or_else(|_| unreachable!());
+                    let b =
+                        extract_view_positions(&view, &control).unwrap_or_else(|_| unreachable!());
+                    (a, b)
+                });
+                if level.is_nan() {
+                    assert!(a.1.is_empty());
+                } else {
+                    assert!(a.1.len() > 1000, "level {level}: {} triangles", a.1.len());
+                }
+                let bits =
+                    |p: &[[f32; 3]]| p.iter().map(|v| v.map(f32::to_bits)).collect::<Vec<_>>();
+                assert!(bits(&a.0) == bits(&b.0), "positions differ at level {level}");
+                assert!(a.1 == b.1, "triangles differ at level {level}");
             }
         }
     }

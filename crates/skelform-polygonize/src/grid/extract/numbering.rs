@@ -4,7 +4,7 @@
 //! in), and two slabs that share a layer agree on its numbers without looking at each
 //! other's work.
 
-use skelform_field::grid::Grid;
+use skelform_field::grid::{Grid, Level};
 
 use super::signs::word_mask;
 use super::slabs::SlabStore;
@@ -79,12 +79,13 @@ impl LayerNumbering {
         self.offset + self.number(axis, i, j)
     }
 
-    /// Makes the layer's vertices in the order of their numbers, from the layer's samples
-    /// (`nx·ny`, x fastest); `k` is the layer's index.
-    pub(super) fn emit<V: SlabVertex>(
+    /// Makes the layer's vertices in the order of their numbers, from the layer's raw values
+    /// (`nx·ny`, x fastest) read through `level`; `k` is the layer's index.
+    pub(super) fn emit<V: SlabVertex, L: Level>(
         &self,
         grid: &Grid,
         vals: &[f32],
+        level: L,
         k: usize,
         store: &mut SlabStore<'_, V>,
     ) {
@@ -93,12 +94,14 @@ impl LayerNumbering {
             let row = j * self.words..(j + 1) * self.words;
             for_each_bit(&self.x[row.clone()], |i| {
                 let at = i + nx * j;
-                store.push_vertex(edge_record(grid, [i, j, k], 0, [vals[at], vals[at + 1]]));
+                let ends = [vals[at], vals[at + 1]].map(|v| level.sample(v));
+                store.push_vertex(edge_record(grid, [i, j, k], 0, ends));
             });
             if j + 1 < ny {
                 for_each_bit(&self.y[row], |i| {
                     let at = i + nx * j;
-                    store.push_vertex(edge_record(grid, [i, j, k], 1, [vals[at], vals[at + nx]]));
+                    let ends = [vals[at], vals[at + nx]].map(|v| level.sample(v));
+                    store.push_vertex(edge_record(grid, [i, j, k], 1, ends));
                 });
             }
         }
@@ -140,12 +143,13 @@ impl ZNumbering {
     }
 
     /// Makes the vertices in the order of their numbers; `lower` and `upper` are the two
-    /// layers' samples, `k` the lower one's index.
-    pub(super) fn emit<V: SlabVertex>(
+    /// layers' raw values, read through `level`, `k` the lower one's index.
+    pub(super) fn emit<V: SlabVertex, L: Level>(
         &self,
         grid: &Grid,
         lower: &[f32],
         upper: &[f32],
+        level: L,
         k: usize,
         store: &mut SlabStore<'_, V>,
     ) {
@@ -153,7 +157,8 @@ impl ZNumbering {
         for (j, row) in self.edges.chunks(self.words).enumerate() {
             for_each_bit(row, |i| {
                 let at = i + nx * j;
-                store.push_vertex(edge_record(grid, [i, j, k], 2, [lower[at], upper[at]]));
+                let ends = [lower[at], upper[at]].map(|v| level.sample(v));
+                store.push_vertex(edge_record(grid, [i, j, k], 2, ends));
             });
         }
     }
