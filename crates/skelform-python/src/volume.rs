@@ -16,8 +16,8 @@ use pyo3::prelude::*;
 use rayon::prelude::*;
 use skelform::DVec3;
 use skelform::volume::{
-    Grid, Level, MAX_SAMPLES_PER_AXIS, Relative, Volume, VolumeView, extract_mesh,
-    extract_view_mesh, sanitize_sample,
+    Grid, GridVertex, Level, MAX_SAMPLES_PER_AXIS, Near, SlabVertex, Volume, VolumeView,
+    extract_view_records, extract_volume_records, sanitize_sample,
 };
 use std::sync::{Mutex, PoisonError};
 
@@ -215,81 +215,92 @@ fn keep_buffer(values: Vec<f32>) {
     }
 }
 
-/// Samples at lattice nodes, read through a [`Level`], for gradients.
-struct Nodes<'a, L> {
-    values: &'a [f32],
-    level: L,
-    dims: [usize; 3],
-    /// The index step along each axis.
-    strides: [usize; 3],
+/// A vertex as the conventions need it, made by the extractor while the samples around it
+/// are in the cache: its position and, from the gradient there, its unit normal (down the
+/// gradient) and the gradient's size; in the extractor's axes.
+#[derive(Clone, Copy, Default)]
+struct Vertex {
+    position: [f32; 3],
+    normal: [f32; 3],
+    value: f32,
 }
 
-impl<'a, L: Level> Nodes<'a, L> {
-    fn new(grid: &Grid, values: &'a [f32], level: L) -> Self {
-        let [nx, ny, _] = grid.dims;
-        Nodes { values, level, dims: grid.dims, strides: [1, nx, nx * ny] }
-    }
-
-    /// The gradient of the samples at lattice node `n`: central differences inside,
-    /// one-sided ones at the border; per lattice step.
+impl SlabVertex for Vertex {
     #[inline]
-    fn node_gradient(&self, n: [usize; 3]) -> [f64; 3] {
-        let at = n[0] + self.strides[1] * n[1] + self.strides[2] * n[2];
-        let value = |i: usize| f64::from(self.level.sample(self.values[i]));
-        std::array::from_fn(|m| {
-            let (s, d) = (self.strides[m], self.dims[m]);
-            let (lo, hi) = (n[m].saturating_sub(1), (n[m] + 1).min(d - 1));
-            (value(at + hi * s - n[m] * s) - value(at - (n[m] - lo) * s)) / (hi - lo) as f64
-        })
+    fn make<L: Level>(grid: &Grid, v: GridVertex, _: [f32; 2], near: &Near<'_, L>) -> Self {
+        let position = v.position(grid).as_vec3().to_array();
+        // From the stored position, so that a vertex at a node is treated as one.
+        let q = position.map(|c| f64::from(c) / grid.cell);
+        let g = gradient_at(near, q);
+        let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
+        let normal = g.map(|c| if len > 0.0 { (-c / len) as f32 } else { 0.0 });
+        Vertex { position, normal, value: (g[0].abs() + g[1].abs() + g[2].abs()) as f32 }
     }
+}
 
-    /// The gradient at a point of the lattice (in lattice steps): node gradients
-    /// interpolated trilinearly, which on a lattice edge, where every vertex lies, is
-    /// linear along the edge.
-    fn gradient_at(&self, q: [f64; 3]) -> [f64; 3] {
-        let mut base = [0usize; 3];
-        let mut t = [0.0; 3];
-        // The axes along which the point lies between nodes: one for a vertex on an edge.
-        let mut free = [0usize; 3];
-        let mut nfree = 0;
-        for m in 0..3 {
-            let last = self.dims[m] - 2;
-            let c = (q[m].floor().max(0.0) as usize).min(last);
-            base[m] = c;
-            t[m] = (q[m] - c as f64).clamp(0.0, 1.0);
-            if t[m] == 1.0 {
-                base[m] += 1;
-                t[m] = 0.0;
-            }
-            if t[m] > 0.0 {
-                free[nfree] = m;
-                nfree += 1;
-            }
+/// The gradient of the samples at lattice node `n`: central differences inside, one-sided
+/// ones at the border; per lattice step.
+#[inline]
+fn node_gradient<L: Level>(near: &Near<'_, L>, n: [usize; 3]) -> [f64; 3] {
+    let dims = near.dims();
+    std::array::from_fn(|m| {
+        let at = |i: usize| {
+            let mut p = n;
+            p[m] = i;
+            f64::from(near.sample(p[0], p[1], p[2]))
+        };
+        let (lo, hi) = (n[m].saturating_sub(1), (n[m] + 1).min(dims[m] - 1));
+        (at(hi) - at(lo)) / (hi - lo) as f64
+    })
+}
+
+/// The gradient at a point of the lattice (in lattice steps): node gradients interpolated
+/// trilinearly, which on a lattice edge, where every vertex lies, is linear along the edge.
+#[inline]
+fn gradient_at<L: Level>(near: &Near<'_, L>, q: [f64; 3]) -> [f64; 3] {
+    let dims = near.dims();
+    let mut base = [0usize; 3];
+    let mut t = [0.0; 3];
+    // The axes along which the point lies between nodes: one for a vertex on an edge.
+    let mut free = [0usize; 3];
+    let mut nfree = 0;
+    for m in 0..3 {
+        let last = dims[m] - 2;
+        let c = (q[m].floor().max(0.0) as usize).min(last);
+        base[m] = c;
+        t[m] = (q[m] - c as f64).clamp(0.0, 1.0);
+        if t[m] == 1.0 {
+            base[m] += 1;
+            t[m] = 0.0;
         }
-        let mut g = [0.0; 3];
-        for corner in 0..1usize << nfree {
-            let mut w = 1.0;
-            let mut n = base;
-            for (bit, &m) in free[..nfree].iter().enumerate() {
-                if corner >> bit & 1 == 1 {
-                    w *= t[m];
-                    n[m] += 1;
-                } else {
-                    w *= 1.0 - t[m];
-                }
-            }
-            let gn = self.node_gradient(n);
-            for m in 0..3 {
-                g[m] += w * gn[m];
-            }
+        if t[m] > 0.0 {
+            free[nfree] = m;
+            nfree += 1;
         }
-        g
     }
+    let mut g = [0.0; 3];
+    for corner in 0..1usize << nfree {
+        let mut w = 1.0;
+        let mut n = base;
+        for (bit, &m) in free[..nfree].iter().enumerate() {
+            if corner >> bit & 1 == 1 {
+                w *= t[m];
+                n[m] += 1;
+            } else {
+                w *= 1.0 - t[m];
+            }
+        }
+        let gn = node_gradient(near, n);
+        for m in 0..3 {
+            g[m] += w * gn[m];
+        }
+    }
+    g
 }
 
 /// What the extractor made, before the conventions are applied.
 struct Extracted {
-    positions: Vec<[f32; 3]>,
+    vertices: Vec<Vertex>,
     triangles: Vec<[u32; 3]>,
 }
 
@@ -299,36 +310,36 @@ impl Extracted {
     fn retain(&mut self, keep: &[bool]) {
         let mut flags = keep.iter();
         self.triangles.retain(|_| flags.next().copied().unwrap_or(false));
-        let mut used = vec![u32::MAX; self.positions.len()];
+        let mut used = vec![u32::MAX; self.vertices.len()];
         for t in &self.triangles {
             for &i in t {
                 used[i as usize] = 0;
             }
         }
         let mut next = 0u32;
-        let mut positions = Vec::new();
+        let mut vertices = Vec::new();
         for (i, u) in used.iter_mut().enumerate() {
             if *u == 0 {
                 *u = next;
                 next += 1;
-                positions.push(self.positions[i]);
+                vertices.push(self.vertices[i]);
             }
         }
         for t in &mut self.triangles {
             *t = t.map(|i| used[i as usize]);
         }
-        self.positions = positions;
+        self.vertices = vertices;
     }
 
     /// Merges vertices at bitwise-equal positions (samples equal to the level put several
     /// edge vertices on one lattice node) and drops the triangles that then repeat a vertex.
     fn remove_degenerate(&mut self) {
-        let mut first = std::collections::HashMap::with_capacity(self.positions.len());
+        let mut first = std::collections::HashMap::with_capacity(self.vertices.len());
         let same: Vec<u32> = self
-            .positions
+            .vertices
             .iter()
             .enumerate()
-            .map(|(i, p)| *first.entry(p.map(f32::to_bits)).or_insert(i as u32))
+            .map(|(i, v)| *first.entry(v.position.map(f32::to_bits)).or_insert(i as u32))
             .collect();
         for t in &mut self.triangles {
             *t = t.map(|i| same[i as usize]);
@@ -341,10 +352,10 @@ impl Extracted {
 
 /// The cube (lowest corner, in lattice steps) a triangle came from: the one holding its
 /// centroid, every vertex of a marching-cubes triangle lying on one cube's edges.
-fn cube_of(grid: &Grid, p: &[[f32; 3]], t: &[u32; 3]) -> [usize; 3] {
+fn cube_of(grid: &Grid, v: &[Vertex], t: &[u32; 3]) -> [usize; 3] {
     let mut c = [0usize; 3];
     for (m, cm) in c.iter_mut().enumerate() {
-        let centroid = t.iter().map(|&i| f64::from(p[i as usize][m])).sum::<f64>() / 3.0;
+        let centroid = t.iter().map(|&i| f64::from(v[i as usize].position[m])).sum::<f64>() / 3.0;
         let q = centroid / grid.cell;
         *cm = (q.floor().max(0.0) as usize).min(grid.dims[m] - 2);
     }
@@ -433,19 +444,19 @@ fn extract<T: Sample>(a: ArrayView3<'_, T>, o: &Options<'_>, run: &Run) -> PyRes
             0.5 * (lo + hi)
         }
     };
-    let (v, layout) = layout(a.clone(), o.step)?;
+    let (v, layout) = layout(a, o.step)?;
     let samples = samples(v, &layout, level)?;
-    let mesh = match &samples {
-        Samples::InPlace(view) => extract_view_mesh(view, &run.control),
-        Samples::Converted(volume) => extract_mesh(volume, &run.control),
+    let records = match &samples {
+        Samples::InPlace(view) => extract_view_records::<Vertex>(view, &run.control),
+        Samples::Converted(volume) => extract_volume_records::<Vertex>(volume, &run.control),
     };
-    let mesh = match mesh {
+    let (vertices, triangles) = match records {
         Ok(m) => m,
-        Err(e) => {
+        Err(cancelled) => {
             if let Samples::Converted(volume) = samples {
                 keep_buffer(volume.values);
             }
-            return Err(polygonize_error(e));
+            return Err(polygonize_error(cancelled.into()));
         }
     };
     // scikit-image's check that a given level lies in the data's range (no error when the
@@ -453,7 +464,7 @@ fn extract<T: Sample>(a: ArrayView3<'_, T>, o: &Options<'_>, run: &Run) -> PyRes
     // shifted sample is negative only then), so only the other end needs looking at; with
     // no mesh, both do.
     if o.level.is_some() {
-        let in_range = if mesh.triangles.is_empty() {
+        let in_range = if triangles.is_empty() {
             let (lo, hi) = value_range(&a);
             !(level < lo || level > hi)
         } else {
@@ -466,13 +477,16 @@ fn extract<T: Sample>(a: ArrayView3<'_, T>, o: &Options<'_>, run: &Run) -> PyRes
             return Err(PyValueError::new_err("Surface level must be within volume data range."));
         }
     }
-    let mut ex = Extracted { positions: mesh.positions, triangles: mesh.triangles };
+    if let Samples::Converted(volume) = samples {
+        keep_buffer(volume.values);
+    }
+    let mut ex = Extracted { vertices, triangles };
     if let Some(m) = &o.mask {
         let keep: Vec<bool> = ex
             .triangles
             .par_iter()
             .map(|t| {
-                let c = cube_of(&layout.grid, &ex.positions, t);
+                let c = cube_of(&layout.grid, &ex.vertices, t);
                 let mut at = [0usize; 3];
                 for (k, &axis) in layout.axis_of.iter().enumerate() {
                     // scikit-image looks the cube up by its last corner.
@@ -486,31 +500,13 @@ fn extract<T: Sample>(a: ArrayView3<'_, T>, o: &Options<'_>, run: &Run) -> PyRes
     if !o.allow_degenerate {
         ex.remove_degenerate();
     }
-    let result = if i32::try_from(ex.positions.len()).is_err() {
-        Err(PyValueError::new_err(format!(
+    if i32::try_from(ex.vertices.len()).is_err() {
+        return Err(PyValueError::new_err(format!(
             "{} vertices do not fit the int32 face indices of scikit-image's convention",
-            ex.positions.len()
-        )))
-    } else {
-        Ok(match &samples {
-            Samples::InPlace(view) => conventions(
-                &layout,
-                &Nodes::new(&view.grid, view.values, view.level),
-                &ex,
-                o.ascent,
-            ),
-            Samples::Converted(volume) => conventions(
-                &layout,
-                &Nodes::new(&volume.grid, &volume.values, Relative),
-                &ex,
-                o.ascent,
-            ),
-        })
-    };
-    if let Samples::Converted(volume) = samples {
-        keep_buffer(volume.values);
+            ex.vertices.len()
+        )));
     }
-    result
+    Ok(conventions(&layout, &ex, o.ascent))
 }
 
 /// Runs `op` on `pool`, or on the current (global) pool.
@@ -526,14 +522,8 @@ fn install<R: Send>(
 
 /// Flat arrays in scikit-image's conventions: vertices and normals in array axis order,
 /// faces wound for the gradient direction, the gradient size as the value.
-fn conventions<L: Level>(
-    layout: &Layout,
-    nodes: &Nodes<'_, L>,
-    ex: &Extracted,
-    ascent: bool,
-) -> Flat {
-    let n = ex.positions.len();
-    let cell = layout.grid.cell;
+fn conventions(layout: &Layout, ex: &Extracted, ascent: bool) -> Flat {
+    let n = ex.vertices.len();
     let mut positions = vec![0f32; 3 * n];
     let mut normals = vec![0f32; 3 * n];
     let mut values = vec![0f32; n];
@@ -541,16 +531,13 @@ fn conventions<L: Level>(
         .par_chunks_mut(3)
         .zip(normals.par_chunks_mut(3))
         .zip(values.par_iter_mut())
-        .zip(ex.positions.par_iter())
-        .for_each(|(((pos, normal), value), p)| {
-            let q = p.map(|c| f64::from(c) / cell);
-            let g = nodes.gradient_at(q);
-            let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
+        .zip(ex.vertices.par_iter())
+        .for_each(|(((pos, normal), value), v)| {
             for (m, &axis) in layout.axis_of.iter().enumerate() {
-                pos[axis] = p[m];
-                normal[axis] = if len > 0.0 { (-g[m] / len) as f32 } else { 0.0 };
+                pos[axis] = v.position[m];
+                normal[axis] = v.normal[m];
             }
-            *value = (g[0].abs() + g[1].abs() + g[2].abs()) as f32;
+            *value = v.value;
         });
     // The extractor winds counter-clockwise seen from the higher values in its own axes;
     // the array's axis order is a reflection of them when it is (2, 1, 0).

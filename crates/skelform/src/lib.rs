@@ -99,7 +99,9 @@ pub mod volume {
         sanitize_sample,
     };
     pub use skelform_polygonize::grid::{
-        LayerSource, StreamError, Streamed, extract_mesh, extract_streamed, extract_view_mesh,
+        Cancelled, GridVertex, LayerSource, Near, Place, SlabVertex, StreamError, Streamed,
+        extract_mesh, extract_streamed, extract_view_mesh, extract_view_records,
+        extract_volume_records,
     };
 
     /// Builds the marching-cubes case table now (a few milliseconds, once per process), so

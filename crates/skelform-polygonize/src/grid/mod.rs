@@ -33,10 +33,10 @@ use crate::Error;
 use crate::lattice::LatticeOptions;
 use crate::refine::{Bracket, RootOptions, gradient_normals, project_to_surface, refine_roots};
 pub use extract::{
-    Cancelled, Extraction, GridVertex, LayerSource, Place, Positions, SLAB, SampledVertex,
+    Cancelled, Extraction, GridVertex, LayerSource, Near, Place, Positions, SLAB, SampledVertex,
     SlabVertex, StreamError, StreamStats, Streamed, Workspace, dir_vector, extract,
     extract_positions, extract_streamed, extract_streamed_with, extract_view_positions,
-    extract_with, surface_cubes,
+    extract_view_records, extract_volume_records, extract_with, surface_cubes,
 };
 
 pub use crate::lattice::Resolution;

@@ -123,23 +123,53 @@ pub struct Extraction {
 pub struct Cancelled;
 
 /// What a slab records for each vertex it makes: the lattice place ([`GridVertex`], for
-/// refinement on the field) or the interpolated position at once (extraction only).
+/// refinement on the field) or the interpolated position at once (extraction only), or
+/// anything else computed from the samples around the vertex while they are in the cache.
 pub trait SlabVertex: Copy + Default + Send + Sync + 'static {
     /// The record of vertex `v`; `ends` are the samples at the two ends of its lattice
-    /// segment (zero for vertices inside a cell).
-    fn make(grid: &Grid, v: GridVertex, ends: [f32; 2]) -> Self;
+    /// segment (zero for vertices inside a cell); `near` reads the samples around it.
+    fn make<L: Level>(grid: &Grid, v: GridVertex, ends: [f32; 2], near: &Near<'_, L>) -> Self;
+}
+
+/// The samples a slab can read while it makes a vertex: the whole volume for an extraction
+/// over a held volume, the slab's own sample layers for a streamed one.
+#[derive(Clone, Copy)]
+pub struct Near<'a, L> {
+    values: &'a [f32],
+    /// The first layer `values` holds, and how many.
+    first: usize,
+    layers: usize,
+    dims: [usize; 3],
+    level: L,
+}
+
+impl<L: Level> Near<'_, L> {
+    /// The sample (relative to the level) at lattice point `(i, j, k)`, which must be in
+    /// the grid; `k` is clamped to the layers there are (in a streamed slab, the slab's own:
+    /// a record that reads past them sees the slab's first or last layer again).
+    #[inline]
+    pub fn sample(&self, i: usize, j: usize, k: usize) -> f32 {
+        let [nx, ny, _] = self.dims;
+        let k = k.clamp(self.first, self.first + self.layers - 1) - self.first;
+        self.level.sample(self.values[i + nx * (j + ny * k)])
+    }
+
+    /// Samples along x, y, z of the whole lattice.
+    pub fn dims(&self) -> [usize; 3] {
+        self.dims
+    }
 }
 
 impl SlabVertex for GridVertex {
     #[inline]
-    fn make(_: &Grid, v: GridVertex, _: [f32; 2]) -> Self {
+    fn make<L: Level>(_: &Grid, v: GridVertex, _: [f32; 2], _: &Near<'_, L>) -> Self {
         v
     }
 }
 
 impl SlabVertex for [f32; 3] {
     #[inline]
-    fn make(grid: &Grid, v: GridVertex, _: [f32; 2]) -> Self {
+    fn make<L: Level>(grid: &Grid, v: GridVertex, _: [f32; 2], _: &Near<'_, L>) -> Self {
         v.position(grid).as_vec3().to_array()
     }
 }
@@ -163,7 +193,7 @@ impl std::borrow::Borrow<GridVertex> for SampledVertex {
 
 impl SlabVertex for SampledVertex {
     #[inline]
-    fn make(_: &Grid, vertex: GridVertex, ends: [f32; 2]) -> Self {
+    fn make<L: Level>(_: &Grid, vertex: GridVertex, ends: [f32; 2], _: &Near<'_, L>) -> Self {
         SampledVertex { vertex, ends }
     }
 }
@@ -235,6 +265,27 @@ pub fn extract_positions(volume: &Volume, control: &Control) -> Result<Positions
     Ok((vertices, triangles))
 }
 
+/// Marching cubes over a held volume with the vertex records of the caller's choice (which
+/// may read the samples around each vertex: [`Near`]).
+pub fn extract_volume_records<V: SlabVertex>(
+    volume: &Volume,
+    control: &Control,
+) -> Result<(Vec<V>, Vec<[u32; 3]>), Cancelled> {
+    let (vertices, triangles, _, _) =
+        extract_as::<V, _>(&volume.grid, &volume.values, Relative, control, Workspace::shared())?;
+    Ok((vertices, triangles))
+}
+
+/// [`extract_volume_records`] on raw values read in place at a level.
+pub fn extract_view_records<V: SlabVertex>(
+    view: &VolumeView<'_>,
+    control: &Control,
+) -> Result<(Vec<V>, Vec<[u32; 3]>), Cancelled> {
+    let (vertices, triangles, _, _) =
+        extract_as::<V, _>(&view.grid, view.values, view.level, control, Workspace::shared())?;
+    Ok((vertices, triangles))
+}
+
 /// [`extract_positions`] on raw values read in place at a level: the mesh is the one of the
 /// [`Volume`] that converting them would make (bit for bit), without the copy.
 pub fn extract_view_positions(
@@ -281,8 +332,8 @@ fn extract_as<V: SlabVertex, L: Level>(
         run_slabs(cube_layers.div_ceil(SLAB), [nx, ny], workspace, |s, scratch, store| {
             let z0 = s * SLAB;
             let z1 = (z0 + SLAB).min(cube_layers);
-            let vals = &values[z0 * nx * ny..];
-            let counts = extract_slab(&grid, vals, level, (z0, z1), scratch, store, control)?;
+            let near = Near { values, first: 0, layers: grid.dims[2], dims: grid.dims, level };
+            let counts = extract_slab(&grid, &near, (z0, z1), scratch, store, control)?;
             slab_done(control, &done, z1 - z0, cube_layers, "extracting").map(|()| counts)
         })?;
     let (ambiguous_faces, tunnels) = counts.iter().fold((0, 0), |(a, t), c| (a + c.0, t + c.1));
@@ -304,9 +355,9 @@ fn slab_done(
     }
 }
 
-/// Marching cubes over the cube layers `z0..z1`; `vals` holds the sample layers
-/// `z0..=z1` (and possibly more), starting with layer `z0`, as raw values that `level`
-/// reads (for the inside test by its threshold, for everything else as samples). The slab's vertices and
+/// Marching cubes over the cube layers `z0..z1`; `near` holds the sample layers `z0..=z1`
+/// (and possibly more), as raw values that its level reads (for the inside test by its
+/// threshold, for everything else as samples). The slab's vertices and
 /// triangles go to `store`; returns the ambiguous faces decided and the tunnels made.
 ///
 /// Flying Edges' way of naming vertices: the crossed edges of each sample layer and
@@ -317,8 +368,7 @@ fn slab_done(
 /// z-edges, and the vertices inside the cubes.
 fn extract_slab<V: SlabVertex, L: Level>(
     grid: &Grid,
-    vals: &[f32],
-    level: L,
+    near: &Near<'_, L>,
     (z0, z1): (usize, usize),
     scratch: &mut Scratch,
     store: &mut SlabStore<'_, V>,
@@ -328,6 +378,8 @@ fn extract_slab<V: SlabVertex, L: Level>(
     let layer = nx * ny;
     let last = z1 == nz - 1;
     let Scratch { below, above, lower, upper, z, .. } = scratch;
+    let level = near.level;
+    let vals = &near.values[(z0 - near.first) * layer..];
     let local = |k: usize| &vals[(k - z0) * layer..(k - z0 + 1) * layer];
     let offsets: [usize; 8] = CORNERS.map(|[x, y, z]| x + nx * y + layer * z);
     // Sign bits of the sample layers: a cube has the surface in it when its eight bits are
@@ -339,7 +391,7 @@ fn extract_slab<V: SlabVertex, L: Level>(
     lower.build(below, nx, ny, words);
     store.begin();
     lower.offset = store.made();
-    lower.emit(grid, local(z0), level, z0, store);
+    lower.emit(grid, local(z0), near, z0, store);
     let (mut ambiguous_faces, mut tunnels) = (0, 0);
     for k in z0..z1 {
         if control.is_cancelled() {
@@ -354,17 +406,18 @@ fn extract_slab<V: SlabVertex, L: Level>(
             store.borrow_top();
         } else {
             upper.offset = store.made();
-            upper.emit(grid, local(k + 1), level, k + 1, store);
+            upper.emit(grid, local(k + 1), near, k + 1, store);
         }
         z.build(below, above, nx, words);
         z.offset = store.made();
-        z.emit(grid, local(k), local(k + 1), level, k, store);
+        z.emit(grid, local(k), local(k + 1), near, k, store);
         let mut sink = SlabSink {
             store: &mut *store,
             lower: &*lower,
             upper: &*upper,
             z: &*z,
             grid,
+            near,
             at: [0, 0, k],
             _vertex: std::marker::PhantomData,
         };
@@ -394,18 +447,19 @@ fn extract_slab<V: SlabVertex, L: Level>(
 }
 
 /// The slab's side of [`CubeSink`]: a cube's edge vertices by their numbers.
-struct SlabSink<'a, 's, V> {
+struct SlabSink<'a, 's, V, L> {
     store: &'a mut SlabStore<'s, V>,
     /// The numbered edges of the sample layers below and above the cube, and between them.
     lower: &'a LayerNumbering,
     upper: &'a LayerNumbering,
     z: &'a ZNumbering,
     grid: &'a Grid,
+    near: &'a Near<'a, L>,
     at: [usize; 3],
     _vertex: std::marker::PhantomData<V>,
 }
 
-impl<V: SlabVertex> CubeSink for SlabSink<'_, '_, V> {
+impl<V: SlabVertex, L: Level> CubeSink for SlabSink<'_, '_, V, L> {
     #[inline]
     fn edge_vertex(&mut self, e: usize, _: [f32; 2]) -> u32 {
         // Edge 4·a + u + 2·v runs along axis a at offsets u, v on the other two axes.
@@ -423,7 +477,7 @@ impl<V: SlabVertex> CubeSink for SlabSink<'_, '_, V> {
         let [i, j, k] = self.at;
         let v = GridVertex { base: [i as u32, j as u32, k as u32], place: Place::Cell { offset } };
         let id = self.store.made();
-        self.store.push_vertex(V::make(self.grid, v, [0.0; 2]));
+        self.store.push_vertex(V::make(self.grid, v, [0.0; 2], self.near));
         id
     }
 

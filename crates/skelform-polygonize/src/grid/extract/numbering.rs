@@ -8,7 +8,7 @@ use skelform_field::grid::{Grid, Level};
 
 use super::signs::word_mask;
 use super::slabs::SlabStore;
-use super::{GridVertex, Place, SlabVertex};
+use super::{GridVertex, Near, Place, SlabVertex};
 use crate::grid::cell::crossing;
 
 /// One word of a row of edges: the crossed ones (bit `i`: the edge from sample `64·w + i`)
@@ -80,12 +80,12 @@ impl LayerNumbering {
     }
 
     /// Makes the layer's vertices in the order of their numbers, from the layer's raw values
-    /// (`nx·ny`, x fastest) read through `level`; `k` is the layer's index.
+    /// (`nx·ny`, x fastest) read through `near`'s level; `k` is the layer's index.
     pub(super) fn emit<V: SlabVertex, L: Level>(
         &self,
         grid: &Grid,
         vals: &[f32],
-        level: L,
+        near: &Near<'_, L>,
         k: usize,
         store: &mut SlabStore<'_, V>,
     ) {
@@ -94,14 +94,14 @@ impl LayerNumbering {
             let row = j * self.words..(j + 1) * self.words;
             for_each_bit(&self.x[row.clone()], |i| {
                 let at = i + nx * j;
-                let ends = [vals[at], vals[at + 1]].map(|v| level.sample(v));
-                store.push_vertex(edge_record(grid, [i, j, k], 0, ends));
+                let ends = [vals[at], vals[at + 1]].map(|v| near.level.sample(v));
+                store.push_vertex(edge_record(grid, [i, j, k], 0, ends, near));
             });
             if j + 1 < ny {
                 for_each_bit(&self.y[row], |i| {
                     let at = i + nx * j;
-                    let ends = [vals[at], vals[at + nx]].map(|v| level.sample(v));
-                    store.push_vertex(edge_record(grid, [i, j, k], 1, ends));
+                    let ends = [vals[at], vals[at + nx]].map(|v| near.level.sample(v));
+                    store.push_vertex(edge_record(grid, [i, j, k], 1, ends, near));
                 });
             }
         }
@@ -143,13 +143,13 @@ impl ZNumbering {
     }
 
     /// Makes the vertices in the order of their numbers; `lower` and `upper` are the two
-    /// layers' raw values, read through `level`, `k` the lower one's index.
+    /// layers' raw values, read through `near`'s level, `k` the lower one's index.
     pub(super) fn emit<V: SlabVertex, L: Level>(
         &self,
         grid: &Grid,
         lower: &[f32],
         upper: &[f32],
-        level: L,
+        near: &Near<'_, L>,
         k: usize,
         store: &mut SlabStore<'_, V>,
     ) {
@@ -157,8 +157,8 @@ impl ZNumbering {
         for (j, row) in self.edges.chunks(self.words).enumerate() {
             for_each_bit(row, |i| {
                 let at = i + nx * j;
-                let ends = [lower[at], upper[at]].map(|v| level.sample(v));
-                store.push_vertex(edge_record(grid, [i, j, k], 2, ends));
+                let ends = [lower[at], upper[at]].map(|v| near.level.sample(v));
+                store.push_vertex(edge_record(grid, [i, j, k], 2, ends, near));
             });
         }
     }
@@ -193,10 +193,16 @@ fn for_each_bit(words: &[Counted], mut f: impl FnMut(usize)) {
 /// The record of the vertex where the surface crosses the lattice edge from sample `base`
 /// along `axis`, whose end samples are `ends`.
 #[inline]
-fn edge_record<V: SlabVertex>(grid: &Grid, base: [usize; 3], axis: usize, ends: [f32; 2]) -> V {
+fn edge_record<V: SlabVertex, L: Level>(
+    grid: &Grid,
+    base: [usize; 3],
+    axis: usize,
+    ends: [f32; 2],
+    near: &Near<'_, L>,
+) -> V {
     let v = GridVertex {
         base: base.map(|x| x as u32),
         place: Place::Edge { dir: 1 << axis, t: crossing(ends[0], ends[1]) },
     };
-    V::make(grid, v, ends)
+    V::make(grid, v, ends, near)
 }
