@@ -226,6 +226,8 @@ struct Vertex {
 }
 
 impl SlabVertex for Vertex {
+    const READS_NEAR: bool = true;
+
     #[inline]
     fn make<L: Level>(grid: &Grid, v: GridVertex, _: [f32; 2], near: &Near<'_, L>) -> Self {
         let position = v.position(grid).as_vec3().to_array();

@@ -129,6 +129,10 @@ pub trait SlabVertex: Copy + Default + Send + Sync + 'static {
     /// The record of vertex `v`; `ends` are the samples at the two ends of its lattice
     /// segment (zero for vertices inside a cell); `near` reads the samples around it.
     fn make<L: Level>(grid: &Grid, v: GridVertex, ends: [f32; 2], near: &Near<'_, L>) -> Self;
+
+    /// Whether `make` reads the samples around the vertex (up to a lattice step past the
+    /// cube's layers): the slab then fetches the layers it will read ahead of time.
+    const READS_NEAR: bool = false;
 }
 
 /// The samples a slab can read while it makes a vertex: the whole volume for an extraction
@@ -157,6 +161,14 @@ impl<L: Level> Near<'_, L> {
     /// Samples along x, y, z of the whole lattice.
     pub fn dims(&self) -> [usize; 3] {
         self.dims
+    }
+
+    /// Asks the CPU to bring sample layer `k` into its cache, if it is there to read.
+    fn prefetch_layer(&self, k: usize) {
+        let layer = self.dims[0] * self.dims[1];
+        if (self.first..self.first + self.layers).contains(&k) {
+            prefetch(&self.values[(k - self.first) * layer..][..layer]);
+        }
     }
 }
 
@@ -390,12 +402,22 @@ fn extract_slab<V: SlabVertex, L: Level>(
     layer_signs(local(z0), nx, words, below, threshold);
     lower.build(below, nx, ny, words);
     store.begin();
+    if V::READS_NEAR {
+        // The bottom layer's records read the layers on either side of it.
+        near.prefetch_layer(z0.wrapping_sub(1));
+        near.prefetch_layer(z0 + 1);
+    }
     lower.offset = store.made();
     lower.emit(grid, local(z0), near, z0, store);
     let (mut ambiguous_faces, mut tunnels) = (0, 0);
     for k in z0..z1 {
         if control.is_cancelled() {
             return Err(Cancelled);
+        }
+        if V::READS_NEAR {
+            // The records of this layer of cubes read up to layer k + 2, which the sign
+            // passes have not read yet.
+            near.prefetch_layer(k + 2);
         }
         layer_signs(local(k + 1), nx, words, above, threshold);
         upper.build(above, nx, ny, words);
