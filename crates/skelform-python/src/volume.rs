@@ -242,23 +242,25 @@ impl SlabVertex for Vertex {
 
 /// The gradient of the samples at lattice node `n`: central differences inside, one-sided
 /// ones at the border; per lattice step.
-#[inline]
+#[inline(always)]
 fn node_gradient<L: Level>(near: &Near<'_, L>, n: [usize; 3]) -> [f64; 3] {
     let dims = near.dims();
-    std::array::from_fn(|m| {
-        let at = |i: usize| {
-            let mut p = n;
-            p[m] = i;
-            f64::from(near.sample(p[0], p[1], p[2]))
-        };
-        let (lo, hi) = (n[m].saturating_sub(1), (n[m] + 1).min(dims[m] - 1));
-        (at(hi) - at(lo)) / (hi - lo) as f64
-    })
+    let [i, j, k] = n;
+    let value = |i: usize, j: usize, k: usize| f64::from(near.sample(i, j, k));
+    let span = |c: usize, d: usize| (c.saturating_sub(1), (c + 1).min(d - 1));
+    let (x0, x1) = span(i, dims[0]);
+    let (y0, y1) = span(j, dims[1]);
+    let (z0, z1) = span(k, dims[2]);
+    [
+        (value(x1, j, k) - value(x0, j, k)) / (x1 - x0) as f64,
+        (value(i, y1, k) - value(i, y0, k)) / (y1 - y0) as f64,
+        (value(i, j, z1) - value(i, j, z0)) / (z1 - z0) as f64,
+    ]
 }
 
 /// The gradient at a point of the lattice (in lattice steps): node gradients interpolated
 /// trilinearly, which on a lattice edge, where every vertex lies, is linear along the edge.
-#[inline]
+#[inline(always)]
 fn gradient_at<L: Level>(near: &Near<'_, L>, q: [f64; 3]) -> [f64; 3] {
     let dims = near.dims();
     let mut base = [0usize; 3];
@@ -281,6 +283,20 @@ fn gradient_at<L: Level>(near: &Near<'_, L>, q: [f64; 3]) -> [f64; 3] {
         }
     }
     let mut g = [0.0; 3];
+    if nfree == 1 {
+        // A vertex on an edge, nearly all of them: the two ends' gradients, weighted as the
+        // general loop below weighs them (and so to the same bits).
+        let m = free[0];
+        let mut tip = base;
+        tip[m] += 1;
+        let (g0, g1) = (node_gradient(near, base), node_gradient(near, tip));
+        let (w0, w1) = (1.0 - t[m], t[m]);
+        for c in 0..3 {
+            g[c] += w0 * g0[c];
+            g[c] += w1 * g1[c];
+        }
+        return g;
+    }
     for corner in 0..1usize << nfree {
         let mut w = 1.0;
         let mut n = base;

@@ -151,7 +151,7 @@ impl<L: Level> Near<'_, L> {
     /// The sample (relative to the level) at lattice point `(i, j, k)`, which must be in
     /// the grid; `k` is clamped to the layers there are (in a streamed slab, the slab's own:
     /// a record that reads past them sees the slab's first or last layer again).
-    #[inline]
+    #[inline(always)]
     pub fn sample(&self, i: usize, j: usize, k: usize) -> f32 {
         let [nx, ny, _] = self.dims;
         let k = k.clamp(self.first, self.first + self.layers - 1) - self.first;
