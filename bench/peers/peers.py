@@ -177,6 +177,27 @@ def middle(xs):
     return med, q1, q3
 
 
+def flying_edges(vol, level=0.0):
+    """A vtkFlyingEdges3D set up over `vol` (a C-ordered float32 array, wrapped without a
+    copy: numpy_to_vtk keeps a reference to it) for the surface at `level`, with normals,
+    gradients and scalars off; its Update() extracts, GetOutput() is the mesh."""
+    import vtk
+    from vtk.util import numpy_support
+
+    n = vol.shape
+    img = vtk.vtkImageData()
+    img.SetDimensions(n[2], n[1], n[0])
+    img.GetPointData().SetScalars(
+        numpy_support.numpy_to_vtk(vol.ravel(), deep=False, array_type=vtk.VTK_FLOAT))
+    fe = vtk.vtkFlyingEdges3D()
+    fe.SetInputData(img)
+    fe.SetValue(0, level)
+    fe.ComputeNormalsOff()
+    fe.ComputeGradientsOff()
+    fe.ComputeScalarsOff()
+    return fe
+
+
 def one_run(tool, field, n, mode):
     result = {}
     # skelform and fast-surface-nets run as child processes: load nothing here, so that the
@@ -217,9 +238,6 @@ def one_run(tool, field, n, mode):
         from skimage.measure import marching_cubes
     elif tool == "PyMCubes":
         import mcubes
-    elif tool == "VTK FlyingEdges3D":
-        import vtk
-        from vtk.util import numpy_support
     if mode == "extract":
         vol = np.fromfile(volume_file(field, n), dtype=np.float32).reshape(n, n, n)
     t0 = time.perf_counter()
@@ -232,16 +250,7 @@ def one_run(tool, field, n, mode):
         t = time.perf_counter()
         verts, faces = mcubes.marching_cubes(vol, 0.0)
     elif tool == "VTK FlyingEdges3D":
-        img = vtk.vtkImageData()
-        img.SetDimensions(n, n, n)
-        arr = numpy_support.numpy_to_vtk(vol.ravel(), deep=False, array_type=vtk.VTK_FLOAT)
-        img.GetPointData().SetScalars(arr)
-        fe = vtk.vtkFlyingEdges3D()
-        fe.SetInputData(img)
-        fe.SetValue(0, 0.0)
-        fe.ComputeNormalsOff()
-        fe.ComputeGradientsOff()
-        fe.ComputeScalarsOff()
+        fe = flying_edges(vol)
         t = time.perf_counter()
         fe.Update()
         out = fe.GetOutput()

@@ -18,33 +18,20 @@ from pathlib import Path
 
 import numpy as np
 
-from peers import FIELDS, ROOT, machine, numpy_volume
+from peers import FIELDS, ROOT, flying_edges, machine, numpy_volume
 
 
 def tools():
     import mcubes
-    import vtk
     from skimage.measure import marching_cubes as sk
-    from vtk.util import numpy_support
 
     import skelform
 
-    def flying_edges(vol):
-        n = vol.shape
-        img = vtk.vtkImageData()
-        img.SetDimensions(n[2], n[1], n[0])
-        img.GetPointData().SetScalars(
-            numpy_support.numpy_to_vtk(vol.ravel(), deep=False, array_type=vtk.VTK_FLOAT))
-        fe = vtk.vtkFlyingEdges3D()
-        fe.SetInputData(img)
-        fe.SetValue(0, 0.0)
-        fe.ComputeNormalsOff()
-        fe.ComputeGradientsOff()
-        fe.ComputeScalarsOff()
+    def vtk_flying_edges(vol):
+        fe = flying_edges(vol)
         t = time.perf_counter()
         fe.Update()
-        out = fe.GetOutput()
-        return time.perf_counter() - t, out.GetNumberOfPolys()
+        return time.perf_counter() - t, fe.GetOutput().GetNumberOfPolys()
 
     def timed(f):
         def run(vol):
@@ -57,7 +44,7 @@ def tools():
     return {
         "skelform, 1 thread": timed(lambda v: skelform.marching_cubes(v, 0.0, threads=1)),
         f"skelform, {cores} threads": timed(lambda v: skelform.marching_cubes(v, 0.0, threads=cores)),
-        "VTK FlyingEdges3D": flying_edges,
+        "VTK FlyingEdges3D": vtk_flying_edges,
         "PyMCubes": timed(lambda v: mcubes.marching_cubes(v, 0.0)),
         "scikit-image": timed(lambda v: sk(v, 0.0)),
     }

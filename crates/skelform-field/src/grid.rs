@@ -230,12 +230,134 @@ pub fn sanitize(values: &mut [f32]) -> u64 {
     let mut bad = 0;
     // Without branches, so that it vectorises: most volumes have no bad value at all.
     for v in values {
-        let finite = v.is_finite();
-        bad += u64::from(!finite);
-        let far = if *v == f32::NEG_INFINITY { -f32::MAX } else { f32::MAX };
-        *v = if finite { *v } else { far };
+        let (s, replaced) = sanitize_sample(*v);
+        bad += u64::from(replaced);
+        *v = s;
     }
     bad
+}
+
+/// One sample as [`sanitize`] has it: NaN and +∞ become `f32::MAX`, −∞ `-f32::MAX`, finite
+/// values stay; and whether it was replaced. Without branches, so that loops over it
+/// vectorise.
+#[inline(always)]
+pub fn sanitize_sample(v: f32) -> (f32, bool) {
+    let finite = v.is_finite();
+    let far = if v == f32::NEG_INFINITY { -f32::MAX } else { f32::MAX };
+    (if finite { v } else { far }, !finite)
+}
+
+/// How stored values are read as samples relative to the iso level (inside negative):
+/// the extractor compares and interpolates `sample(raw)`, and finds the inside by comparing
+/// raw values with `threshold()` (so that the pass over every value needs no arithmetic).
+pub trait Level: Copy + Send + Sync {
+    /// The sample that raw value `raw` stands for: finite, relative to the level.
+    fn sample(self, raw: f32) -> f32;
+    /// A raw value is inside (`sample(raw) < 0`) exactly when `raw < threshold()`; NaN never
+    /// is.
+    fn threshold(self) -> f32;
+}
+
+/// Values that are already samples: relative to the level and finite (a [`Volume`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Relative;
+
+impl Level for Relative {
+    #[inline(always)]
+    fn sample(self, raw: f32) -> f32 {
+        raw
+    }
+    #[inline(always)]
+    fn threshold(self) -> f32 {
+        0.0
+    }
+}
+
+/// Raw values (a caller's array, read in place) and the level of the surface: a value `x`
+/// is the sample `(x − level)`, computed in `f64`, rounded to `f32` and sanitised as
+/// [`sanitize`] does, exactly what converting the array into a [`Volume`] would store.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Shifted {
+    level: f64,
+    threshold: f32,
+}
+
+impl Shifted {
+    /// The reading of raw values at iso level `level` (any `f64`: a NaN level leaves every
+    /// sample outside, as converting would).
+    pub fn new(level: f64) -> Shifted {
+        let level = Shifted { level, threshold: 0.0 };
+        // `sample` never decreases as the raw value grows (a subtraction, a rounding and a
+        // clamp of ±∞ to ±f32::MAX, all monotone), so the inside is the raw values below the
+        // smallest one that is not inside: found by bisection over the ordered f32 values
+        // from −∞ to +∞ (keys that order floats as their values, −0 just below +0).
+        let key = |x: f32| {
+            let b = x.to_bits();
+            if b >> 31 == 1 { !b } else { b | 1 << 31 }
+        };
+        let value = |k: u32| f32::from_bits(if k >> 31 == 1 { k & !(1 << 31) } else { !k });
+        let inside = |k: u32| level.sample(value(k)) < 0.0;
+        let (mut lo, mut hi) = (key(f32::NEG_INFINITY), key(f32::INFINITY));
+        // +∞ is never inside (+∞ − level is +∞ or NaN, both stored as f32::MAX).
+        let threshold = if !inside(lo) {
+            f32::NEG_INFINITY
+        } else {
+            // inside(lo), !inside(hi): narrow to adjacent keys.
+            while hi - lo > 1 {
+                let mid = lo + (hi - lo) / 2;
+                if inside(mid) { lo = mid } else { hi = mid }
+            }
+            value(hi)
+        };
+        Shifted { threshold, ..level }
+    }
+
+    /// The level.
+    pub fn level(&self) -> f64 {
+        self.level
+    }
+}
+
+impl Level for Shifted {
+    #[inline(always)]
+    fn sample(self, raw: f32) -> f32 {
+        sanitize_sample((f64::from(raw) - self.level) as f32).0
+    }
+    #[inline(always)]
+    fn threshold(self) -> f32 {
+        self.threshold
+    }
+}
+
+/// Raw values held elsewhere (a caller's array), read in place at a level: what a
+/// [`Volume`] of `Shifted::sample` of each value would be, without the copy.
+#[derive(Clone, Copy, Debug)]
+pub struct VolumeView<'a> {
+    /// The lattice.
+    pub grid: Grid,
+    /// `values[grid.index(i, j, k)]`, raw.
+    pub values: &'a [f32],
+    /// How they are read.
+    pub level: Shifted,
+}
+
+impl<'a> VolumeView<'a> {
+    /// A view of `values` on `grid` at `level`; `None` unless `values` fills the grid
+    /// exactly.
+    pub fn new(grid: Grid, values: &'a [f32], level: f64) -> Option<VolumeView<'a>> {
+        (values.len() as u64 == grid.sample_count()).then(|| VolumeView {
+            grid,
+            values,
+            level: Shifted::new(level),
+        })
+    }
+
+    /// The sample (relative to the level, sanitised) at `(i, j, k)`, which must be inside
+    /// the grid (only the position in `values` is checked).
+    #[inline]
+    pub fn get(&self, i: usize, j: usize, k: usize) -> f32 {
+        self.level.sample(self.values[self.grid.index(i, j, k)])
+    }
 }
 
 /// Field values as samples: clamped into `f32`'s finite range (huge finite values stay
@@ -383,6 +505,64 @@ mod tests {
         }
         let flat = Aabb::new(DVec3::ZERO, DVec3::new(1.0, 1.0, 0.0));
         assert!(matches!(Grid::with_cell(&flat, 0.1), Err(GridError::BadDomain { .. })));
+    }
+
+    /// The threshold says inside exactly when the shifted sample is negative, for levels
+    /// and values around the edge cases: zeros, subnormal differences, ±∞, NaN, a level
+    /// that is not an `f32`.
+    #[test]
+    fn shifted_threshold_matches_the_samples() {
+        let levels = [
+            0.0,
+            -0.0,
+            1.0,
+            0.1,
+            -3.7,
+            1e-50,
+            -1e-50,
+            1e300,
+            -1e300,
+            f64::from(f32::MAX),
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+            f64::from(f32::MIN_POSITIVE) / 4.0,
+        ];
+        let mut values = vec![
+            0.0,
+            -0.0,
+            1.0,
+            0.1,
+            -3.7,
+            f32::MIN_POSITIVE,
+            -f32::MIN_POSITIVE,
+            f32::from_bits(1),
+            -f32::from_bits(1),
+            f32::MAX,
+            -f32::MAX,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+        ];
+        for &l in &levels {
+            let x = l as f32;
+            values.extend([
+                x,
+                f32::from_bits(x.to_bits().wrapping_add(1)),
+                f32::from_bits(x.to_bits().wrapping_sub(1)),
+            ]);
+        }
+        for &l in &levels {
+            let s = Shifted::new(l);
+            for &x in &values {
+                let inside = s.sample(x) < 0.0;
+                assert_eq!(x < s.threshold(), inside, "level {l:e}, value {x:e}");
+                assert!(s.sample(x).is_finite());
+                let mut v = [(f64::from(x) - l) as f32];
+                sanitize(&mut v);
+                assert_eq!(v[0].to_bits(), s.sample(x).to_bits());
+            }
+        }
     }
 
     #[test]

@@ -33,11 +33,11 @@ fn broadcast<'py>(
 
 /// The points of broadcast coordinate arrays.
 fn points(c: &[PyReadonlyArrayDyn<'_, f64>; 3]) -> PyResult<Vec<DVec3>> {
-    let s = |a: &PyReadonlyArrayDyn<'_, f64>| {
-        a.as_slice().map(<[f64]>::to_vec).map_err(|e| PyValueError::new_err(e.to_string()))
-    };
+    fn s<'a>(a: &'a PyReadonlyArrayDyn<'_, f64>) -> PyResult<&'a [f64]> {
+        a.as_slice().map_err(|e| PyValueError::new_err(e.to_string()))
+    }
     let (x, y, z) = (s(&c[0])?, s(&c[1])?, s(&c[2])?);
-    Ok(x.iter().zip(&y).zip(&z).map(|((&x, &y), &z)| DVec3::new(x, y, z)).collect())
+    Ok(x.iter().zip(y).zip(z).map(|((&x, &y), &z)| DVec3::new(x, y, z)).collect())
 }
 
 /// `field` at the broadcast points, shaped like them; the GIL is released while it runs.
@@ -165,10 +165,11 @@ impl CallableField {
         let flat: Vec<f64> = points.iter().flat_map(|p| p.to_array()).collect();
         let arg = PyArray1::from_vec(py, flat).reshape([points.len(), 3])?;
         let result = self.func.call1(py, (arg,))?;
-        let values = py.import("numpy")?.call_method1("asarray", (result, "float64"))?;
+        let np = py.import("numpy")?;
+        let values = np.call_method1("asarray", (result, "float64"))?;
         let values = values.call_method1("reshape", (-1,))?;
         let values: PyReadonlyArrayDyn<'_, f64> =
-            py.import("numpy")?.call_method1("ascontiguousarray", (values,))?.extract()?;
+            np.call_method1("ascontiguousarray", (values,))?.extract()?;
         let values = values.as_slice().map_err(|e| PyValueError::new_err(e.to_string()))?;
         if values.len() != out.len() {
             return Err(PyValueError::new_err(format!(

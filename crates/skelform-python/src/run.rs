@@ -115,15 +115,30 @@ impl Run {
     }
 }
 
-/// The rayon pool for `threads`: `None` for the global one (a thread per core).
+/// The rayon pool for `threads`: `None` for the global one (a thread per core). Pools are
+/// kept by size for the calls that follow: starting threads for every call would cost the
+/// threads' start and the working memory the extractor keeps per thread.
 pub(crate) fn pool(threads: Option<usize>) -> PyResult<Option<Arc<rayon::ThreadPool>>> {
+    /// Pools of the sizes asked for so far (a few, in practice).
+    static POOLS: Mutex<Vec<(usize, Arc<rayon::ThreadPool>)>> = Mutex::new(Vec::new());
+    /// The most pools kept; past it, the oldest goes.
+    const KEPT: usize = 4;
     let Some(n) = threads else { return Ok(None) };
     if !(1..=MAX_THREADS).contains(&n) {
         return Err(PyValueError::new_err(format!(
             "threads must be between 1 and {MAX_THREADS} (got {n})"
         )));
     }
-    rayon::ThreadPoolBuilder::new().num_threads(n).build().map(|p| Some(Arc::new(p))).map_err(|e| {
+    let mut pools = POOLS.lock().unwrap_or_else(PoisonError::into_inner);
+    if let Some((_, p)) = pools.iter().find(|(m, _)| *m == n) {
+        return Ok(Some(p.clone()));
+    }
+    let p = rayon::ThreadPoolBuilder::new().num_threads(n).build().map(Arc::new).map_err(|e| {
         pyo3::exceptions::PyRuntimeError::new_err(format!("cannot start {n} threads: {e}"))
-    })
+    })?;
+    if pools.len() == KEPT {
+        pools.remove(0);
+    }
+    pools.push((n, p.clone()));
+    Ok(Some(p))
 }

@@ -15,23 +15,23 @@ use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use rayon::prelude::*;
 use skelform::DVec3;
-use skelform::volume::{Grid, MAX_SAMPLES_PER_AXIS, Volume, extract_mesh};
+use skelform::volume::{
+    Grid, GridVertex, Level, MAX_SAMPLES_PER_AXIS, Near, SlabVertex, Volume, VolumeView,
+    extract_view_records, extract_volume_records, sanitize_sample,
+};
 use std::sync::{Mutex, PoisonError};
 
 use crate::errors::polygonize_error;
 use crate::run::{Run, pool};
 
-/// The samples relative to the level, in the layout the extractor reads (x fastest), and
-/// which array axis each of the extractor's axes is.
-struct Samples {
-    volume: Volume,
-    /// `axis_of[m]`: the array axis of the extractor's axis `m` (x, y, z).
-    axis_of: [usize; 3],
-}
-
 /// Element types read straight from the array, without a conversion copy in NumPy.
-trait Sample: Element + Copy + Sync {
+trait Sample: Element + Copy + Sync + PartialOrd {
     fn to_f64(self) -> f64;
+    /// The values as `f32`s when they are, to be read in place.
+    fn as_f32(values: &[Self]) -> Option<&[f32]> {
+        let _ = values;
+        None
+    }
 }
 
 macro_rules! sample {
@@ -44,12 +44,38 @@ macro_rules! sample {
         }
     )*};
 }
-sample!(f32, f64, i8, i16, i32, i64, u8, u16, u32, u64);
+sample!(f64, i8, i16, i32, i64, u8, u16, u32, u64);
 
-/// Reads every `step`-th sample along each axis, minus `level`, in the order of memory
-/// where it can (C or Fortran order: no strided walk, no copy of the array in NumPy).
-fn samples<T: Sample>(a: ArrayView3<'_, T>, level: f64, step: usize) -> PyResult<Samples> {
-    let sub = a.slice(s![..;step, ..;step, ..;step]);
+impl Sample for f32 {
+    fn to_f64(self) -> f64 {
+        f64::from(self)
+    }
+    fn as_f32(values: &[f32]) -> Option<&[f32]> {
+        Some(values)
+    }
+}
+
+/// The lattice the extractor sees and which array axis each of its axes is.
+#[derive(Clone, Copy)]
+struct Layout {
+    grid: Grid,
+    /// `axis_of[m]`: the array axis of the extractor's axis `m` (x, y, z).
+    axis_of: [usize; 3],
+}
+
+/// The samples of every `step`-th element along each axis, in the extractor's layout (x
+/// fastest): the array itself when it is `f32`, contiguous (C or Fortran order) and taken
+/// whole, else a converted copy.
+enum Samples<'a> {
+    InPlace(VolumeView<'a>),
+    Converted(Volume),
+}
+
+/// The extractor's layout of every `step`-th sample of `a`, in the order of memory where
+/// it can (C or Fortran order: no strided walk); refuses lattices too small or too large.
+fn layout<T>(a: ArrayView3<'_, T>, step: usize) -> PyResult<(ArrayView3<'_, T>, Layout)> {
+    let shape = a.shape().to_vec();
+    let sub = a.slice_move(s![..;step, ..;step, ..;step]);
     let strides = sub.strides();
     let fortran = strides[0].unsigned_abs() < strides[2].unsigned_abs();
     let (v, axis_of) = if fortran { (sub.reversed_axes(), [0, 1, 2]) } else { (sub, [2, 1, 0]) };
@@ -58,15 +84,32 @@ fn samples<T: Sample>(a: ArrayView3<'_, T>, level: f64, step: usize) -> PyResult
     if dims.iter().any(|&d| d < 2) {
         return Err(PyValueError::new_err(format!(
             "step_size {step} leaves fewer than 2 samples along an axis of a volume of shape {:?}",
-            a.shape()
+            shape
         )));
     }
     if dims.iter().any(|&d| d > MAX_SAMPLES_PER_AXIS) {
         return Err(PyValueError::new_err(format!(
             "the volume has more than {MAX_SAMPLES_PER_AXIS} samples along an axis (shape {:?})",
-            a.shape()
+            shape
         )));
     }
+    let grid = Grid { origin: DVec3::ZERO, cell: step as f64, dims };
+    Ok((v, Layout { grid, axis_of }))
+}
+
+/// The samples of `v` (already in the extractor's axis order) at `level`: read in place
+/// when they can be, else converted.
+fn samples<'a, T: Sample>(
+    v: ArrayView3<'a, T>,
+    layout: &Layout,
+    level: f64,
+) -> PyResult<Samples<'a>> {
+    if let Some(values) = v.to_slice().and_then(T::as_f32) {
+        return VolumeView::new(layout.grid, values, level)
+            .map(Samples::InPlace)
+            .ok_or_else(|| PyValueError::new_err("the volume's samples do not fill its shape"));
+    }
+    let (na, nb, nc) = v.dim();
     let slab = nb * nc;
     let count = slab.checked_mul(na).ok_or_else(|| PyValueError::new_err("volume too large"))?;
     let mut values = take_buffer(count);
@@ -76,17 +119,13 @@ fn samples<T: Sample>(a: ArrayView3<'_, T>, level: f64, step: usize) -> PyResult
         .map(|(k, out)| {
             let layer = v.index_axis(Axis(0), k);
             let mut bad = 0;
-            // NaN and ±∞ become ±f32::MAX, as `skelform::volume::sanitize` has them; without
-            // branches, so that it vectorises.
             let mut put = |o: &mut std::mem::MaybeUninit<f32>, x: &T| {
-                let f = (x.to_f64() - level) as f32;
-                let finite = f.is_finite();
-                bad += u64::from(!finite);
-                let far = if f == f32::NEG_INFINITY { -f32::MAX } else { f32::MAX };
-                o.write(if finite { f } else { far });
+                let (f, replaced) = sanitize_sample((x.to_f64() - level) as f32);
+                bad += u64::from(replaced);
+                o.write(f);
             };
-            // A contiguous layer (C or Fortran order, step 1) is read as a slice, which the
-            // compiler vectorises; ndarray's general iterator is several times slower.
+            // A contiguous layer is read as a slice, which the compiler vectorises;
+            // ndarray's general iterator is several times slower.
             match layer.as_slice() {
                 Some(row) => out.iter_mut().zip(row).for_each(|(o, x)| put(o, x)),
                 None => out.iter_mut().zip(layer.iter()).for_each(|(o, x)| put(o, x)),
@@ -97,12 +136,59 @@ fn samples<T: Sample>(a: ArrayView3<'_, T>, level: f64, step: usize) -> PyResult
     // SAFETY: the loop above wrote all `count` elements: `slab`-sized chunks of the first
     // `count`, one per layer `k < na`, each zipped with a layer of exactly `slab` samples.
     unsafe { values.set_len(count) };
-    let grid = Grid { origin: DVec3::ZERO, cell: step as f64, dims };
-    Ok(Samples { volume: Volume { grid, values, non_finite }, axis_of })
+    Ok(Samples::Converted(Volume { grid: layout.grid, values, non_finite }))
 }
 
-/// The samples' buffer of the last call, kept for the next: fresh memory costs a page fault
-/// a page (a sixth of a 256³ call's time), and callers extract volume after volume.
+/// The smallest and largest element as floats, NaN when there is a NaN (as NumPy's
+/// `min()` and `max()`), in parallel.
+fn value_range<T: Sample>(a: &ArrayView3<'_, T>) -> (f64, f64) {
+    fn fold<'x, T: Sample + 'x>(it: impl Iterator<Item = &'x T> + Clone) -> Option<(T, T, bool)> {
+        let first = *it.clone().next()?;
+        let (mut lo, mut hi, mut nan) = (first, first, false);
+        for &x in it {
+            // `x != x` only for NaN; the compares pass NaN over, which `nan` reports.
+            #[allow(clippy::eq_op)]
+            let is_nan = x != x;
+            nan |= is_nan;
+            lo = if x < lo { x } else { lo };
+            hi = if x > hi { x } else { hi };
+        }
+        Some((lo, hi, nan))
+    }
+    let parts: Vec<(T, T, bool)> = match a.as_slice_memory_order() {
+        Some(values) => values.par_chunks(1 << 16).filter_map(|c| fold(c.iter())).collect(),
+        None => (0..a.len_of(Axis(0)))
+            .into_par_iter()
+            .filter_map(|k| fold(a.index_axis(Axis(0), k).iter()))
+            .collect(),
+    };
+    let mut nan = false;
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for (l, h, n) in parts {
+        // A chunk that starts with NaN keeps it as its extreme: the flag covers it.
+        nan |= n || l.to_f64().is_nan();
+        lo = lo.min(l.to_f64());
+        hi = hi.max(h.to_f64());
+    }
+    if nan { (f64::NAN, f64::NAN) } else { (lo, hi) }
+}
+
+/// Whether some element is at or above `level`, or NaN: with one below it (which a
+/// non-empty mesh shows), `level` is in the data's range as scikit-image checks it. Stops at
+/// the first such element; most volumes have one in their first row.
+fn reaches<T: Sample>(a: &ArrayView3<'_, T>, level: f64) -> bool {
+    let hit = |x: &T| {
+        let f = x.to_f64();
+        f >= level || f.is_nan()
+    };
+    match a.as_slice_memory_order() {
+        Some(values) => values.chunks(1 << 12).any(|c| c.iter().fold(false, |h, x| h | hit(x))),
+        None => a.iter().any(hit),
+    }
+}
+
+/// The buffer of converted samples of the last call, kept for the next: fresh memory costs
+/// a page fault a page, and callers extract volume after volume.
 static BUFFER: Mutex<Vec<f32>> = Mutex::new(Vec::new());
 
 /// The largest buffer kept between calls (1 GiB of samples).
@@ -129,33 +215,61 @@ fn keep_buffer(values: Vec<f32>) {
     }
 }
 
-/// The gradient of the samples at lattice node `(i, j, k)`: central differences inside,
-/// one-sided ones at the border; per lattice step.
-fn node_gradient(v: &Volume, n: [usize; 3]) -> [f64; 3] {
-    let mut g = [0.0; 3];
-    for (m, gm) in g.iter_mut().enumerate() {
-        let d = v.grid.dims[m];
-        let at = |i: usize| {
-            let mut p = n;
-            p[m] = i;
-            f64::from(v.get(p[0], p[1], p[2]))
-        };
-        let (lo, hi) = (n[m].saturating_sub(1), (n[m] + 1).min(d - 1));
-        *gm = (at(hi) - at(lo)) / (hi - lo) as f64;
+/// A vertex as the conventions need it, made by the extractor while the samples around it
+/// are in the cache: its position and, from the gradient there, its unit normal (down the
+/// gradient) and the gradient's size; in the extractor's axes.
+#[derive(Clone, Copy, Default)]
+struct Vertex {
+    position: [f32; 3],
+    normal: [f32; 3],
+    value: f32,
+}
+
+impl SlabVertex for Vertex {
+    const READS_NEAR: bool = true;
+
+    #[inline]
+    fn make<L: Level>(grid: &Grid, v: GridVertex, _: [f32; 2], near: &Near<'_, L>) -> Self {
+        let position = v.position(grid).as_vec3().to_array();
+        // From the stored position, so that a vertex at a node is treated as one.
+        let q = position.map(|c| f64::from(c) / grid.cell);
+        let g = gradient_at(near, q);
+        let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
+        let normal = g.map(|c| if len > 0.0 { (-c / len) as f32 } else { 0.0 });
+        Vertex { position, normal, value: (g[0].abs() + g[1].abs() + g[2].abs()) as f32 }
     }
-    g
+}
+
+/// The gradient of the samples at lattice node `n`: central differences inside, one-sided
+/// ones at the border; per lattice step.
+#[inline(always)]
+fn node_gradient<L: Level>(near: &Near<'_, L>, n: [usize; 3]) -> [f64; 3] {
+    let dims = near.dims();
+    let [i, j, k] = n;
+    let value = |i: usize, j: usize, k: usize| f64::from(near.sample(i, j, k));
+    let span = |c: usize, d: usize| (c.saturating_sub(1), (c + 1).min(d - 1));
+    let (x0, x1) = span(i, dims[0]);
+    let (y0, y1) = span(j, dims[1]);
+    let (z0, z1) = span(k, dims[2]);
+    [
+        (value(x1, j, k) - value(x0, j, k)) / (x1 - x0) as f64,
+        (value(i, y1, k) - value(i, y0, k)) / (y1 - y0) as f64,
+        (value(i, j, z1) - value(i, j, z0)) / (z1 - z0) as f64,
+    ]
 }
 
 /// The gradient at a point of the lattice (in lattice steps): node gradients interpolated
 /// trilinearly, which on a lattice edge, where every vertex lies, is linear along the edge.
-fn gradient_at(v: &Volume, q: [f64; 3]) -> [f64; 3] {
+#[inline(always)]
+fn gradient_at<L: Level>(near: &Near<'_, L>, q: [f64; 3]) -> [f64; 3] {
+    let dims = near.dims();
     let mut base = [0usize; 3];
     let mut t = [0.0; 3];
     // The axes along which the point lies between nodes: one for a vertex on an edge.
     let mut free = [0usize; 3];
     let mut nfree = 0;
     for m in 0..3 {
-        let last = v.grid.dims[m] - 2;
+        let last = dims[m] - 2;
         let c = (q[m].floor().max(0.0) as usize).min(last);
         base[m] = c;
         t[m] = (q[m] - c as f64).clamp(0.0, 1.0);
@@ -169,6 +283,20 @@ fn gradient_at(v: &Volume, q: [f64; 3]) -> [f64; 3] {
         }
     }
     let mut g = [0.0; 3];
+    if nfree == 1 {
+        // A vertex on an edge, nearly all of them: the two ends' gradients, weighted as the
+        // general loop below weighs them (and so to the same bits).
+        let m = free[0];
+        let mut tip = base;
+        tip[m] += 1;
+        let (g0, g1) = (node_gradient(near, base), node_gradient(near, tip));
+        let (w0, w1) = (1.0 - t[m], t[m]);
+        for c in 0..3 {
+            g[c] += w0 * g0[c];
+            g[c] += w1 * g1[c];
+        }
+        return g;
+    }
     for corner in 0..1usize << nfree {
         let mut w = 1.0;
         let mut n = base;
@@ -180,7 +308,7 @@ fn gradient_at(v: &Volume, q: [f64; 3]) -> [f64; 3] {
                 w *= 1.0 - t[m];
             }
         }
-        let gn = node_gradient(v, n);
+        let gn = node_gradient(near, n);
         for m in 0..3 {
             g[m] += w * gn[m];
         }
@@ -190,61 +318,64 @@ fn gradient_at(v: &Volume, q: [f64; 3]) -> [f64; 3] {
 
 /// What the extractor made, before the conventions are applied.
 struct Extracted {
-    positions: Vec<[f32; 3]>,
+    vertices: Vec<Vertex>,
     triangles: Vec<[u32; 3]>,
 }
 
 impl Extracted {
-    /// Keeps the triangles `keep` says yes to and the vertices they use, renumbered in
-    /// their original order (so the result is the same on any thread count).
-    fn retain(&mut self, keep: impl Fn(&[u32; 3]) -> bool) {
-        self.triangles.retain(|t| keep(t));
-        let mut used = vec![u32::MAX; self.positions.len()];
+    /// Keeps the triangles whose flag in `keep` is set and the vertices they use,
+    /// renumbered in their original order (so the result is the same on any thread count).
+    fn retain(&mut self, keep: &[bool]) {
+        let mut flags = keep.iter();
+        self.triangles.retain(|_| flags.next().copied().unwrap_or(false));
+        let mut used = vec![u32::MAX; self.vertices.len()];
         for t in &self.triangles {
             for &i in t {
                 used[i as usize] = 0;
             }
         }
         let mut next = 0u32;
-        let mut positions = Vec::new();
+        let mut vertices = Vec::new();
         for (i, u) in used.iter_mut().enumerate() {
             if *u == 0 {
                 *u = next;
                 next += 1;
-                positions.push(self.positions[i]);
+                vertices.push(self.vertices[i]);
             }
         }
         for t in &mut self.triangles {
             *t = t.map(|i| used[i as usize]);
         }
-        self.positions = positions;
+        self.vertices = vertices;
     }
 
     /// Merges vertices at bitwise-equal positions (samples equal to the level put several
     /// edge vertices on one lattice node) and drops the triangles that then repeat a vertex.
     fn remove_degenerate(&mut self) {
-        let mut first = std::collections::HashMap::with_capacity(self.positions.len());
+        let mut first = std::collections::HashMap::with_capacity(self.vertices.len());
         let same: Vec<u32> = self
-            .positions
+            .vertices
             .iter()
             .enumerate()
-            .map(|(i, p)| *first.entry(p.map(f32::to_bits)).or_insert(i as u32))
+            .map(|(i, v)| *first.entry(v.position.map(f32::to_bits)).or_insert(i as u32))
             .collect();
         for t in &mut self.triangles {
             *t = t.map(|i| same[i as usize]);
         }
-        self.retain(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2]);
+        let keep: Vec<bool> =
+            self.triangles.iter().map(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2]).collect();
+        self.retain(&keep);
     }
 }
 
 /// The cube (lowest corner, in lattice steps) a triangle came from: the one holding its
 /// centroid, every vertex of a marching-cubes triangle lying on one cube's edges.
-fn cube_of(v: &Volume, p: &[[f32; 3]], t: &[u32; 3]) -> [usize; 3] {
+fn cube_of(grid: &Grid, v: &[Vertex], t: &[u32; 3]) -> [usize; 3] {
     let mut c = [0usize; 3];
     for (m, cm) in c.iter_mut().enumerate() {
-        let centroid = t.iter().map(|&i| f64::from(p[i as usize][m])).sum::<f64>() / 3.0;
-        let q = centroid / v.grid.cell;
-        *cm = (q.floor().max(0.0) as usize).min(v.grid.dims[m] - 2);
+        let centroid = t.iter().map(|&i| f64::from(v[i as usize].position[m])).sum::<f64>() / 3.0;
+        let q = centroid / grid.cell;
+        *cm = (q.floor().max(0.0) as usize).min(grid.dims[m] - 2);
     }
     c
 }
@@ -256,15 +387,29 @@ type Arrays<'py> = (
     Bound<'py, PyArray1<f32>>,
 );
 
+/// What a call asks for besides the volume.
+struct Options<'a> {
+    level: Option<f64>,
+    step: usize,
+    ascent: bool,
+    allow_degenerate: bool,
+    mask: Option<ArrayView3<'a, bool>>,
+}
+
+/// Flat vertices, faces, normals and values.
+type Flat = (Vec<f32>, Vec<i32>, Vec<f32>, Vec<f32>);
+
 /// The Rust half of `skelform.marching_cubes` (arguments already checked by the Python
-/// half): vertices in array index units (spacing not applied), faces, normals, values.
+/// half, but for the level): vertices in array index units (spacing not applied), faces,
+/// normals, values. With `level` `None`, the middle of the data range; a given level
+/// outside the range raises ValueError, as in scikit-image.
 #[pyfunction]
 #[pyo3(signature = (volume, level, step, ascent, allow_degenerate, mask, threads, progress))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn marching_cubes_core<'py>(
     py: Python<'py>,
     volume: &Bound<'py, PyAny>,
-    level: f64,
+    level: Option<f64>,
     step: usize,
     ascent: bool,
     allow_degenerate: bool,
@@ -277,14 +422,17 @@ pub(crate) fn marching_cubes_core<'py>(
     }
     let run = Run::new(progress);
     let pool = pool(threads)?;
+    let mask_view = mask.as_ref().map(|m| m.as_array());
+    let options = Options { level, step, ascent, allow_degenerate, mask: mask_view };
     macro_rules! read {
         ($($t:ty),*) => {
             'read: {
                 $(if let Ok(a) = volume.extract::<PyReadonlyArray3<'py, $t>>() {
                     let view = a.as_array();
-                    let shape = view.shape().to_vec();
-                    let samples = run.run(py, || install(&pool, || samples(view, level, step)))?;
-                    break 'read (samples?, shape);
+                    if options.mask.as_ref().is_some_and(|m| m.shape() != view.shape()) {
+                        return Err(PyValueError::new_err("volume and mask must have the same shape."));
+                    }
+                    break 'read run.run(py, || install(&pool, || extract(view, &options, &run)))?;
                 })*
                 return Err(PyTypeError::new_err(
                     "the volume must be a 3-D array of floats or integers",
@@ -292,43 +440,8 @@ pub(crate) fn marching_cubes_core<'py>(
             }
         };
     }
-    let (s, shape) = read!(f32, f64, i8, i16, i32, i64, u8, u16, u32, u64);
-    let mask_view = mask.as_ref().map(|m| m.as_array());
-    if mask_view.as_ref().is_some_and(|m| m.shape() != shape.as_slice()) {
-        return Err(PyValueError::new_err("volume and mask must have the same shape."));
-    }
-    let control = run.control.clone();
-    let result = run.run(py, || {
-        install(&pool, || {
-            let mesh = extract_mesh(&s.volume, &control).map_err(polygonize_error)?;
-            let mut ex = Extracted { positions: mesh.positions, triangles: mesh.triangles };
-            if let Some(m) = &mask_view {
-                let v = &s.volume;
-                let p = ex.positions.clone();
-                ex.retain(|t| {
-                    let c = cube_of(v, &p, t);
-                    let mut at = [0usize; 3];
-                    for (m, &axis) in s.axis_of.iter().enumerate() {
-                        // scikit-image looks the cube up by its last corner.
-                        at[axis] = (c[m] + 1) * step;
-                    }
-                    m[at]
-                });
-            }
-            if !allow_degenerate {
-                ex.remove_degenerate();
-            }
-            if i32::try_from(ex.positions.len()).is_err() {
-                return Err(PyValueError::new_err(format!(
-                    "{} vertices do not fit the int32 face indices of scikit-image's convention",
-                    ex.positions.len()
-                )));
-            }
-            Ok(conventions(&s, &ex, ascent))
-        })
-    });
-    keep_buffer(s.volume.values);
-    let (positions, faces, normals, values) = result??;
+    let (positions, faces, normals, values) =
+        read!(f32, f64, i8, i16, i32, i64, u8, u16, u32, u64)?;
     let n = positions.len() / 3;
     let f = faces.len() / 3;
     Ok((
@@ -337,6 +450,81 @@ pub(crate) fn marching_cubes_core<'py>(
         PyArray1::from_vec(py, normals).reshape([n, 3])?,
         PyArray1::from_vec(py, values),
     ))
+}
+
+/// The work of a call, off the GIL: the level, the samples, extraction, scikit-image's
+/// options and conventions.
+fn extract<T: Sample>(a: ArrayView3<'_, T>, o: &Options<'_>, run: &Run) -> PyResult<Flat> {
+    let level = match o.level {
+        Some(l) => l,
+        None => {
+            let (lo, hi) = value_range(&a);
+            0.5 * (lo + hi)
+        }
+    };
+    let (v, layout) = layout(a, o.step)?;
+    let samples = samples(v, &layout, level)?;
+    let records = match &samples {
+        Samples::InPlace(view) => extract_view_records::<Vertex>(view, &run.control),
+        Samples::Converted(volume) => extract_volume_records::<Vertex>(volume, &run.control),
+    };
+    let (vertices, triangles) = match records {
+        Ok(m) => m,
+        Err(cancelled) => {
+            if let Samples::Converted(volume) = samples {
+                keep_buffer(volume.values);
+            }
+            return Err(polygonize_error(cancelled.into()));
+        }
+    };
+    // scikit-image's check that a given level lies in the data's range (no error when the
+    // data has NaN, whose comparisons are false). A mesh has a sample below the level (the
+    // shifted sample is negative only then), so only the other end needs looking at; with
+    // no mesh, both do.
+    if o.level.is_some() {
+        let in_range = if triangles.is_empty() {
+            let (lo, hi) = value_range(&a);
+            !(level < lo || level > hi)
+        } else {
+            reaches(&a, level)
+        };
+        if !in_range {
+            if let Samples::Converted(volume) = samples {
+                keep_buffer(volume.values);
+            }
+            return Err(PyValueError::new_err("Surface level must be within volume data range."));
+        }
+    }
+    if let Samples::Converted(volume) = samples {
+        keep_buffer(volume.values);
+    }
+    let mut ex = Extracted { vertices, triangles };
+    if let Some(m) = &o.mask {
+        let keep: Vec<bool> = ex
+            .triangles
+            .par_iter()
+            .map(|t| {
+                let c = cube_of(&layout.grid, &ex.vertices, t);
+                let mut at = [0usize; 3];
+                for (k, &axis) in layout.axis_of.iter().enumerate() {
+                    // scikit-image looks the cube up by its last corner.
+                    at[axis] = (c[k] + 1) * o.step;
+                }
+                m[at]
+            })
+            .collect();
+        ex.retain(&keep);
+    }
+    if !o.allow_degenerate {
+        ex.remove_degenerate();
+    }
+    if i32::try_from(ex.vertices.len()).is_err() {
+        return Err(PyValueError::new_err(format!(
+            "{} vertices do not fit the int32 face indices of scikit-image's convention",
+            ex.vertices.len()
+        )));
+    }
+    Ok(conventions(&layout, &ex, o.ascent))
 }
 
 /// Runs `op` on `pool`, or on the current (global) pool.
@@ -352,13 +540,8 @@ fn install<R: Send>(
 
 /// Flat arrays in scikit-image's conventions: vertices and normals in array axis order,
 /// faces wound for the gradient direction, the gradient size as the value.
-fn conventions(
-    s: &Samples,
-    ex: &Extracted,
-    ascent: bool,
-) -> (Vec<f32>, Vec<i32>, Vec<f32>, Vec<f32>) {
-    let v = &s.volume;
-    let n = ex.positions.len();
+fn conventions(layout: &Layout, ex: &Extracted, ascent: bool) -> Flat {
+    let n = ex.vertices.len();
     let mut positions = vec![0f32; 3 * n];
     let mut normals = vec![0f32; 3 * n];
     let mut values = vec![0f32; n];
@@ -366,25 +549,22 @@ fn conventions(
         .par_chunks_mut(3)
         .zip(normals.par_chunks_mut(3))
         .zip(values.par_iter_mut())
-        .zip(ex.positions.par_iter())
-        .for_each(|(((pos, normal), value), p)| {
-            let q = p.map(|c| f64::from(c) / v.grid.cell);
-            let g = gradient_at(v, q);
-            let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
-            for (m, &axis) in s.axis_of.iter().enumerate() {
-                pos[axis] = p[m];
-                normal[axis] = if len > 0.0 { (-g[m] / len) as f32 } else { 0.0 };
+        .zip(ex.vertices.par_iter())
+        .for_each(|(((pos, normal), value), v)| {
+            for (m, &axis) in layout.axis_of.iter().enumerate() {
+                pos[axis] = v.position[m];
+                normal[axis] = v.normal[m];
             }
-            *value = (g[0].abs() + g[1].abs() + g[2].abs()) as f32;
+            *value = v.value;
         });
     // The extractor winds counter-clockwise seen from the higher values in its own axes;
     // the array's axis order is a reflection of them when it is (2, 1, 0).
-    let reflected = s.axis_of == [2, 1, 0];
+    let reflected = layout.axis_of == [2, 1, 0];
     let flip = reflected != ascent;
-    let mut faces = Vec::with_capacity(3 * ex.triangles.len());
-    for t in &ex.triangles {
+    let mut faces = vec![0i32; 3 * ex.triangles.len()];
+    faces.par_chunks_mut(3).zip(ex.triangles.par_iter()).for_each(|(f, t)| {
         let t = if flip { [t[0], t[2], t[1]] } else { *t };
-        faces.extend(t.map(|i| i as i32));
-    }
+        f.copy_from_slice(&t.map(|i| i as i32));
+    });
     (positions, faces, normals, values)
 }

@@ -96,9 +96,14 @@ pub use skelform_scene as scene;
 /// the grid method. Samples are relative to the iso value (inside negative); vertices are
 /// placed by linear interpolation; the mesh is the same on any number of threads.
 pub mod volume {
-    pub use skelform_field::grid::{Grid, MAX_SAMPLES_PER_AXIS, Volume, sanitize};
+    pub use skelform_field::grid::{
+        Grid, Level, MAX_SAMPLES_PER_AXIS, Relative, Shifted, Volume, VolumeView, sanitize,
+        sanitize_sample,
+    };
     pub use skelform_polygonize::grid::{
-        LayerSource, StreamError, Streamed, extract_mesh, extract_streamed,
+        Cancelled, GridVertex, LayerSource, Near, Place, SlabVertex, StreamError, Streamed,
+        extract_mesh, extract_streamed, extract_view_mesh, extract_view_records,
+        extract_volume_records,
     };
 
     /// Builds the marching-cubes case table now (a few milliseconds, once per process), so

@@ -33,9 +33,10 @@ use crate::Error;
 use crate::lattice::{LatticeOptions, MemoryNeed};
 use crate::refine::{Bracket, RootOptions, gradient_normals, project_to_surface, refine_roots};
 pub use extract::{
-    Cancelled, Extraction, GridVertex, LayerSource, Place, Positions, SLAB, SampledVertex,
+    Cancelled, Extraction, GridVertex, LayerSource, Near, Place, Positions, SLAB, SampledVertex,
     SlabVertex, StreamError, StreamStats, Streamed, Workspace, dir_vector, extract,
-    extract_positions, extract_streamed, extract_streamed_with, extract_with, surface_cubes,
+    extract_positions, extract_streamed, extract_streamed_with, extract_view_positions,
+    extract_view_records, extract_volume_records, extract_with, surface_cubes,
 };
 
 pub use crate::lattice::Resolution;
@@ -418,5 +419,15 @@ pub(crate) fn place_extracted(
 /// normals: the extraction-only path (e.g. for a volume read from a raw file).
 pub fn extract_mesh(volume: &Volume, control: &Control) -> Result<Mesh, Error> {
     let (positions, triangles) = extract::extract_positions(volume, control)?;
+    Ok(Mesh { positions, triangles, ..Mesh::default() })
+}
+
+/// [`extract_mesh`] on raw values read in place at a level (a caller's array): the mesh of
+/// the [`Volume`] that converting them would make, without the copy.
+pub fn extract_view_mesh(
+    view: &skelform_field::grid::VolumeView<'_>,
+    control: &Control,
+) -> Result<Mesh, Error> {
+    let (positions, triangles) = extract::extract_view_positions(view, control)?;
     Ok(Mesh { positions, triangles, ..Mesh::default() })
 }

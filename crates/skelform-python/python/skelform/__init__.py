@@ -87,12 +87,10 @@ def marching_cubes(
         raise ValueError("Input array must be at least 2x2x2.")
     if volume.dtype not in _NATIVE:
         volume = volume.astype(np.float64)
-    if level is None:
-        level = 0.5 * (float(volume.min()) + float(volume.max()))
-    else:
+    # The default level (the middle of the data range) and the check that a given one lies
+    # in the range are made in the native half, in the passes it makes anyway.
+    if level is not None:
         level = float(level)
-        if level < volume.min() or level > volume.max():
-            raise ValueError("Surface level must be within volume data range.")
     if len(spacing) != 3:
         raise ValueError("`spacing` must consist of three floats.")
     step_size = int(step_size)

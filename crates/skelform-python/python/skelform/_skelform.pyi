@@ -105,7 +105,7 @@ def mesh(
 ) -> Mesh: ...
 def marching_cubes_core(
     volume: npt.NDArray[Any],
-    level: float,
+    level: Optional[float],
     step: int,
     ascent: bool,
     allow_degenerate: bool,

@@ -19,7 +19,7 @@ use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use skelform_field::control::{Control, Progress};
-use skelform_field::grid::{Grid, Volume};
+use skelform_field::grid::{Grid, Level, Relative, Volume, VolumeView};
 
 use super::cell::{CubeSink, polygonize_case};
 use super::cube::CORNERS;
@@ -123,23 +123,65 @@ pub struct Extraction {
 pub struct Cancelled;
 
 /// What a slab records for each vertex it makes: the lattice place ([`GridVertex`], for
-/// refinement on the field) or the interpolated position at once (extraction only).
+/// refinement on the field) or the interpolated position at once (extraction only), or
+/// anything else computed from the samples around the vertex while they are in the cache.
 pub trait SlabVertex: Copy + Default + Send + Sync + 'static {
     /// The record of vertex `v`; `ends` are the samples at the two ends of its lattice
-    /// segment (zero for vertices inside a cell).
-    fn make(grid: &Grid, v: GridVertex, ends: [f32; 2]) -> Self;
+    /// segment (zero for vertices inside a cell); `near` reads the samples around it.
+    fn make<L: Level>(grid: &Grid, v: GridVertex, ends: [f32; 2], near: &Near<'_, L>) -> Self;
+
+    /// Whether `make` reads the samples around the vertex (up to a lattice step past the
+    /// cube's layers): the slab then fetches the layers it will read ahead of time.
+    const READS_NEAR: bool = false;
+}
+
+/// The samples a slab can read while it makes a vertex: the whole volume for an extraction
+/// over a held volume, the slab's own sample layers for a streamed one.
+#[derive(Clone, Copy)]
+pub struct Near<'a, L> {
+    values: &'a [f32],
+    /// The first layer `values` holds, and how many.
+    first: usize,
+    layers: usize,
+    dims: [usize; 3],
+    level: L,
+}
+
+impl<L: Level> Near<'_, L> {
+    /// The sample (relative to the level) at lattice point `(i, j, k)`, which must be in
+    /// the grid; `k` is clamped to the layers there are (in a streamed slab, the slab's own:
+    /// a record that reads past them sees the slab's first or last layer again).
+    #[inline(always)]
+    pub fn sample(&self, i: usize, j: usize, k: usize) -> f32 {
+        let [nx, ny, _] = self.dims;
+        let k = k.clamp(self.first, self.first + self.layers - 1) - self.first;
+        self.level.sample(self.values[i + nx * (j + ny * k)])
+    }
+
+    /// Samples along x, y, z of the whole lattice.
+    pub fn dims(&self) -> [usize; 3] {
+        self.dims
+    }
+
+    /// Asks the CPU to bring sample layer `k` into its cache, if it is there to read.
+    fn prefetch_layer(&self, k: usize) {
+        let layer = self.dims[0] * self.dims[1];
+        if (self.first..self.first + self.layers).contains(&k) {
+            prefetch(&self.values[(k - self.first) * layer..][..layer]);
+        }
+    }
 }
 
 impl SlabVertex for GridVertex {
     #[inline]
-    fn make(_: &Grid, v: GridVertex, _: [f32; 2]) -> Self {
+    fn make<L: Level>(_: &Grid, v: GridVertex, _: [f32; 2], _: &Near<'_, L>) -> Self {
         v
     }
 }
 
 impl SlabVertex for [f32; 3] {
     #[inline]
-    fn make(grid: &Grid, v: GridVertex, _: [f32; 2]) -> Self {
+    fn make<L: Level>(grid: &Grid, v: GridVertex, _: [f32; 2], _: &Near<'_, L>) -> Self {
         v.position(grid).as_vec3().to_array()
     }
 }
@@ -163,7 +205,7 @@ impl std::borrow::Borrow<GridVertex> for SampledVertex {
 
 impl SlabVertex for SampledVertex {
     #[inline]
-    fn make(_: &Grid, vertex: GridVertex, ends: [f32; 2]) -> Self {
+    fn make<L: Level>(_: &Grid, vertex: GridVertex, ends: [f32; 2], _: &Near<'_, L>) -> Self {
         SampledVertex { vertex, ends }
     }
 }
@@ -218,14 +260,57 @@ pub fn extract_with(
     workspace: &Workspace,
 ) -> Result<Extraction, Cancelled> {
     let (vertices, triangles, ambiguous_faces, tunnels) =
-        extract_as::<GridVertex>(volume, control, workspace)?;
+        extract_as::<GridVertex, _>(&volume.grid, &volume.values, Relative, control, workspace)?;
     Ok(Extraction { vertices, triangles, ambiguous_faces, tunnels })
 }
 
 /// Runs marching cubes over the whole volume and returns the vertices' interpolated
 /// positions (no refinement), without the intermediate [`GridVertex`] records.
 pub fn extract_positions(volume: &Volume, control: &Control) -> Result<Positions, Cancelled> {
-    let (vertices, triangles, _, _) = extract_as::<[f32; 3]>(volume, control, Workspace::shared())?;
+    let (vertices, triangles, _, _) = extract_as::<[f32; 3], _>(
+        &volume.grid,
+        &volume.values,
+        Relative,
+        control,
+        Workspace::shared(),
+    )?;
+    Ok((vertices, triangles))
+}
+
+/// Marching cubes over a held volume with the vertex records of the caller's choice (which
+/// may read the samples around each vertex: [`Near`]).
+pub fn extract_volume_records<V: SlabVertex>(
+    volume: &Volume,
+    control: &Control,
+) -> Result<(Vec<V>, Vec<[u32; 3]>), Cancelled> {
+    let (vertices, triangles, _, _) =
+        extract_as::<V, _>(&volume.grid, &volume.values, Relative, control, Workspace::shared())?;
+    Ok((vertices, triangles))
+}
+
+/// [`extract_volume_records`] on raw values read in place at a level.
+pub fn extract_view_records<V: SlabVertex>(
+    view: &VolumeView<'_>,
+    control: &Control,
+) -> Result<(Vec<V>, Vec<[u32; 3]>), Cancelled> {
+    let (vertices, triangles, _, _) =
+        extract_as::<V, _>(&view.grid, view.values, view.level, control, Workspace::shared())?;
+    Ok((vertices, triangles))
+}
+
+/// [`extract_positions`] on raw values read in place at a level: the mesh is the one of the
+/// [`Volume`] that converting them would make (bit for bit), without the copy.
+pub fn extract_view_positions(
+    view: &VolumeView<'_>,
+    control: &Control,
+) -> Result<Positions, Cancelled> {
+    let (vertices, triangles, _, _) = extract_as::<[f32; 3], _>(
+        &view.grid,
+        view.values,
+        view.level,
+        control,
+        Workspace::shared(),
+    )?;
     Ok((vertices, triangles))
 }
 
@@ -240,12 +325,15 @@ pub(crate) fn has_cells(grid: &Grid) -> bool {
     grid.dims.iter().all(|&d| d >= 2)
 }
 
-fn extract_as<V: SlabVertex>(
-    volume: &Volume,
+/// Extraction over `values` (`grid.index` order, raw values read through `level`).
+fn extract_as<V: SlabVertex, L: Level>(
+    grid: &Grid,
+    values: &[f32],
+    level: L,
     control: &Control,
     workspace: &Workspace,
 ) -> Result<Extracted<V>, Cancelled> {
-    let grid = volume.grid;
+    let grid = *grid;
     if !has_cells(&grid) {
         return Ok((Vec::new(), Vec::new(), 0, 0));
     }
@@ -256,8 +344,8 @@ fn extract_as<V: SlabVertex>(
         run_slabs(cube_layers.div_ceil(SLAB), [nx, ny], workspace, |s, scratch, store| {
             let z0 = s * SLAB;
             let z1 = (z0 + SLAB).min(cube_layers);
-            let vals = &volume.values[z0 * nx * ny..];
-            let counts = extract_slab(&grid, vals, (z0, z1), scratch, store, control)?;
+            let near = Near { values, first: 0, layers: grid.dims[2], dims: grid.dims, level };
+            let counts = extract_slab(&grid, &near, (z0, z1), scratch, store, control)?;
             slab_done(control, &done, z1 - z0, cube_layers, "extracting").map(|()| counts)
         })?;
     let (ambiguous_faces, tunnels) = counts.iter().fold((0, 0), |(a, t), c| (a + c.0, t + c.1));
@@ -279,8 +367,9 @@ fn slab_done(
     }
 }
 
-/// Marching cubes over the cube layers `z0..z1`; `vals` holds the sample layers
-/// `z0..=z1` (and possibly more), starting with layer `z0`. The slab's vertices and
+/// Marching cubes over the cube layers `z0..z1`; `near` holds the sample layers `z0..=z1`
+/// (and possibly more), as raw values that its level reads (for the inside test by its
+/// threshold, for everything else as samples). The slab's vertices and
 /// triangles go to `store`; returns the ambiguous faces decided and the tunnels made.
 ///
 /// Flying Edges' way of naming vertices: the crossed edges of each sample layer and
@@ -289,9 +378,9 @@ fn slab_done(
 /// before the cubes that use it. Order in the slab: the bottom layer's x/y-edges, then per
 /// layer of cubes the x/y-edges of the layer above (unless they are the next slab's), the
 /// z-edges, and the vertices inside the cubes.
-fn extract_slab<V: SlabVertex>(
+fn extract_slab<V: SlabVertex, L: Level>(
     grid: &Grid,
-    vals: &[f32],
+    near: &Near<'_, L>,
     (z0, z1): (usize, usize),
     scratch: &mut Scratch,
     store: &mut SlabStore<'_, V>,
@@ -301,23 +390,36 @@ fn extract_slab<V: SlabVertex>(
     let layer = nx * ny;
     let last = z1 == nz - 1;
     let Scratch { below, above, lower, upper, z, .. } = scratch;
+    let level = near.level;
+    let vals = &near.values[(z0 - near.first) * layer..];
     let local = |k: usize| &vals[(k - z0) * layer..(k - z0 + 1) * layer];
     let offsets: [usize; 8] = CORNERS.map(|[x, y, z]| x + nx * y + layer * z);
     // Sign bits of the sample layers: a cube has the surface in it when its eight bits are
     // not all equal, which 64 cubes at a time reduce to a few word operations; only those
     // cubes are visited.
     let words = nx.div_ceil(64);
-    layer_signs(local(z0), nx, words, below);
+    let threshold = level.threshold();
+    layer_signs(local(z0), nx, words, below, threshold);
     lower.build(below, nx, ny, words);
     store.begin();
+    if V::READS_NEAR {
+        // The bottom layer's records read the layers on either side of it.
+        near.prefetch_layer(z0.wrapping_sub(1));
+        near.prefetch_layer(z0 + 1);
+    }
     lower.offset = store.made();
-    lower.emit(grid, local(z0), z0, store);
+    lower.emit(grid, local(z0), near, z0, store);
     let (mut ambiguous_faces, mut tunnels) = (0, 0);
     for k in z0..z1 {
         if control.is_cancelled() {
             return Err(Cancelled);
         }
-        layer_signs(local(k + 1), nx, words, above);
+        if V::READS_NEAR {
+            // The records of this layer of cubes read up to layer k + 2, which the sign
+            // passes have not read yet.
+            near.prefetch_layer(k + 2);
+        }
+        layer_signs(local(k + 1), nx, words, above, threshold);
         upper.build(above, nx, ny, words);
         // The x- and y-edges on the slab's top layer belong to the slab above (except for
         // the last slab, which owns the volume's top): refer to them by number.
@@ -326,17 +428,18 @@ fn extract_slab<V: SlabVertex>(
             store.borrow_top();
         } else {
             upper.offset = store.made();
-            upper.emit(grid, local(k + 1), k + 1, store);
+            upper.emit(grid, local(k + 1), near, k + 1, store);
         }
         z.build(below, above, nx, words);
         z.offset = store.made();
-        z.emit(grid, local(k), local(k + 1), k, store);
+        z.emit(grid, local(k), local(k + 1), near, k, store);
         let mut sink = SlabSink {
             store: &mut *store,
             lower: &*lower,
             upper: &*upper,
             z: &*z,
             grid,
+            near,
             at: [0, 0, k],
             _vertex: std::marker::PhantomData,
         };
@@ -352,7 +455,7 @@ fn extract_slab<V: SlabVertex>(
         };
         for_each_mixed_cube(below, above, nx, ny, fetch, |i, j, case| {
             let base = nx * j + layer * (k - z0) + i;
-            let v: [f32; 8] = offsets.map(|o| vals[base + o]);
+            let v: [f32; 8] = offsets.map(|o| level.sample(vals[base + o]));
             sink.at = [i, j, k];
             let outcome = polygonize_case(case, &v, &mut sink);
             ambiguous_faces += outcome.ambiguous_faces as u64;
@@ -366,18 +469,19 @@ fn extract_slab<V: SlabVertex>(
 }
 
 /// The slab's side of [`CubeSink`]: a cube's edge vertices by their numbers.
-struct SlabSink<'a, 's, V> {
+struct SlabSink<'a, 's, V, L> {
     store: &'a mut SlabStore<'s, V>,
     /// The numbered edges of the sample layers below and above the cube, and between them.
     lower: &'a LayerNumbering,
     upper: &'a LayerNumbering,
     z: &'a ZNumbering,
     grid: &'a Grid,
+    near: &'a Near<'a, L>,
     at: [usize; 3],
     _vertex: std::marker::PhantomData<V>,
 }
 
-impl<V: SlabVertex> CubeSink for SlabSink<'_, '_, V> {
+impl<V: SlabVertex, L: Level> CubeSink for SlabSink<'_, '_, V, L> {
     #[inline]
     fn edge_vertex(&mut self, e: usize, _: [f32; 2]) -> u32 {
         // Edge 4·a + u + 2·v runs along axis a at offsets u, v on the other two axes.
@@ -395,7 +499,7 @@ impl<V: SlabVertex> CubeSink for SlabSink<'_, '_, V> {
         let [i, j, k] = self.at;
         let v = GridVertex { base: [i as u32, j as u32, k as u32], place: Place::Cell { offset } };
         let id = self.store.made();
-        self.store.push_vertex(V::make(self.grid, v, [0.0; 2]));
+        self.store.push_vertex(V::make(self.grid, v, [0.0; 2], self.near));
         id
     }
 
@@ -436,12 +540,12 @@ mod tests {
         }
         let words = nx.div_ceil(64);
         let mut signs = vec![0; ny * words];
-        layer_signs(&values, nx, words, &mut signs);
+        layer_signs(&values, nx, words, &mut signs, 0.0);
         for j in 0..ny {
             for w in 0..words {
                 let row = &values[j * nx..(j + 1) * nx];
                 let chunk = &row[64 * w..(64 * w + 64).min(nx)];
-                assert_eq!(signs[j * words + w], signs_scalar(chunk), "row {j}, word {w}");
+                assert_eq!(signs[j * words + w], signs_scalar(chunk, 0.0), "row {j}, word {w}");
             }
         }
     }
@@ -452,7 +556,7 @@ mod tests {
         let values = noise(nx * ny, 7);
         let words = nx.div_ceil(64);
         let mut signs = vec![0; ny * words];
-        layer_signs(&values, nx, words, &mut signs);
+        layer_signs(&values, nx, words, &mut signs, 0.0);
         let mut numbers = LayerNumbering::default();
         numbers.build(&signs, nx, ny, words);
         let inside = |i: usize, j: usize| values[i + nx * j] < 0.0;
@@ -503,6 +607,52 @@ mod tests {
                 assert!(many.vertices == one.vertices, "vertices differ, {what}");
                 assert!(many.triangles == one.triangles, "triangles differ, {what}");
                 assert_eq!(many.tunnels, one.tunnels);
+            }
+        }
+    }
+
+    /// Raw values read in place at a level make the mesh of the volume their conversion
+    /// would be, bit for bit: with NaN and ±∞ among them, at levels between values, on a
+    /// value, off `f32`'s grid, and on several threads.
+    #[test]
+    fn a_view_at_a_level_makes_the_converted_volume_mesh() {
+        use skelform_field::grid::{Level, Shifted, VolumeView};
+        let dims = [45, 23, 3 * SLAB + 2];
+        let grid = Grid { origin: DVec3::ZERO, cell: 1.0, dims };
+        let mut raw: Vec<f32> =
+            noise(dims.iter().product(), 13).iter().map(|v| 3.0 * v + 2.0).collect();
+        for (n, v) in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 2.0, 2.0].into_iter().enumerate()
+        {
+            for i in (n * 97..raw.len()).step_by(1013) {
+                raw[i] = v;
+            }
+        }
+        for level in [2.0, 1.7, 2.0 + 1e-9, -0.5, f64::NAN] {
+            let converted: Vec<f32> = raw.iter().map(|&x| (f64::from(x) - level) as f32).collect();
+            let volume = Volume::from_values(grid, converted);
+            assert!(
+                volume.values.iter().zip(&raw).all(|(v, &x)| *v == Shifted::new(level).sample(x))
+            );
+            let view = VolumeView::new(grid, &raw, level).unwrap_or_else(|| unreachable!());
+            for threads in [1, 3] {
+                let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build();
+                let pool = pool.unwrap_or_else(|e| panic!("{e}"));
+                let (a, b) = pool.install(|| {
+                    let control = Control::default();
+                    let a = extract_positions(&volume, &control).unwrap_or_else(|_| unreachable!());
+                    let b =
+                        extract_view_positions(&view, &control).unwrap_or_else(|_| unreachable!());
+                    (a, b)
+                });
+                if level.is_nan() {
+                    assert!(a.1.is_empty());
+                } else {
+                    assert!(a.1.len() > 1000, "level {level}: {} triangles", a.1.len());
+                }
+                let bits =
+                    |p: &[[f32; 3]]| p.iter().map(|v| v.map(f32::to_bits)).collect::<Vec<_>>();
+                assert!(bits(&a.0) == bits(&b.0), "positions differ at level {level}");
+                assert!(a.1 == b.1, "triangles differ at level {level}");
             }
         }
     }

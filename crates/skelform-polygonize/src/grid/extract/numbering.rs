@@ -4,11 +4,11 @@
 //! in), and two slabs that share a layer agree on its numbers without looking at each
 //! other's work.
 
-use skelform_field::grid::Grid;
+use skelform_field::grid::{Grid, Level};
 
 use super::signs::word_mask;
 use super::slabs::SlabStore;
-use super::{GridVertex, Place, SlabVertex};
+use super::{GridVertex, Near, Place, SlabVertex};
 use crate::grid::cell::crossing;
 
 /// One word of a row of edges: the crossed ones (bit `i`: the edge from sample `64·w + i`)
@@ -79,12 +79,13 @@ impl LayerNumbering {
         self.offset + self.number(axis, i, j)
     }
 
-    /// Makes the layer's vertices in the order of their numbers, from the layer's samples
-    /// (`nx·ny`, x fastest); `k` is the layer's index.
-    pub(super) fn emit<V: SlabVertex>(
+    /// Makes the layer's vertices in the order of their numbers, from the layer's raw values
+    /// (`nx·ny`, x fastest) read through `near`'s level; `k` is the layer's index.
+    pub(super) fn emit<V: SlabVertex, L: Level>(
         &self,
         grid: &Grid,
         vals: &[f32],
+        near: &Near<'_, L>,
         k: usize,
         store: &mut SlabStore<'_, V>,
     ) {
@@ -93,12 +94,14 @@ impl LayerNumbering {
             let row = j * self.words..(j + 1) * self.words;
             for_each_bit(&self.x[row.clone()], |i| {
                 let at = i + nx * j;
-                store.push_vertex(edge_record(grid, [i, j, k], 0, [vals[at], vals[at + 1]]));
+                let ends = [vals[at], vals[at + 1]].map(|v| near.level.sample(v));
+                store.push_vertex(edge_record(grid, [i, j, k], 0, ends, near));
             });
             if j + 1 < ny {
                 for_each_bit(&self.y[row], |i| {
                     let at = i + nx * j;
-                    store.push_vertex(edge_record(grid, [i, j, k], 1, [vals[at], vals[at + nx]]));
+                    let ends = [vals[at], vals[at + nx]].map(|v| near.level.sample(v));
+                    store.push_vertex(edge_record(grid, [i, j, k], 1, ends, near));
                 });
             }
         }
@@ -140,12 +143,13 @@ impl ZNumbering {
     }
 
     /// Makes the vertices in the order of their numbers; `lower` and `upper` are the two
-    /// layers' samples, `k` the lower one's index.
-    pub(super) fn emit<V: SlabVertex>(
+    /// layers' raw values, read through `near`'s level, `k` the lower one's index.
+    pub(super) fn emit<V: SlabVertex, L: Level>(
         &self,
         grid: &Grid,
         lower: &[f32],
         upper: &[f32],
+        near: &Near<'_, L>,
         k: usize,
         store: &mut SlabStore<'_, V>,
     ) {
@@ -153,7 +157,8 @@ impl ZNumbering {
         for (j, row) in self.edges.chunks(self.words).enumerate() {
             for_each_bit(row, |i| {
                 let at = i + nx * j;
-                store.push_vertex(edge_record(grid, [i, j, k], 2, [lower[at], upper[at]]));
+                let ends = [lower[at], upper[at]].map(|v| near.level.sample(v));
+                store.push_vertex(edge_record(grid, [i, j, k], 2, ends, near));
             });
         }
     }
@@ -188,10 +193,16 @@ fn for_each_bit(words: &[Counted], mut f: impl FnMut(usize)) {
 /// The record of the vertex where the surface crosses the lattice edge from sample `base`
 /// along `axis`, whose end samples are `ends`.
 #[inline]
-fn edge_record<V: SlabVertex>(grid: &Grid, base: [usize; 3], axis: usize, ends: [f32; 2]) -> V {
+fn edge_record<V: SlabVertex, L: Level>(
+    grid: &Grid,
+    base: [usize; 3],
+    axis: usize,
+    ends: [f32; 2],
+    near: &Near<'_, L>,
+) -> V {
     let v = GridVertex {
         base: base.map(|x| x as u32),
         place: Place::Edge { dir: 1 << axis, t: crossing(ends[0], ends[1]) },
     };
-    V::make(grid, v, ends)
+    V::make(grid, v, ends, near)
 }

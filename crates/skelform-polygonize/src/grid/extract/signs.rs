@@ -15,38 +15,40 @@ pub(super) fn word_mask(w: usize, count: usize) -> u64 {
     if n == 64 { u64::MAX } else { (1u64 << n) - 1 }
 }
 
-/// Bit `i` of the row words: whether sample `i` of the row is inside (`f < 0`), with
-/// `signs64` for each whole word.
+/// Bit `i` of the row words: whether sample `i` of the row is inside (`v < threshold`:
+/// `f < 0` for samples relative to the level), with `signs64` for each whole word.
 #[inline(always)]
-fn row_signs(values: &[f32], out: &mut [u64], signs64: impl Fn(&[f32]) -> u64) {
+fn row_signs(values: &[f32], out: &mut [u64], threshold: f32, signs64: impl Fn(&[f32]) -> u64) {
     for (w, chunk) in out.iter_mut().zip(values.chunks(64)) {
-        *w = if chunk.len() == 64 { signs64(chunk) } else { signs_scalar(chunk) };
+        *w = if chunk.len() == 64 { signs64(chunk) } else { signs_scalar(chunk, threshold) };
     }
 }
 
-pub(super) fn signs_scalar(chunk: &[f32]) -> u64 {
+pub(super) fn signs_scalar(chunk: &[f32], threshold: f32) -> u64 {
     let mut bits = 0u64;
     for (b, &v) in chunk.iter().enumerate() {
-        bits |= ((v < 0.0) as u64) << b;
+        bits |= ((v < threshold) as u64) << b;
     }
     bits
 }
 
 /// [`signs_scalar`] of 64 samples, four at a time with SSE2 (part of every x86-64 CPU):
-/// sixteen compares and mask extractions instead of 64 compares, shifts and ors. `v < 0`
-/// exactly as the scalar form (false for −0 and NaN).
+/// sixteen compares and mask extractions instead of 64 compares, shifts and ors.
+/// `v < threshold` exactly as the scalar form (false for NaN, and for −0 when it is 0).
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-fn signs64(chunk: &[f32]) -> u64 {
-    use std::arch::x86_64::{_mm_cmplt_ps, _mm_loadu_ps, _mm_movemask_ps, _mm_setzero_ps};
+fn signs64(chunk: &[f32], threshold: f32) -> u64 {
+    use std::arch::x86_64::{_mm_cmplt_ps, _mm_loadu_ps, _mm_movemask_ps, _mm_set1_ps};
     assert_eq!(chunk.len(), 64);
+    // SAFETY: SSE is in the x86-64 baseline; a broadcast reads no memory.
+    let t = unsafe { _mm_set1_ps(threshold) };
     let mut bits = 0u64;
     for q in 0..16 {
         // SAFETY: SSE2 is in the x86-64 baseline, and `4 * q + 3 < 64 == chunk.len()`
         // (asserted above), so the unaligned load reads inside the slice.
         let m = unsafe {
             let v = _mm_loadu_ps(chunk.as_ptr().add(4 * q));
-            _mm_movemask_ps(_mm_cmplt_ps(v, _mm_setzero_ps()))
+            _mm_movemask_ps(_mm_cmplt_ps(v, t))
         };
         bits |= (m as u64) << (4 * q);
     }
@@ -54,8 +56,8 @@ fn signs64(chunk: &[f32]) -> u64 {
 }
 
 #[cfg(not(target_arch = "x86_64"))]
-fn signs64(chunk: &[f32]) -> u64 {
-    signs_scalar(chunk)
+fn signs64(chunk: &[f32], threshold: f32) -> u64 {
+    signs_scalar(chunk, threshold)
 }
 
 /// Sign words with AVX2 where the CPU has it: eight samples per compare. The sign pass
@@ -66,24 +68,25 @@ mod wide {
         std::arch::is_x86_feature_detected!("avx2")
     }
 
-    /// [`super::signs64`] eight samples at a time (`_CMP_LT_OQ`: false for NaN and −0, as
-    /// `v < 0`).
+    /// [`super::signs64`] eight samples at a time (`_CMP_LT_OQ`: false for NaN, as
+    /// `v < threshold`).
     ///
     /// # Safety
     /// The CPU must support AVX2 ([`available`]).
     #[target_feature(enable = "avx2")]
-    unsafe fn signs64(chunk: &[f32]) -> u64 {
+    unsafe fn signs64(chunk: &[f32], threshold: f32) -> u64 {
         use std::arch::x86_64::{
-            _CMP_LT_OQ, _mm256_cmp_ps, _mm256_loadu_ps, _mm256_movemask_ps, _mm256_setzero_ps,
+            _CMP_LT_OQ, _mm256_cmp_ps, _mm256_loadu_ps, _mm256_movemask_ps, _mm256_set1_ps,
         };
         assert_eq!(chunk.len(), 64);
+        let t = _mm256_set1_ps(threshold);
         let mut bits = 0u64;
         for q in 0..8 {
             // SAFETY: AVX2 is there (the caller's promise), and `8 * q + 7 < 64 ==
             // chunk.len()` (asserted above), so the unaligned load reads inside the slice.
             let m = unsafe {
                 let v = _mm256_loadu_ps(chunk.as_ptr().add(8 * q));
-                _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(v, _mm256_setzero_ps()))
+                _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(v, t))
             };
             bits |= (m as u32 as u64) << (8 * q);
         }
@@ -93,24 +96,31 @@ mod wide {
     /// # Safety
     /// The CPU must support AVX2 ([`available`]).
     #[target_feature(enable = "avx2")]
-    pub(super) unsafe fn layer_signs(layer: &[f32], nx: usize, words: usize, out: &mut [u64]) {
+    pub(super) unsafe fn layer_signs(
+        layer: &[f32],
+        nx: usize,
+        words: usize,
+        out: &mut [u64],
+        threshold: f32,
+    ) {
         for (row, o) in layer.chunks(nx).zip(out.chunks_mut(words)) {
             // SAFETY: AVX2 is there: the caller's promise.
-            super::row_signs(row, o, |c| unsafe { signs64(c) });
+            super::row_signs(row, o, threshold, |c| unsafe { signs64(c, threshold) });
         }
     }
 }
 
-/// Sign words of every row of layer `k`: `ny` rows of `words` words.
-pub(super) fn layer_signs(layer: &[f32], nx: usize, words: usize, out: &mut [u64]) {
+/// Sign words of every row of a layer (`ny` rows of `words` words): bit set where the raw
+/// value is below `threshold` (see [`skelform_field::grid::Level`]).
+pub(super) fn layer_signs(layer: &[f32], nx: usize, words: usize, out: &mut [u64], threshold: f32) {
     #[cfg(target_arch = "x86_64")]
     if wide::available() {
         // SAFETY: AVX2 was detected at run time.
-        unsafe { wide::layer_signs(layer, nx, words, out) };
+        unsafe { wide::layer_signs(layer, nx, words, out, threshold) };
         return;
     }
     for (row, o) in layer.chunks(nx).zip(out.chunks_mut(words)) {
-        row_signs(row, o, signs64);
+        row_signs(row, o, threshold, |c| signs64(c, threshold));
     }
 }
 
@@ -163,8 +173,9 @@ pub fn surface_cubes(volume: &Volume) -> u64 {
         .into_par_iter()
         .map(|k| {
             let (mut below, mut above) = (vec![0u64; ny * words], vec![0u64; ny * words]);
-            layer_signs(&volume.values[k * layer..(k + 1) * layer], nx, words, &mut below);
-            layer_signs(&volume.values[(k + 1) * layer..(k + 2) * layer], nx, words, &mut above);
+            let at = |k: usize| &volume.values[k * layer..(k + 1) * layer];
+            layer_signs(at(k), nx, words, &mut below, 0.0);
+            layer_signs(at(k + 1), nx, words, &mut above, 0.0);
             let mut count = 0u64;
             for j in 0..ny - 1 {
                 let rows = cube_rows(&below, &above, j, words);

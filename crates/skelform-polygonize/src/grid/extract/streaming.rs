@@ -5,10 +5,10 @@
 use std::sync::atomic::AtomicU64;
 
 use skelform_field::control::Control;
-use skelform_field::grid::Grid;
+use skelform_field::grid::{Grid, Relative};
 
 use super::slabs::{Workspace, run_slabs};
-use super::{SLAB, SlabVertex, extract_slab, slab_done};
+use super::{Near, SLAB, SlabVertex, extract_slab, slab_done};
 
 /// The output of [`extract_streamed`].
 #[derive(Clone, Debug)]
@@ -143,7 +143,14 @@ pub fn extract_streamed_with<V: SlabVertex, S: LayerSource>(
             let range = skelform_field::grid::value_range(&layers);
             let sourced = t.elapsed();
             let t = Instant::now();
-            let counts = extract_slab(grid, &layers, (z0, z1), scratch, store, control)
+            let near = Near {
+                values: &layers,
+                first: z0,
+                layers: z1 - z0 + 1,
+                dims: grid.dims,
+                level: Relative,
+            };
+            let counts = extract_slab(grid, &near, (z0, z1), scratch, store, control)
                 .map_err(|_| StreamError::Cancelled)?;
             scratch.layers = layers;
             let extracted = t.elapsed();
