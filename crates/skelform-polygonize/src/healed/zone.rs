@@ -545,7 +545,7 @@ fn face_verdict(
         let (hbb, hbc, hcc) = (j.h.col(b)[b], j.h.col(cax)[b], j.h.col(cax)[cax]);
         let det = hbb * hcc - hbc * hbc;
         if det.abs() < 1e-300 {
-            return FaceVerdict::Agree;
+            return contour_verdict(probe, lat, v, c, f, scale);
         }
         let mut ds = -(hcc * gb - hbc * gc) / det / h;
         let mut dt = -(hbb * gc - hbc * gb) / det / h;
@@ -557,10 +557,158 @@ fn face_verdict(
         s += ds;
         t += dt;
         if !(-0.01..=1.01).contains(&s) || !(-0.01..=1.01).contains(&t) {
-            return FaceVerdict::Agree;
+            return contour_verdict(probe, lat, v, c, f, scale);
         }
     }
-    FaceVerdict::Agree
+    contour_verdict(probe, lat, v, c, f, scale)
+}
+
+/// The pairing of a face's four crossings where the field has no saddle on the face to
+/// show it (Newton from the interpolant's saddle left the face or did not settle): the
+/// contour `f = 0` is followed across the face from the crossing on its first side, and the
+/// corner it cuts off says which corners are joined. Without a saddle the bilinear
+/// interpolant's guess is just a guess: two sheets crossing just beyond the face (a thin
+/// wedge of one sign between them, running across it) are read as a saddle, the zone stops
+/// there, and its boundary trace joins two sheet pieces that never meet (so the curve there
+/// gets two bands, not four). `Agree` when the contour cannot be followed (it comes near a
+/// point where the gradient on the face vanishes, or returns to its own side).
+fn contour_verdict(
+    probe: &mut Probe,
+    lat: &Lattice,
+    v: &[f32; 8],
+    c: [usize; 3],
+    f: usize,
+    scale: f64,
+) -> FaceVerdict {
+    let decided_inside = face_decisions(v, 1 << f) & (1 << f) != 0;
+    match contour_joins_inside(probe, lat, v, c, f, scale) {
+        Some(joined) if joined != decided_inside => FaceVerdict::Disagree,
+        _ => FaceVerdict::Agree,
+    }
+}
+
+/// Whether the inside corners of face `f` of cube `c` (four crossings) are joined, by
+/// following the contour from the crossing on the side `FACES[f][0]`–`FACES[f][1]`; `None`
+/// when it cannot be followed.
+fn contour_joins_inside(
+    probe: &mut Probe,
+    lat: &Lattice,
+    v: &[f32; 8],
+    c: [usize; 3],
+    f: usize,
+    scale: f64,
+) -> Option<bool> {
+    let grid = &lat.grid;
+    let h = grid.cell;
+    let (b, cax) = other_axes(f / 2);
+    let q = FACES[f];
+    let corner = |k: usize| {
+        let o = CORNERS[q[k]];
+        grid.point(c[0] + o[0], c[1] + o[1], c[2] + o[2])
+    };
+    // In-face coordinates, in cells from corner 0.
+    let origin = corner(0);
+    let to_uv = |p: DVec3| glam::DVec2::new((p[b] - origin[b]) / h, (p[cax] - origin[cax]) / h);
+    let at = |u: glam::DVec2| {
+        let mut p = origin;
+        p[b] += u.x * h;
+        p[cax] += u.y * h;
+        p
+    };
+    let eval = |probe: &mut Probe, u: glam::DVec2| {
+        probe.grad(at(u)).map(|(val, g)| (val, glam::DVec2::new(g[b], g[cax]) * h))
+    };
+    let corners: [glam::DVec2; 4] = std::array::from_fn(|k| to_uv(corner(k)));
+    // The crossing on side 0 (corner 0 to corner 1), by bisection on the field between the
+    // samples' signs.
+    let (a0, a1) = (corners[0], corners[1]);
+    let inside0 = v[q[0]] < 0.0;
+    let (mut lo, mut hi) = (0.0f64, 1.0f64);
+    for _ in 0..40 {
+        let m = 0.5 * (lo + hi);
+        let (val, _) = eval(probe, a0.lerp(a1, m))?;
+        if (val < 0.0) == inside0 {
+            lo = m;
+        } else {
+            hi = m;
+        }
+    }
+    let mut p = a0.lerp(a1, 0.5 * (lo + hi));
+    // Into the face from side 0: towards corners 2 and 3.
+    let inward = (corners[3] - corners[0]).normalize_or_zero();
+    let tiny = 1e-6 * scale * h;
+    let (_, g) = eval(probe, p)?;
+    if g.length() <= tiny {
+        return None;
+    }
+    // The contour direction is the gradient turned by a fixed quarter turn, so that a step
+    // onto another branch of the contour shows as a reversal.
+    let turn = if g.perp().dot(inward) >= 0.0 { 1.0 } else { -1.0 };
+    let mut dir = g.perp().normalize() * turn;
+    let mut step = 1.0 / 16.0;
+    let inside = |u: glam::DVec2| (0.0..=1.0).contains(&u.x) && (0.0..=1.0).contains(&u.y);
+    let mut steps = 0;
+    loop {
+        steps += 1;
+        if steps > 2000 || step < 1e-5 {
+            return None;
+        }
+        // Predict along the contour, correct back onto it along the gradient.
+        let mut u = p + dir * step;
+        let mut settled = false;
+        let mut grad = glam::DVec2::ZERO;
+        for _ in 0..12 {
+            let (val, g) = eval(probe, u)?;
+            if g.length() <= tiny {
+                return None;
+            }
+            grad = g;
+            let d = g * (val / g.length_squared());
+            u -= d;
+            if d.length() <= 1e-7 {
+                settled = true;
+                break;
+            }
+        }
+        let nd = grad.perp().normalize() * turn;
+        if !settled || (u - p).length() > 1.5 * step || nd.dot(dir) < 0.5 {
+            step *= 0.5;
+            continue;
+        }
+        if !inside(u) {
+            // Left the face: through which side (from p, which is inside or on side 0).
+            // Cutting off one corner separates the corners of its sign.
+            return match exit_side(&corners, p, u)? {
+                1 => Some(v[q[1]] >= 0.0),
+                3 => Some(v[q[0]] >= 0.0),
+                _ => None,
+            };
+        }
+        p = u;
+        dir = nd;
+        step = (step * 1.5).min(1.0 / 16.0);
+    }
+}
+
+/// Which side `k` (from corner `k` to corner `k + 1`) of the unit square the segment from
+/// `p` to `u` leaves it through, by the first crossing along the segment after `p`.
+fn exit_side(corners: &[glam::DVec2; 4], p: glam::DVec2, u: glam::DVec2) -> Option<usize> {
+    let d = u - p;
+    let mut best: Option<(f64, usize)> = None;
+    for k in 0..4 {
+        let (a, e) = (corners[k], corners[(k + 1) % 4] - corners[k]);
+        let den = d.perp_dot(e);
+        if den.abs() < 1e-300 {
+            continue;
+        }
+        // p + d·s = a + e·r
+        let s = (a - p).perp_dot(e) / den;
+        let r = (a - p).perp_dot(d) / den;
+        if s > 1e-12 && (-1e-9..=1.0 + 1e-9).contains(&r) && best.is_none_or(|x| s < x.0) {
+            best = Some((s, k));
+        }
+    }
+    best.map(|x| x.1)
 }
 
 /// The bands of one zone.
