@@ -807,7 +807,7 @@ fn heal_component(
     for (band, (trace, closed)) in components.iter().enumerate() {
         let band = band as u32;
         let (mut walk, mut w) = walk_along(inp, &zone, trace)?;
-        remove_wiggles(net, &mut walk, &mut w, h);
+        remove_wiggles(net, &mut walk, &mut w, h, *closed);
         if !closed {
             extend_to_exits(inp, trace, &mut walk, &mut w);
         }
@@ -1106,13 +1106,18 @@ fn walk_along(
 /// except round the end of a curve: a sheet that folds round a pinch point turns there, and
 /// the nearest nodes may turn one node early, so the walk is taken on to the end and back.
 /// Keeps `w` (trace vertex → walk position) pointing at the same nodes.
-fn remove_wiggles(net: &Network, walk: &mut Vec<u32>, w: &mut [usize], h: f64) {
+///
+/// A closed trace may also fold round a curve's exit from the domain: a loop cannot end on
+/// the box, so a sheet that turns there wraps round the curve's end, which is a pinch point
+/// on the box (the cross-cap's upper end on `[-1, 1]³`); its trace turns on the cap, short
+/// of the exit node, and would otherwise be taken for a wiggle and the walk emptied.
+fn remove_wiggles(net: &Network, walk: &mut Vec<u32>, w: &mut [usize], h: f64, closed: bool) {
     let is_leaf = |n: u32| net.degree(n) <= 1;
     let mut from = 1;
     while let Some(j) = (from..walk.len().saturating_sub(1))
         .find(|&j| walk[j - 1] == walk[j + 1] && !is_leaf(walk[j]))
     {
-        if let Some(path) = path_to_end(net, walk[j], walk[j - 1], 2.5 * h) {
+        if let Some(path) = path_to_end(net, walk[j], walk[j - 1], 2.5 * h, closed) {
             // Go on to the end and back.
             let extra = 2 * (path.len() - 1);
             let mut round: Vec<u32> = path[1..].to_vec();
@@ -1294,8 +1299,8 @@ fn check_sheets(
 }
 
 /// A path from `a` (not back through `not`) to the end of a curve inside the domain (a pinch
-/// point or a lost end) within `limit`.
-fn path_to_end(net: &Network, a: u32, not: u32, limit: f64) -> Option<Vec<u32>> {
+/// point or a lost end), or also on the box (an exit) when `exits` is set, within `limit`.
+fn path_to_end(net: &Network, a: u32, not: u32, limit: f64, exits: bool) -> Option<Vec<u32>> {
     let mut best: Option<(f64, Vec<u32>)> = None;
     let mut frontier = vec![(a, 0.0, vec![a])];
     while let Some((n, d, path)) = frontier.pop() {
@@ -1310,7 +1315,9 @@ fn path_to_end(net: &Network, a: u32, not: u32, limit: f64) -> Option<Vec<u32>> 
             let mut np = path.clone();
             np.push(m);
             let kind = net.nodes[m as usize].kind;
-            if net.degree(m) <= 1 && matches!(kind, NodeKind::Pinch | NodeKind::End) {
+            let end = matches!(kind, NodeKind::Pinch | NodeKind::End)
+                || (exits && kind == NodeKind::Exit);
+            if net.degree(m) <= 1 && end {
                 if best.as_ref().is_none_or(|b| nd < b.0) {
                     best = Some((nd, np));
                 }
