@@ -279,12 +279,11 @@ fn heal_with(inp: &Input, probe: &mut Probe, accept_seeds: bool) -> Outcome {
                 if zone.contains(&nb) {
                     continue;
                 }
-                // A polygon of a cube outside whose every side lies on the zone's boundary
-                // would be closed off by the zone's trace alone: the zone would fan that
-                // loop as a disk on top of the kept polygon (a duplicate face), or read the
-                // sheet through it as two pieces. The cube belongs to the zone.
-                if enclosed_polygon(inp.volume, &lat, &zone, nb) {
-                    add.push(nb);
+                // A small patch of polygons outside whose outer sides all lie on the zone's
+                // boundary would be closed off by the zone's trace alone: its cubes belong
+                // to the zone.
+                if let Some(cubes) = enclosed_patch(inp.volume, &lat, &zone, nb) {
+                    add.extend(cubes);
                     continue;
                 }
                 if amb & (1 << f) == 0 {
@@ -379,33 +378,97 @@ fn cube_entry(v: &[f32; 8]) -> Option<&'static Entry> {
     Some(t.entry(case, face_decisions(v, t.ambiguous[case]) as usize))
 }
 
-/// Whether cube `ci` (outside the zone) has a marching-cubes polygon all of whose sides lie
-/// on faces it shares with zone cubes or with the domain box.
-fn enclosed_polygon(volume: &Volume, lat: &Lattice, zone: &FxHashSet<usize>, ci: usize) -> bool {
+/// The most marching-cubes polygons outside the zone that [`enclosed_patch`] gathers.
+const PATCH_POLYGONS: usize = 8;
+
+/// The global key of cube edge `e` of cube `c`.
+fn cube_edge_key(lat: &Lattice, c: [usize; 3], e: usize) -> u64 {
+    let o = CORNERS[EDGES[e][0]];
+    lat.edge_key([c[0] + o[0], c[1] + o[1], c[2] + o[2]], edge_axis(e))
+}
+
+/// The cubes of a small patch of marching-cubes polygons outside the zone, starting from a
+/// polygon of cube `ci`, whose outer sides all lie on faces shared with zone cubes or with
+/// the domain box (and at least one with the zone); `None` when there is no such patch of at
+/// most [`PATCH_POLYGONS`] polygons.
+///
+/// Such a patch would be closed off by the zone's trace alone: the zone would fan that loop
+/// as a disk on top of the kept polygons (duplicate faces), or read the sheet through it as
+/// two pieces. Its cubes belong to the zone. One polygon is the common case (a zone that
+/// wraps round an outside cube); two or three arise where a sheet passes within a hair of a
+/// lattice point on the zone's border, its tiny polygons round that point split between
+/// zone and outside cubes.
+fn enclosed_patch(
+    volume: &Volume,
+    lat: &Lattice,
+    zone: &FxHashSet<usize>,
+    ci: usize,
+) -> Option<Vec<usize>> {
     let t = table();
-    let c = lat.coords(ci);
-    let Some(entry) = cube_entry(&lat.corner_values(volume, c)) else {
-        return false;
+    // The polygons of an outside cube: for each, its sides as pairs of global edge keys,
+    // each with the face it lies on.
+    let polygons = |c: [usize; 3]| -> Vec<Vec<(u64, u64, usize)>> {
+        let Some(entry) = cube_entry(&lat.corner_values(volume, c)) else {
+            return Vec::new();
+        };
+        (0..entry.loop_count as usize)
+            .map(|l| {
+                let edges = t.loop_edges(entry, l);
+                let n = edges.len();
+                (0..n)
+                    .map(|k| {
+                        let (a, b) = (edges[k] as usize, edges[(k + 1) % n] as usize);
+                        let f = common_face(a, b).unwrap_or(usize::MAX);
+                        let (ka, kb) = (cube_edge_key(lat, c, a), cube_edge_key(lat, c, b));
+                        (ka.min(kb), ka.max(kb), f)
+                    })
+                    .collect()
+            })
+            .collect()
     };
-    (0..entry.loop_count as usize).any(|l| {
-        let edges = t.loop_edges(entry, l);
-        let n = edges.len();
+    let first = polygons(lat.coords(ci));
+    'start: for l0 in 0..first.len() {
+        let mut patch: Vec<(usize, usize)> = vec![(ci, l0)];
+        let mut sides: Vec<Vec<(u64, u64, usize)>> = vec![first[l0].clone()];
         let mut touches_zone = false;
-        let all = (0..n).all(|k| {
-            let Some(f) = common_face(edges[k] as usize, edges[(k + 1) % n] as usize) else {
-                return false;
-            };
-            match lat.neighbour(c, f) {
-                Some(nb) => {
-                    let z = zone.contains(&nb);
-                    touches_zone |= z;
-                    z
+        let mut k = 0;
+        while k < patch.len() {
+            let c = lat.coords(patch[k].0);
+            let own = sides[k].clone();
+            k += 1;
+            for (ka, kb, f) in own {
+                if f == usize::MAX {
+                    continue 'start;
                 }
-                None => true,
+                let Some(nb) = lat.neighbour(c, f) else { continue };
+                if zone.contains(&nb) {
+                    touches_zone = true;
+                    continue;
+                }
+                // The polygon across this side, in the outside cube there.
+                let theirs = polygons(lat.coords(nb));
+                let Some(l) = theirs.iter().position(|p| p.iter().any(|s| s.0 == ka && s.1 == kb))
+                else {
+                    continue 'start;
+                };
+                if patch.contains(&(nb, l)) {
+                    continue;
+                }
+                if patch.len() == PATCH_POLYGONS {
+                    continue 'start;
+                }
+                patch.push((nb, l));
+                sides.push(theirs[l].clone());
             }
-        });
-        all && touches_zone
-    })
+        }
+        if touches_zone {
+            let mut cubes: Vec<usize> = patch.iter().map(|x| x.0).collect();
+            cubes.sort_unstable();
+            cubes.dedup();
+            return Some(cubes);
+        }
+    }
+    None
 }
 
 /// Whether the field crosses zero between the samples of a lattice edge more often than
