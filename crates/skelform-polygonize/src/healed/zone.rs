@@ -229,7 +229,8 @@ fn heal_with(inp: &Input, probe: &mut Probe, accept_seeds: bool) -> Outcome {
         return Outcome::Healed(out);
     }
 
-    // 2. Grow until marching cubes is right on the boundary.
+    // 2. Grow until marching cubes is right on the boundary, near the network.
+    let near = NearNetwork::new(inp.net, &lat);
     let mut edge_memo: FxHashMap<u64, bool> = FxHashMap::default();
     let mut face_memo: FxHashMap<u64, FaceVerdict> = FxHashMap::default();
     let t = table();
@@ -268,7 +269,7 @@ fn heal_with(inp: &Input, probe: &mut Probe, accept_seeds: bool) -> Outcome {
                     edge_hides_crossings(probe, inp.volume, &lat, p, axis)
                 });
                 if hidden {
-                    add.extend(around.iter().flatten());
+                    add.extend(around.iter().flatten().filter(|&&x| near.holds(&lat, x)));
                 }
             }
             let v = lat.corner_values(inp.volume, c);
@@ -298,7 +299,8 @@ fn heal_with(inp: &Input, probe: &mut Probe, accept_seeds: bool) -> Outcome {
                 });
                 match verdict {
                     FaceVerdict::Agree => {}
-                    FaceVerdict::Disagree => add.push(nb),
+                    FaceVerdict::Disagree if near.holds(&lat, nb) => add.push(nb),
+                    FaceVerdict::Disagree => {}
                     FaceVerdict::Singular(p) if accept_seeds => seeds.push((p, f / 2)),
                     FaceVerdict::Singular(_) => {}
                 }
@@ -376,6 +378,55 @@ fn cube_entry(v: &[f32; 8]) -> Option<&'static Entry> {
     }
     let t = table();
     Some(t.entry(case, face_decisions(v, t.ambiguous[case]) as usize))
+}
+
+/// How far from the network (in cells) a zone grows for edges that hide crossings and faces
+/// whose decider is wrong.
+const GROWTH_REACH: f64 = 6.0;
+
+/// Which cubes lie within [`GROWTH_REACH`] of the network's curves and nodes.
+///
+/// Beyond that, what marching cubes gets wrong on a zone's boundary is one sheet's own
+/// (a sheet tangent to a lattice plane hides pairs of crossings in the plane's edges all
+/// along the tangency), which the cubes outside share, so the boundary's trace is still
+/// consistent; growing there only joins zones round different curves along the tangency,
+/// and a sheet piece between two curves is not a band along one (the torus whose bottom
+/// lies in a lattice plane, crossed by a sphere in two loops).
+struct NearNetwork {
+    /// Network points by coarse bucket (`GROWTH_REACH` cells a side).
+    buckets: FxHashMap<[i64; 3], Vec<DVec3>>,
+    size: f64,
+}
+
+impl NearNetwork {
+    fn new(net: &Network, lat: &Lattice) -> Self {
+        let size = GROWTH_REACH * lat.grid.cell;
+        let mut buckets: FxHashMap<[i64; 3], Vec<DVec3>> = FxHashMap::default();
+        let points =
+            net.runs.iter().flat_map(|r| r.fine.iter()).chain(net.nodes.iter().map(|n| &n.p));
+        for &p in points {
+            buckets.entry(Self::key(p, lat, size)).or_default().push(p);
+        }
+        NearNetwork { buckets, size }
+    }
+
+    fn key(p: DVec3, lat: &Lattice, size: f64) -> [i64; 3] {
+        let r = (p - lat.grid.origin) / size;
+        [r.x.floor() as i64, r.y.floor() as i64, r.z.floor() as i64]
+    }
+
+    /// Whether the centre of cube `ci` is within reach of a network point.
+    fn holds(&self, lat: &Lattice, ci: usize) -> bool {
+        let c = lat.coords(ci);
+        let centre = lat.grid.point(c[0], c[1], c[2]) + DVec3::splat(0.5 * lat.grid.cell);
+        let k = Self::key(centre, lat, self.size);
+        (0..27).any(|d| {
+            let b = [k[0] + d % 3 - 1, k[1] + d / 3 % 3 - 1, k[2] + d / 9 - 1];
+            self.buckets
+                .get(&b)
+                .is_some_and(|l| l.iter().any(|q| (*q - centre).length() <= self.size))
+        })
+    }
 }
 
 /// The most marching-cubes polygons outside the zone that [`enclosed_patch`] gathers.
@@ -1136,28 +1187,38 @@ impl<'n> ZoneNetwork<'n> {
 }
 
 /// The walk a trace piece follows on the network: each trace vertex's nearest node, joined
-/// by shortest network paths (within four cells). Returns the walk and, for each trace
-/// vertex, the walk position it maps to.
+/// by shortest network paths. Returns the walk and, for each trace vertex, the walk position
+/// it maps to.
+///
+/// A path may be four cells long, or twice as long as the way from one trace vertex through
+/// the next to their nodes: where two sheets cross at a shallow angle the zone grows wide
+/// (its edges hide crossings far from the curve), the trace runs cells away from the curve,
+/// and two neighbouring trace vertices may have nearest nodes far apart along it.
 fn walk_along(
     inp: &Input,
     zone: &ZoneNetwork,
     trace: &[u32],
 ) -> Result<(Vec<u32>, Vec<usize>), String> {
-    let limit = 4.0 * inp.grid.cell;
     let mut walk: Vec<u32> = Vec::new();
     let mut w: Vec<usize> = Vec::with_capacity(trace.len());
+    let node = |n: u32| zone.net.nodes[n as usize].p;
+    let mut prev: Option<DVec3> = None;
     for &v in trace {
-        let Some(n) = zone.nearest(inp.positions[v as usize]) else {
+        let p = inp.positions[v as usize];
+        let Some(n) = zone.nearest(p) else {
             return Err("no node near a trace".into());
         };
-        match walk.last() {
-            None => walk.push(n),
-            Some(&last) if last != n => {
+        let last_vertex = prev.replace(p);
+        match (walk.last(), last_vertex) {
+            (Some(&last), Some(q)) if last != n => {
+                let around = (q - node(last)).length() + (p - q).length() + (p - node(n)).length();
+                let limit = (4.0 * inp.grid.cell).max(2.0 * around);
                 let Some(path) = shortest_path(zone.net, last, n, limit) else {
                     return Err("a trace jumps between unconnected curves".into());
                 };
                 walk.extend_from_slice(&path[1..]);
             }
+            (None, _) => walk.push(n),
             _ => {}
         }
         w.push(walk.len() - 1);
