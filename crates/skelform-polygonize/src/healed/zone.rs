@@ -478,9 +478,9 @@ fn enclosed_patch(
             .collect()
     };
     let first = polygons(lat.coords(ci));
-    'start: for l0 in 0..first.len() {
+    'start: for (l0, polygon) in first.iter().enumerate() {
         let mut patch: Vec<(usize, usize)> = vec![(ci, l0)];
-        let mut sides: Vec<Vec<(u64, u64, usize)>> = vec![first[l0].clone()];
+        let mut sides: Vec<Vec<(u64, u64, usize)>> = vec![polygon.clone()];
         let mut touches_zone = false;
         let mut k = 0;
         while k < patch.len() {
