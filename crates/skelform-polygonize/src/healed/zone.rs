@@ -11,8 +11,12 @@
 //!    surface twice between its samples (found from the field: the sign of `f` at the
 //!    extremum along the edge), and every boundary face with four crossings pairs them as
 //!    the field does (the sign of `f` at the face's saddle, where the decider uses the
-//!    bilinear interpolant). A saddle with `f = 0` on a boundary face is a curve point the
-//!    search missed: it becomes a seed and the network is traced again.
+//!    bilinear interpolant; where `f` has no saddle on the face, the contour `f = 0`
+//!    followed across it). A saddle with `f = 0` on a boundary face is a curve point the
+//!    search missed: it becomes a seed and the network is traced again. It grows for these
+//!    only within six cells of the network (farther, what marching cubes misses is one
+//!    sheet's own, shared with the cubes outside), and it takes in any small patch of
+//!    outside polygons that its boundary closes round.
 //! 2. On the zone's boundary the surface meets the faces in segments that marching cubes
 //!    shares with the cubes outside, and on the domain box in segments where the mesh ends
 //!    (but not on box faces where a curve leaves the box, or whose edges hide crossings:
