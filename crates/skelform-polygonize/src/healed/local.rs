@@ -201,9 +201,12 @@ pub(crate) struct SolveOptions {
 ///
 /// The singular set is usually a curve, along which the Jacobian is (nearly) singular, so the
 /// normal equations are solved by eigen-decomposition with the directions of singular values
-/// under 3% of the largest left out: steps go straight to the nearest point of the curve
-/// instead of sliding along it (plain Newton on `∇(xyz)` halves every coordinate and runs to
-/// the triple point). Steps that do not reduce the residual are halved.
+/// under 3% of the largest left out in space: steps go straight to the nearest point of the
+/// curve instead of sliding along it (plain Newton on `∇(xyz)` halves every coordinate and
+/// runs to the triple point). Restricted to a plane (one across the curve, or a lattice
+/// face) only singular values under 0.1% are left out: there the weak direction is the
+/// crossing's own, and leaving it out lost curves whose sheets cross at 20° or less. Steps
+/// that do not reduce the residual are halved.
 pub(crate) fn solve_singular(
     probe: &mut Probe,
     p0: DVec3,
@@ -214,6 +217,11 @@ pub(crate) fn solve_singular(
     let tol = 1e-5 * o.gradient_scale;
     let fine = 1e-10 * o.gradient_scale;
     let residual = |j: &Jet| (j.g.length_squared() + (j.f / o.length).powi(2)).sqrt();
+    // In space the curve's own direction must be left out (3% of the largest singular
+    // value); within a plane across the curve (the march's corrector, a lattice face) there
+    // is none, and the weaker of the two directions across a crossing is `tan²(α/2)` of the
+    // stronger for sheets at an angle `α` (3% at 20°): only a true degeneracy is left out.
+    let cutoff = if k == 3 { 1e-3 } else { 1e-6 };
     let mut p = p0;
     let mut jet = probe.jet(p)?;
     let mut r = residual(&jet);
@@ -247,7 +255,7 @@ pub(crate) fn solve_singular(
         }
         let mut d = DVec3::ZERO;
         for (l, v) in vals.iter().zip(vecs) {
-            if *l > 1e-3 * top {
+            if *l > cutoff * top {
                 d += v * (v.dot(rhs) / l);
             }
         }

@@ -51,8 +51,9 @@
 //!   of a cell by continuation (so one cell may hold several segments, a turn, a triple or a
 //!   pinch point), every lattice edge on the healed region's boundary is searched for
 //!   crossings its samples miss (the extremum of `f` along it, by bisection on the
-//!   derivative), every boundary face with four crossings has its saddle found on the field,
-//!   and the region grows until both agree with marching cubes. What the bands still cannot
+//!   derivative), every boundary face with four crossings has its saddle found on the field
+//!   (or, with none there, its contour followed across it), and the region grows until both
+//!   agree with marching cubes. What the bands still cannot
 //!   explain keeps the marching-cubes triangles and is reported ([`Stats::unresolved`]).
 //! - **Point singularities** are found by minimising `|∇f|` and `|f|` (Gauss–Newton from
 //!   the critical vertices) and classified by the Hessian. A cone apex (the double cone)

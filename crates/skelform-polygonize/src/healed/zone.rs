@@ -11,8 +11,12 @@
 //!    surface twice between its samples (found from the field: the sign of `f` at the
 //!    extremum along the edge), and every boundary face with four crossings pairs them as
 //!    the field does (the sign of `f` at the face's saddle, where the decider uses the
-//!    bilinear interpolant). A saddle with `f = 0` on a boundary face is a curve point the
-//!    search missed: it becomes a seed and the network is traced again.
+//!    bilinear interpolant; where `f` has no saddle on the face, the contour `f = 0`
+//!    followed across it). A saddle with `f = 0` on a boundary face is a curve point the
+//!    search missed: it becomes a seed and the network is traced again. It grows for these
+//!    only within six cells of the network (farther, what marching cubes misses is one
+//!    sheet's own, shared with the cubes outside), and it takes in any small patch of
+//!    outside polygons that its boundary closes round.
 //! 2. On the zone's boundary the surface meets the faces in segments that marching cubes
 //!    shares with the cubes outside, and on the domain box in segments where the mesh ends
 //!    (but not on box faces where a curve leaves the box, or whose edges hide crossings:
@@ -229,7 +233,8 @@ fn heal_with(inp: &Input, probe: &mut Probe, accept_seeds: bool) -> Outcome {
         return Outcome::Healed(out);
     }
 
-    // 2. Grow until marching cubes is right on the boundary.
+    // 2. Grow until marching cubes is right on the boundary, near the network.
+    let near = NearNetwork::new(inp.net, &lat);
     let mut edge_memo: FxHashMap<u64, bool> = FxHashMap::default();
     let mut face_memo: FxHashMap<u64, FaceVerdict> = FxHashMap::default();
     let t = table();
@@ -268,7 +273,7 @@ fn heal_with(inp: &Input, probe: &mut Probe, accept_seeds: bool) -> Outcome {
                     edge_hides_crossings(probe, inp.volume, &lat, p, axis)
                 });
                 if hidden {
-                    add.extend(around.iter().flatten());
+                    add.extend(around.iter().flatten().filter(|&&x| near.holds(&lat, x)));
                 }
             }
             let v = lat.corner_values(inp.volume, c);
@@ -279,12 +284,11 @@ fn heal_with(inp: &Input, probe: &mut Probe, accept_seeds: bool) -> Outcome {
                 if zone.contains(&nb) {
                     continue;
                 }
-                // A polygon of a cube outside whose every side lies on the zone's boundary
-                // would be closed off by the zone's trace alone: the zone would fan that
-                // loop as a disk on top of the kept polygon (a duplicate face), or read the
-                // sheet through it as two pieces. The cube belongs to the zone.
-                if enclosed_polygon(inp.volume, &lat, &zone, nb) {
-                    add.push(nb);
+                // A small patch of polygons outside whose outer sides all lie on the zone's
+                // boundary would be closed off by the zone's trace alone: its cubes belong
+                // to the zone.
+                if let Some(cubes) = enclosed_patch(inp.volume, &lat, &zone, nb) {
+                    add.extend(cubes);
                     continue;
                 }
                 if amb & (1 << f) == 0 {
@@ -299,7 +303,8 @@ fn heal_with(inp: &Input, probe: &mut Probe, accept_seeds: bool) -> Outcome {
                 });
                 match verdict {
                     FaceVerdict::Agree => {}
-                    FaceVerdict::Disagree => add.push(nb),
+                    FaceVerdict::Disagree if near.holds(&lat, nb) => add.push(nb),
+                    FaceVerdict::Disagree => {}
                     FaceVerdict::Singular(p) if accept_seeds => seeds.push((p, f / 2)),
                     FaceVerdict::Singular(_) => {}
                 }
@@ -379,33 +384,146 @@ fn cube_entry(v: &[f32; 8]) -> Option<&'static Entry> {
     Some(t.entry(case, face_decisions(v, t.ambiguous[case]) as usize))
 }
 
-/// Whether cube `ci` (outside the zone) has a marching-cubes polygon all of whose sides lie
-/// on faces it shares with zone cubes or with the domain box.
-fn enclosed_polygon(volume: &Volume, lat: &Lattice, zone: &FxHashSet<usize>, ci: usize) -> bool {
+/// How far from the network (in cells) a zone grows for edges that hide crossings and faces
+/// whose decider is wrong.
+const GROWTH_REACH: f64 = 6.0;
+
+/// Which cubes lie within [`GROWTH_REACH`] of the network's curves and nodes.
+///
+/// Beyond that, what marching cubes gets wrong on a zone's boundary is one sheet's own
+/// (a sheet tangent to a lattice plane hides pairs of crossings in the plane's edges all
+/// along the tangency), which the cubes outside share, so the boundary's trace is still
+/// consistent; growing there only joins zones round different curves along the tangency,
+/// and a sheet piece between two curves is not a band along one (the torus whose bottom
+/// lies in a lattice plane, crossed by a sphere in two loops).
+struct NearNetwork {
+    /// Network points by coarse bucket (`GROWTH_REACH` cells a side).
+    buckets: FxHashMap<[i64; 3], Vec<DVec3>>,
+    size: f64,
+}
+
+impl NearNetwork {
+    fn new(net: &Network, lat: &Lattice) -> Self {
+        let size = GROWTH_REACH * lat.grid.cell;
+        let mut buckets: FxHashMap<[i64; 3], Vec<DVec3>> = FxHashMap::default();
+        let points =
+            net.runs.iter().flat_map(|r| r.fine.iter()).chain(net.nodes.iter().map(|n| &n.p));
+        for &p in points {
+            buckets.entry(Self::key(p, lat, size)).or_default().push(p);
+        }
+        NearNetwork { buckets, size }
+    }
+
+    fn key(p: DVec3, lat: &Lattice, size: f64) -> [i64; 3] {
+        let r = (p - lat.grid.origin) / size;
+        [r.x.floor() as i64, r.y.floor() as i64, r.z.floor() as i64]
+    }
+
+    /// Whether the centre of cube `ci` is within reach of a network point.
+    fn holds(&self, lat: &Lattice, ci: usize) -> bool {
+        let c = lat.coords(ci);
+        let centre = lat.grid.point(c[0], c[1], c[2]) + DVec3::splat(0.5 * lat.grid.cell);
+        let k = Self::key(centre, lat, self.size);
+        (0..27).any(|d| {
+            let b = [k[0] + d % 3 - 1, k[1] + d / 3 % 3 - 1, k[2] + d / 9 - 1];
+            self.buckets
+                .get(&b)
+                .is_some_and(|l| l.iter().any(|q| (*q - centre).length() <= self.size))
+        })
+    }
+}
+
+/// The most marching-cubes polygons outside the zone that [`enclosed_patch`] gathers.
+const PATCH_POLYGONS: usize = 8;
+
+/// The global key of cube edge `e` of cube `c`.
+fn cube_edge_key(lat: &Lattice, c: [usize; 3], e: usize) -> u64 {
+    let o = CORNERS[EDGES[e][0]];
+    lat.edge_key([c[0] + o[0], c[1] + o[1], c[2] + o[2]], edge_axis(e))
+}
+
+/// The cubes of a small patch of marching-cubes polygons outside the zone, starting from a
+/// polygon of cube `ci`, whose outer sides all lie on faces shared with zone cubes or with
+/// the domain box (and at least one with the zone); `None` when there is no such patch of at
+/// most [`PATCH_POLYGONS`] polygons.
+///
+/// Such a patch would be closed off by the zone's trace alone: the zone would fan that loop
+/// as a disk on top of the kept polygons (duplicate faces), or read the sheet through it as
+/// two pieces. Its cubes belong to the zone. One polygon is the common case (a zone that
+/// wraps round an outside cube); two or three arise where a sheet passes within a hair of a
+/// lattice point on the zone's border, its tiny polygons round that point split between
+/// zone and outside cubes.
+fn enclosed_patch(
+    volume: &Volume,
+    lat: &Lattice,
+    zone: &FxHashSet<usize>,
+    ci: usize,
+) -> Option<Vec<usize>> {
     let t = table();
-    let c = lat.coords(ci);
-    let Some(entry) = cube_entry(&lat.corner_values(volume, c)) else {
-        return false;
+    // The polygons of an outside cube: for each, its sides as pairs of global edge keys,
+    // each with the face it lies on.
+    let polygons = |c: [usize; 3]| -> Vec<Vec<(u64, u64, usize)>> {
+        let Some(entry) = cube_entry(&lat.corner_values(volume, c)) else {
+            return Vec::new();
+        };
+        (0..entry.loop_count as usize)
+            .map(|l| {
+                let edges = t.loop_edges(entry, l);
+                let n = edges.len();
+                (0..n)
+                    .map(|k| {
+                        let (a, b) = (edges[k] as usize, edges[(k + 1) % n] as usize);
+                        let f = common_face(a, b).unwrap_or(usize::MAX);
+                        let (ka, kb) = (cube_edge_key(lat, c, a), cube_edge_key(lat, c, b));
+                        (ka.min(kb), ka.max(kb), f)
+                    })
+                    .collect()
+            })
+            .collect()
     };
-    (0..entry.loop_count as usize).any(|l| {
-        let edges = t.loop_edges(entry, l);
-        let n = edges.len();
+    let first = polygons(lat.coords(ci));
+    'start: for (l0, polygon) in first.iter().enumerate() {
+        let mut patch: Vec<(usize, usize)> = vec![(ci, l0)];
+        let mut sides: Vec<Vec<(u64, u64, usize)>> = vec![polygon.clone()];
         let mut touches_zone = false;
-        let all = (0..n).all(|k| {
-            let Some(f) = common_face(edges[k] as usize, edges[(k + 1) % n] as usize) else {
-                return false;
-            };
-            match lat.neighbour(c, f) {
-                Some(nb) => {
-                    let z = zone.contains(&nb);
-                    touches_zone |= z;
-                    z
+        let mut k = 0;
+        while k < patch.len() {
+            let c = lat.coords(patch[k].0);
+            let own = sides[k].clone();
+            k += 1;
+            for (ka, kb, f) in own {
+                if f == usize::MAX {
+                    continue 'start;
                 }
-                None => true,
+                let Some(nb) = lat.neighbour(c, f) else { continue };
+                if zone.contains(&nb) {
+                    touches_zone = true;
+                    continue;
+                }
+                // The polygon across this side, in the outside cube there.
+                let theirs = polygons(lat.coords(nb));
+                let Some(l) = theirs.iter().position(|p| p.iter().any(|s| s.0 == ka && s.1 == kb))
+                else {
+                    continue 'start;
+                };
+                if patch.contains(&(nb, l)) {
+                    continue;
+                }
+                if patch.len() == PATCH_POLYGONS {
+                    continue 'start;
+                }
+                patch.push((nb, l));
+                sides.push(theirs[l].clone());
             }
-        });
-        all && touches_zone
-    })
+        }
+        if touches_zone {
+            let mut cubes: Vec<usize> = patch.iter().map(|x| x.0).collect();
+            cubes.sort_unstable();
+            cubes.dedup();
+            return Some(cubes);
+        }
+    }
+    None
 }
 
 /// Whether the field crosses zero between the samples of a lattice edge more often than
@@ -545,7 +663,7 @@ fn face_verdict(
         let (hbb, hbc, hcc) = (j.h.col(b)[b], j.h.col(cax)[b], j.h.col(cax)[cax]);
         let det = hbb * hcc - hbc * hbc;
         if det.abs() < 1e-300 {
-            return FaceVerdict::Agree;
+            return contour_verdict(probe, lat, v, c, f, scale);
         }
         let mut ds = -(hcc * gb - hbc * gc) / det / h;
         let mut dt = -(hbb * gc - hbc * gb) / det / h;
@@ -557,10 +675,158 @@ fn face_verdict(
         s += ds;
         t += dt;
         if !(-0.01..=1.01).contains(&s) || !(-0.01..=1.01).contains(&t) {
-            return FaceVerdict::Agree;
+            return contour_verdict(probe, lat, v, c, f, scale);
         }
     }
-    FaceVerdict::Agree
+    contour_verdict(probe, lat, v, c, f, scale)
+}
+
+/// The pairing of a face's four crossings where the field has no saddle on the face to
+/// show it (Newton from the interpolant's saddle left the face or did not settle): the
+/// contour `f = 0` is followed across the face from the crossing on its first side, and the
+/// corner it cuts off says which corners are joined. Without a saddle the bilinear
+/// interpolant's guess is just a guess: two sheets crossing just beyond the face (a thin
+/// wedge of one sign between them, running across it) are read as a saddle, the zone stops
+/// there, and its boundary trace joins two sheet pieces that never meet (so the curve there
+/// gets two bands, not four). `Agree` when the contour cannot be followed (it comes near a
+/// point where the gradient on the face vanishes, or returns to its own side).
+fn contour_verdict(
+    probe: &mut Probe,
+    lat: &Lattice,
+    v: &[f32; 8],
+    c: [usize; 3],
+    f: usize,
+    scale: f64,
+) -> FaceVerdict {
+    let decided_inside = face_decisions(v, 1 << f) & (1 << f) != 0;
+    match contour_joins_inside(probe, lat, v, c, f, scale) {
+        Some(joined) if joined != decided_inside => FaceVerdict::Disagree,
+        _ => FaceVerdict::Agree,
+    }
+}
+
+/// Whether the inside corners of face `f` of cube `c` (four crossings) are joined, by
+/// following the contour from the crossing on the side `FACES[f][0]`–`FACES[f][1]`; `None`
+/// when it cannot be followed.
+fn contour_joins_inside(
+    probe: &mut Probe,
+    lat: &Lattice,
+    v: &[f32; 8],
+    c: [usize; 3],
+    f: usize,
+    scale: f64,
+) -> Option<bool> {
+    let grid = &lat.grid;
+    let h = grid.cell;
+    let (b, cax) = other_axes(f / 2);
+    let q = FACES[f];
+    let corner = |k: usize| {
+        let o = CORNERS[q[k]];
+        grid.point(c[0] + o[0], c[1] + o[1], c[2] + o[2])
+    };
+    // In-face coordinates, in cells from corner 0.
+    let origin = corner(0);
+    let to_uv = |p: DVec3| glam::DVec2::new((p[b] - origin[b]) / h, (p[cax] - origin[cax]) / h);
+    let at = |u: glam::DVec2| {
+        let mut p = origin;
+        p[b] += u.x * h;
+        p[cax] += u.y * h;
+        p
+    };
+    let eval = |probe: &mut Probe, u: glam::DVec2| {
+        probe.grad(at(u)).map(|(val, g)| (val, glam::DVec2::new(g[b], g[cax]) * h))
+    };
+    let corners: [glam::DVec2; 4] = std::array::from_fn(|k| to_uv(corner(k)));
+    // The crossing on side 0 (corner 0 to corner 1), by bisection on the field between the
+    // samples' signs.
+    let (a0, a1) = (corners[0], corners[1]);
+    let inside0 = v[q[0]] < 0.0;
+    let (mut lo, mut hi) = (0.0f64, 1.0f64);
+    for _ in 0..40 {
+        let m = 0.5 * (lo + hi);
+        let (val, _) = eval(probe, a0.lerp(a1, m))?;
+        if (val < 0.0) == inside0 {
+            lo = m;
+        } else {
+            hi = m;
+        }
+    }
+    let mut p = a0.lerp(a1, 0.5 * (lo + hi));
+    // Into the face from side 0: towards corners 2 and 3.
+    let inward = (corners[3] - corners[0]).normalize_or_zero();
+    let tiny = 1e-6 * scale * h;
+    let (_, g) = eval(probe, p)?;
+    if g.length() <= tiny {
+        return None;
+    }
+    // The contour direction is the gradient turned by a fixed quarter turn, so that a step
+    // onto another branch of the contour shows as a reversal.
+    let turn = if g.perp().dot(inward) >= 0.0 { 1.0 } else { -1.0 };
+    let mut dir = g.perp().normalize() * turn;
+    let mut step = 1.0 / 16.0;
+    let inside = |u: glam::DVec2| (0.0..=1.0).contains(&u.x) && (0.0..=1.0).contains(&u.y);
+    let mut steps = 0;
+    loop {
+        steps += 1;
+        if steps > 2000 || step < 1e-5 {
+            return None;
+        }
+        // Predict along the contour, correct back onto it along the gradient.
+        let mut u = p + dir * step;
+        let mut settled = false;
+        let mut grad = glam::DVec2::ZERO;
+        for _ in 0..12 {
+            let (val, g) = eval(probe, u)?;
+            if g.length() <= tiny {
+                return None;
+            }
+            grad = g;
+            let d = g * (val / g.length_squared());
+            u -= d;
+            if d.length() <= 1e-7 {
+                settled = true;
+                break;
+            }
+        }
+        let nd = grad.perp().normalize() * turn;
+        if !settled || (u - p).length() > 1.5 * step || nd.dot(dir) < 0.5 {
+            step *= 0.5;
+            continue;
+        }
+        if !inside(u) {
+            // Left the face: through which side (from p, which is inside or on side 0).
+            // Cutting off one corner separates the corners of its sign.
+            return match exit_side(&corners, p, u)? {
+                1 => Some(v[q[1]] >= 0.0),
+                3 => Some(v[q[0]] >= 0.0),
+                _ => None,
+            };
+        }
+        p = u;
+        dir = nd;
+        step = (step * 1.5).min(1.0 / 16.0);
+    }
+}
+
+/// Which side `k` (from corner `k` to corner `k + 1`) of the unit square the segment from
+/// `p` to `u` leaves it through, by the first crossing along the segment after `p`.
+fn exit_side(corners: &[glam::DVec2; 4], p: glam::DVec2, u: glam::DVec2) -> Option<usize> {
+    let d = u - p;
+    let mut best: Option<(f64, usize)> = None;
+    for k in 0..4 {
+        let (a, e) = (corners[k], corners[(k + 1) % 4] - corners[k]);
+        let den = d.perp_dot(e);
+        if den.abs() < 1e-300 {
+            continue;
+        }
+        // p + d·s = a + e·r
+        let s = (a - p).perp_dot(e) / den;
+        let r = (a - p).perp_dot(d) / den;
+        if s > 1e-12 && (-1e-9..=1.0 + 1e-9).contains(&r) && best.is_none_or(|x| s < x.0) {
+            best = Some((s, k));
+        }
+    }
+    best.map(|x| x.1)
 }
 
 /// The bands of one zone.
@@ -659,7 +925,7 @@ fn heal_component(
     for (band, (trace, closed)) in components.iter().enumerate() {
         let band = band as u32;
         let (mut walk, mut w) = walk_along(inp, &zone, trace)?;
-        remove_wiggles(net, &mut walk, &mut w, h);
+        remove_wiggles(net, &mut walk, &mut w, h, *closed);
         if !closed {
             extend_to_exits(inp, trace, &mut walk, &mut w);
         }
@@ -925,28 +1191,38 @@ impl<'n> ZoneNetwork<'n> {
 }
 
 /// The walk a trace piece follows on the network: each trace vertex's nearest node, joined
-/// by shortest network paths (within four cells). Returns the walk and, for each trace
-/// vertex, the walk position it maps to.
+/// by shortest network paths. Returns the walk and, for each trace vertex, the walk position
+/// it maps to.
+///
+/// A path may be four cells long, or twice as long as the way from one trace vertex through
+/// the next to their nodes: where two sheets cross at a shallow angle the zone grows wide
+/// (its edges hide crossings far from the curve), the trace runs cells away from the curve,
+/// and two neighbouring trace vertices may have nearest nodes far apart along it.
 fn walk_along(
     inp: &Input,
     zone: &ZoneNetwork,
     trace: &[u32],
 ) -> Result<(Vec<u32>, Vec<usize>), String> {
-    let limit = 4.0 * inp.grid.cell;
     let mut walk: Vec<u32> = Vec::new();
     let mut w: Vec<usize> = Vec::with_capacity(trace.len());
+    let node = |n: u32| zone.net.nodes[n as usize].p;
+    let mut prev: Option<DVec3> = None;
     for &v in trace {
-        let Some(n) = zone.nearest(inp.positions[v as usize]) else {
+        let p = inp.positions[v as usize];
+        let Some(n) = zone.nearest(p) else {
             return Err("no node near a trace".into());
         };
-        match walk.last() {
-            None => walk.push(n),
-            Some(&last) if last != n => {
+        let last_vertex = prev.replace(p);
+        match (walk.last(), last_vertex) {
+            (Some(&last), Some(q)) if last != n => {
+                let around = (q - node(last)).length() + (p - q).length() + (p - node(n)).length();
+                let limit = (4.0 * inp.grid.cell).max(2.0 * around);
                 let Some(path) = shortest_path(zone.net, last, n, limit) else {
                     return Err("a trace jumps between unconnected curves".into());
                 };
                 walk.extend_from_slice(&path[1..]);
             }
+            (None, _) => walk.push(n),
             _ => {}
         }
         w.push(walk.len() - 1);
@@ -958,13 +1234,18 @@ fn walk_along(
 /// except round the end of a curve: a sheet that folds round a pinch point turns there, and
 /// the nearest nodes may turn one node early, so the walk is taken on to the end and back.
 /// Keeps `w` (trace vertex → walk position) pointing at the same nodes.
-fn remove_wiggles(net: &Network, walk: &mut Vec<u32>, w: &mut [usize], h: f64) {
+///
+/// A closed trace may also fold round a curve's exit from the domain: a loop cannot end on
+/// the box, so a sheet that turns there wraps round the curve's end, which is a pinch point
+/// on the box (the cross-cap's upper end on `[-1, 1]³`); its trace turns on the cap, short
+/// of the exit node, and would otherwise be taken for a wiggle and the walk emptied.
+fn remove_wiggles(net: &Network, walk: &mut Vec<u32>, w: &mut [usize], h: f64, closed: bool) {
     let is_leaf = |n: u32| net.degree(n) <= 1;
     let mut from = 1;
     while let Some(j) = (from..walk.len().saturating_sub(1))
         .find(|&j| walk[j - 1] == walk[j + 1] && !is_leaf(walk[j]))
     {
-        if let Some(path) = path_to_end(net, walk[j], walk[j - 1], 2.5 * h) {
+        if let Some(path) = path_to_end(net, walk[j], walk[j - 1], 2.5 * h, closed) {
             // Go on to the end and back.
             let extra = 2 * (path.len() - 1);
             let mut round: Vec<u32> = path[1..].to_vec();
@@ -1146,8 +1427,8 @@ fn check_sheets(
 }
 
 /// A path from `a` (not back through `not`) to the end of a curve inside the domain (a pinch
-/// point or a lost end) within `limit`.
-fn path_to_end(net: &Network, a: u32, not: u32, limit: f64) -> Option<Vec<u32>> {
+/// point or a lost end), or also on the box (an exit) when `exits` is set, within `limit`.
+fn path_to_end(net: &Network, a: u32, not: u32, limit: f64, exits: bool) -> Option<Vec<u32>> {
     let mut best: Option<(f64, Vec<u32>)> = None;
     let mut frontier = vec![(a, 0.0, vec![a])];
     while let Some((n, d, path)) = frontier.pop() {
@@ -1162,7 +1443,9 @@ fn path_to_end(net: &Network, a: u32, not: u32, limit: f64) -> Option<Vec<u32>> 
             let mut np = path.clone();
             np.push(m);
             let kind = net.nodes[m as usize].kind;
-            if net.degree(m) <= 1 && matches!(kind, NodeKind::Pinch | NodeKind::End) {
+            let end = matches!(kind, NodeKind::Pinch | NodeKind::End)
+                || (exits && kind == NodeKind::Exit);
+            if net.degree(m) <= 1 && end {
                 if best.as_ref().is_none_or(|b| nd < b.0) {
                     best = Some((nd, np));
                 }
