@@ -726,7 +726,7 @@ impl SkeletonField {
         &self,
         elements: &[usize],
         pts: &[DVec3],
-        accs: &mut [Acc; CHUNK],
+        accs: &mut [Acc],
         want_grad: bool,
     ) {
         for &e in elements {
@@ -814,20 +814,25 @@ impl SkeletonField {
         let want_grad = grads.is_some();
         let init = self.acc_init();
         {
-            let mut best = [(f64::INFINITY, DVec3::ZERO); CHUNK];
-            let mut accs = [init; CHUNK];
-            let Scratch { group_accs, selected } = scratch;
+            let n = pts.len();
+            let Scratch { group_accs, selected, accs, best } = scratch;
+            // Only the first `n` of each are used: a chunk of a culling cell is often short,
+            // and the accumulators are large.
+            accs.resize(CHUNK, init);
+            best.resize(CHUNK, (0.0, DVec3::ZERO));
+            let (accs, best) = (&mut accs[..n], &mut best[..n]);
+            best.fill((f64::INFINITY, DVec3::ZERO));
             // Each group's sum once, when the cliques share them.
             if let Some(shared) = &self.shared {
-                group_accs.resize(shared.groups.len(), [init; CHUNK]);
+                group_accs.resize(shared.groups.len(), vec![init; CHUNK]);
                 for (elements, accs) in shared.groups.iter().zip(group_accs.iter_mut()) {
-                    accs[..pts.len()].fill(init);
+                    accs[..n].fill(init);
                     let elements = select(elements, candidates, selected);
-                    self.accumulate_elements(elements, pts, accs, want_grad);
+                    self.accumulate_elements(elements, pts, &mut accs[..n], want_grad);
                 }
             }
             for clique in &self.cliques {
-                accs[..pts.len()].fill(init);
+                accs.fill(init);
                 // Shared sums (additive blends only) need not visit the clique's elements.
                 let plain =
                     self.shared.is_none().then(|| select(&clique.plain, candidates, selected));
@@ -846,7 +851,7 @@ impl SkeletonField {
                     }
                 } else {
                     let plain = plain.unwrap_or(&clique.plain);
-                    self.accumulate_elements(plain, pts, &mut accs, want_grad);
+                    self.accumulate_elements(plain, pts, accs, want_grad);
                 }
                 if let Blend::Convolution(k) = self.blend {
                     for &j in &clique.junctions {
@@ -871,7 +876,7 @@ impl SkeletonField {
                         }
                     }
                 }
-                for ((p, acc), b) in pts.iter().zip(&accs).zip(best.iter_mut()) {
+                for ((p, acc), b) in pts.iter().zip(accs.iter()).zip(best.iter_mut()) {
                     let (f, g) = self.finish(acc, *p);
                     if f < b.0 {
                         *b = (f, g);
@@ -892,7 +897,11 @@ impl SkeletonField {
 #[derive(Default)]
 struct Scratch {
     /// Each shared group's accumulators.
-    group_accs: Vec<[Acc; CHUNK]>,
+    group_accs: Vec<Vec<Acc>>,
+    /// One clique's accumulators.
+    accs: Vec<Acc>,
+    /// Each point's least clique value so far, with its gradient.
+    best: Vec<(f64, DVec3)>,
     /// The elements of one list that a culling cell keeps.
     selected: Vec<usize>,
 }
