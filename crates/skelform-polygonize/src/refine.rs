@@ -62,6 +62,13 @@ impl Default for RootOptions {
 ///
 /// Converges superlinearly on smooth fields and never leaves the bracket. A non-finite value
 /// stops that vertex where it is (its interpolated position is kept).
+///
+/// Regula falsi stops when the bracket is shorter than the tolerance or, sooner, when the
+/// secant through its last two evaluations puts the root within the tolerance of the last
+/// one; the vertex is then placed at that secant's root (inside the bracket). Why: Illinois
+/// steps approach a smooth root from one side, so the bracket itself shrinks late (4.6
+/// evaluations per vertex on the hand), while two evaluations near the root already locate
+/// it to second order (about 2 per vertex, vertices no farther from the surface).
 pub fn refine_roots(field: &dyn Field, brackets: &mut [Bracket], opts: &RootOptions) -> u64 {
     brackets.par_chunks_mut(CHUNK).map(|chunk| refine_chunk(field, chunk, opts)).sum()
 }
@@ -74,6 +81,9 @@ struct State {
     /// Which end was kept last time: -1 a, +1 b, 0 none.
     kept: i8,
     done: bool,
+    /// The previous evaluation inside the segment (`t`, value), for the secant estimate of
+    /// the error.
+    last: Option<(f64, f64)>,
 }
 
 fn refine_chunk(field: &dyn Field, chunk: &mut [Bracket], opts: &RootOptions) -> u64 {
@@ -81,7 +91,7 @@ fn refine_chunk(field: &dyn Field, chunk: &mut [Bracket], opts: &RootOptions) ->
         .iter()
         .map(|b| {
             let ok = b.f0.is_finite() && b.f1.is_finite() && (b.f0 <= 0.0) != (b.f1 <= 0.0);
-            State { a: 0.0, fa: b.f0, b: 1.0, fb: b.f1, kept: 0, done: !ok }
+            State { a: 0.0, fa: b.f0, b: 1.0, fb: b.f1, kept: 0, done: !ok, last: None }
         })
         .collect();
     let mut points = Vec::with_capacity(chunk.len());
@@ -121,7 +131,23 @@ fn refine_chunk(field: &dyn Field, chunk: &mut [Bracket], opts: &RootOptions) ->
             let t = chunk[n].t;
             if !f.is_finite() || f == 0.0 {
                 s.done = true;
-            } else if (f < 0.0) == (s.fa < 0.0) && s.fa != 0.0 {
+                continue;
+            }
+            let last = s.last.replace((t, f));
+            if let (RootMethod::RegulaFalsi, Some((tp, fp))) = (opts.method, last) {
+                // The secant through the last two evaluations, both near the root, estimates
+                // how far `t` is from it; once that is within the tolerance, the secant's own
+                // root (one more step, not evaluated) is far closer than the tolerance.
+                let delta = f * (t - tp) / (f - fp);
+                if delta.is_finite() && delta.abs() <= opts.tolerance {
+                    let (lo, hi) =
+                        if (f < 0.0) == (s.fa < 0.0) && s.fa != 0.0 { (t, s.b) } else { (s.a, t) };
+                    chunk[n].t = (t - delta).clamp(lo, hi);
+                    s.done = true;
+                    continue;
+                }
+            }
+            if (f < 0.0) == (s.fa < 0.0) && s.fa != 0.0 {
                 s.a = t;
                 s.fa = f;
                 if s.kept == 1 {
@@ -260,6 +286,31 @@ mod tests {
             assert!((p.length() - 1.0).abs() < 1e-8, "{}", p.length());
         }
         assert!(evals < 100 * 12, "Illinois converges in few steps: {evals}");
+    }
+
+    /// With the default tolerance, the secant estimate stops after about two evaluations
+    /// per vertex, and the vertices are far closer to the surface than the tolerance.
+    #[test]
+    fn secant_stop_is_cheap_and_accurate() {
+        let f = FnField(|p: DVec3| p.length() - 1.0);
+        let cell = 0.05;
+        let mut b: Vec<Bracket> = (0..500)
+            .map(|i| {
+                let d = DVec3::new(1.0, (i as f64 * 0.37).sin(), (i as f64 * 0.11).cos());
+                let d = d.normalize();
+                let p0 = d * (1.0 - cell * (0.1 + 0.8 * ((i * 7 % 13) as f64 / 13.0)));
+                let p1 = p0 + DVec3::new(cell, 0.0, 0.0);
+                Bracket { p0, p1, f0: f.eval(p0), f1: f.eval(p1), t: 0.5 }
+            })
+            .filter(|b| (b.f0 < 0.0) != (b.f1 < 0.0))
+            .collect();
+        assert!(b.len() > 100);
+        let evals = refine_roots(&f, &mut b, &RootOptions::default());
+        assert!(evals as f64 / (b.len() as f64) < 2.5, "{evals} for {}", b.len());
+        for br in &b {
+            let p = br.p0.lerp(br.p1, br.t);
+            assert!((p.length() - 1.0).abs() < 1e-2 * 1e-4 * cell, "{}", p.length() - 1.0);
+        }
     }
 
     #[test]

@@ -151,6 +151,14 @@ impl PreparedPolygon {
         let z = w.dot(self.n);
         let z2 = z * z;
         let support2 = kernel.support() * kernel.support();
+        // Beyond the kernel's reach of the polygon's plane every edge is skipped below
+        // (`z² + h² ≥ z²`), so the value is `T(|z|)·θ`: exactly zero where the tail is, and
+        // the winding angle θ (two arc tangents per edge) need not be computed. Values
+        // only: the gradient's edge terms are not all exactly zero there (the Gaussian's
+        // line integral is not cut off).
+        if !want_grad && z2 >= support2 && kernel.tail(z.abs()) == 0.0 {
+            return (0.0, DVec3::ZERO);
+        }
         let mut theta = 0.0;
         let mut tail_sum = 0.0;
         let mut k_sum = 0.0;
