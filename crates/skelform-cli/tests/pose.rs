@@ -82,26 +82,30 @@ fn closed_components(mesh: &Path) -> Vec<(bool, i64)> {
         .collect()
 }
 
-#[test]
-fn animate_turns_the_skeleton_from_one_pose_to_the_other() {
-    let dir = tempfile::tempdir().unwrap();
-    let frames = dir.path().join("frames/");
-    let o = skelform(&[
+/// Animates the finger from straight to curled into `out` with `options`.
+fn animate_finger(out: &Path, options: &[&str]) {
+    let f = finger();
+    let mut args = vec![
         "animate",
-        &finger(),
+        f.as_str(),
         "--from",
         "straight",
         "--to",
         "curled",
-        "--frames",
-        "5",
-        "--resolution",
-        "32",
         "-o",
-        frames.to_str().unwrap(),
+        out.to_str().unwrap(),
         "-q",
-    ]);
+    ];
+    args.extend(options);
+    let o = skelform(&args);
     assert!(o.status.success(), "{}", text(&o.stderr));
+}
+
+#[test]
+fn animate_turns_the_skeleton_from_one_pose_to_the_other() {
+    let dir = tempfile::tempdir().unwrap();
+    let frames = dir.path().join("frames/");
+    animate_finger(&frames, &["--frames", "5", "--resolution", "32"]);
     let mut names: Vec<String> = std::fs::read_dir(&frames)
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
@@ -133,24 +137,7 @@ fn animate_turns_the_skeleton_from_one_pose_to_the_other() {
 
     // An animated picture: one frame control chunk a frame.
     let png = dir.path().join("finger.png");
-    let o = skelform(&[
-        "animate",
-        &finger(),
-        "--from",
-        "straight",
-        "--to",
-        "curled",
-        "--frames",
-        "4",
-        "--resolution",
-        "24",
-        "--size",
-        "80x60",
-        "-o",
-        png.to_str().unwrap(),
-        "-q",
-    ]);
-    assert!(o.status.success(), "{}", text(&o.stderr));
+    animate_finger(&png, &["--frames", "4", "--resolution", "24", "--size", "80x60"]);
     let bytes = std::fs::read(&png).unwrap();
     let count = |tag: &[u8]| bytes.windows(4).filter(|w| *w == tag).count();
     assert_eq!((count(b"acTL"), count(b"fcTL")), (1, 4));
