@@ -133,7 +133,7 @@ pub fn disagrees_with_cube(v: &[f32; 8]) -> bool {
     let inside = |c: usize| v[c] < 0.0;
     let t = table();
     let amb = t.ambiguous[case];
-    let decisions = if amb == 0 { 0 } else { face_decisions(v, amb) };
+    let decisions = face_decisions(v, amb);
     for (f, q) in FACES.iter().enumerate() {
         if amb & (1 << f) == 0 {
             continue;

@@ -99,7 +99,7 @@ pub fn polygonize_case(case: usize, v: &[f32; 8], sink: &mut impl CubeSink) -> C
     }
     let t = table();
     let amb = t.ambiguous[case];
-    let decisions = if amb == 0 { 0 } else { face_decisions(v, amb) };
+    let decisions = face_decisions(v, amb);
     let entry = t.entry(case, decisions as usize);
     let mut outcome = CubeOutcome { ambiguous_faces: amb.count_ones(), tunnel: false };
     // Vertices for every crossing edge of the cube, in loop order.
