@@ -264,12 +264,11 @@ fn split_sheets_give_every_sheet_its_own_normal() {
     // Per-sheet copies are the default.
     assert!(Options::default().split_sheets);
     let (m, s) = heal_with(&field, domain, res, Options::default());
-    // Curve vertices are copied per sheet: no edge of four triangles now, and each curve
-    // edge (on the first sheet's copies) has that sheet's two.
-    let d = edge_degrees(&m);
-    assert!(d.values().all(|&d| d <= 2));
+    // Curve vertices are copied per sheet: no edge of four triangles now. The curve edges
+    // join the first copies, which at a triple point need not be one sheet's, so they are
+    // polylines over the copies rather than edges of one sheet.
+    assert!(edge_degrees(&m).values().all(|&d| d <= 2));
     assert_eq!(m.curves.len(), s.curve_edges);
-    assert!(curve_set(&m).iter().all(|e| d.get(e) == Some(&2)), "a curve edge off its sheet");
     // Every vertex's normal is its sheet's: along a coordinate axis.
     for (v, n) in m.positions.iter().zip(&m.normals) {
         let n = p(*n);
