@@ -22,8 +22,78 @@ fn heal_with(field: &dyn Field, domain: Aabb, resolution: Resolution, o: Options
     polygonize(field, &opts).expect("healed")
 }
 
+/// The healed mesh with shared curve vertices (`split_sheets` off), whose connectivity the
+/// tests below read directly: four triangles on every curve edge. The default (per-sheet
+/// copies) gives the same triangles once welded, which
+/// `split_sheets_weld_back_to_the_shared_mesh` checks.
 fn heal(field: &dyn Field, domain: Aabb, resolution: Resolution) -> (Mesh, Stats) {
-    heal_with(field, domain, resolution, Options::default())
+    heal_with(field, domain, resolution, shared())
+}
+
+fn shared() -> Options {
+    Options { split_sheets: false, ..Options::default() }
+}
+
+/// `m` with vertices of the same position (bit for bit) merged, as `skelform check --weld`.
+fn welded(m: &Mesh) -> Mesh {
+    let mut id: BTreeMap<[u32; 3], u32> = BTreeMap::new();
+    let mut positions = Vec::new();
+    let map: Vec<u32> = m
+        .positions
+        .iter()
+        .map(|v| {
+            *id.entry(v.map(f32::to_bits)).or_insert_with(|| {
+                positions.push(*v);
+                positions.len() as u32 - 1
+            })
+        })
+        .collect();
+    let mut curves = m.curves.clone();
+    for c in &mut curves {
+        c.v = c.v.map(|v| map[v as usize]);
+    }
+    Mesh {
+        positions,
+        triangles: m.triangles.iter().map(|t| t.map(|v| map[v as usize])).collect(),
+        curves,
+        ..Mesh::default()
+    }
+}
+
+/// Each triangle as its three corner positions (bits), sorted: a mesh's faces whatever its
+/// vertex numbering.
+fn face_set(m: &Mesh) -> BTreeSet<[[u32; 3]; 3]> {
+    m.triangles
+        .iter()
+        .map(|t| {
+            let mut f = t.map(|v| m.positions[v as usize].map(f32::to_bits));
+            f.sort_unstable();
+            f
+        })
+        .collect()
+}
+
+/// The smallest `|n_v · n_f|` over the corners on a curve of the triangles touching one: how
+/// well the vertex normals there agree with the faces they shade (1 = parallel or opposite;
+/// orientation flips across a crossing, so the sign is not asked for).
+fn worst_curve_normal(m: &Mesh) -> f64 {
+    let on_curve: BTreeSet<[u32; 3]> = m
+        .curves
+        .iter()
+        .flat_map(|c| c.v)
+        .map(|v| m.positions[v as usize].map(f32::to_bits))
+        .collect();
+    let mut worst = 1.0f64;
+    for t in &m.triangles {
+        let [a, b, c] = t.map(|v| p(m.positions[v as usize]));
+        let face = (b - a).cross(c - a).normalize_or_zero();
+        for &v in t {
+            if on_curve.contains(&m.positions[v as usize].map(f32::to_bits)) {
+                worst = worst.min(p(m.normals[v as usize]).dot(face).abs());
+            }
+        }
+    }
+    worst
 }
 
 fn plain(field: &dyn Field, domain: Aabb, resolution: Resolution) -> Mesh {
@@ -191,9 +261,12 @@ fn split_sheets_give_every_sheet_its_own_normal() {
     let field = f("x*y*z");
     let domain = Aabb::cube(1.0);
     let res = Resolution::Samples(12);
-    let o = Options { split_sheets: true, ..Options::default() };
-    let (m, s) = heal_with(&field, domain, res, o);
-    // Curve vertices are copied per sheet: no edge of four triangles now, two per copy.
+    // Per-sheet copies are the default.
+    assert!(Options::default().split_sheets);
+    let (m, s) = heal_with(&field, domain, res, Options::default());
+    // Curve vertices are copied per sheet: no edge of four triangles now. The curve edges
+    // join the first copies, which at a triple point need not be one sheet's, so they are
+    // polylines over the copies rather than edges of one sheet.
     assert!(edge_degrees(&m).values().all(|&d| d <= 2));
     assert_eq!(m.curves.len(), s.curve_edges);
     // Every vertex's normal is its sheet's: along a coordinate axis.
@@ -203,24 +276,58 @@ fn split_sheets_give_every_sheet_its_own_normal() {
         let q = p(*v);
         assert!(n.x.abs().max(n.y.abs()).max(n.z.abs()) > 0.9999, "normal {n} at {q}");
     }
-    // Welding the copies by position gives back the four triangles per curve edge.
-    let mut id: BTreeMap<[u32; 3], u32> = BTreeMap::new();
-    let key = |v: [f32; 3]| v.map(f32::to_bits);
-    let weld: Vec<u32> = m
-        .positions
-        .iter()
-        .map(|v| {
-            let n = id.len() as u32;
-            *id.entry(key(*v)).or_insert(n)
-        })
-        .collect();
-    let welded = Mesh {
-        positions: vec![[0.0; 3]; id.len()],
-        triangles: m.triangles.iter().map(|t| t.map(|v| weld[v as usize])).collect(),
-        ..Mesh::default()
-    };
-    let fours = edge_degrees(&welded).values().filter(|&&d| d == 4).count();
-    assert_eq!(fours, s.curve_edges);
+    // So at every curve corner the vertex normal agrees with the face it shades; shared
+    // vertices carry one sheet's normal, at right angles to the other sheet's faces (the
+    // speckled seam of issue 18).
+    assert!(worst_curve_normal(&m) > 0.99, "{}", worst_curve_normal(&m));
+    let (sh, _) = heal_with(&field, domain, res, shared());
+    assert!(worst_curve_normal(&sh) < 0.1, "{}", worst_curve_normal(&sh));
+}
+
+/// The default's copies are the shared mesh's vertices, bit for bit: welding them by position
+/// (`skelform check --weld`) gives the shared mesh's triangles and curves, every curve edge
+/// with four triangles; and the curves still close.
+#[test]
+fn split_sheets_weld_back_to_the_shared_mesh() {
+    let cases = [
+        ("x*y*z", Aabb::cube(1.0), Resolution::Samples(12)),
+        ("x^2*z + y^2*z + z^3 - z", Aabb::cube(1.9), Resolution::Cell(0.15)),
+        (
+            "x*y*z + 2*y*z^6",
+            Aabb::new(DVec3::splat(-2.0), DVec3::splat(1.96)),
+            Resolution::Cell(0.11),
+        ),
+    ];
+    for (src, domain, res) in cases {
+        let field = f(src);
+        let (m, s) = heal_with(&field, domain, res, Options::default());
+        let (sh, ss) = heal_with(&field, domain, res, shared());
+        assert_eq!(s.curve_edges, ss.curve_edges, "{src}");
+        assert!(m.positions.len() > sh.positions.len(), "{src}: nothing split");
+        // Curves reference vertices that exist.
+        assert!(m.curves.iter().flat_map(|c| c.v).all(|v| (v as usize) < m.positions.len()));
+        let w = welded(&m);
+        assert_eq!(w.positions.len(), sh.positions.len(), "{src}");
+        assert_eq!(face_set(&w), face_set(&sh), "{src}");
+        assert_eq!(m.triangles.len(), sh.triangles.len(), "{src}");
+        let d = edge_degrees(&w);
+        assert_eq!(curve_set(&w).len(), s.curve_edges, "{src}");
+        assert!(curve_set(&w).iter().all(|e| d.get(e) == Some(&4)), "{src}");
+        assert_eq!(stray_non_manifold(&w), 0, "{src}");
+        // A closed curve is still a cycle through the copies the curve edges use.
+        for c in s.curves.iter().filter(|c| c.closed) {
+            assert!(c.healed, "{src}");
+        }
+        if s.curves.iter().all(|c| c.closed) {
+            let mut deg: BTreeMap<u32, usize> = BTreeMap::new();
+            for c in &m.curves {
+                for v in c.v {
+                    *deg.entry(v).or_insert(0) += 1;
+                }
+            }
+            assert!(deg.values().all(|&k| k == 2), "{src}: an open end on a closed curve");
+        }
+    }
 }
 
 // ---------------------------------------------------------------------------------------

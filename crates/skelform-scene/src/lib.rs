@@ -165,14 +165,23 @@ pub struct Continuation {
 
 /// Settings that only the healed polygonizer reads (`[mesh]` keys `epsilon`,
 /// `critical_cells`, `split_sheets`).
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Healed {
     /// The thesis's absolute critical test, `|f_x| + |f_y| + |f_z| < epsilon`.
     pub epsilon: Option<f64>,
     /// The scale-free critical test in cells (the default when neither is given).
     pub critical_cells: Option<f64>,
-    /// One copy of each self-intersection vertex per sheet, with that sheet's normal.
+    /// One copy of each self-intersection vertex per sheet, with that sheet's normal (the
+    /// default, so that renders have no seam along the crossings); `false` shares the curve
+    /// vertices between the sheets.
     pub split_sheets: bool,
+}
+
+impl Default for Healed {
+    /// Per-sheet curve vertices, as the healed polygonizer's own default.
+    fn default() -> Self {
+        Self { epsilon: None, critical_cells: None, split_sheets: true }
+    }
 }
 
 /// Output settings a scene may state; the command line overrides them.

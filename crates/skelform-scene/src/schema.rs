@@ -457,7 +457,7 @@ fn healed_settings(cx: &Source, mesh: &MeshSection) -> Result<Healed, SceneError
     if let (Some(_), Some(c)) = (&mesh.epsilon, &mesh.critical_cells) {
         return Err(cx.at(c.span().start, "give either 'epsilon' or 'critical_cells', not both"));
     }
-    Ok(Healed { epsilon, critical_cells, split_sheets: mesh.split_sheets.unwrap_or(false) })
+    Ok(Healed { epsilon, critical_cells, split_sheets: mesh.split_sheets.unwrap_or(true) })
 }
 
 fn parse_format(s: &str) -> Option<Format> {

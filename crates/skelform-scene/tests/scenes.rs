@@ -151,3 +151,17 @@ fn region_ids_fit_the_files_they_are_written_to() {
     assert_eq!((line, col), (7, 6), "{m}");
     assert!(m.contains("from 0 to 2147483647 (got 2147483648)"), "{m}");
 }
+
+/// Healed meshes give each sheet its own curve vertices (and normals) unless the scene asks
+/// for shared ones; a scene built in code has the same default as one read from a file.
+#[test]
+fn healed_sheets_are_split_unless_asked() {
+    let mesh = "[mesh]\nmethod = \"healed\"\n[field]\nformula = \"x*y*z\"\n";
+    let s = Scene::parse(&format!("{HEAD}{mesh}"), "s.toml").unwrap();
+    assert!(s.healed.split_sheets);
+    assert_eq!(s.healed, skelform_scene::Healed::default());
+    let shared =
+        "[mesh]\nmethod = \"healed\"\nsplit_sheets = false\n[field]\nformula = \"x*y*z\"\n";
+    let s = Scene::parse(&format!("{HEAD}{shared}"), "s.toml").unwrap();
+    assert!(!s.healed.split_sheets);
+}

@@ -33,10 +33,11 @@
 //!    `zone`). The thesis fans each piece of one cube onto that cube's segment; along a
 //!    straight crossing the bands make exactly its triangles (8 per class-10 cube, 24 in the
 //!    class-13 cube of a triple point), so its Xano counts come out exactly.
-//! 6. **Normals** from the gradient. On a self-intersection the gradient vanishes, so each
-//!    curve vertex takes the normal of one sheet (the gradient just off the curve, into one
-//!    piece); with [`Options::split_sheets`] every sheet gets its own copy of the vertex and
-//!    its own normal (for smooth shading).
+//! 6. **Normals** from the gradient. On a self-intersection the gradient vanishes, so the
+//!    normal of a curve vertex is taken just off the curve, into one piece. By default
+//!    ([`Options::split_sheets`]) every sheet gets its own copy of each curve vertex with
+//!    its own normal; with it off the sheets share the vertex, which then carries one
+//!    sheet's normal.
 //!
 //! # Beyond the thesis
 //!
@@ -68,8 +69,10 @@
 //!
 //! - Every triangle edge inside the domain has two triangles, except the edges of the
 //!   self-intersection curves, which have four (two sheets crossing): the output is **not** a
-//!   manifold, by design. With `split_sheets` the curve edges are doubled instead (two per
-//!   sheet), and welding vertices by position gives back the four.
+//!   manifold, by design. This is the topology with `split_sheets` off; by default (on)
+//!   each sheet has its own copies of the curve vertices, so a curve edge is there once per
+//!   sheet with two triangles each, and welding vertices by position (`skelform check
+//!   --weld`) gives back the four. The copies have the same position, bit for bit.
 //! - A healed region is used only when every curve edge in it got exactly four triangles and
 //!   every boundary segment was explained; otherwise its marching-cubes triangles are kept
 //!   and it is reported in [`Stats::unresolved`]. So the mesh never has a hole that marching
@@ -139,7 +142,13 @@ pub struct Options {
     /// The critical-vertex test.
     pub epsilon: Epsilon,
     /// Give each sheet its own copy of each self-intersection vertex (its own normal), so that
-    /// each sheet shades smoothly; the curve edges stay on the first copy.
+    /// each sheet shades smoothly; the curve edges stay on the first copy. On by default: a
+    /// vertex shared by two crossing sheets can carry only one sheet's normal, which is
+    /// wrong for the other by up to a right angle, and smooth shading then shows a speckled
+    /// seam along the crossing. Off gives the shared vertices (one connected non-manifold
+    /// surface, four triangles on each curve edge), which is what a tool that reads the
+    /// crossing from the connectivity wants; welding the default's copies by position gives
+    /// the same triangles.
     pub split_sheets: bool,
     /// Most cubes all healed regions together may have; beyond it nothing is healed (and the
     /// regions are reported).
@@ -151,7 +160,7 @@ impl Default for Options {
         Self {
             lattice: LatticeOptions::default(),
             epsilon: Epsilon::Cells(2.0),
-            split_sheets: false,
+            split_sheets: true,
             max_healed_cubes: 1_000_000,
         }
     }
