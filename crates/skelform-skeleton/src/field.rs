@@ -988,20 +988,27 @@ impl CullGrid {
         let volume =
             size.x.max(longest * 1e-3) * size.y.max(longest * 1e-3) * size.z.max(longest * 1e-3);
         let mut edge = (volume / target as f64).cbrt();
+        let limit = (CULL_ENTRIES_PER_ELEMENT * items.len()) as u64;
         loop {
-            let grid = Self::build(items, lo, size, edge);
-            let entries = grid.elements.len();
-            if entries <= CULL_ENTRIES_PER_ELEMENT * items.len()
-                || grid.dims.iter().all(|&d| d == 1)
-                || !edge.is_finite()
-            {
+            // Coarsened until the entries fit, counted before anything is allocated: a
+            // scene of many elements with large boxes would otherwise list every element in
+            // every cell (gigabytes) before the first coarsening.
+            if let Some(grid) = Self::build(items, lo, size, edge, limit) {
                 return grid;
             }
             edge *= 1.5;
         }
     }
 
-    fn build(items: &[Item], origin: DVec3, size: DVec3, edge: f64) -> CullGrid {
+    /// The grid of cells of side `edge`, or `None` when it would hold more than `limit`
+    /// (cell, element) entries and can still be coarsened.
+    fn build(
+        items: &[Item],
+        origin: DVec3,
+        size: DVec3,
+        edge: f64,
+        limit: u64,
+    ) -> Option<CullGrid> {
         let mut dims = [1usize; 3];
         let mut scale = DVec3::ZERO;
         for a in 0..3 {
@@ -1018,6 +1025,14 @@ impl CullGrid {
         let mut count = vec![0u32; cells + 1];
         let ranges: Vec<([usize; 3], [usize; 3])> =
             items.iter().map(|it| (grid.coords(it.lo), grid.coords(it.hi))).collect();
+        let entries = ranges.iter().fold(0u64, |n, (a, b)| {
+            let span =
+                (0..3).fold(1u64, |m, k| m.saturating_mul((b[k].saturating_sub(a[k]) + 1) as u64));
+            n.saturating_add(span)
+        });
+        if entries > limit && dims.iter().any(|&d| d > 1) && edge.is_finite() {
+            return None;
+        }
         let each = |(a, b): &([usize; 3], [usize; 3]), f: &mut dyn FnMut(usize)| {
             for z in a[2]..=b[2] {
                 for y in a[1]..=b[1] {
@@ -1042,7 +1057,7 @@ impl CullGrid {
             });
         }
         grid.start = count;
-        grid
+        Some(grid)
     }
 
     /// The cell coordinates of `p`, clamped to the grid; monotone in each coordinate.
@@ -1309,5 +1324,22 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Many elements whose boxes each cover the whole skeleton: the first grid tried would
+    /// list every element in every cell (20,000 × 160,000 entries, 12 GiB), so it is
+    /// coarsened from a count made before anything is allocated, down to at most 64 entries
+    /// an element.
+    #[test]
+    fn overlapping_boxes_coarsen_the_grid_before_it_is_filled() {
+        let mut s = Skeleton::new();
+        for i in 0..20_000 {
+            let p = DVec3::new((i % 37) as f64, (i % 41) as f64, (i % 43) as f64) * 0.01;
+            s.push(Element::new(Shape::Point(p), 50.0).unwrap()).unwrap();
+        }
+        let f = SkeletonField::new(&s, Blend::Convolution(Kernel::Wyvill)).unwrap();
+        let grid = f.cull_grid();
+        assert!(grid.elements.len() <= 64 * 20_000, "{} entries", grid.elements.len());
+        assert_eq!(grid.elements(grid.cell_of(DVec3::splat(0.2))).len(), 20_000);
     }
 }
