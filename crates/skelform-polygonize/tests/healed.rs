@@ -10,7 +10,7 @@ use skelform_field::control::Control;
 use skelform_field::formula::Formula;
 use skelform_field::{Aabb, Field, FnField};
 use skelform_mesh::Mesh;
-use skelform_mesh::check::check;
+use skelform_mesh::check::{check, weld};
 use skelform_polygonize::grid;
 use skelform_polygonize::healed::{
     Epsilon, Options, PointKind, SELF_INTERSECTION, Stats, config, polygonize,
@@ -32,32 +32,6 @@ fn heal(field: &dyn Field, domain: Aabb, resolution: Resolution) -> (Mesh, Stats
 
 fn shared() -> Options {
     Options { split_sheets: false, ..Options::default() }
-}
-
-/// `m` with vertices of the same position (bit for bit) merged, as `skelform check --weld`.
-fn welded(m: &Mesh) -> Mesh {
-    let mut id: BTreeMap<[u32; 3], u32> = BTreeMap::new();
-    let mut positions = Vec::new();
-    let map: Vec<u32> = m
-        .positions
-        .iter()
-        .map(|v| {
-            *id.entry(v.map(f32::to_bits)).or_insert_with(|| {
-                positions.push(*v);
-                positions.len() as u32 - 1
-            })
-        })
-        .collect();
-    let mut curves = m.curves.clone();
-    for c in &mut curves {
-        c.v = c.v.map(|v| map[v as usize]);
-    }
-    Mesh {
-        positions,
-        triangles: m.triangles.iter().map(|t| t.map(|v| map[v as usize])).collect(),
-        curves,
-        ..Mesh::default()
-    }
 }
 
 /// Each triangle as its three corner positions (bits), sorted: a mesh's faces whatever its
@@ -306,7 +280,7 @@ fn split_sheets_weld_back_to_the_shared_mesh() {
         assert!(m.positions.len() > sh.positions.len(), "{src}: nothing split");
         // Curves reference vertices that exist.
         assert!(m.curves.iter().flat_map(|c| c.v).all(|v| (v as usize) < m.positions.len()));
-        let w = welded(&m);
+        let w = weld(&m, 0.0).0;
         assert_eq!(w.positions.len(), sh.positions.len(), "{src}");
         assert_eq!(face_set(&w), face_set(&sh), "{src}");
         assert_eq!(m.triangles.len(), sh.triangles.len(), "{src}");

@@ -14,6 +14,7 @@ use glam::DVec3;
 use proptest::prelude::*;
 use skelform_field::{Aabb, Field, FnField};
 use skelform_mesh::Mesh;
+use skelform_mesh::check::weld;
 use skelform_polygonize::healed::{Options, Stats, polygonize};
 use skelform_polygonize::{LatticeOptions, Resolution};
 
@@ -39,37 +40,10 @@ fn duplicate_faces(m: &Mesh) -> usize {
         .count()
 }
 
-/// `m` with vertices of the same position (bit for bit) merged, as `skelform check --weld`:
-/// the default gives each sheet its own copies of the curve vertices, which this joins.
-fn welded(m: &Mesh) -> Mesh {
-    let mut id: BTreeMap<[u32; 3], u32> = BTreeMap::new();
-    let mut positions = Vec::new();
-    let map: Vec<u32> = m
-        .positions
-        .iter()
-        .map(|v| {
-            *id.entry(v.map(f32::to_bits)).or_insert_with(|| {
-                positions.push(*v);
-                positions.len() as u32 - 1
-            })
-        })
-        .collect();
-    let mut curves = m.curves.clone();
-    for c in &mut curves {
-        c.v = c.v.map(|v| map[v as usize]);
-    }
-    Mesh {
-        positions,
-        triangles: m.triangles.iter().map(|t| t.map(|v| map[v as usize])).collect(),
-        curves,
-        ..Mesh::default()
-    }
-}
-
 /// What the healed method promises along a crossing, once the sheets' copies of the curve
 /// vertices are welded, as words (empty when it holds).
 fn violations(m: &Mesh, s: &Stats) -> Vec<String> {
-    let m = &welded(m);
+    let m = &weld(m, 0.0).0;
     let mut out = Vec::new();
     if s.curves.is_empty() {
         out.push("no self-intersection curve found".into());
