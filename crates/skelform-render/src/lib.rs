@@ -277,6 +277,11 @@ impl Settings {
         if !(self.margin >= 0.0 && self.margin < 0.9) {
             return bad("the margin must be from 0 to 0.9");
         }
+        if let Some((lo, hi)) = self.fit
+            && !(0..3).all(|a| lo[a].is_finite() && hi[a].is_finite() && lo[a] <= hi[a])
+        {
+            return bad("the box the camera is fitted to needs finite corners, low below high");
+        }
         if !(self.opacity > 0.0 && self.opacity <= 1.0) {
             return bad("opacity must be more than 0 and at most 1");
         }

@@ -447,6 +447,8 @@ fn bad_input_gives_clear_errors() {
             ..Settings::default()
         },
         Settings { curve_width: -1.0, ..Settings::default() },
+        Settings { fit: Some(([0.0; 3], [1.0, f32::NAN, 1.0])), ..Settings::default() },
+        Settings { fit: Some(([1.0; 3], [0.0; 3])), ..Settings::default() },
     ] {
         assert!(matches!(render(&sphere, &bad), Err(RenderError::Settings(_))), "{bad:?}");
     }

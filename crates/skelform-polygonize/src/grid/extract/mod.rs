@@ -267,14 +267,7 @@ pub fn extract_with(
 /// Runs marching cubes over the whole volume and returns the vertices' interpolated
 /// positions (no refinement), without the intermediate [`GridVertex`] records.
 pub fn extract_positions(volume: &Volume, control: &Control) -> Result<Positions, Cancelled> {
-    let (vertices, triangles, _, _) = extract_as::<[f32; 3], _>(
-        &volume.grid,
-        &volume.values,
-        Relative,
-        control,
-        Workspace::shared(),
-    )?;
-    Ok((vertices, triangles))
+    extract_volume_records::<[f32; 3]>(volume, control)
 }
 
 /// Marching cubes over a held volume with the vertex records of the caller's choice (which
@@ -304,14 +297,7 @@ pub fn extract_view_positions(
     view: &VolumeView<'_>,
     control: &Control,
 ) -> Result<Positions, Cancelled> {
-    let (vertices, triangles, _, _) = extract_as::<[f32; 3], _>(
-        &view.grid,
-        view.values,
-        view.level,
-        control,
-        Workspace::shared(),
-    )?;
-    Ok((vertices, triangles))
+    extract_view_records::<[f32; 3]>(view, control)
 }
 
 type Extracted<V> = (Vec<V>, Vec<[u32; 3]>, u64, u64);
