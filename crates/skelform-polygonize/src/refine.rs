@@ -134,20 +134,21 @@ fn refine_chunk(field: &dyn Field, chunk: &mut [Bracket], opts: &RootOptions) ->
                 continue;
             }
             let last = s.last.replace((t, f));
+            // `t` takes the place of `a` (same sign), else of `b`.
+            let replaces_a = (f < 0.0) == (s.fa < 0.0) && s.fa != 0.0;
             if let (RootMethod::RegulaFalsi, Some((tp, fp))) = (opts.method, last) {
                 // The secant through the last two evaluations, both near the root, estimates
                 // how far `t` is from it; once that is within the tolerance, the secant's own
                 // root (one more step, not evaluated) is far closer than the tolerance.
                 let delta = f * (t - tp) / (f - fp);
                 if delta.is_finite() && delta.abs() <= opts.tolerance {
-                    let (lo, hi) =
-                        if (f < 0.0) == (s.fa < 0.0) && s.fa != 0.0 { (t, s.b) } else { (s.a, t) };
+                    let (lo, hi) = if replaces_a { (t, s.b) } else { (s.a, t) };
                     chunk[n].t = (t - delta).clamp(lo, hi);
                     s.done = true;
                     continue;
                 }
             }
-            if (f < 0.0) == (s.fa < 0.0) && s.fa != 0.0 {
+            if replaces_a {
                 s.a = t;
                 s.fa = f;
                 if s.kept == 1 {

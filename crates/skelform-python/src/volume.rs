@@ -468,15 +468,12 @@ fn extract<T: Sample>(a: ArrayView3<'_, T>, o: &Options<'_>, run: &Run) -> PyRes
         Samples::InPlace(view) => extract_view_records::<Vertex>(view, &run.control),
         Samples::Converted(volume) => extract_volume_records::<Vertex>(volume, &run.control),
     };
-    let (vertices, triangles) = match records {
-        Ok(m) => m,
-        Err(cancelled) => {
-            if let Samples::Converted(volume) = samples {
-                keep_buffer(volume.values);
-            }
-            return Err(polygonize_error(cancelled.into()));
-        }
-    };
+    // The samples are done with once extracted: a converted buffer goes back for the next
+    // call whatever happens now.
+    if let Samples::Converted(volume) = samples {
+        keep_buffer(volume.values);
+    }
+    let (vertices, triangles) = records.map_err(|cancelled| polygonize_error(cancelled.into()))?;
     // scikit-image's check that a given level lies in the data's range (no error when the
     // data has NaN, whose comparisons are false). A mesh has a sample below the level (the
     // shifted sample is negative only then), so only the other end needs looking at; with
@@ -489,14 +486,8 @@ fn extract<T: Sample>(a: ArrayView3<'_, T>, o: &Options<'_>, run: &Run) -> PyRes
             reaches(&a, level)
         };
         if !in_range {
-            if let Samples::Converted(volume) = samples {
-                keep_buffer(volume.values);
-            }
             return Err(PyValueError::new_err("Surface level must be within volume data range."));
         }
-    }
-    if let Samples::Converted(volume) = samples {
-        keep_buffer(volume.values);
     }
     let mut ex = Extracted { vertices, triangles };
     if let Some(m) = &o.mask {
