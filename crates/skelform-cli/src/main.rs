@@ -13,6 +13,7 @@ mod progress;
 mod render;
 mod report;
 mod run;
+mod studio;
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -51,6 +52,9 @@ enum Command {
     Animate(animate::AnimateArgs),
     /// Render every example scene into docs/gallery, with a page of figures and statistics.
     Gallery(gallery::GalleryArgs),
+    /// Edit a scene in the browser and watch its surface: a local web page with the skeleton,
+    /// its handles and parameters; saving writes the TOML back with its comments.
+    Studio(studio::StudioArgs),
     /// Print a shell completion script, e.g. `skelform completions bash >
     /// ~/.local/share/bash-completion/completions/skelform`.
     Completions {
@@ -277,6 +281,7 @@ fn main() -> ExitCode {
         Command::Render(a) => render::render(a),
         Command::Gallery(a) => gallery::gallery(a),
         Command::Animate(a) => animate::animate(a),
+        Command::Studio(a) => studio::studio(a),
         Command::Completions { shell } => completions(shell),
     };
     match result {

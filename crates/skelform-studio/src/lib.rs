@@ -1,0 +1,170 @@
+//! The skelform design studio: a local web page on which a skeletal scene is edited and its
+//! surface re-meshed at once (the interactive design of the dissertation's chapter 2).
+//!
+//! [`Studio::bind`] opens the scene and a listening socket; [`Studio::serve`] answers the
+//! page, its assets (embedded in the binary: nothing is fetched from the internet) and one
+//! WebSocket per page. The scene is held as a `toml_edit` document, so that saving keeps the
+//! file's comments and layout; every edit is applied to a copy and checked by
+//! [`skelform::Scene::parse`] before it replaces the document, so an invalid edit changes
+//! nothing.
+//!
+//! # Security
+//! The server binds loopback unless told otherwise, and requires a random session token
+//! (the `token` query parameter or the `x-skelform-token` header) on every request,
+//! including the page and the WebSocket; a request with an `Origin` header must come from
+//! the served origin. Messages and bodies are bounded ([`Settings::max_message`]). The only
+//! files written are the scene file (on save) and exports named by a plain file name in the
+//! scene's folder; no file is read but the scene.
+//!
+//! # Protocol
+//! Text frames from the page are JSON edits with a sequence number, e.g.
+//! `{"seq":7,"op":"set","path":["skeleton","segment",3,"radius"],"value":0.2}`; see
+//! `docs/STUDIO.md`. The server answers with a JSON `state` (document revision, skeleton,
+//! settings) after every accepted change, an `error` for a refused one, and binary mesh
+//! frames ([`mesher::encode`]) that carry the revision they are of.
+#![warn(missing_docs)]
+
+pub mod edit;
+pub mod mesher;
+mod server;
+
+use std::net::{IpAddr, Ipv4Addr, SocketAddr};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+pub use server::Studio;
+
+/// What the studio can be asked to do differently.
+#[derive(Clone, Debug)]
+pub struct Settings {
+    /// The address to listen on: loopback by default. Anything else lets other machines
+    /// reach the page (the token still guards it).
+    pub host: IpAddr,
+    /// The port; 0 picks a free one.
+    pub port: u16,
+    /// The largest WebSocket message or request body accepted, in bytes.
+    pub max_message: usize,
+    /// The coarse surface's cell, as a multiple of the scene's (4: a quarter of the
+    /// resolution, about 1/64 of the work).
+    pub coarse_factor: f64,
+    /// How many edits undo remembers.
+    pub undo_limit: usize,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            host: IpAddr::V4(Ipv4Addr::LOCALHOST),
+            port: 0,
+            max_message: 1 << 20,
+            coarse_factor: 4.0,
+            undo_limit: 1000,
+        }
+    }
+}
+
+/// Why the studio could not start, or an edit was refused.
+#[derive(Debug, thiserror::Error)]
+pub enum StudioError {
+    /// The scene file could not be read or is not TOML.
+    #[error("{path}: {message}")]
+    Scene {
+        /// The file.
+        path: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// An edit that cannot be applied (no such element, not a value, an invalid scene).
+    #[error("{0}")]
+    Edit(String),
+    /// The socket, the random token or a file write failed.
+    #[error("{0}")]
+    Io(#[from] std::io::Error),
+}
+
+/// A session token: 16 random bytes as 32 hex digits.
+pub fn new_token() -> Result<String, StudioError> {
+    let mut bytes = [0u8; 16];
+    getrandom::fill(&mut bytes).map_err(|e| std::io::Error::other(e.to_string()))?;
+    Ok(bytes.iter().map(|b| format!("{b:02x}")).collect())
+}
+
+/// The scene file and its folder, resolved once: the folder is the only place the studio
+/// writes to.
+#[derive(Clone, Debug)]
+pub(crate) struct Place {
+    pub file: PathBuf,
+    pub dir: PathBuf,
+}
+
+impl Place {
+    fn new(scene: &Path) -> Result<Place, StudioError> {
+        let file = scene.canonicalize().map_err(|e| StudioError::Scene {
+            path: scene.display().to_string(),
+            message: e.to_string(),
+        })?;
+        let dir = file.parent().map(Path::to_path_buf).ok_or_else(|| StudioError::Scene {
+            path: scene.display().to_string(),
+            message: "has no folder".into(),
+        })?;
+        Ok(Place { file, dir })
+    }
+
+    /// A file for an export: a plain name (no folder, no `..`, not hidden) with the
+    /// format's extension, in the scene's folder.
+    pub fn export_path(&self, name: &str, extension: &str) -> Result<PathBuf, StudioError> {
+        use std::path::Component;
+        let p = Path::new(name);
+        let mut parts = p.components();
+        let plain = matches!((parts.next(), parts.next()), (Some(Component::Normal(_)), None));
+        if !plain || name.starts_with('.') || name.contains(['/', '\\']) {
+            return Err(StudioError::Edit(format!(
+                "'{name}' is not a plain file name in the scene's folder"
+            )));
+        }
+        if p.extension().and_then(|e| e.to_str()) != Some(extension) {
+            return Err(StudioError::Edit(format!("'{name}' does not end in .{extension}")));
+        }
+        Ok(self.dir.join(p))
+    }
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same folder, renamed over it,
+/// so that the file is either the old one or the new one, never half-written.
+pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), StudioError> {
+    use std::io::Write;
+    let dir = path.parent().ok_or_else(|| StudioError::Edit("no folder".into()))?;
+    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("scene");
+    let tmp = dir.join(format!(".{name}.{}.tmp", new_token()?));
+    let result = (|| {
+        let mut f = std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    Ok(result?)
+}
+
+/// Runs the studio on a runtime of its own until the process ends: what the command line
+/// calls. `ready` gets the page's URL (with the token) once the socket listens.
+pub fn run(
+    scene: &Path,
+    settings: Settings,
+    ready: impl FnOnce(&str, SocketAddr),
+) -> Result<(), StudioError> {
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .thread_name("skelform-studio")
+        .build()?;
+    runtime.block_on(async move {
+        let studio = Studio::bind(scene, settings).await?;
+        ready(&studio.url(), studio.addr());
+        studio.serve().await
+    })
+}
+
+pub(crate) type Shared = Arc<server::State>;

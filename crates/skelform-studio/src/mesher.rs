@@ -1,0 +1,193 @@
+//! Meshing for the page: a coarse surface first, then the full one, on a thread of its own;
+//! a newer edit cancels the work in flight, and a result is published only while its
+//! revision is still the newest.
+
+use std::sync::Arc;
+use std::sync::mpsc::{Receiver, Sender, channel};
+use std::time::Instant;
+
+use skelform::{Control, Mesh, Overrides, Resolution};
+
+/// Which surface of an edit a frame carries.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Level {
+    /// The quick one, at [`Settings::coarse_factor`](crate::Settings::coarse_factor) times
+    /// the scene's cell.
+    Coarse = 0,
+    /// The scene's own resolution.
+    Full = 1,
+}
+
+/// Meshes `scene` at one level: the one call the studio makes into the library, kept
+/// apart so that an incremental re-mesher can take its place. A cancelled run returns an
+/// error for which [`skelform::Error::is_cancelled`] holds.
+pub fn mesh_scene(
+    scene: &skelform::Scene,
+    pose: Option<&str>,
+    level: Level,
+    coarse_factor: f64,
+    control: &Control,
+) -> Result<Mesh, skelform::Error> {
+    let mut overrides = Overrides {
+        pose: pose.filter(|p| *p != "rest").map(str::to_string),
+        control: control.clone(),
+        ..Overrides::default()
+    };
+    if level == Level::Coarse {
+        let lattice = scene.lattice(&overrides)?;
+        overrides.resolution = Some(Resolution::Cell(lattice.cell * coarse_factor));
+        // Linear interpolation along lattice edges: the coarse surface is a preview.
+        overrides.refine = Some(false);
+    }
+    Ok(scene.mesh(&overrides)?.mesh)
+}
+
+/// The magic that opens every mesh frame.
+pub const MAGIC: &[u8; 4] = b"SKFM";
+/// The frame layout's version.
+pub const VERSION: u32 = 1;
+/// Bytes before the arrays.
+pub const HEADER: usize = 32;
+
+/// A mesh as a binary WebSocket frame (little-endian): `SKFM`, version (u32), revision
+/// (u64), level (u32: 0 coarse, 1 full), vertex count V (u32), triangle count T (u32),
+/// flags (u32: 1 normals, 2 labels); then V×3 f32 positions, V×3 f32 normals when flagged,
+/// T×3 u32 indices, T×2 u32 region labels when flagged. Every array starts 4-aligned.
+pub fn encode(revision: u64, level: Level, mesh: &Mesh) -> Vec<u8> {
+    let v = mesh.positions.len();
+    let t = mesh.triangles.len();
+    let normals = mesh.normals.len() == v && v > 0;
+    let labels = mesh.labels.len() == t && t > 0;
+    let flags = u32::from(normals) | (u32::from(labels) << 1);
+    let mut out = Vec::with_capacity(
+        HEADER + v * 12 * (1 + usize::from(normals)) + t * (12 + 8 * usize::from(labels)),
+    );
+    out.extend_from_slice(MAGIC);
+    out.extend_from_slice(&VERSION.to_le_bytes());
+    out.extend_from_slice(&revision.to_le_bytes());
+    out.extend_from_slice(&(level as u32).to_le_bytes());
+    // Mesh sizes fit u32: triangles index vertices with u32.
+    out.extend_from_slice(&(v as u32).to_le_bytes());
+    out.extend_from_slice(&(t as u32).to_le_bytes());
+    out.extend_from_slice(&flags.to_le_bytes());
+    for p in &mesh.positions {
+        p.iter().for_each(|c| out.extend_from_slice(&c.to_le_bytes()));
+    }
+    if normals {
+        for n in &mesh.normals {
+            n.iter().for_each(|c| out.extend_from_slice(&c.to_le_bytes()));
+        }
+    }
+    for tri in &mesh.triangles {
+        tri.iter().for_each(|i| out.extend_from_slice(&i.to_le_bytes()));
+    }
+    if labels {
+        for l in &mesh.labels {
+            out.extend_from_slice(&l.0.to_le_bytes());
+            out.extend_from_slice(&l.1.to_le_bytes());
+        }
+    }
+    out
+}
+
+/// What the worker is asked to mesh.
+pub struct Job {
+    /// The document revision the scene is of.
+    pub revision: u64,
+    /// The checked scene.
+    pub scene: skelform::Scene,
+    /// The pose shown.
+    pub pose: Option<String>,
+    /// Cancelled when a newer job arrives.
+    pub control: Control,
+}
+
+/// What the worker hands back for publication.
+pub enum Outcome {
+    /// A surface.
+    Mesh {
+        /// The revision meshed.
+        revision: u64,
+        /// Coarse or full.
+        level: Level,
+        /// The surface.
+        mesh: Arc<Mesh>,
+        /// Milliseconds the call took.
+        ms: f64,
+    },
+    /// The run failed (cancellation is not reported).
+    Failed {
+        /// The revision meshed.
+        revision: u64,
+        /// Why.
+        message: String,
+    },
+}
+
+/// Starts the meshing thread; `publish` is called with each result and decides (under the
+/// studio's lock) whether it is still current.
+pub fn start(
+    coarse_factor: f64,
+    publish: impl Fn(Outcome) + Send + 'static,
+) -> std::io::Result<Sender<Job>> {
+    let (tx, rx) = channel::<Job>();
+    std::thread::Builder::new()
+        .name("skelform-studio-mesher".into())
+        .spawn(move || worker(rx, coarse_factor, publish))?;
+    Ok(tx)
+}
+
+fn worker(rx: Receiver<Job>, coarse_factor: f64, publish: impl Fn(Outcome)) {
+    while let Ok(mut job) = rx.recv() {
+        // Only the newest of the jobs that queued up meanwhile is worth doing.
+        while let Ok(newer) = rx.try_recv() {
+            job = newer;
+        }
+        for level in [Level::Coarse, Level::Full] {
+            if job.control.is_cancelled() {
+                break;
+            }
+            let start = Instant::now();
+            let result =
+                mesh_scene(&job.scene, job.pose.as_deref(), level, coarse_factor, &job.control);
+            let ms = start.elapsed().as_secs_f64() * 1e3;
+            match result {
+                Ok(mesh) => publish(Outcome::Mesh {
+                    revision: job.revision,
+                    level,
+                    mesh: Arc::new(mesh),
+                    ms,
+                }),
+                Err(e) if e.is_cancelled() => break,
+                Err(e) => {
+                    publish(Outcome::Failed { revision: job.revision, message: e.to_string() });
+                    break;
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_frame_has_the_documented_layout() {
+        let mesh = Mesh {
+            positions: vec![[0.0, 1.0, 2.0], [3.0, 4.0, 5.0], [6.0, 7.0, 8.0]],
+            normals: vec![[0.0, 0.0, 1.0]; 3],
+            triangles: vec![[0, 1, 2]],
+            ..Mesh::default()
+        };
+        let f = encode(7, Level::Full, &mesh);
+        assert_eq!(&f[..4], MAGIC);
+        assert_eq!(u64::from_le_bytes(f[8..16].try_into().unwrap()), 7);
+        assert_eq!(u32::from_le_bytes(f[16..20].try_into().unwrap()), 1);
+        assert_eq!(u32::from_le_bytes(f[20..24].try_into().unwrap()), 3);
+        assert_eq!(u32::from_le_bytes(f[24..28].try_into().unwrap()), 1);
+        assert_eq!(u32::from_le_bytes(f[28..32].try_into().unwrap()), 1);
+        assert_eq!(f.len(), HEADER + 36 + 36 + 12);
+        assert_eq!(f32::from_le_bytes(f[HEADER + 16..HEADER + 20].try_into().unwrap()), 4.0);
+    }
+}

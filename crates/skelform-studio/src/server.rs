@@ -1,0 +1,688 @@
+//! The HTTP and WebSocket side: the guard (token, origin), the embedded page, and the edit
+//! loop that keeps the document, its undo history and the meshing worker in step.
+
+use std::net::SocketAddr;
+use std::sync::mpsc::Sender;
+use std::sync::{Arc, Mutex, MutexGuard};
+
+use axum::Router;
+use axum::body::Bytes;
+use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
+use axum::extract::{DefaultBodyLimit, Path as UrlPath, Request, State as AxState};
+use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
+use axum::middleware::{self, Next};
+use axum::response::{IntoResponse, Response};
+use axum::routing::get;
+use serde::Deserialize;
+use serde_json::{Value as Json, json};
+use skelform::{Control, Mesh, Overrides};
+use tokio::sync::broadcast;
+use toml_edit::DocumentMut;
+
+use crate::edit::{self, Step};
+use crate::mesher::{self, Job, Level, Outcome};
+use crate::{Place, Settings, Shared, StudioError, write_atomic};
+
+const INDEX: &str = include_str!("../assets/index.html");
+const APP_JS: &str = include_str!("../assets/app.js");
+const APP_CSS: &str = include_str!("../assets/app.css");
+
+/// The files the page may ask for, by URL name: all embedded, none read from disk.
+const ASSETS: &[(&str, &str, &str)] = &[
+    ("app.js", "text/javascript; charset=utf-8", APP_JS),
+    ("app.css", "text/css; charset=utf-8", APP_CSS),
+    (
+        "three.module.js",
+        "text/javascript; charset=utf-8",
+        include_str!("../assets/vendor/three.module.js"),
+    ),
+    (
+        "three.core.js",
+        "text/javascript; charset=utf-8",
+        include_str!("../assets/vendor/three.core.js"),
+    ),
+    (
+        "OrbitControls.js",
+        "text/javascript; charset=utf-8",
+        include_str!("../assets/vendor/OrbitControls.js"),
+    ),
+    (
+        "TransformControls.js",
+        "text/javascript; charset=utf-8",
+        include_str!("../assets/vendor/TransformControls.js"),
+    ),
+];
+
+/// A message for every open page.
+#[derive(Clone, Debug)]
+enum Out {
+    Text(String),
+    Binary(Bytes),
+}
+
+/// The document and everything that changes with it, behind one lock so that a state
+/// message and a mesh frame can never be published out of order.
+struct Doc {
+    doc: DocumentMut,
+    text: String,
+    saved: String,
+    undo: Vec<String>,
+    redo: Vec<String>,
+    revision: u64,
+    seq: u64,
+    pose: Option<String>,
+    /// The checked scene of the current document (`None` while the file as opened is
+    /// invalid).
+    scene: Option<skelform::Scene>,
+    /// Why the current document does not check or mesh.
+    error: Option<String>,
+    /// The newest full surface and the newest frame, for exports and for pages that
+    /// connect later.
+    full: Option<Arc<Mesh>>,
+    frame: Option<Bytes>,
+    /// The cancellation flag of the work in flight.
+    control: Control,
+}
+
+/// What every request handler shares.
+pub struct State {
+    settings: Settings,
+    place: Place,
+    origin_name: String,
+    token: String,
+    origins: Vec<String>,
+    doc: Mutex<Doc>,
+    jobs: Mutex<Option<Sender<Job>>>,
+    out: broadcast::Sender<Out>,
+}
+
+/// A studio bound to its socket, ready to serve.
+pub struct Studio {
+    listener: tokio::net::TcpListener,
+    state: Shared,
+    addr: SocketAddr,
+}
+
+impl Studio {
+    /// Opens `scene` and listens. A file that is not TOML is an error; a scene that does not
+    /// check opens with its error shown (edits that fix it are accepted).
+    pub async fn bind(scene: &std::path::Path, settings: Settings) -> Result<Studio, StudioError> {
+        let place = Place::new(scene)?;
+        let shown = scene.display().to_string();
+        let text = std::fs::read_to_string(&place.file)
+            .map_err(|e| StudioError::Scene { path: shown.clone(), message: e.to_string() })?;
+        let doc: DocumentMut = text.parse().map_err(|e: toml_edit::TomlError| {
+            StudioError::Scene { path: shown.clone(), message: e.to_string() }
+        })?;
+        let origin_name = place
+            .file
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| shown.clone());
+        let (scene, error) = match check(&text, &origin_name, None) {
+            Ok(s) => (Some(s), None),
+            Err(e) => (None, Some(e.to_string())),
+        };
+        let listener = tokio::net::TcpListener::bind((settings.host, settings.port)).await?;
+        let addr = listener.local_addr()?;
+        let port = addr.port();
+        let mut origins = vec![format!("http://{}", host_port(addr))];
+        if addr.ip().is_loopback() {
+            origins.push(format!("http://localhost:{port}"));
+            origins.push(format!("http://127.0.0.1:{port}"));
+            origins.push(format!("http://[::1]:{port}"));
+        }
+        let (out, _) = broadcast::channel(64);
+        let state = Arc::new(State {
+            place,
+            origin_name,
+            token: crate::new_token()?,
+            origins,
+            doc: Mutex::new(Doc {
+                saved: text.clone(),
+                text,
+                doc,
+                undo: Vec::new(),
+                redo: Vec::new(),
+                revision: 1,
+                seq: 0,
+                pose: None,
+                scene,
+                error,
+                full: None,
+                frame: None,
+                control: Control::default(),
+            }),
+            jobs: Mutex::new(None),
+            out,
+            settings,
+        });
+        let weak = Arc::downgrade(&state);
+        let jobs = mesher::start(state.settings.coarse_factor, move |outcome| {
+            if let Some(state) = weak.upgrade() {
+                state.publish(outcome);
+            }
+        })?;
+        *lock(&state.jobs) = Some(jobs);
+        {
+            let mut g = lock(&state.doc);
+            state.submit(&mut g);
+        }
+        Ok(Studio { listener, state, addr })
+    }
+
+    /// The page's address with the session token.
+    pub fn url(&self) -> String {
+        format!("http://{}/?token={}", host_port(self.addr), self.state.token)
+    }
+
+    /// The session token.
+    pub fn token(&self) -> &str {
+        &self.state.token
+    }
+
+    /// The address listened on.
+    pub fn addr(&self) -> SocketAddr {
+        self.addr
+    }
+
+    /// Serves until the process ends.
+    pub async fn serve(self) -> Result<(), StudioError> {
+        let limit = self.state.settings.max_message;
+        let app = Router::new()
+            .route("/", get(page))
+            .route("/assets/{name}", get(asset))
+            .route("/ws", get(socket))
+            .route("/api/mesh/{name}", get(download))
+            .layer(middleware::from_fn_with_state(self.state.clone(), guard))
+            .layer(DefaultBodyLimit::max(limit))
+            .with_state(self.state);
+        axum::serve(self.listener, app).await?;
+        Ok(())
+    }
+}
+
+fn host_port(addr: SocketAddr) -> String {
+    match addr {
+        SocketAddr::V4(a) => format!("{}:{}", a.ip(), a.port()),
+        SocketAddr::V6(a) => format!("[{}]:{}", a.ip(), a.port()),
+    }
+}
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    // A panic while holding the lock leaves data that is still whole (every update is a
+    // set of assignments), so the lock is taken back rather than poisoning the server.
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Checks scene text as the library does, in the pose shown, and the lattice it would
+/// mesh on (so that a cell too fine for memory is refused as an edit).
+fn check(text: &str, origin: &str, pose: Option<&str>) -> Result<skelform::Scene, skelform::Error> {
+    let scene = skelform::Scene::parse(text, origin)?;
+    let overrides = Overrides {
+        pose: pose.filter(|p| *p != "rest").map(str::to_string),
+        ..Overrides::default()
+    };
+    scene.lattice(&overrides)?;
+    Ok(scene)
+}
+
+/// Constant-time comparison, so that the token cannot be guessed a byte at a time.
+fn same(a: &str, b: &str) -> bool {
+    a.len() == b.len() && a.bytes().zip(b.bytes()).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
+}
+
+fn token_of<'r>(query: Option<&'r str>, headers: &'r HeaderMap) -> Option<&'r str> {
+    if let Some(t) = headers.get("x-skelform-token").and_then(|v| v.to_str().ok()) {
+        return Some(t);
+    }
+    query?.split('&').find_map(|kv| kv.strip_prefix("token="))
+}
+
+/// Every request needs the token, and one with an `Origin` must come from the page's own.
+async fn guard(AxState(s): AxState<Shared>, req: Request, next: Next) -> Response {
+    let ok = token_of(req.uri().query(), req.headers()).is_some_and(|t| same(t, &s.token));
+    if !ok {
+        return (StatusCode::FORBIDDEN, "skelform studio: the session token is missing or wrong (open the URL the studio printed)").into_response();
+    }
+    if let Some(origin) = req.headers().get(header::ORIGIN) {
+        let known = origin.to_str().is_ok_and(|o| s.origins.iter().any(|k| k == o));
+        if !known {
+            return (StatusCode::FORBIDDEN, "skelform studio: request from another origin")
+                .into_response();
+        }
+    }
+    next.run(req).await
+}
+
+async fn page(AxState(s): AxState<Shared>) -> Response {
+    let html = INDEX.replace("{{TOKEN}}", &s.token);
+    (
+        [(header::CONTENT_TYPE, "text/html; charset=utf-8"), (header::CACHE_CONTROL, "no-store")],
+        html,
+    )
+        .into_response()
+}
+
+async fn asset(UrlPath(name): UrlPath<String>) -> Response {
+    match ASSETS.iter().find(|(n, _, _)| *n == name) {
+        Some((_, kind, body)) => ([(header::CONTENT_TYPE, *kind)], *body).into_response(),
+        None => (StatusCode::NOT_FOUND, "no such asset").into_response(),
+    }
+}
+
+/// The newest full surface as a file download (`scene.glb`, `scene.ply`).
+async fn download(AxState(s): AxState<Shared>, UrlPath(name): UrlPath<String>) -> Response {
+    use skelform::mesh::io::{Format, WriteOptions, write_mesh_to};
+    let format = match name.as_str() {
+        "scene.glb" => Format::Glb,
+        "scene.ply" => Format::Ply,
+        _ => return (StatusCode::NOT_FOUND, "scene.glb or scene.ply").into_response(),
+    };
+    let Some(mesh) = lock(&s.doc).full.clone() else {
+        return (StatusCode::CONFLICT, "no surface yet").into_response();
+    };
+    let mut bytes = Vec::new();
+    let options = WriteOptions { normals: true, ..WriteOptions::default() };
+    if let Err(e) = write_mesh_to(&mut bytes, &mesh, format, &options) {
+        return (StatusCode::INTERNAL_SERVER_ERROR, e.to_string()).into_response();
+    }
+    let stem =
+        s.place.file.file_stem().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let ext = if format == Format::Glb { "glb" } else { "ply" };
+    let disposition = HeaderValue::from_str(&format!("attachment; filename=\"{stem}.{ext}\""))
+        .unwrap_or(HeaderValue::from_static("attachment"));
+    (
+        [
+            (header::CONTENT_TYPE, HeaderValue::from_static("application/octet-stream")),
+            (header::CONTENT_DISPOSITION, disposition),
+        ],
+        bytes,
+    )
+        .into_response()
+}
+
+async fn socket(AxState(s): AxState<Shared>, ws: WebSocketUpgrade) -> Response {
+    let limit = s.settings.max_message;
+    ws.max_message_size(limit).max_frame_size(limit).on_upgrade(move |socket| session(s, socket))
+}
+
+/// One page's connection: its edits in, everything published out.
+async fn session(s: Shared, mut socket: WebSocket) {
+    let mut rx = s.out.subscribe();
+    // The page starts from the current state and the newest surface.
+    let (hello, frame) = {
+        let g = lock(&s.doc);
+        (s.state_message(&g), g.frame.clone())
+    };
+    if socket.send(Message::Text(hello.into())).await.is_err() {
+        return;
+    }
+    if let Some(f) = frame
+        && socket.send(Message::Binary(f)).await.is_err()
+    {
+        return;
+    }
+    loop {
+        tokio::select! {
+            incoming = socket.recv() => {
+                let Some(Ok(msg)) = incoming else { break };
+                let reply = match msg {
+                    Message::Text(t) => {
+                        let s2 = s.clone();
+                        let text = t.to_string();
+                        // Parsing a scene builds its field: not for the async workers.
+                        tokio::task::spawn_blocking(move || s2.handle(&text)).await.ok().flatten()
+                    }
+                    Message::Close(_) => break,
+                    _ => None,
+                };
+                if let Some(r) = reply
+                    && socket.send(Message::Text(r.into())).await.is_err()
+                {
+                    break;
+                }
+            }
+            out = rx.recv() => {
+                let msg = match out {
+                    Ok(Out::Text(t)) => Message::Text(t.into()),
+                    Ok(Out::Binary(b)) => Message::Binary(b),
+                    Err(broadcast::error::RecvError::Lagged(_)) => continue,
+                    Err(broadcast::error::RecvError::Closed) => break,
+                };
+                if socket.send(msg).await.is_err() {
+                    break;
+                }
+            }
+        }
+    }
+}
+
+/// An edit from the page.
+#[derive(Deserialize)]
+struct Edit {
+    #[serde(default)]
+    seq: u64,
+    op: String,
+    #[serde(default)]
+    path: Vec<Step>,
+    value: Option<Json>,
+    kind: Option<String>,
+    index: Option<usize>,
+    to: Option<[f64; 3]>,
+    joint: Option<String>,
+    format: Option<String>,
+    file: Option<String>,
+}
+
+impl State {
+    /// The page's picture of the document: revision, settings, skeleton, history.
+    fn state_message(&self, g: &Doc) -> String {
+        let scene = g.scene.as_ref();
+        let shown = scene.and_then(|s| match g.pose.as_deref() {
+            Some(p) => s.posed(p).ok(),
+            None => Some(s.clone()),
+        });
+        let skeleton = shown
+            .as_ref()
+            .map(|s| edit::skeleton_json(&g.doc, s, g.pose.as_deref()))
+            .unwrap_or(json!({"elements": [], "joints": []}));
+        let cell = scene.and_then(|s| s.lattice(&Overrides::default()).ok()).map(|l| l.cell);
+        json!({
+            "type": "state",
+            "revision": g.revision,
+            "seq": g.seq,
+            "file": self.origin_name,
+            "dirty": g.text != g.saved,
+            "can_undo": !g.undo.is_empty(),
+            "can_redo": !g.redo.is_empty(),
+            "error": g.error,
+            "pose": g.pose.clone().unwrap_or_else(|| "rest".into()),
+            "poses": scene.and_then(|s| s.articulation.as_ref()).map(|a| a.poses.clone()).unwrap_or_default(),
+            "method": scene.map(|s| s.method.name()),
+            "methods": skelform::Method::ALL.iter().map(|(n, _)| *n).collect::<Vec<_>>(),
+            "iso": scene.map(|s| s.iso),
+            "cell": cell,
+            "domain": scene.map(|s| json!({"min": s.domain.min.to_array(), "max": s.domain.max.to_array()})),
+            "skeleton": skeleton,
+        })
+        .to_string()
+    }
+
+    fn broadcast(&self, out: Out) {
+        // No page open is not an error.
+        let _ = self.out.send(out);
+    }
+
+    /// Starts meshing the current document, cancelling the work in flight.
+    fn submit(&self, g: &mut MutexGuard<'_, Doc>) {
+        g.control.cancel();
+        g.control = Control::default();
+        let Some(scene) = g.scene.clone() else { return };
+        let job =
+            Job { revision: g.revision, scene, pose: g.pose.clone(), control: g.control.clone() };
+        if let Some(tx) = lock(&self.jobs).as_ref() {
+            let _ = tx.send(job);
+        }
+    }
+
+    /// A result from the worker, published only while its revision is the newest: under the
+    /// lock, so no newer state can slip in between the check and the send.
+    fn publish(&self, outcome: Outcome) {
+        let mut g = lock(&self.doc);
+        match outcome {
+            Outcome::Mesh { revision, level, mesh, ms } => {
+                if revision != g.revision {
+                    return;
+                }
+                let frame = Bytes::from(mesher::encode(revision, level, &mesh));
+                if level == Level::Full {
+                    g.full = Some(mesh.clone());
+                }
+                g.frame = Some(frame.clone());
+                self.broadcast(Out::Binary(frame));
+                self.broadcast(Out::Text(
+                    json!({"type": "meshed", "revision": revision, "level": level as u32, "ms": ms,
+                           "vertices": mesh.positions.len(), "triangles": mesh.triangles.len()})
+                    .to_string(),
+                ));
+            }
+            Outcome::Failed { revision, message } => {
+                if revision == g.revision {
+                    self.broadcast(Out::Text(
+                        json!({"type": "error", "revision": revision, "message": message})
+                            .to_string(),
+                    ));
+                }
+            }
+        }
+    }
+
+    /// Applies one message; returns a reply for this page alone (an error), while accepted
+    /// changes are broadcast to every page.
+    fn handle(&self, text: &str) -> Option<String> {
+        let edit: Edit = match serde_json::from_str(text) {
+            Ok(e) => e,
+            Err(e) => return Some(error_reply(0, &format!("not an edit: {e}"))),
+        };
+        let seq = edit.seq;
+        match self.apply(edit) {
+            Ok(reply) => reply,
+            Err(e) => Some(error_reply(seq, &e.to_string())),
+        }
+    }
+
+    fn apply(&self, e: Edit) -> Result<Option<String>, StudioError> {
+        let mut g = lock(&self.doc);
+        g.seq = g.seq.max(e.seq);
+        let value = || {
+            e.value.as_ref().ok_or_else(|| StudioError::Edit(format!("'{}' needs a value", e.op)))
+        };
+        let mut doc = g.doc.clone();
+        match e.op.as_str() {
+            "set" => edit::set(&mut doc, &e.path, edit::to_toml(value()?)?)?,
+            "move" => {
+                let to = e.to.ok_or_else(|| StudioError::Edit("'move' needs 'to'".into()))?;
+                let scene = shown_scene(&g)?;
+                let local =
+                    edit::local_point(&doc, &scene, &e.path, skelform::DVec3::from_array(to))?;
+                edit::set(&mut doc, &e.path, local)?;
+            }
+            "add" => {
+                let kind = e.kind.as_deref().unwrap_or_default();
+                edit::add(&mut doc, kind, value()?)?;
+            }
+            "delete" => {
+                let kind = e.kind.as_deref().unwrap_or_default();
+                let index =
+                    e.index.ok_or_else(|| StudioError::Edit("'delete' needs 'index'".into()))?;
+                edit::delete(&mut doc, kind, index)?;
+            }
+            "iso" => {
+                let key = if doc.contains_key("field") || !doc.contains_key("skeleton") {
+                    "field"
+                } else {
+                    "skeleton"
+                };
+                edit::set(
+                    &mut doc,
+                    &[Step::Key(key.into()), Step::Key("iso".into())],
+                    edit::to_toml(value()?)?,
+                )?;
+            }
+            "cell" => {
+                if !doc.contains_key("mesh") {
+                    doc.insert("mesh", toml_edit::Item::Table(toml_edit::Table::new()));
+                }
+                if let Some(t) = doc.get_mut("mesh").and_then(toml_edit::Item::as_table_mut) {
+                    t.remove("resolution");
+                }
+                edit::set(
+                    &mut doc,
+                    &[Step::Key("mesh".into()), Step::Key("cell".into())],
+                    edit::to_toml(value()?)?,
+                )?;
+            }
+            "method" => {
+                if !doc.contains_key("mesh") {
+                    doc.insert("mesh", toml_edit::Item::Table(toml_edit::Table::new()));
+                }
+                edit::set(
+                    &mut doc,
+                    &[Step::Key("mesh".into()), Step::Key("method".into())],
+                    edit::to_toml(value()?)?,
+                )?;
+            }
+            "angles" => {
+                let joint = e
+                    .joint
+                    .as_deref()
+                    .ok_or_else(|| StudioError::Edit("'angles' needs 'joint'".into()))?;
+                let path = edit::angles_path(&doc, joint, g.pose.as_deref())?;
+                let v = match value()? {
+                    Json::Array(a) if a.len() == 1 => a[0].clone(),
+                    v => v.clone(),
+                };
+                edit::set(&mut doc, &path, edit::to_toml(&v)?)?;
+            }
+            "pose" => return self.set_pose(&mut g, e.value.as_ref().and_then(Json::as_str)),
+            "undo" | "redo" => return self.history(&mut g, e.op == "undo"),
+            "save" => return self.save(&mut g),
+            "export" => return self.export(&g, e.format.as_deref(), e.file.as_deref()),
+            "state" => return Ok(Some(self.state_message(&g))),
+            other => return Err(StudioError::Edit(format!("unknown operation '{other}'"))),
+        }
+        let text = doc.to_string();
+        let scene = match check(&text, &self.origin_name, g.pose.as_deref()) {
+            Ok(s) => Some(s),
+            // A document that did not check when opened takes edits that do not fix it yet.
+            Err(err) if g.scene.is_none() => {
+                g.error = Some(err.to_string());
+                None
+            }
+            Err(err) => return Err(StudioError::Edit(err.to_string())),
+        };
+        let old = std::mem::replace(&mut g.text, text);
+        g.undo.push(old);
+        if g.undo.len() > self.settings.undo_limit {
+            g.undo.remove(0);
+        }
+        g.redo.clear();
+        g.doc = doc;
+        if scene.is_some() {
+            g.error = None;
+        }
+        g.scene = scene;
+        self.changed(&mut g);
+        Ok(None)
+    }
+
+    /// After the document or the pose changed: a new revision, its state, and meshing.
+    fn changed(&self, g: &mut MutexGuard<'_, Doc>) {
+        g.revision += 1;
+        self.broadcast(Out::Text(self.state_message(g)));
+        self.submit(g);
+    }
+
+    fn set_pose(
+        &self,
+        g: &mut MutexGuard<'_, Doc>,
+        pose: Option<&str>,
+    ) -> Result<Option<String>, StudioError> {
+        let pose = pose.filter(|p| *p != "rest").map(str::to_string);
+        if let (Some(scene), Some(p)) = (&g.scene, &pose) {
+            scene.posed(p).map_err(|e| StudioError::Edit(e.to_string()))?;
+        }
+        g.pose = pose;
+        self.changed(g);
+        Ok(None)
+    }
+
+    fn history(
+        &self,
+        g: &mut MutexGuard<'_, Doc>,
+        undo: bool,
+    ) -> Result<Option<String>, StudioError> {
+        let from = if undo { g.undo.pop() } else { g.redo.pop() };
+        let Some(text) = from else {
+            return Err(StudioError::Edit(format!(
+                "nothing to {}",
+                if undo { "undo" } else { "redo" }
+            )));
+        };
+        let doc: DocumentMut =
+            text.parse().map_err(|e: toml_edit::TomlError| StudioError::Edit(e.to_string()))?;
+        let scene = check(&text, &self.origin_name, g.pose.as_deref());
+        let old = std::mem::replace(&mut g.text, text);
+        if undo {
+            g.redo.push(old)
+        } else {
+            g.undo.push(old)
+        }
+        g.doc = doc;
+        match scene {
+            Ok(s) => {
+                g.scene = Some(s);
+                g.error = None;
+            }
+            Err(e) => {
+                g.scene = None;
+                g.error = Some(e.to_string());
+            }
+        }
+        self.changed(g);
+        Ok(None)
+    }
+
+    fn save(&self, g: &mut MutexGuard<'_, Doc>) -> Result<Option<String>, StudioError> {
+        write_atomic(&self.place.file, g.text.as_bytes())?;
+        g.saved = g.text.clone();
+        self.broadcast(Out::Text(self.state_message(g)));
+        Ok(Some(json!({"type": "saved", "file": self.origin_name}).to_string()))
+    }
+
+    fn export(
+        &self,
+        g: &Doc,
+        format: Option<&str>,
+        file: Option<&str>,
+    ) -> Result<Option<String>, StudioError> {
+        use skelform::mesh::io::{Format, WriteOptions, write_mesh};
+        let (format, ext) = match format.unwrap_or("glb") {
+            "glb" => (Format::Glb, "glb"),
+            "ply" => (Format::Ply, "ply"),
+            other => {
+                return Err(StudioError::Edit(format!("cannot export '{other}' (glb or ply)")));
+            }
+        };
+        let stem = self
+            .place
+            .file
+            .file_stem()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let name = file.map(str::to_string).unwrap_or_else(|| format!("{stem}.{ext}"));
+        let path = self.place.export_path(&name, ext)?;
+        let mesh =
+            g.full.clone().ok_or_else(|| StudioError::Edit("no surface to export yet".into()))?;
+        let options = WriteOptions { normals: true, ..WriteOptions::default() };
+        write_mesh(&path, &mesh, format, &options).map_err(|e| StudioError::Edit(e.to_string()))?;
+        Ok(Some(json!({"type": "exported", "file": name}).to_string()))
+    }
+}
+
+/// The scene in the pose shown, for turning dragged handles back into file coordinates.
+fn shown_scene(g: &Doc) -> Result<skelform::Scene, StudioError> {
+    let scene = g
+        .scene
+        .as_ref()
+        .ok_or_else(|| StudioError::Edit("the scene has an error; fix it first".into()))?;
+    match g.pose.as_deref() {
+        Some(p) => scene.posed(p).map_err(|e| StudioError::Edit(e.to_string())),
+        None => Ok(scene.clone()),
+    }
+}
+
+fn error_reply(seq: u64, message: &str) -> String {
+    json!({"type": "error", "seq": seq, "message": message}).to_string()
+}

@@ -1,0 +1,344 @@
+//! The studio's server as a page sees it: edits in over the WebSocket, states and mesh
+//! frames out; the guard (token, origin); refused edits; cancellation; saving; exports.
+
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use futures_util::{SinkExt, StreamExt};
+use serde_json::{Value, json};
+use skelform_studio::{Settings, Studio};
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio_tungstenite::tungstenite::Message;
+use tokio_tungstenite::tungstenite::client::IntoClientRequest;
+
+/// Two segments meeting in a tee, with comments that saving must keep.
+const SCENE: &str = "\
+# The studio tests' scene: a tee of two segments.
+[domain]
+min = [-0.75, -0.25, -0.25]
+max = [0.75, 0.75, 0.25]
+
+[mesh]
+resolution = RES   # samples along x
+
+[skeleton]
+radius = 0.1
+
+[[skeleton.segment]]            # the bar
+a = [-0.6, 0, 0]
+b = [0.6, 0, 0]
+
+[[skeleton.segment]]            # the stem
+a = [0, 0, 0]
+b = [0, 0.6, 0]
+";
+
+struct Running {
+    _dir: tempfile::TempDir,
+    file: PathBuf,
+    addr: SocketAddr,
+    token: String,
+}
+
+async fn start(resolution: u32) -> Running {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("tee.toml");
+    std::fs::write(&file, SCENE.replace("RES", &resolution.to_string())).unwrap();
+    let studio = Studio::bind(&file, Settings::default()).await.unwrap();
+    let (addr, token) = (studio.addr(), studio.token().to_string());
+    assert!(studio.url().contains(&token) && token.len() == 32);
+    tokio::spawn(studio.serve());
+    Running { _dir: dir, file, addr, token }
+}
+
+type Ws =
+    tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
+
+async fn connect(r: &Running) -> Ws {
+    let url = format!("ws://{}/ws?token={}", r.addr, r.token);
+    tokio_tungstenite::connect_async(url).await.unwrap().0
+}
+
+/// The next message, or a failure after 30 s.
+async fn next(ws: &mut Ws) -> Message {
+    tokio::time::timeout(Duration::from_secs(30), ws.next())
+        .await
+        .expect("no message within 30 s")
+        .expect("socket closed")
+        .unwrap()
+}
+
+/// A mesh frame's header: revision, level, vertices, triangles.
+fn header(b: &[u8]) -> (u64, u32, u32, u32) {
+    assert_eq!(&b[..4], b"SKFM");
+    let u32_at = |i: usize| u32::from_le_bytes(b[i..i + 4].try_into().unwrap());
+    (u64::from_le_bytes(b[8..16].try_into().unwrap()), u32_at(16), u32_at(20), u32_at(24))
+}
+
+/// Reads messages until a full-level frame of `revision` (or newer) arrives; returns the
+/// JSON messages and the frames' headers seen on the way.
+async fn until_full(ws: &mut Ws, revision: u64) -> (Vec<Value>, Vec<(u64, u32, u32, u32)>) {
+    let (mut texts, mut frames) = (Vec::new(), Vec::new());
+    loop {
+        match next(ws).await {
+            Message::Text(t) => texts.push(serde_json::from_str(&t).unwrap()),
+            Message::Binary(b) => {
+                let h = header(&b);
+                frames.push(h);
+                if h.1 == 1 && h.0 >= revision {
+                    return (texts, frames);
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
+async fn send(ws: &mut Ws, v: Value) {
+    ws.send(Message::Text(v.to_string().into())).await.unwrap();
+}
+
+/// The state message that follows.
+async fn next_state(ws: &mut Ws) -> Value {
+    loop {
+        if let Message::Text(t) = next(ws).await {
+            let v: Value = serde_json::from_str(&t).unwrap();
+            if v["type"] == "state" || v["type"] == "error" {
+                return v;
+            }
+        }
+    }
+}
+
+async fn http_status(addr: SocketAddr, target: &str, origin: Option<&str>) -> u16 {
+    let mut s = tokio::net::TcpStream::connect(addr).await.unwrap();
+    let origin = origin.map(|o| format!("Origin: {o}\r\n")).unwrap_or_default();
+    let req = format!("GET {target} HTTP/1.1\r\nHost: {addr}\r\n{origin}Connection: close\r\n\r\n");
+    s.write_all(req.as_bytes()).await.unwrap();
+    let mut buf = Vec::new();
+    s.read_to_end(&mut buf).await.unwrap();
+    let text = String::from_utf8_lossy(&buf);
+    text.split_whitespace().nth(1).unwrap().parse().unwrap()
+}
+
+#[tokio::test]
+async fn an_edit_comes_back_as_a_coarse_then_a_full_surface_of_its_revision() {
+    let r = start(48).await;
+    let mut ws = connect(&r).await;
+    let first = next_state(&mut ws).await;
+    assert_eq!(first["type"], "state");
+    assert_eq!(first["skeleton"]["elements"].as_array().unwrap().len(), 2);
+    let (_, frames) = until_full(&mut ws, 1).await;
+    let before = frames.last().unwrap().2;
+    assert!(before > 100, "{frames:?}");
+
+    send(&mut ws, json!({"seq": 1, "op": "set", "path": ["skeleton", "segment", 1, "b"], "value": [0, 0.7, 0]})).await;
+    let state = next_state(&mut ws).await;
+    assert_eq!(state["type"], "state", "{state}");
+    let rev = state["revision"].as_u64().unwrap();
+    assert_eq!(state["skeleton"]["elements"][1]["points"][1]["at"], json!([0.0, 0.7, 0.0]));
+    let (_, frames) = until_full(&mut ws, rev).await;
+    // The coarse surface comes first, then the full one, both of the new revision.
+    let ours: Vec<_> = frames.iter().filter(|f| f.0 == rev).collect();
+    assert_eq!(ours.len(), 2, "{frames:?}");
+    assert_eq!((ours[0].1, ours[1].1), (0, 1));
+    assert!(ours[0].2 < ours[1].2, "the coarse surface has fewer vertices: {frames:?}");
+    assert_ne!(ours[1].2, before, "a longer stem changes the surface");
+
+    // A moved handle (world coordinates) lands in the file's coordinates.
+    send(&mut ws, json!({"seq": 2, "op": "move", "path": ["skeleton", "segment", 0, "a"], "to": [-0.5, 0.0, 0.0]})).await;
+    let state = next_state(&mut ws).await;
+    assert_eq!(state["skeleton"]["elements"][0]["points"][0]["at"], json!([-0.5, 0.0, 0.0]));
+}
+
+#[tokio::test]
+async fn requests_without_the_token_or_from_another_origin_are_refused() {
+    let r = start(24).await;
+    let t = &r.token;
+    assert_eq!(http_status(r.addr, "/", None).await, 403);
+    assert_eq!(http_status(r.addr, "/?token=0123", None).await, 403);
+    assert_eq!(http_status(r.addr, "/assets/app.js", None).await, 403);
+    assert_eq!(http_status(r.addr, &format!("/?token={t}"), None).await, 200);
+    assert_eq!(http_status(r.addr, &format!("/assets/three.core.js?token={t}"), None).await, 200);
+    assert_eq!(http_status(r.addr, &format!("/assets/..%2Ftee.toml?token={t}"), None).await, 404);
+    let served = format!("http://{}", r.addr);
+    assert_eq!(http_status(r.addr, &format!("/?token={t}"), Some(&served)).await, 200);
+    assert_eq!(
+        http_status(r.addr, &format!("/?token={t}"), Some("http://evil.example")).await,
+        403
+    );
+
+    // The WebSocket: no token, and a page of another origin.
+    assert!(tokio_tungstenite::connect_async(format!("ws://{}/ws", r.addr)).await.is_err());
+    let mut req = format!("ws://{}/ws?token={t}", r.addr).into_client_request().unwrap();
+    req.headers_mut().insert("origin", "http://evil.example".parse().unwrap());
+    assert!(tokio_tungstenite::connect_async(req).await.is_err());
+    let mut req = format!("ws://{}/ws?token={t}", r.addr).into_client_request().unwrap();
+    req.headers_mut().insert("origin", served.parse().unwrap());
+    assert!(tokio_tungstenite::connect_async(req).await.is_ok());
+}
+
+#[tokio::test]
+async fn invalid_edits_are_refused_with_a_message_and_change_nothing() {
+    let r = start(24).await;
+    let mut ws = connect(&r).await;
+    let first = next_state(&mut ws).await;
+    let rev = first["revision"].as_u64().unwrap();
+    let refused = [
+        json!({"seq": 1, "op": "set", "path": ["skeleton", "segment", 0, "radius"], "value": -0.2}),
+        json!({"seq": 2, "op": "set", "path": ["skeleton", "segment", 0, "radius"], "value": null}),
+        json!({"seq": 3, "op": "set", "path": ["skeleton", "segment", 7, "radius"], "value": 0.2}),
+        json!({"seq": 4, "op": "set", "path": ["skeleton", "segment", 0, "colour"], "value": 2}),
+        json!({"seq": 5, "op": "add", "kind": "blob", "value": {"at": [0, 0, 0]}}),
+        json!({"seq": 6, "op": "delete", "kind": "segment", "index": 9}),
+        json!({"seq": 7, "op": "cell", "value": 1e-7}),
+        json!({"seq": 8, "op": "pose", "value": "grip"}),
+        json!({"seq": 9, "op": "undo"}),
+    ];
+    for (i, edit) in refused.iter().enumerate() {
+        send(&mut ws, edit.clone()).await;
+        let reply = next_state(&mut ws).await;
+        assert_eq!(reply["type"], "error", "{edit} was accepted: {reply}");
+        assert_eq!(reply["seq"], json!(i + 1));
+        assert!(!reply["message"].as_str().unwrap().is_empty());
+    }
+    let negative = {
+        send(&mut ws, refused[0].clone()).await;
+        next_state(&mut ws).await
+    };
+    assert!(negative["message"].as_str().unwrap().contains("radius"), "{negative}");
+    send(&mut ws, json!({"seq": 10, "op": "state"})).await;
+    let after = next_state(&mut ws).await;
+    assert_eq!(after["revision"].as_u64().unwrap(), rev, "nothing changed");
+    assert_eq!(after["can_undo"], false);
+    assert_eq!(after["dirty"], false);
+    assert_eq!(after["skeleton"], first["skeleton"]);
+}
+
+#[tokio::test]
+async fn superseded_work_is_cancelled_and_a_stale_surface_never_follows_a_newer_state() {
+    let r = start(160).await;
+    let mut ws = connect(&r).await;
+    next_state(&mut ws).await;
+    let edits = 20;
+    for i in 0..edits {
+        let y = 0.4 + 0.01 * f64::from(i);
+        send(&mut ws, json!({"seq": i + 1, "op": "set", "path": ["skeleton", "segment", 1, "b"], "value": [0, y, 0]})).await;
+    }
+    // Everything until the full surface of the last edit, in order of arrival.
+    let (mut newest_state, mut newest_frame) = (0, 0);
+    let mut full_frames = 0;
+    let last = loop {
+        match next(&mut ws).await {
+            Message::Text(t) => {
+                let v: Value = serde_json::from_str(&t).unwrap();
+                if v["type"] == "state" {
+                    newest_state = v["revision"].as_u64().unwrap();
+                }
+            }
+            Message::Binary(b) => {
+                let (rev, level, ..) = header(&b);
+                assert!(
+                    rev >= newest_state,
+                    "a frame of revision {rev} after the state of {newest_state}"
+                );
+                assert!(rev >= newest_frame, "frame {rev} after frame {newest_frame}");
+                newest_frame = rev;
+                if level == 1 {
+                    full_frames += 1;
+                    if rev == 1 + edits as u64 {
+                        break rev;
+                    }
+                }
+            }
+            _ => {}
+        }
+    };
+    assert_eq!(last, 1 + edits as u64);
+    assert!(
+        full_frames < edits,
+        "every one of {edits} edits was meshed in full: nothing was cancelled"
+    );
+}
+
+#[tokio::test]
+async fn undo_redo_and_save_keep_the_files_comments_and_write_it_whole() {
+    let r = start(24).await;
+    let mut ws = connect(&r).await;
+    next_state(&mut ws).await;
+    send(&mut ws, json!({"seq": 1, "op": "set", "path": ["skeleton", "segment", 0, "b"], "value": [0.5, 0, 0]})).await;
+    assert_eq!(next_state(&mut ws).await["can_undo"], true);
+    send(&mut ws, json!({"seq": 2, "op": "set", "path": ["skeleton", "segment", 1, "b"], "value": [0, 0.5, 0]})).await;
+    next_state(&mut ws).await;
+    send(&mut ws, json!({"seq": 3, "op": "undo"})).await;
+    let undone = next_state(&mut ws).await;
+    assert_eq!(undone["skeleton"]["elements"][1]["points"][1]["at"], json!([0.0, 0.6, 0.0]));
+    assert_eq!(undone["can_redo"], true);
+    send(&mut ws, json!({"seq": 4, "op": "redo"})).await;
+    let redone = next_state(&mut ws).await;
+    assert_eq!(redone["skeleton"]["elements"][1]["points"][1]["at"], json!([0.0, 0.5, 0.0]));
+    assert_eq!(redone["dirty"], true);
+    send(&mut ws, json!({"seq": 5, "op": "add", "kind": "point", "value": {"at": [0, 0.3, 0], "radius": 0.15}})).await;
+    assert_eq!(next_state(&mut ws).await["skeleton"]["elements"].as_array().unwrap().len(), 3);
+
+    send(&mut ws, json!({"seq": 6, "op": "save"})).await;
+    let saved = loop {
+        if let Message::Text(t) = next(&mut ws).await {
+            let v: Value = serde_json::from_str(&t).unwrap();
+            if v["type"] == "saved" {
+                break v;
+            }
+        }
+    };
+    assert_eq!(saved["file"], "tee.toml");
+    let text = std::fs::read_to_string(&r.file).unwrap();
+    for kept in [
+        "# The studio tests' scene: a tee of two segments.",
+        "resolution = 24   # samples along x",
+        "# the bar",
+        "# the stem",
+    ] {
+        assert!(text.contains(kept), "saving lost '{kept}':\n{text}");
+    }
+    assert!(text.contains("b = [0.5, 0, 0]") && text.contains("b = [0, 0.5, 0]"), "{text}");
+    assert!(text.contains("[[skeleton.point]]"), "{text}");
+    // The saved file is a scene, and no temporary file is left beside it.
+    skelform::Scene::load(&r.file).unwrap();
+    assert_eq!(files_in(r.file.parent().unwrap()), vec!["tee.toml".to_string()]);
+}
+
+fn files_in(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+#[tokio::test]
+async fn exports_go_to_the_scenes_folder_only() {
+    let r = start(24).await;
+    let mut ws = connect(&r).await;
+    until_full(&mut ws, 1).await;
+    for bad in ["../tee.glb", "/tmp/tee.glb", "sub/tee.glb", ".hidden.glb", "tee.toml", ".."] {
+        send(&mut ws, json!({"seq": 1, "op": "export", "format": "glb", "file": bad})).await;
+        let reply = next_state(&mut ws).await;
+        assert_eq!(reply["type"], "error", "export to {bad} was accepted");
+    }
+    assert_eq!(files_in(r.file.parent().unwrap()), vec!["tee.toml".to_string()]);
+    send(&mut ws, json!({"seq": 2, "op": "export", "format": "ply"})).await;
+    let reply = loop {
+        if let Message::Text(t) = next(&mut ws).await {
+            let v: Value = serde_json::from_str(&t).unwrap();
+            if v["type"] == "exported" || v["type"] == "error" {
+                break v;
+            }
+        }
+    };
+    assert_eq!(reply["file"], "tee.ply", "{reply}");
+    let mesh = skelform::mesh::io::read_mesh(&r.file.with_extension("ply")).unwrap();
+    let report = skelform::mesh::check::check(&mesh);
+    assert!(report.is_closed_manifold(), "{report:?}");
+}
