@@ -1,0 +1,403 @@
+// The studio page: draws the surface and the skeleton, turns clicks, drags and form
+// changes into edit messages, and shows what the server sends back. The server holds the
+// scene; this page holds nothing but what it is shown (see docs/STUDIO.md for the protocol).
+import * as THREE from 'three';
+import { OrbitControls } from 'three/addons/OrbitControls.js';
+import { TransformControls } from 'three/addons/TransformControls.js';
+
+const token = new URLSearchParams(location.search).get('token') ?? '';
+const $ = (id) => document.getElementById(id);
+
+// What tests (and curious people, from the console) can read.
+const studio = (window.studio = {
+    revision: 0, frameRevision: 0, level: -1, vertices: 0, triangles: 0,
+    timings: [], errors: [], state: null, handles: [], ready: false,
+});
+
+// --- three.js -------------------------------------------------------------------------
+const view = $('view');
+const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+renderer.setPixelRatio(window.devicePixelRatio);
+view.appendChild(renderer.domElement);
+const scene = new THREE.Scene();
+scene.background = new THREE.Color(0xf4f4f2);
+const camera = new THREE.PerspectiveCamera(35, 1, 0.01, 1000);
+scene.add(new THREE.HemisphereLight(0xffffff, 0x888877, 1.6));
+const sun = new THREE.DirectionalLight(0xffffff, 1.6);
+camera.add(sun);
+sun.position.set(1, 1, 2);
+scene.add(camera);
+const orbit = new OrbitControls(camera, renderer.domElement);
+const gizmo = new TransformControls(camera, renderer.domElement);
+gizmo.setSize(0.8);
+scene.add(gizmo.getHelper());
+gizmo.addEventListener('dragging-changed', (e) => {
+    orbit.enabled = !e.value;
+    if (!e.value) sendMove(true);
+});
+gizmo.addEventListener('objectChange', () => sendMove(false));
+
+const surfaceMaterial = new THREE.MeshStandardMaterial({
+    color: 0xd9b38c, roughness: 0.6, metalness: 0.0, side: THREE.DoubleSide,
+});
+const labelMaterial = new THREE.MeshStandardMaterial({
+    vertexColors: true, roughness: 0.6, side: THREE.DoubleSide,
+});
+let surface = null;
+const skeletonGroup = new THREE.Group();
+scene.add(skeletonGroup);
+const handleGeometry = new THREE.SphereGeometry(1, 12, 8);
+const handleMaterial = new THREE.MeshBasicMaterial({ color: 0x1060d0, depthTest: false, transparent: true, opacity: 0.85 });
+const selectedMaterial = new THREE.MeshBasicMaterial({ color: 0xe03010, depthTest: false, transparent: true });
+const jointMaterial = new THREE.MeshBasicMaterial({ color: 0x20a040, depthTest: false, transparent: true });
+const lineMaterial = new THREE.LineBasicMaterial({ color: 0x1040a0, depthTest: false, transparent: true, opacity: 0.7 });
+
+function resize() {
+    const w = view.clientWidth, h = view.clientHeight;
+    renderer.setSize(w, h, false);
+    renderer.domElement.style.width = w + 'px';
+    renderer.domElement.style.height = h + 'px';
+    camera.aspect = w / Math.max(h, 1);
+    camera.updateProjectionMatrix();
+}
+window.addEventListener('resize', resize);
+resize();
+renderer.setAnimationLoop(() => { orbit.update(); renderer.render(scene, camera); });
+
+let framed = false;
+function frameDomain(domain) {
+    const min = new THREE.Vector3(...domain.min), max = new THREE.Vector3(...domain.max);
+    const centre = min.clone().add(max).multiplyScalar(0.5);
+    const size = max.clone().sub(min).length();
+    orbit.target.copy(centre);
+    camera.position.copy(centre).add(new THREE.Vector3(0, 0, 1.9 * size));
+    camera.near = size / 100; camera.far = size * 20;
+    camera.updateProjectionMatrix();
+    handleScale = size / 150;
+}
+let handleScale = 0.02;
+
+// --- messages ---------------------------------------------------------------------------
+let seq = 0;
+const sentAt = new Map(); // seq → time sent
+const revisionSeq = new Map(); // revision → the newest seq it includes
+let socket = null;
+
+function send(msg) {
+    if (!socket || socket.readyState !== WebSocket.OPEN) return;
+    msg.seq = ++seq;
+    sentAt.set(msg.seq, performance.now());
+    socket.send(JSON.stringify(msg));
+}
+studio.send = send;
+
+function message(text, info = false) {
+    const m = $('message');
+    m.textContent = text;
+    m.className = info ? 'info' : '';
+    if (!info) studio.errors.push(text);
+}
+
+function connect() {
+    socket = new WebSocket(`ws://${location.host}/ws?token=${encodeURIComponent(token)}`);
+    socket.binaryType = 'arraybuffer';
+    socket.onopen = () => { $('status').textContent = 'connected'; };
+    socket.onclose = () => { $('status').textContent = 'disconnected: restart the studio and reload'; };
+    socket.onmessage = (e) => {
+        if (typeof e.data === 'string') onText(JSON.parse(e.data));
+        else onFrame(e.data);
+    };
+}
+
+function onText(m) {
+    if (m.type === 'state') onState(m);
+    else if (m.type === 'error') message(m.message);
+    else if (m.type === 'saved') message(`saved ${m.file}`, true);
+    else if (m.type === 'exported') message(`wrote ${m.file}`, true);
+    else if (m.type === 'meshed') {
+        $('status').textContent = `revision ${m.revision} ${m.level ? 'full' : 'coarse'}: ` +
+            `${m.vertices} vertices, ${m.triangles} triangles, meshed in ${m.ms.toFixed(0)} ms`;
+    }
+}
+
+// --- the surface ------------------------------------------------------------------------
+const palette = [0xd9b38c, 0x6fa8dc, 0x93c47d, 0xe06666, 0xffd966, 0x8e7cc3, 0x76a5af, 0xf6b26b];
+
+function onFrame(buffer) {
+    const dv = new DataView(buffer);
+    const magic = String.fromCharCode(...new Uint8Array(buffer, 0, 4));
+    if (magic !== 'SKFM') return;
+    const revision = Number(dv.getBigUint64(8, true));
+    const level = dv.getUint32(16, true), nv = dv.getUint32(20, true), nt = dv.getUint32(24, true);
+    const flags = dv.getUint32(28, true);
+    // A stale surface never replaces a newer one.
+    if (revision < studio.frameRevision || (revision === studio.frameRevision && level < studio.level)) return;
+    let at = 32;
+    const positions = new Float32Array(buffer, at, nv * 3); at += nv * 12;
+    let normals = null;
+    if (flags & 1) { normals = new Float32Array(buffer, at, nv * 3); at += nv * 12; }
+    const indices = new Uint32Array(buffer, at, nt * 3); at += nt * 12;
+    let labels = null;
+    if (flags & 2) { labels = new Uint32Array(buffer, at, nt * 2); }
+    let geometry = new THREE.BufferGeometry();
+    geometry.setAttribute('position', new THREE.BufferAttribute(positions.slice(), 3));
+    if (normals) geometry.setAttribute('normal', new THREE.BufferAttribute(normals.slice(), 3));
+    geometry.setIndex(new THREE.BufferAttribute(indices.slice(), 1));
+    let material = surfaceMaterial;
+    if (labels) {
+        // One colour a region pair: triangles are split apart so each keeps its own.
+        geometry = geometry.toNonIndexed();
+        const colours = new Float32Array(nt * 9);
+        const c = new THREE.Color();
+        for (let t = 0; t < nt; t++) {
+            c.setHex(palette[(labels[2 * t] * 3 + labels[2 * t + 1]) % palette.length]);
+            for (let k = 0; k < 3; k++) colours.set([c.r, c.g, c.b], t * 9 + k * 3);
+        }
+        geometry.setAttribute('color', new THREE.BufferAttribute(colours, 3));
+        material = labelMaterial;
+    }
+    if (!normals) geometry.computeVertexNormals();
+    if (surface) { scene.remove(surface); surface.geometry.dispose(); }
+    surface = new THREE.Mesh(geometry, material);
+    scene.add(surface);
+    Object.assign(studio, { frameRevision: revision, level, vertices: nv, triangles: nt });
+    const s = revisionSeq.get(revision);
+    if (s !== undefined && sentAt.has(s)) {
+        const ms = performance.now() - sentAt.get(s);
+        studio.timings.push({ seq: s, revision, level, ms });
+    }
+    studio.ready = true;
+}
+
+// --- the skeleton -----------------------------------------------------------------------
+let selected = null; // {kind, index}
+let dragging = null; // the handle the gizmo holds
+
+function onState(m) {
+    studio.state = m;
+    studio.revision = m.revision;
+    revisionSeq.set(m.revision, m.seq);
+    $('file').textContent = m.file;
+    $('dirty').textContent = m.dirty ? ' ●' : '';
+    $('undo').disabled = !m.can_undo;
+    $('redo').disabled = !m.can_redo;
+    if (m.error) message(m.error);
+    fillSelect($('method'), m.methods, m.method);
+    fillSelect($('pose'), m.poses.length ? m.poses : ['rest'], m.pose);
+    if (document.activeElement !== $('cell') && m.cell != null) $('cell').value = +m.cell.toPrecision(4);
+    if (document.activeElement !== $('iso') && m.iso != null) $('iso').value = m.iso;
+    if (m.domain && !framed) { frameDomain(m.domain); framed = true; }
+    if (!gizmo.dragging) drawSkeleton(m.skeleton);
+    drawPanel(m.skeleton);
+    drawJoints(m.skeleton.joints);
+}
+
+function fillSelect(select, names, current) {
+    if (select.dataset.names !== names.join()) {
+        select.replaceChildren(...names.map((n) => new Option(n, n)));
+        select.dataset.names = names.join();
+    }
+    if (current != null) select.value = current;
+}
+
+function drawSkeleton(sk) {
+    gizmo.detach();
+    skeletonGroup.clear();
+    studio.handles = [];
+    for (const el of sk.elements) {
+        const pts = el.points.map((p) => new THREE.Vector3(...p.at));
+        const isSel = selected && selected.kind === el.kind && selected.index === el.index;
+        if (pts.length > 1) {
+            const closed = el.kind === 'triangle' || el.kind === 'polygon';
+            const geo = new THREE.BufferGeometry().setFromPoints(closed ? [...pts, pts[0]] : pts);
+            const line = new THREE.Line(geo, lineMaterial);
+            line.renderOrder = 1;
+            skeletonGroup.add(line);
+        }
+        el.points.forEach((p, k) => {
+            const h = new THREE.Mesh(handleGeometry, isSel ? selectedMaterial : handleMaterial);
+            h.position.copy(pts[k]);
+            h.scale.setScalar(handleScale);
+            h.renderOrder = 2;
+            h.userData = { kind: el.kind, index: el.index, path: p.path };
+            skeletonGroup.add(h);
+            studio.handles.push(h);
+            if (isSel && dragging && JSON.stringify(dragging.userData.path) === JSON.stringify(p.path)) {
+                dragging = h;
+                gizmo.attach(h);
+            }
+        });
+    }
+    for (const j of sk.joints) {
+        if (!j.at) continue;
+        const h = new THREE.Mesh(handleGeometry, jointMaterial);
+        h.position.set(...j.at);
+        h.scale.setScalar(handleScale * 1.3);
+        h.renderOrder = 2;
+        h.userData = { joint: j.name };
+        skeletonGroup.add(h);
+    }
+}
+
+// Where a handle is on the screen, in CSS pixels of the page (for tests).
+studio.handleScreen = (i) => {
+    const h = studio.handles[i];
+    const p = h.position.clone().project(camera);
+    const r = renderer.domElement.getBoundingClientRect();
+    return { x: r.left + (p.x + 1) / 2 * r.width, y: r.top + (1 - p.y) / 2 * r.height, path: h.userData.path };
+};
+
+// A small grey picture of the view, for tests that check the picture changed.
+studio.snapshot = () => {
+    const c = Object.assign(document.createElement('canvas'), { width: 96, height: 72 });
+    const g = c.getContext('2d');
+    g.drawImage(renderer.domElement, 0, 0, 96, 72);
+    const d = g.getImageData(0, 0, 96, 72).data;
+    const out = [];
+    for (let i = 0; i < d.length; i += 4) out.push((d[i] + d[i + 1] + d[i + 2]) / 3 | 0);
+    return out;
+};
+
+let lastMove = 0;
+function sendMove(final) {
+    if (!dragging) return;
+    const now = performance.now();
+    // While dragging, at most one edit per 60 ms: each cancels the meshing of the last.
+    if (!final && now - lastMove < 60) return;
+    lastMove = now;
+    const p = dragging.position;
+    send({ op: 'move', path: dragging.userData.path, to: [p.x, p.y, p.z] });
+}
+
+const raycaster = new THREE.Raycaster();
+let downAt = null;
+renderer.domElement.addEventListener('pointerdown', (e) => { downAt = [e.clientX, e.clientY]; });
+renderer.domElement.addEventListener('pointerup', (e) => {
+    if (!downAt || Math.hypot(e.clientX - downAt[0], e.clientY - downAt[1]) > 4 || gizmo.dragging) return;
+    const r = renderer.domElement.getBoundingClientRect();
+    const ndc = new THREE.Vector2((e.clientX - r.left) / r.width * 2 - 1, -((e.clientY - r.top) / r.height) * 2 + 1);
+    raycaster.setFromCamera(ndc, camera);
+    const hit = raycaster.intersectObjects(skeletonGroup.children.filter((c) => c.isMesh))[0];
+    if (!hit) return;
+    const u = hit.object.userData;
+    if (u.joint) { focusJoint(u.joint); return; }
+    selected = { kind: u.kind, index: u.index };
+    dragging = hit.object;
+    drawSkeleton(studio.state.skeleton);
+    drawPanel(studio.state.skeleton);
+});
+
+// --- the side panel ---------------------------------------------------------------------
+function drawPanel(sk) {
+    const box = $('selection');
+    const el = selected && sk.elements.find((e) => e.kind === selected.kind && e.index === selected.index);
+    const parts = [Object.assign(document.createElement('h2'), { textContent: 'Selection' })];
+    if (!el) {
+        parts.push(Object.assign(document.createElement('p'), { className: 'hint', textContent: 'Click a handle to select its element; drag the gizmo to move it.' }));
+        box.replaceChildren(...parts);
+        return;
+    }
+    parts.push(Object.assign(document.createElement('p'), { textContent: `${el.kind} ${el.index}` + (el.joint ? ` (joint ${el.joint})` : '') }));
+    const field = (name, value, parse) => {
+        const label = document.createElement('label');
+        label.textContent = name;
+        const input = Object.assign(document.createElement('input'), { type: 'text', value: value ?? '' });
+        input.id = `param-${name}`;
+        input.addEventListener('change', () => {
+            const v = parse(input.value);
+            if (v === undefined) { message(`${name}: not a value`); return; }
+            send({ op: 'set', path: ['skeleton', el.kind, el.index, name], value: v });
+        });
+        label.appendChild(input);
+        parts.push(label);
+    };
+    const nums = (s) => {
+        const xs = s.split(/[ ,]+/).filter(Boolean).map(Number);
+        if (!xs.length) return undefined;
+        if (xs.some((x) => !Number.isFinite(x))) return null; // refused by the server, with its message
+        return xs.length === 1 ? xs[0] : xs;
+    };
+    field('radius', el.radius.join(', '), nums);
+    field('strength', el.strength.join(', '), nums);
+    field('group', el.group, (s) => s.trim() || undefined);
+    const del = Object.assign(document.createElement('button'), { textContent: `Delete ${el.kind}` });
+    del.addEventListener('click', () => { send({ op: 'delete', kind: el.kind, index: el.index }); selected = null; dragging = null; });
+    parts.push(del);
+    box.replaceChildren(...parts);
+}
+
+function drawJoints(joints) {
+    const box = $('joints');
+    if (box.contains(document.activeElement) && document.activeElement.type === 'range') return;
+    const parts = [Object.assign(document.createElement('h2'), { textContent: joints.length ? `Joints (pose ${studio.state.pose})` : 'Joints: none' })];
+    for (const j of joints) {
+        const div = Object.assign(document.createElement('div'), { className: 'joint', id: `joint-${j.name}` });
+        div.appendChild(Object.assign(document.createElement('div'), { textContent: j.name }));
+        const angles = j.axes.map((_, k) => j.angles[k] ?? 0);
+        j.axes.forEach((axis, k) => {
+            const label = document.createElement('label');
+            label.textContent = `${axis} ${angles[k]}°`;
+            const input = Object.assign(document.createElement('input'), { type: 'range', min: -180, max: 180, step: 1, value: angles[k] });
+            input.dataset.joint = j.name;
+            input.dataset.axis = k;
+            let last = 0;
+            const push = (final) => {
+                const now = performance.now();
+                if (!final && now - last < 60) return;
+                last = now;
+                angles[k] = Number(input.value);
+                label.firstChild.textContent = `${axis} ${angles[k]}°`;
+                send({ op: 'angles', joint: j.name, value: angles.length === 1 ? angles[0] : angles.slice() });
+            };
+            input.addEventListener('input', () => push(false));
+            input.addEventListener('change', () => push(true));
+            label.appendChild(input);
+            div.appendChild(label);
+        });
+        parts.push(div);
+    }
+    box.replaceChildren(...parts);
+}
+
+function focusJoint(name) {
+    const div = $(`joint-${name}`);
+    if (div) { div.scrollIntoView({ block: 'nearest' }); div.style.background = '#e4f4e4'; setTimeout(() => { div.style.background = ''; }, 800); }
+}
+
+// --- the bar ----------------------------------------------------------------------------
+$('undo').onclick = () => send({ op: 'undo' });
+$('redo').onclick = () => send({ op: 'redo' });
+$('save').onclick = () => send({ op: 'save' });
+$('method').onchange = (e) => send({ op: 'method', value: e.target.value });
+$('pose').onchange = (e) => send({ op: 'pose', value: e.target.value });
+$('cell').onchange = (e) => send({ op: 'cell', value: Number(e.target.value) });
+$('iso').onchange = (e) => send({ op: 'iso', value: Number(e.target.value) });
+$('add').onchange = (e) => {
+    const kind = e.target.value;
+    e.target.value = '';
+    const d = studio.state.domain;
+    if (!kind || !d) return;
+    const c = d.min.map((lo, k) => +((lo + d.max[k]) / 2).toFixed(4));
+    const r = +(Math.min(...d.max.map((hi, k) => hi - d.min[k])) / 10).toFixed(4);
+    const value = kind === 'point' ? { at: c, radius: r } : { a: c, b: [c[0] + 3 * r, c[1], c[2]], radius: r };
+    send({ op: 'add', kind, value });
+};
+window.addEventListener('keydown', (e) => {
+    if (!(e.ctrlKey || e.metaKey) || e.target.tagName === 'INPUT') return;
+    const k = e.key.toLowerCase();
+    if (k === 'z' && !e.shiftKey) { send({ op: 'undo' }); e.preventDefault(); }
+    else if (k === 'y' || (k === 'z' && e.shiftKey)) { send({ op: 'redo' }); e.preventDefault(); }
+});
+
+function download(name, href) {
+    const a = Object.assign(document.createElement('a'), { href, download: name });
+    document.body.appendChild(a);
+    a.click();
+    a.remove();
+}
+const stem = () => (studio.state?.file ?? 'scene').replace(/\.toml$/, '');
+$('glb').onclick = () => download(`${stem()}.glb`, `/api/mesh/scene.glb?token=${encodeURIComponent(token)}`);
+$('ply').onclick = () => download(`${stem()}.ply`, `/api/mesh/scene.ply?token=${encodeURIComponent(token)}`);
+$('png').onclick = () => download(`${stem()}.png`, renderer.domElement.toDataURL('image/png'));
+
+connect();

@@ -553,6 +553,11 @@ impl State {
             other => return Err(StudioError::Edit(format!("unknown operation '{other}'"))),
         }
         let text = doc.to_string();
+        if text == g.text {
+            // Nothing changed (a slider's `change` after its last `input`): no revision, no
+            // undo step.
+            return Ok(None);
+        }
         let scene = match check(&text, &self.origin_name, g.pose.as_deref()) {
             Ok(s) => Some(s),
             // A document that did not check when opened takes edits that do not fix it yet.
