@@ -70,7 +70,7 @@ function frameDomain(domain) {
     const centre = min.clone().add(max).multiplyScalar(0.5);
     const size = max.clone().sub(min).length();
     orbit.target.copy(centre);
-    camera.position.copy(centre).add(new THREE.Vector3(0, 0, 1.9 * size));
+    camera.position.copy(centre).add(new THREE.Vector3(0, 0, 1.3 * size));
     camera.near = size / 100; camera.far = size * 20;
     camera.updateProjectionMatrix();
     handleScale = size / 150;

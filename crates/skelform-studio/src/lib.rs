@@ -19,7 +19,7 @@
 //! # Protocol
 //! Text frames from the page are JSON edits with a sequence number, e.g.
 //! `{"seq":7,"op":"set","path":["skeleton","segment",3,"radius"],"value":0.2}`; see
-//! `docs/STUDIO.md`. The server answers with a JSON `state` (document revision, skeleton,
+//! `docs/STUDIO.md` in the repository. The server answers with a JSON `state` (document revision, skeleton,
 //! settings) after every accepted change, an `error` for a refused one, and binary mesh
 //! frames ([`mesher::encode`]) that carry the revision they are of.
 #![warn(missing_docs)]

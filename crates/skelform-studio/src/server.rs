@@ -241,6 +241,10 @@ fn token_of<'r>(query: Option<&'r str>, headers: &'r HeaderMap) -> Option<&'r st
 
 /// Every request needs the token, and one with an `Origin` must come from the page's own.
 async fn guard(AxState(s): AxState<Shared>, req: Request, next: Next) -> Response {
+    if req.uri().path() == "/favicon.ico" {
+        // Browsers ask for it unbidden and without the token; there is none.
+        return StatusCode::NO_CONTENT.into_response();
+    }
     let ok = token_of(req.uri().query(), req.headers()).is_some_and(|t| same(t, &s.token));
     if !ok {
         return (StatusCode::FORBIDDEN, "skelform studio: the session token is missing or wrong (open the URL the studio printed)").into_response();
