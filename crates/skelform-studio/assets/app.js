@@ -184,6 +184,8 @@ function onState(m) {
     if (m.error) message(m.error);
     fillSelect($('method'), m.methods, m.method);
     fillSelect($('pose'), m.poses.length ? m.poses : ['rest'], m.pose);
+    fillSelect($('toward'), m.poses.length ? m.poses : ['rest'], m.toward ? m.toward.pose : null);
+    if (!playing && document.activeElement !== $('t')) $('t').value = m.toward ? m.toward.t : 0;
     if (document.activeElement !== $('cell') && m.cell != null) $('cell').value = +m.cell.toPrecision(4);
     if (document.activeElement !== $('iso') && m.iso != null) $('iso').value = m.iso;
     if (m.domain && !framed) { frameDomain(m.domain); framed = true; }
@@ -370,6 +372,28 @@ $('redo').onclick = () => send({ op: 'redo' });
 $('save').onclick = () => send({ op: 'save' });
 $('method').onchange = (e) => send({ op: 'method', value: e.target.value });
 $('pose').onchange = (e) => send({ op: 'pose', value: e.target.value });
+// Playback (DIS §2.8): the skeleton turned step by step from the pose toward another, each
+// step shown as soon as its coarse surface arrives (a step cancels the last one's full run).
+let playing = false;
+$('t').oninput = (e) => send({ op: 'between', kind: $('toward').value, value: Number(e.target.value) });
+$('play').onclick = async () => {
+    if (playing) { playing = false; return; }
+    playing = true;
+    $('play').textContent = 'Stop';
+    const steps = 16;
+    for (let i = 0; i <= steps && playing; i++) {
+        const t = i / steps;
+        $('t').value = t;
+        const revision = studio.revision;
+        send({ op: 'between', kind: $('toward').value, value: t });
+        const start = performance.now();
+        while (playing && studio.frameRevision <= revision && performance.now() - start < 3000) {
+            await new Promise((r) => setTimeout(r, 20));
+        }
+    }
+    playing = false;
+    $('play').textContent = 'Play';
+};
 $('cell').onchange = (e) => send({ op: 'cell', value: Number(e.target.value) });
 $('iso').onchange = (e) => send({ op: 'iso', value: Number(e.target.value) });
 $('add').onchange = (e) => {

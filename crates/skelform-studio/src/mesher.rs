@@ -29,7 +29,7 @@ pub fn mesh_scene(
     control: &Control,
 ) -> Result<Mesh, skelform::Error> {
     let mut overrides = Overrides {
-        pose: pose.filter(|p| *p != "rest").map(str::to_string),
+        pose: pose.map(str::to_string),
         control: control.clone(),
         ..Overrides::default()
     };

@@ -71,6 +71,9 @@ struct Doc {
     revision: u64,
     seq: u64,
     pose: Option<String>,
+    /// Playback: the pose shown is `pose` turned this fraction of the way toward another
+    /// (DIS §2.8), when set.
+    toward: Option<(String, f64)>,
     /// The checked scene of the current document (`None` while the file as opened is
     /// invalid).
     scene: Option<skelform::Scene>,
@@ -146,7 +149,10 @@ impl Studio {
                 redo: Vec::new(),
                 revision: 1,
                 seq: 0,
-                pose: None,
+                // The pose the file builds (its `pose`, or rest), named, so that joint
+                // edits go where the skeleton shown takes its angles from.
+                pose: scene.as_ref().and_then(|s| s.articulation.as_ref()).map(|a| a.pose.clone()),
+                toward: None,
                 scene,
                 error,
                 full: None,
@@ -219,10 +225,7 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 /// mesh on (so that a cell too fine for memory is refused as an edit).
 fn check(text: &str, origin: &str, pose: Option<&str>) -> Result<skelform::Scene, skelform::Error> {
     let scene = skelform::Scene::parse(text, origin)?;
-    let overrides = Overrides {
-        pose: pose.filter(|p| *p != "rest").map(str::to_string),
-        ..Overrides::default()
-    };
+    let overrides = Overrides { pose: pose.map(str::to_string), ..Overrides::default() };
     scene.lattice(&overrides)?;
     Ok(scene)
 }
@@ -383,10 +386,7 @@ impl State {
     /// The page's picture of the document: revision, settings, skeleton, history.
     fn state_message(&self, g: &Doc) -> String {
         let scene = g.scene.as_ref();
-        let shown = scene.and_then(|s| match g.pose.as_deref() {
-            Some(p) => s.posed(p).ok(),
-            None => Some(s.clone()),
-        });
+        let shown = shown_scene(g).ok();
         let skeleton = shown
             .as_ref()
             .map(|s| edit::skeleton_json(&g.doc, s, g.pose.as_deref()))
@@ -402,6 +402,7 @@ impl State {
             "can_redo": !g.redo.is_empty(),
             "error": g.error,
             "pose": g.pose.clone().unwrap_or_else(|| "rest".into()),
+            "toward": g.toward.as_ref().map(|(p, t)| json!({"pose": p, "t": t})),
             "poses": scene.and_then(|s| s.articulation.as_ref()).map(|a| a.poses.clone()).unwrap_or_default(),
             "method": scene.map(|s| s.method.name()),
             "methods": skelform::Method::ALL.iter().map(|(n, _)| *n).collect::<Vec<_>>(),
@@ -422,9 +423,9 @@ impl State {
     fn submit(&self, g: &mut MutexGuard<'_, Doc>) {
         g.control.cancel();
         g.control = Control::default();
-        let Some(scene) = g.scene.clone() else { return };
-        let job =
-            Job { revision: g.revision, scene, pose: g.pose.clone(), control: g.control.clone() };
+        // The scene in the pose shown (or between two poses), so the mesher needs no pose.
+        let Ok(scene) = shown_scene(g) else { return };
+        let job = Job { revision: g.revision, scene, pose: None, control: g.control.clone() };
         if let Some(tx) = lock(&self.jobs).as_ref() {
             let _ = tx.send(job);
         }
@@ -550,6 +551,16 @@ impl State {
                 edit::set(&mut doc, &path, edit::to_toml(&v)?)?;
             }
             "pose" => return self.set_pose(&mut g, e.value.as_ref().and_then(Json::as_str)),
+            "between" => {
+                let to = e.kind.as_deref().ok_or_else(|| {
+                    StudioError::Edit("'between' needs the pose to turn toward ('kind')".into())
+                })?;
+                let t = value()?.as_f64().filter(|t| (0.0..=1.0).contains(t));
+                let t = t.ok_or_else(|| {
+                    StudioError::Edit("'between' needs a value from 0 to 1".into())
+                })?;
+                return self.set_between(&mut g, to, t);
+            }
             "undo" | "redo" => return self.history(&mut g, e.op == "undo"),
             "save" => return self.save(&mut g),
             "export" => return self.export(&g, e.format.as_deref(), e.file.as_deref()),
@@ -598,11 +609,30 @@ impl State {
         g: &mut MutexGuard<'_, Doc>,
         pose: Option<&str>,
     ) -> Result<Option<String>, StudioError> {
-        let pose = pose.filter(|p| *p != "rest").map(str::to_string);
+        let pose = pose.map(str::to_string);
         if let (Some(scene), Some(p)) = (&g.scene, &pose) {
             scene.posed(p).map_err(|e| StudioError::Edit(e.to_string()))?;
         }
         g.pose = pose;
+        g.toward = None;
+        self.changed(g);
+        Ok(None)
+    }
+
+    /// Shows the pose `t` of the way from the current one toward `to` (playback).
+    fn set_between(
+        &self,
+        g: &mut MutexGuard<'_, Doc>,
+        to: &str,
+        t: f64,
+    ) -> Result<Option<String>, StudioError> {
+        let scene = g
+            .scene
+            .as_ref()
+            .ok_or_else(|| StudioError::Edit("the scene has an error; fix it first".into()))?;
+        let from = g.pose.clone().unwrap_or_else(|| "rest".into());
+        scene.posed_between(&from, to, t).map_err(|e| StudioError::Edit(e.to_string()))?;
+        g.toward = Some((to.to_string(), t));
         self.changed(g);
         Ok(None)
     }
@@ -686,10 +716,12 @@ fn shown_scene(g: &Doc) -> Result<skelform::Scene, StudioError> {
         .scene
         .as_ref()
         .ok_or_else(|| StudioError::Edit("the scene has an error; fix it first".into()))?;
-    match g.pose.as_deref() {
-        Some(p) => scene.posed(p).map_err(|e| StudioError::Edit(e.to_string())),
-        None => Ok(scene.clone()),
-    }
+    let shown = match (g.pose.as_deref(), &g.toward) {
+        (from, Some((to, t))) => scene.posed_between(from.unwrap_or("rest"), to, *t),
+        (Some(p), None) => scene.posed(p),
+        (None, None) => Ok(scene.clone()),
+    };
+    shown.map_err(|e| StudioError::Edit(e.to_string()))
 }
 
 fn error_reply(seq: u64, message: &str) -> String {

@@ -342,3 +342,64 @@ async fn exports_go_to_the_scenes_folder_only() {
     let report = skelform::mesh::check::check(&mesh);
     assert!(report.is_closed_manifold(), "{report:?}");
 }
+
+#[tokio::test]
+async fn joints_poses_and_playback_between_two_poses() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("finger.toml");
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../examples/skeleton/hand-finger.toml"
+    ))
+    .unwrap();
+    std::fs::write(&file, text.replace("cell = 0.01", "cell = 0.05")).unwrap();
+    let studio = Studio::bind(&file, Settings::default()).await.unwrap();
+    let r = Running { addr: studio.addr(), token: studio.token().to_string(), file, _dir: dir };
+    tokio::spawn(studio.serve());
+    let mut ws = connect(&r).await;
+    let first = next_state(&mut ws).await;
+    // The file builds the curled pose; a joint edit goes into that pose's table.
+    assert_eq!(first["pose"], "curled");
+    assert_eq!(first["skeleton"]["joints"][1]["angles"], json!([80.0]));
+    send(&mut ws, json!({"seq": 1, "op": "angles", "joint": "knuckle2", "value": [70]})).await;
+    let bent = next_state(&mut ws).await;
+    assert_eq!(bent["skeleton"]["joints"][1]["angles"], json!([70.0]), "{bent}");
+    let tip = |s: &Value| s["skeleton"]["joints"][2]["at"].clone();
+    assert_ne!(tip(&bent), tip(&first), "the third knuckle moved");
+
+    send(&mut ws, json!({"seq": 2, "op": "pose", "value": "straight"})).await;
+    let straight = next_state(&mut ws).await;
+    assert_eq!(straight["pose"], "straight");
+    send(&mut ws, json!({"seq": 3, "op": "between", "kind": "curled", "value": 0.5})).await;
+    let half = next_state(&mut ws).await;
+    assert_eq!(half["toward"], json!({"pose": "curled", "t": 0.5}), "{half}");
+    let z = |s: &Value| tip(s)[2].as_f64().unwrap();
+    // The knuckle goes down (−z) as the finger curls: halfway lies between the two.
+    assert!(
+        z(&straight) > z(&half) && z(&half) > z(&bent),
+        "{} {} {}",
+        z(&straight),
+        z(&half),
+        z(&bent)
+    );
+    let rev = half["revision"].as_u64().unwrap();
+    let (_, frames) = until_full(&mut ws, rev).await;
+    assert!(frames.last().unwrap().2 > 100);
+
+    for bad in [
+        json!({"seq": 4, "op": "between", "kind": "curled", "value": 2}),
+        json!({"seq": 5, "op": "between", "kind": "fist", "value": 0.5}),
+    ] {
+        send(&mut ws, bad.clone()).await;
+        assert_eq!(next_state(&mut ws).await["type"], "error", "{bad} was accepted");
+    }
+    // The saved file has the edited pose, with the pose table's comment.
+    send(&mut ws, json!({"seq": 6, "op": "save"})).await;
+    next_state(&mut ws).await;
+    tokio::time::sleep(Duration::from_millis(200)).await;
+    let saved = std::fs::read_to_string(&r.file).unwrap();
+    assert!(saved.contains(
+        "[skeleton.poses.curled]          # joints not listed keep their default angles"
+    ));
+    assert!(saved.contains("knuckle2 = 70"), "{saved}");
+}
