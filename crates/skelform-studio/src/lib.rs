@@ -27,6 +27,7 @@
 pub mod edit;
 pub mod mesher;
 mod server;
+pub mod slice;
 
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::path::{Path, PathBuf};

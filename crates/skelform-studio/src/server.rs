@@ -21,6 +21,7 @@ use toml_edit::DocumentMut;
 
 use crate::edit::{self, Step};
 use crate::mesher::{self, Job, Level, Outcome};
+use crate::slice::{self, SliceSpec};
 use crate::{Place, Settings, Shared, StudioError, write_atomic};
 
 const INDEX: &str = include_str!("../assets/index.html");
@@ -74,6 +75,8 @@ struct Doc {
     /// Playback: the pose shown is `pose` turned this fraction of the way toward another
     /// (DIS §2.8), when set.
     toward: Option<(String, f64)>,
+    /// The slice plane the page shows, when it shows one.
+    slice: Option<SliceSpec>,
     /// The checked scene of the current document (`None` while the file as opened is
     /// invalid).
     scene: Option<skelform::Scene>,
@@ -153,6 +156,7 @@ impl Studio {
                 // edits go where the skeleton shown takes its angles from.
                 pose: scene.as_ref().and_then(|s| s.articulation.as_ref()).map(|a| a.pose.clone()),
                 toward: None,
+                slice: None,
                 scene,
                 error,
                 full: None,
@@ -561,6 +565,20 @@ impl State {
                 })?;
                 return self.set_between(&mut g, to, t);
             }
+            "slice" => {
+                let spec = match e.value.as_ref() {
+                    None | Some(Json::Null) => None,
+                    Some(v) => {
+                        let spec: SliceSpec = serde_json::from_value(v.clone())
+                            .map_err(|err| StudioError::Edit(format!("not a slice: {err}")))?;
+                        spec.check()?;
+                        Some(spec)
+                    }
+                };
+                g.slice = spec;
+                self.send_slice(&g);
+                return Ok(None);
+            }
             "undo" | "redo" => return self.history(&mut g, e.op == "undo"),
             "save" => return self.save(&mut g),
             "export" => return self.export(&g, e.format.as_deref(), e.file.as_deref()),
@@ -602,6 +620,14 @@ impl State {
         g.revision += 1;
         self.broadcast(Out::Text(self.state_message(g)));
         self.submit(g);
+        self.send_slice(g);
+    }
+
+    /// The field on the slice plane of the scene shown, when the page shows one.
+    fn send_slice(&self, g: &Doc) {
+        if let (Some(spec), Ok(scene)) = (g.slice, shown_scene(g)) {
+            self.broadcast(Out::Binary(Bytes::from(slice::frame(&scene, &spec, g.revision))));
+        }
     }
 
     fn set_pose(

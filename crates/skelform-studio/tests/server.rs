@@ -403,3 +403,56 @@ async fn joints_poses_and_playback_between_two_poses() {
     ));
     assert!(saved.contains("knuckle2 = 70"), "{saved}");
 }
+
+#[tokio::test]
+async fn a_slice_plane_carries_the_field_negative_inside_and_follows_edits() {
+    let r = start(24).await;
+    let mut ws = connect(&r).await;
+    next_state(&mut ws).await;
+    // The plane z = 0 (halfway through the domain's z), 61 samples along x.
+    send(&mut ws, json!({"seq": 1, "op": "slice", "value": {"axis": 2, "at": 0.5, "size": 61}}))
+        .await;
+    let (w, h, values) = slice_frame(&mut ws).await;
+    // x spans 1.5 and y 1.0: 61 × 41 samples.
+    assert_eq!((w, h), (61, 41));
+    let at = |x: f64, y: f64| {
+        let i = ((x + 0.75) / 1.5 * (w - 1) as f64).round() as usize;
+        let j = ((y + 0.25) / 1.0 * (h - 1) as f64).round() as usize;
+        values[j * w + i]
+    };
+    assert!(at(0.0, 0.3) < 0.0, "inside the stem: {}", at(0.0, 0.3));
+    assert!(at(0.6, 0.6) > 0.0, "outside: {}", at(0.6, 0.6));
+    // An edit that lengthens the stem sends the plane again, with the new field.
+    assert!(at(0.0, 0.68) > 0.0);
+    send(&mut ws, json!({"seq": 2, "op": "set", "path": ["skeleton", "segment", 1, "b"], "value": [0, 0.7, 0]})).await;
+    let (_, _, values) = slice_frame(&mut ws).await;
+    let j = ((0.68 + 0.25) / 1.0 * (h - 1) as f64).round() as usize;
+    let i = ((0.0 + 0.75) / 1.5 * (w - 1) as f64).round() as usize;
+    assert!(values[j * w + i] < 0.0, "the longer stem reaches y = 0.68");
+    for bad in [
+        json!({"axis": 3, "at": 0.5}),
+        json!({"axis": 0, "at": 1.5}),
+        json!({"axis": 0, "at": 0.5, "size": 100000}),
+    ] {
+        send(&mut ws, json!({"seq": 3, "op": "slice", "value": bad})).await;
+        assert_eq!(next_state(&mut ws).await["type"], "error", "{bad} was accepted");
+    }
+}
+
+/// The next slice frame's columns, rows and values.
+async fn slice_frame(ws: &mut Ws) -> (usize, usize, Vec<f32>) {
+    loop {
+        if let Message::Binary(b) = next(ws).await
+            && &b[..4] == b"SKSL"
+        {
+            let u32_at = |i: usize| u32::from_le_bytes(b[i..i + 4].try_into().unwrap()) as usize;
+            let (w, h) = (u32_at(20), u32_at(24));
+            let values: Vec<f32> = b[56..]
+                .chunks_exact(4)
+                .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
+                .collect();
+            assert_eq!(values.len(), w * h);
+            return (w, h, values);
+        }
+    }
+}
