@@ -118,6 +118,21 @@ test('the hand in the studio: drag a handle, bend a joint, undo, save', async ()
     assert.ok(!saved.includes('vertices = [[-0.38, 0, 0], [-0.17, 0.63, 0], [-0.5, 0.6, 0]]'), 'the dragged vertex moved');
     assert.ok(saved.includes('angles = 30\n'), 'the bend was undone');
 
+    // The slice plane through the palm (z = 0, 0.8 of the way up the domain's z): the field
+    // as a colour map with the iso contour.
+    await page.check('#slice');
+    await page.evaluate(() => {
+        const s = document.getElementById('slice-at');
+        s.value = 0.8;
+        s.dispatchEvent(new Event('input', { bubbles: true }));
+    });
+    await page.waitForFunction(() => window.studio.slice && Math.abs(window.studio.slice.at) < 0.01);
+    const slice = await page.evaluate(() => window.studio.slice);
+    assert.equal(slice.axis, 2);
+    assert.ok(slice.w > 100 && slice.h > 100, `slice ${slice.w}×${slice.h}`);
+    await page.waitForTimeout(200);
+    writeFileSync(join(outDir, 'studio-slice.png'), await page.screenshot());
+
     const timings = await page.evaluate(() => window.studio.timings);
     const firsts = timings.filter((t) => t.level === 0).map((t) => t.ms);
     const fulls = timings.filter((t) => t.level === 1).map((t) => t.ms);

@@ -105,6 +105,7 @@ function connect() {
     socket.onclose = () => { $('status').textContent = 'disconnected: restart the studio and reload'; };
     socket.onmessage = (e) => {
         if (typeof e.data === 'string') onText(JSON.parse(e.data));
+        else if (new TextDecoder().decode(new Uint8Array(e.data, 0, 4)) === 'SKSL') onSlice(e.data);
         else onFrame(e.data);
     };
 }
@@ -168,6 +169,59 @@ function onFrame(buffer) {
     }
     studio.ready = true;
 }
+
+// --- the slice plane: the field as a colour map with the iso contour (ch. 3) -------------
+let slicePlane = null;
+function dropSlice() {
+    if (!slicePlane) return;
+    scene.remove(slicePlane);
+    slicePlane.geometry.dispose();
+    slicePlane.material.map.dispose();
+    slicePlane.material.dispose();
+    slicePlane = null;
+}
+function onSlice(buffer) {
+    if (!$('slice').checked) return;
+    const dv = new DataView(buffer);
+    const axis = dv.getUint32(16, true), w = dv.getUint32(20, true), h = dv.getUint32(24, true);
+    const f = (k) => dv.getFloat32(32 + 4 * k, true);
+    const [at, u0, u1, v0, v1] = [f(0), f(1), f(2), f(3), f(4)];
+    const values = new Float32Array(buffer, 56, w * h);
+    let scale = 0;
+    for (const v of values) if (Number.isFinite(v)) scale = Math.max(scale, Math.abs(v));
+    scale = scale || 1;
+    const rgba = new Uint8Array(w * h * 4);
+    for (let j = 0; j < h; j++) {
+        for (let i = 0; i < w; i++) {
+            const k = j * w + i, v = values[k];
+            const t = Math.sqrt(Math.min(1, Math.abs(v) / scale));
+            let c = v < 0 ? [255 * (1 - t) + 40 * t, 255 * (1 - t) + 90 * t, 255] : [255, 255 * (1 - t) + 70 * t, 255 * (1 - t) + 40 * t];
+            const right = i + 1 < w ? values[k + 1] : v, up = j + 1 < h ? values[k + w] : v;
+            if ((v < 0) !== (right < 0) || (v < 0) !== (up < 0)) c = [0, 0, 0];
+            if (!Number.isFinite(v)) c = [128, 128, 128];
+            rgba.set([c[0], c[1], c[2], 255], k * 4);
+        }
+    }
+    const texture = new THREE.DataTexture(rgba, w, h, THREE.RGBAFormat);
+    texture.needsUpdate = true;
+    const [ua, va] = axis === 0 ? [1, 2] : axis === 1 ? [0, 2] : [0, 1];
+    const corner = (u, v) => { const p = [0, 0, 0]; p[axis] = at; p[ua] = u; p[va] = v; return p; };
+    const geometry = new THREE.BufferGeometry();
+    geometry.setAttribute('position', new THREE.Float32BufferAttribute([...corner(u0, v0), ...corner(u1, v0), ...corner(u1, v1), ...corner(u0, v1)], 3));
+    geometry.setAttribute('uv', new THREE.Float32BufferAttribute([0, 0, 1, 0, 1, 1, 0, 1], 2));
+    geometry.setIndex([0, 1, 2, 0, 2, 3]);
+    dropSlice();
+    slicePlane = new THREE.Mesh(geometry, new THREE.MeshBasicMaterial({ map: texture, side: THREE.DoubleSide, transparent: true, opacity: 0.85 }));
+    scene.add(slicePlane);
+    studio.slice = { axis, w, h, at };
+}
+function sendSlice() {
+    if (!$('slice').checked) { dropSlice(); send({ op: 'slice', value: null }); studio.slice = null; return; }
+    send({ op: 'slice', value: { axis: Number($('slice-axis').value), at: Number($('slice-at').value) } });
+}
+$('slice').onchange = sendSlice;
+$('slice-axis').onchange = sendSlice;
+$('slice-at').oninput = sendSlice;
 
 // --- the skeleton -----------------------------------------------------------------------
 let selected = null; // {kind, index}
