@@ -64,6 +64,24 @@ impl Default for Settings {
     }
 }
 
+impl Settings {
+    /// Refuses settings that cannot work: a coarse factor below 1 or not finite, a message
+    /// limit under 64 KiB (an edit of a large polygon would not fit), no undo.
+    pub fn check(&self) -> Result<(), StudioError> {
+        let bad = |message: String| Err(StudioError::Edit(message));
+        if !(self.coarse_factor.is_finite() && self.coarse_factor >= 1.0) {
+            return bad(format!("coarse_factor {} (at least 1)", self.coarse_factor));
+        }
+        if self.max_message < 1 << 16 {
+            return bad(format!("max_message {} (at least 65536 bytes)", self.max_message));
+        }
+        if self.undo_limit == 0 {
+            return bad("undo_limit 0 (at least 1)".into());
+        }
+        Ok(())
+    }
+}
+
 /// Why the studio could not start, or an edit was refused.
 #[derive(Debug, thiserror::Error)]
 pub enum StudioError {
@@ -169,3 +187,25 @@ pub fn run(
 }
 
 pub(crate) type Shared = Arc<server::State>;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn settings_that_cannot_work_are_refused_and_tokens_differ() {
+        assert!(Settings::default().check().is_ok());
+        for s in [
+            Settings { coarse_factor: 0.5, ..Settings::default() },
+            Settings { coarse_factor: f64::NAN, ..Settings::default() },
+            Settings { max_message: 10, ..Settings::default() },
+            Settings { undo_limit: 0, ..Settings::default() },
+        ] {
+            assert!(s.check().is_err(), "{s:?}");
+        }
+        let (a, b) = (new_token().unwrap(), new_token().unwrap());
+        assert_eq!(a.len(), 32);
+        assert!(a.bytes().all(|c| c.is_ascii_hexdigit()));
+        assert_ne!(a, b);
+    }
+}

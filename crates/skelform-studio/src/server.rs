@@ -113,6 +113,7 @@ impl Studio {
     /// Opens `scene` and listens. A file that is not TOML is an error; a scene that does not
     /// check opens with its error shown (edits that fix it are accepted).
     pub async fn bind(scene: &std::path::Path, settings: Settings) -> Result<Studio, StudioError> {
+        settings.check()?;
         let place = Place::new(scene)?;
         let shown = scene.display().to_string();
         let text = std::fs::read_to_string(&place.file)
