@@ -456,3 +456,27 @@ async fn slice_frame(ws: &mut Ws) -> (usize, usize, Vec<f32>) {
         }
     }
 }
+
+#[tokio::test]
+async fn a_scene_with_an_error_opens_with_it_shown_and_takes_the_edit_that_fixes_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("tee.toml");
+    let text = SCENE.replace("RES", "24").replace("radius = 0.1", "radius = -0.1");
+    std::fs::write(&file, &text).unwrap();
+    let studio = Studio::bind(&file, Settings::default()).await.unwrap();
+    let r = Running { addr: studio.addr(), token: studio.token().to_string(), file, _dir: dir };
+    tokio::spawn(studio.serve());
+    let mut ws = connect(&r).await;
+    let first = next_state(&mut ws).await;
+    assert!(first["error"].as_str().unwrap().contains("radius"), "{first}");
+    // An edit that leaves it invalid is taken (there is no good state to keep) and says why.
+    send(&mut ws, json!({"seq": 1, "op": "set", "path": ["skeleton", "radius"], "value": -0.2}))
+        .await;
+    assert!(next_state(&mut ws).await["error"].is_string());
+    send(&mut ws, json!({"seq": 2, "op": "set", "path": ["skeleton", "radius"], "value": 0.1}))
+        .await;
+    let fixed = next_state(&mut ws).await;
+    assert!(fixed["error"].is_null(), "{fixed}");
+    let (_, frames) = until_full(&mut ws, fixed["revision"].as_u64().unwrap()).await;
+    assert!(frames.last().unwrap().2 > 100);
+}
