@@ -246,6 +246,11 @@ function onState(m) {
     if (!gizmo.dragging) drawSkeleton(m.skeleton);
     drawPanel(m.skeleton);
     drawJoints(m.skeleton.joints);
+    for (const k of ['blend', 'kernel', 'radius']) {
+        const input = $(`skeleton-${k}`);
+        const v = m.skeleton.settings?.[k];
+        if (document.activeElement !== input) input.value = v == null ? '' : v.replace(/^"|"$/g, '');
+    }
 }
 
 function fillSelect(select, names, current) {
@@ -418,6 +423,16 @@ function drawJoints(joints) {
 function focusJoint(name) {
     const div = $(`joint-${name}`);
     if (div) { div.scrollIntoView({ block: 'nearest' }); div.style.background = '#e4f4e4'; setTimeout(() => { div.style.background = ''; }, 800); }
+}
+
+// The skeleton's own settings: a name (blend, kernel) or a number (radius).
+for (const k of ['blend', 'kernel', 'radius']) {
+    $(`skeleton-${k}`).addEventListener('change', (e) => {
+        const text = e.target.value.trim();
+        if (!text) return;
+        const value = k === 'radius' ? Number(text) : text;
+        send({ op: 'set', path: ['skeleton', k], value: Number.isFinite(value) || k !== 'radius' ? value : null });
+    });
 }
 
 // --- the bar ----------------------------------------------------------------------------

@@ -382,7 +382,19 @@ pub fn skeleton_json(doc: &DocumentMut, scene: &skelform::Scene, pose: Option<&s
             }));
         }
     }
-    json!({"elements": elements, "joints": joints})
+    // The skeleton's own settings, which every element shares (a scene file has no
+    // per-element kernel or blend).
+    let setting = |k: &str| {
+        get(doc, &["skeleton", k])
+            .and_then(Item::as_value)
+            .map(|v| v.to_string().trim().to_string())
+    };
+    let settings = json!({
+        "blend": setting("blend"),
+        "kernel": setting("kernel"),
+        "radius": setting("radius"),
+    });
+    json!({"elements": elements, "joints": joints, "settings": settings})
 }
 
 /// Where a joint's angles live for the pose shown: its own `angles` in the rest pose, the

@@ -185,6 +185,7 @@ async fn invalid_edits_are_refused_with_a_message_and_change_nothing() {
     let mut ws = connect(&r).await;
     let first = next_state(&mut ws).await;
     let rev = first["revision"].as_u64().unwrap();
+    assert_eq!(first["skeleton"]["settings"]["radius"], "0.1");
     let refused = [
         json!({"seq": 1, "op": "set", "path": ["skeleton", "segment", 0, "radius"], "value": -0.2}),
         json!({"seq": 2, "op": "set", "path": ["skeleton", "segment", 0, "radius"], "value": null}),
@@ -195,6 +196,7 @@ async fn invalid_edits_are_refused_with_a_message_and_change_nothing() {
         json!({"seq": 7, "op": "cell", "value": 1e-7}),
         json!({"seq": 8, "op": "pose", "value": "grip"}),
         json!({"seq": 9, "op": "undo"}),
+        json!({"seq": 10, "op": "set", "path": ["skeleton", "kernel"], "value": "nonsense"}),
     ];
     for (i, edit) in refused.iter().enumerate() {
         send(&mut ws, edit.clone()).await;
@@ -208,7 +210,7 @@ async fn invalid_edits_are_refused_with_a_message_and_change_nothing() {
         next_state(&mut ws).await
     };
     assert!(negative["message"].as_str().unwrap().contains("radius"), "{negative}");
-    send(&mut ws, json!({"seq": 10, "op": "state"})).await;
+    send(&mut ws, json!({"seq": 11, "op": "state"})).await;
     let after = next_state(&mut ws).await;
     assert_eq!(after["revision"].as_u64().unwrap(), rev, "nothing changed");
     assert_eq!(after["can_undo"], false);
