@@ -139,6 +139,9 @@ test('the hand in the studio: drag a handle, bend a joint, undo, save', async ()
     const median = (xs) => [...xs].sort((a, b) => a - b)[Math.floor(xs.length / 2)];
     console.log(`studio, hand: edit → first surface median ${median(firsts)?.toFixed(0)} ms (${firsts.length} edits), ` +
         `edit → full surface median ${median(fulls)?.toFixed(0)} ms (${fulls.length} edits)`);
+    const meshed = await page.evaluate(() => window.studio.meshed);
+    const server = (level) => median(meshed.filter((m) => m.level === level).map((m) => m.ms))?.toFixed(0);
+    console.log(`studio, hand: the server's meshing alone, median coarse ${server(0)} ms, full ${server(1)} ms`);
     const seen = [...errors];
     const shown = await page.evaluate(() => window.studio.errors);
     await page.close();

@@ -11,7 +11,7 @@ const $ = (id) => document.getElementById(id);
 // What tests (and curious people, from the console) can read.
 const studio = (window.studio = {
     revision: 0, frameRevision: 0, level: -1, vertices: 0, triangles: 0,
-    timings: [], errors: [], state: null, handles: [], ready: false,
+    timings: [], meshed: [], errors: [], state: null, handles: [], ready: false,
 });
 
 // --- three.js -------------------------------------------------------------------------
@@ -116,6 +116,7 @@ function onText(m) {
     else if (m.type === 'saved') message(`saved ${m.file}`, true);
     else if (m.type === 'exported') message(`wrote ${m.file}`, true);
     else if (m.type === 'meshed') {
+        studio.meshed.push({ revision: m.revision, level: m.level, ms: m.ms });
         $('status').textContent = `revision ${m.revision} ${m.level ? 'full' : 'coarse'}: ` +
             `${m.vertices} vertices, ${m.triangles} triangles, meshed in ${m.ms.toFixed(0)} ms`;
     }
