@@ -359,7 +359,21 @@ async fn session(s: Shared, mut socket: WebSocket) {
                 let msg = match out {
                     Ok(Out::Text(t)) => Message::Text(t.into()),
                     Ok(Out::Binary(b)) => Message::Binary(b),
-                    Err(broadcast::error::RecvError::Lagged(_)) => continue,
+                    Err(broadcast::error::RecvError::Lagged(_)) => {
+                        // A page too slow for the stream missed messages: it gets the
+                        // current state and surface, which is all it needs.
+                        let (state, frame) = {
+                            let g = lock(&s.doc);
+                            (s.state_message(&g), g.frame.clone())
+                        };
+                        if socket.send(Message::Text(state.into())).await.is_err() {
+                            break;
+                        }
+                        match frame {
+                            Some(f) => Message::Binary(f),
+                            None => continue,
+                        }
+                    }
                     Err(broadcast::error::RecvError::Closed) => break,
                 };
                 if socket.send(msg).await.is_err() {
