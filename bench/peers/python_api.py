@@ -65,6 +65,7 @@ def main():
              "(above 1: skelform is faster).", "",
              "| field | samples | tool | ms | ratio | triangles |", "|---|---|---|---|---|---|"]
     started = time.time()
+    load_before = os.getloadavg()
     for field in a.fields.split(","):
         for n in map(int, a.sizes.split(",")):
             vol = np.ascontiguousarray(numpy_volume(field, n))
@@ -82,7 +83,11 @@ def main():
                 ratio = "" if name == "skelform, 1 thread" else f"{med / base:.2f}"
                 lines.append(f"| {field} | {n}³ | {name} | {med * 1000:.1f} | {ratio} | {faces[name]:,} |")
                 print(lines[-1], flush=True)
-    lines += ["", f"Total benchmark time: {time.time() - started:.0f} s."]
+    load_after = os.getloadavg()
+    # The machine's load, which on a shared machine moves every time here by tens of percent.
+    load = lambda l: "/".join(f"{x:.1f}" for x in l)
+    lines += ["", f"Total benchmark time: {time.time() - started:.0f} s. Load average (1/5/15 min) "
+              f"before: {load(load_before)}, after: {load(load_after)} on {os.cpu_count()} cores."]
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text("\n".join(lines) + "\n")
     print("\n".join(lines))

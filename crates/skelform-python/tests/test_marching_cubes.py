@@ -180,3 +180,44 @@ def test_cancelled_by_the_progress_callback():
     with pytest.raises(skelform.Cancelled):
         skelform.marching_cubes(torus(160), 0.0, progress=progress)
     assert seen and isinstance(seen[0][0], str)
+
+
+def reference_normals(vol, level, verts):
+    """The normals and values the conventions promise, computed in NumPy: the gradient of
+    the samples (each ``float32(x - level)``) by central differences inside and one-sided
+    ones at the border, per axis, interpolated linearly along each vertex's lattice edge."""
+    s = (np.asarray(vol, np.float64) - level).astype(np.float32).astype(np.float64)
+    nodes = np.stack(np.gradient(s), axis=-1)
+    p = verts.astype(np.float64)
+    top = np.array(vol.shape) - 2
+    base = np.clip(np.floor(p), 0, top).astype(np.int64)
+    t = np.clip(p - base, 0.0, 1.0)
+    at_end = t == 1.0
+    base[at_end] += 1
+    t[at_end] = 0.0
+    assert np.all((t > 0).sum(1) <= 1), "a vertex off the lattice's edges"
+    axis = np.argmax(t, axis=1)
+    tip = base.copy()
+    tip[np.arange(len(p)), axis] += (t.max(1) > 0)
+    w = t.max(1)[:, None]
+    g = (1 - w) * nodes[tuple(base.T)] + w * nodes[tuple(tip.T)]
+    length = np.sqrt((g * g).sum(1))[:, None]
+    return (-g / length).astype(np.float32), np.abs(g).sum(1).astype(np.float32)
+
+
+@pytest.mark.parametrize("order", ["C", "F"])
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_normals_and_values_are_the_sample_gradient(order, dtype):
+    # A sphere the volume's faces cut, with noise: vertices inside the lattice and on its
+    # border, whose normals come from different code.
+    rng = np.random.default_rng(5)
+    vol = sphere(30, (12.4, 15.2, 17.9), 14.0) + 0.3 * rng.standard_normal((30, 30, 30))
+    vol = np.asarray(vol.astype(dtype), order=order)
+    level = 0.25
+    for threads in (1, 2):
+        v, f, n, values = skelform.marching_cubes(vol, level, threads=threads)
+        border = np.any((v < 1) | (v > np.array(vol.shape) - 2), axis=1)
+        assert border.sum() > 100 and (~border).sum() > 1000
+        normals, sizes = reference_normals(vol, level, v)
+        np.testing.assert_allclose(n, normals, rtol=1e-6, atol=1e-7)
+        np.testing.assert_allclose(values, sizes, rtol=1e-6, atol=1e-7)

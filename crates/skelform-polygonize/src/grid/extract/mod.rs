@@ -98,7 +98,11 @@ impl GridVertex {
     pub fn position(&self, grid: &Grid) -> glam::DVec3 {
         let p0 = grid.point(self.base[0] as usize, self.base[1] as usize, self.base[2] as usize);
         let d = match self.place {
-            Place::Edge { dir, t } => dir_vector(dir).map(|x| x as f64 * t),
+            Place::Edge { dir, t } => {
+                // Spelled out: made for every vertex, and an array `map` can stay a call.
+                let d = dir_vector(dir);
+                [d[0] as f64 * t, d[1] as f64 * t, d[2] as f64 * t]
+            }
             Place::Cell { offset } => offset,
         };
         p0 + glam::DVec3::from_array(d) * grid.cell
@@ -161,6 +165,15 @@ impl<L: Level> Near<'_, L> {
     /// Samples along x, y, z of the whole lattice.
     pub fn dims(&self) -> [usize; 3] {
         self.dims
+    }
+
+    /// The whole lattice's raw values (`i + nx·(j + ny·k)`, read through the level) and
+    /// the level, when `near` holds every layer (an extraction over a held volume, not a
+    /// streamed slab): a record that reads many samples around its vertex can then index
+    /// them itself, without [`Near::sample`]'s clamp of `k` on every read.
+    #[inline]
+    pub fn whole(&self) -> Option<(&[f32], L)> {
+        (self.first == 0 && self.layers == self.dims[2]).then_some((self.values, self.level))
     }
 
     /// Asks the CPU to bring sample layer `k` into its cache, if it is there to read.
@@ -441,7 +454,9 @@ fn extract_slab<V: SlabVertex, L: Level>(
         };
         for_each_mixed_cube(below, above, nx, ny, fetch, |i, j, case| {
             let base = nx * j + layer * (k - z0) + i;
-            let v: [f32; 8] = offsets.map(|o| level.sample(vals[base + o]));
+            // Spelled out: an array `map` stays a call here, in the loop over every cube.
+            let at = |c: usize| level.sample(vals[base + offsets[c]]);
+            let v: [f32; 8] = [at(0), at(1), at(2), at(3), at(4), at(5), at(6), at(7)];
             sink.at = [i, j, k];
             let outcome = polygonize_case(case, &v, &mut sink);
             ambiguous_faces += outcome.ambiguous_faces as u64;

@@ -94,13 +94,13 @@ impl LayerNumbering {
             let row = j * self.words..(j + 1) * self.words;
             for_each_bit(&self.x[row.clone()], |i| {
                 let at = i + nx * j;
-                let ends = [vals[at], vals[at + 1]].map(|v| near.level.sample(v));
+                let ends = [near.level.sample(vals[at]), near.level.sample(vals[at + 1])];
                 store.push_vertex(edge_record(grid, [i, j, k], 0, ends, near));
             });
             if j + 1 < ny {
                 for_each_bit(&self.y[row], |i| {
                     let at = i + nx * j;
-                    let ends = [vals[at], vals[at + nx]].map(|v| near.level.sample(v));
+                    let ends = [near.level.sample(vals[at]), near.level.sample(vals[at + nx])];
                     store.push_vertex(edge_record(grid, [i, j, k], 1, ends, near));
                 });
             }
@@ -157,7 +157,7 @@ impl ZNumbering {
         for (j, row) in self.edges.chunks(self.words).enumerate() {
             for_each_bit(row, |i| {
                 let at = i + nx * j;
-                let ends = [lower[at], upper[at]].map(|v| near.level.sample(v));
+                let ends = [near.level.sample(lower[at]), near.level.sample(upper[at])];
                 store.push_vertex(edge_record(grid, [i, j, k], 2, ends, near));
             });
         }
@@ -201,7 +201,7 @@ fn edge_record<V: SlabVertex, L: Level>(
     near: &Near<'_, L>,
 ) -> V {
     let v = GridVertex {
-        base: base.map(|x| x as u32),
+        base: [base[0] as u32, base[1] as u32, base[2] as u32],
         place: Place::Edge { dir: 1 << axis, t: crossing(ends[0], ends[1]) },
     };
     V::make(grid, v, ends, near)
