@@ -366,12 +366,19 @@ impl<'a> VolumeView<'a> {
 fn store_samples(values: &[f64], out: &mut [MaybeUninit<f32>]) -> u64 {
     let mut bad = 0;
     for (o, &v) in out.iter_mut().zip(values) {
-        let nan = v.is_nan();
+        let (sample, nan) = to_sample(v);
         bad += u64::from(nan);
-        let clamped = v.clamp(-f32::MAX as f64, f32::MAX as f64) as f32;
-        o.write(if nan { f32::MAX } else { clamped });
+        o.write(sample);
     }
     bad
+}
+
+/// One field value as a sample (see [`store_samples`]), and whether it was NaN.
+#[inline(always)]
+fn to_sample(v: f64) -> (f32, bool) {
+    let nan = v.is_nan();
+    let clamped = v.clamp(-f32::MAX as f64, f32::MAX as f64) as f32;
+    (if nan { f32::MAX } else { clamped }, nan)
 }
 
 /// Samples a field on the layers of one lattice, in any order and from any thread, exactly
@@ -435,6 +442,50 @@ impl<'a> LayerSampling<'a> {
             }
         }
     }
+}
+
+/// Samples `field` again at the lattice points of `volume` with indices in `lo..hi` (per
+/// axis, `hi` exclusive and at most the grid's dims), writing them in place: the values
+/// [`sample`] would give there, bit for bit (the same coordinates, the same sanitizing).
+/// For incremental re-meshing, where an edit changes the field inside a box only. Returns
+/// how many of the new values were NaN.
+pub fn resample_box(field: &dyn Field, volume: &mut Volume, lo: [usize; 3], hi: [usize; 3]) -> u64 {
+    let grid = volume.grid;
+    let [nx, ny, nz] = grid.dims;
+    let hi = [hi[0].min(nx), hi[1].min(ny), hi[2].min(nz)];
+    if (0..3).any(|a| lo[a] >= hi[a]) {
+        return 0;
+    }
+    let xs: Vec<f64> = (lo[0]..hi[0]).map(|i| grid.point(i, 0, 0).x).collect();
+    let ys: Vec<f64> = (lo[1]..hi[1]).map(|j| grid.point(0, j, 0).y).collect();
+    let sampler = field.sampler(&xs, &ys);
+    let (w, h) = (xs.len(), ys.len());
+    let layers: Vec<(Vec<f32>, u64)> = (lo[2]..hi[2])
+        .into_par_iter()
+        .map(|k| {
+            let mut values = vec![0f64; w * h];
+            sampler.layer(grid.point(0, 0, k).z, 0..h, &mut values);
+            let mut bad = 0;
+            let out: Vec<f32> = values
+                .iter()
+                .map(|&v| {
+                    let (sample, nan) = to_sample(v);
+                    bad += u64::from(nan);
+                    sample
+                })
+                .collect();
+            (out, bad)
+        })
+        .collect();
+    let mut bad = 0;
+    for (n, (layer, b)) in layers.into_iter().enumerate() {
+        bad += b;
+        for (r, row) in layer.chunks_exact(w).enumerate() {
+            let at = grid.index(lo[0], lo[1] + r, lo[2] + n);
+            volume.values[at..at + w].copy_from_slice(row);
+        }
+    }
+    bad
 }
 
 /// Layers sampled together by [`sample`]: a block shares the sampler's cached rows.

@@ -36,6 +36,7 @@
 pub mod continuation;
 pub mod grid;
 pub mod healed;
+pub mod incremental;
 pub mod lattice;
 pub mod nonmanifold;
 pub mod refine;

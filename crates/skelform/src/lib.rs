@@ -50,6 +50,7 @@
 #![warn(missing_docs)]
 
 mod error;
+mod live;
 mod loaded;
 mod meshing;
 mod overrides;
@@ -57,6 +58,7 @@ mod stats;
 mod surface;
 
 pub use error::Error;
+pub use live::{Live, LiveRun};
 pub use loaded::Scene;
 pub use meshing::{Lattice, Meshed};
 pub use overrides::{DEFAULT_MAX_MEMORY, Overrides};
