@@ -444,29 +444,24 @@ impl<'a> LayerSampling<'a> {
     }
 }
 
-/// Samples `field` again at the lattice points of `volume` with indices in `lo..hi` (per
-/// axis, `hi` exclusive and at most the grid's dims), writing them in place: the values
-/// [`sample`] would give there, bit for bit (the same coordinates, the same sanitizing).
-/// For incremental re-meshing, where an edit changes the field inside a box only. Returns
+/// Samples `field` again at the lattice points of `volume` whose indices
+/// ([`Grid::index`]) are listed, writing them in place: the values [`sample`] gives there,
+/// bit for bit (the same coordinates, [`Grid::point`]'s, the same sanitizing; a field's
+/// [`Field::eval_many`] must equal its sampler, as [`Field::sampler`] requires). For
+/// incremental re-meshing, where an edit changes the field near some points only. Returns
 /// how many of the new values were NaN.
-pub fn resample_box(field: &dyn Field, volume: &mut Volume, lo: [usize; 3], hi: [usize; 3]) -> u64 {
+pub fn resample_points(field: &dyn Field, volume: &mut Volume, indices: &[usize]) -> u64 {
     let grid = volume.grid;
-    let [nx, ny, nz] = grid.dims;
-    let hi = [hi[0].min(nx), hi[1].min(ny), hi[2].min(nz)];
-    if (0..3).any(|a| lo[a] >= hi[a]) {
-        return 0;
-    }
-    let xs: Vec<f64> = (lo[0]..hi[0]).map(|i| grid.point(i, 0, 0).x).collect();
-    let ys: Vec<f64> = (lo[1]..hi[1]).map(|j| grid.point(0, j, 0).y).collect();
-    let sampler = field.sampler(&xs, &ys);
-    let (w, h) = (xs.len(), ys.len());
-    let layers: Vec<(Vec<f32>, u64)> = (lo[2]..hi[2])
-        .into_par_iter()
-        .map(|k| {
-            let mut values = vec![0f64; w * h];
-            sampler.layer(grid.point(0, 0, k).z, 0..h, &mut values);
+    let [nx, ny, _] = grid.dims;
+    let values: Vec<(Vec<f32>, u64)> = indices
+        .par_chunks(4096)
+        .map(|chunk| {
+            let points: Vec<DVec3> =
+                chunk.iter().map(|&n| grid.point(n % nx, (n / nx) % ny, n / (nx * ny))).collect();
+            let mut values = vec![0.0; points.len()];
+            field.eval_many(&points, &mut values);
             let mut bad = 0;
-            let out: Vec<f32> = values
+            let out = values
                 .iter()
                 .map(|&v| {
                     let (sample, nan) = to_sample(v);
@@ -478,11 +473,10 @@ pub fn resample_box(field: &dyn Field, volume: &mut Volume, lo: [usize; 3], hi: 
         })
         .collect();
     let mut bad = 0;
-    for (n, (layer, b)) in layers.into_iter().enumerate() {
+    for (chunk, (out, b)) in indices.chunks(4096).zip(values) {
         bad += b;
-        for (r, row) in layer.chunks_exact(w).enumerate() {
-            let at = grid.index(lo[0], lo[1] + r, lo[2] + n);
-            volume.values[at..at + w].copy_from_slice(row);
+        for (&n, v) in chunk.iter().zip(out) {
+            volume.values[n] = v;
         }
     }
     bad

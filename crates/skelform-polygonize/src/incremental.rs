@@ -29,12 +29,13 @@ use std::time::Instant;
 
 use glam::DVec3;
 use rayon::prelude::*;
-use skelform_field::grid::{Grid, Volume, resample_box, sample};
+use skelform_field::grid::{Grid, Relative, Volume, resample_points, sample};
 use skelform_field::{Aabb, Field};
 use skelform_mesh::Mesh;
 
 use crate::Error;
-use crate::grid::{self, GridVertex, Options, Place, Stats, extract_with};
+use crate::grid::extract::{SLAB, SlabCounts, extract_slabs, slab_count};
+use crate::grid::{self, GridVertex, Options, Place, Stats};
 use crate::refine::{Bracket, RootOptions, face_normals, project_to_surface, refine_roots};
 
 /// Cells of margin around a changed box: one so that every lattice edge that meets the box
@@ -52,6 +53,10 @@ pub struct GridState {
     positions: Vec<DVec3>,
     /// Unit gradient normals, zero where the gradient vanished (empty without normals).
     gradients: Vec<[f32; 3]>,
+    triangles: Vec<[u32; 3]>,
+    /// What each extraction slab made, in slab order (the vertices and triangles above are
+    /// the slabs' one after the other).
+    slabs: Vec<SlabCounts>,
     refine: bool,
     tolerance: f64,
     normals: bool,
@@ -101,6 +106,8 @@ pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats, 
             vertices: Vec::new(),
             positions: Vec::new(),
             gradients: Vec::new(),
+            triangles: Vec::new(),
+            slabs: Vec::new(),
             refine: lattice.refine,
             tolerance: lattice.tolerance,
             normals: lattice.normals,
@@ -117,9 +124,6 @@ fn key(v: &GridVertex) -> Option<([u32; 3], u8)> {
         Place::Cell { .. } => None,
     }
 }
-
-/// Inclusive index boxes of lattice points re-sampled.
-type IndexBox = ([usize; 3], [usize; 3]);
 
 impl GridState {
     /// The lattice the state was sampled on.
@@ -163,29 +167,22 @@ impl GridState {
         options.lattice.threads.install(|| {
             let grid = self.volume.grid;
             let mut stats = Stats { grid_dims: grid.dims, cell: grid.cell, ..Stats::default() };
-            let boxes = index_boxes(&grid, changed);
             let t = Instant::now();
+            let dirty = Dirty::new(&grid, changed);
+            let points = dirty.points();
+            stats.non_finite_samples = resample_points(field, &mut self.volume, &points);
+            stats.samples = points.len() as u64;
             let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-            for (a, b) in &boxes {
-                let end = [b[0] + 1, b[1] + 1, b[2] + 1];
-                stats.non_finite_samples += resample_box(field, &mut self.volume, *a, end);
-                stats.samples += (0..3).map(|i| (end[i] - a[i]) as u64).product::<u64>();
-                for k in a[2]..end[2] {
-                    for j in a[1]..end[1] {
-                        let at = grid.index(a[0], j, k);
-                        for &v in &self.volume.values[at..at + end[0] - a[0]] {
-                            lo = lo.min(v);
-                            hi = hi.max(v);
-                        }
-                    }
-                }
+            for &n in &points {
+                lo = lo.min(self.volume.values[n]);
+                hi = hi.max(self.volume.values[n]);
             }
             (stats.min_sample, stats.max_sample) = (lo, hi);
             stats.sampling = t.elapsed();
             if options.lattice.control.is_cancelled() {
                 return Err(Error::Cancelled);
             }
-            let (mesh, reused) = self.finish(field, options, &mut stats, Some(&boxes))?;
+            let (mesh, reused) = self.finish(field, options, &mut stats, Some(&dirty))?;
             if mesh.is_empty() {
                 // What an empty mesh's explanation reads: the range of every sample.
                 (stats.min_sample, stats.max_sample) = self.volume.value_range();
@@ -208,41 +205,101 @@ impl GridState {
         field: &dyn Field,
         options: &Options,
         stats: &mut Stats,
-        dirty: Option<&[IndexBox]>,
+        dirty: Option<&Dirty>,
     ) -> Result<(Mesh, usize), Error> {
         let lattice = &options.lattice;
         let workspace = options.workspace.as_deref().unwrap_or(grid::Workspace::shared());
+        let grid = self.volume.grid;
+        let slabs = slab_count(&grid);
+        // The slabs to extract: all, or those whose sample layers hold a re-sampled point
+        // (slab `s` reads layers `s·SLAB ..= (s + 1)·SLAB`). The others are the last run's.
+        let full = dirty.is_none() || self.slabs.len() != slabs;
+        let range = match dirty.map(Dirty::layers) {
+            _ if full => 0..slabs,
+            None | Some(None) => 0..0,
+            Some(Some((lo, hi))) => lo.div_ceil(SLAB).saturating_sub(1)..(hi / SLAB + 1).min(slabs),
+        };
         let t = Instant::now();
-        let ex = extract_with(&self.volume, &lattice.control, workspace)?;
+        let (new_vertices, new_triangles, counts) = extract_slabs::<GridVertex, _>(
+            &grid,
+            &self.volume.values,
+            Relative,
+            &lattice.control,
+            workspace,
+            range.clone(),
+        )?;
+        // Splice: the slabs below the range, the range, the slabs above it (their vertex
+        // numbers shifted by what the range gained or lost).
+        let before = |n: usize| {
+            self.slabs[..n].iter().fold([0, 0], |[v, t], c| [v + c.vertices, t + c.triangles])
+        };
+        let [v0, t0] = before(range.start);
+        let [v1, t1] = if range.end == slabs {
+            [self.vertices.len(), self.triangles.len()]
+        } else {
+            before(range.end)
+        };
+        let shift = |i: u32| (i as i64 + new_vertices.len() as i64 - (v1 - v0) as i64) as u32;
+        let vertices: Vec<GridVertex> = self.vertices[..v0]
+            .iter()
+            .chain(&new_vertices)
+            .chain(&self.vertices[v1..])
+            .copied()
+            .collect();
+        let mut triangles: Vec<[u32; 3]> =
+            Vec::with_capacity(t0 + new_triangles.len() + self.triangles.len() - t1);
+        triangles.extend_from_slice(&self.triangles[..t0]);
+        triangles.extend(new_triangles.iter().map(|t| t.map(|i| i + v0 as u32)));
+        triangles.extend(self.triangles[t1..].iter().map(|t| t.map(shift)));
+        let mut slab_counts = self.slabs.clone();
+        if full {
+            slab_counts = counts;
+        } else {
+            slab_counts.splice(range.clone(), counts);
+        }
         stats.extraction = t.elapsed();
-        stats.ambiguous_faces = ex.ambiguous_faces;
-        stats.tunnels = ex.tunnels;
+        stats.ambiguous_faces = slab_counts.iter().map(|c| c.ambiguous_faces).sum();
+        stats.tunnels = slab_counts.iter().map(|c| c.tunnels).sum();
 
         let t = Instant::now();
-        let grid = self.volume.grid;
-        let n = ex.vertices.len();
-        let mut positions: Vec<DVec3> = ex.vertices.iter().map(|v| v.position(&grid)).collect();
+        let n = vertices.len();
         let want_normals = lattice.normals;
-        let mut gradients = vec![[0f32; 3]; if want_normals { n } else { 0 }];
-        // Which vertices are placed here: (index, is an edge vertex).
+        let mut positions: Vec<DVec3>;
+        let mut gradients: Vec<[f32; 3]>;
+        // The vertices placed here.
         let mut fresh: Vec<usize> = Vec::new();
         let mut reused = 0;
         match dirty {
-            None => fresh.extend(0..n),
-            Some(boxes) => {
-                let inside = |p: [u32; 3]| {
-                    boxes
-                        .iter()
-                        .any(|(a, b)| (0..3).all(|i| (a[i]..=b[i]).contains(&(p[i] as usize))))
-                };
+            _ if full => {
+                positions = vertices.iter().map(|v| v.position(&grid)).collect();
+                gradients = vec![[0f32; 3]; if want_normals { n } else { 0 }];
+                fresh.extend(0..n);
+            }
+            None => unreachable!("a run without an old state extracts every slab"),
+            Some(dirty) => {
+                // Outside the range: the last run's vertices, in the same order.
+                let added = new_vertices.len();
+                positions = Vec::with_capacity(n);
+                positions.extend_from_slice(&self.positions[..v0]);
+                positions.extend(new_vertices.iter().map(|v| v.position(&grid)));
+                positions.extend_from_slice(&self.positions[v1..]);
+                gradients = Vec::new();
+                if want_normals {
+                    gradients.reserve(n);
+                    gradients.extend_from_slice(&self.gradients[..v0]);
+                    gradients.resize(v0 + added, [0.0; 3]);
+                    gradients.extend_from_slice(&self.gradients[v1..]);
+                }
+                reused = n - added;
+                let inside = |p: [u32; 3]| dirty.get(p);
                 let clean = |v: &GridVertex| match v.tip() {
                     Some(tip) => !inside(v.base) && !inside(tip),
                     None => false,
                 };
-                let old = &self.vertices;
+                let old = &self.vertices[v0..v1];
                 let mut j = 0;
                 let mut map: Option<rustc_hash::FxHashMap<([u32; 3], u8), usize>> = None;
-                for (i, v) in ex.vertices.iter().enumerate() {
+                for (i, v) in (v0..).zip(&new_vertices) {
                     if !clean(v) {
                         fresh.push(i);
                         continue;
@@ -275,9 +332,9 @@ impl GridState {
                     };
                     match found {
                         Some(o) => {
-                            positions[i] = self.positions[o];
+                            positions[i] = self.positions[v0 + o];
                             if want_normals {
-                                gradients[i] = self.gradients[o];
+                                gradients[i] = self.gradients[v0 + o];
                             }
                             reused += 1;
                         }
@@ -290,7 +347,7 @@ impl GridState {
         // Root finding for the fresh edge vertices; every cell vertex is projected again
         // (their projection stops per batch, so they are projected in the fresh run's
         // batches).
-        let cells: Vec<usize> = (0..n).filter(|&i| key(&ex.vertices[i]).is_none()).collect();
+        let cells: Vec<usize> = (0..n).filter(|&i| key(&vertices[i]).is_none()).collect();
         if lattice.refine {
             let roots = RootOptions {
                 tolerance: lattice.tolerance,
@@ -301,11 +358,11 @@ impl GridState {
             let value =
                 |p: [u32; 3]| self.volume.get(p[0] as usize, p[1] as usize, p[2] as usize) as f64;
             let edges: Vec<usize> =
-                fresh.iter().copied().filter(|&i| key(&ex.vertices[i]).is_some()).collect();
+                fresh.iter().copied().filter(|&i| key(&vertices[i]).is_some()).collect();
             let mut brackets: Vec<Bracket> = edges
                 .iter()
                 .map(|&i| {
-                    let v = &ex.vertices[i];
+                    let v = &vertices[i];
                     let (tip, t) = match (v.tip(), v.place) {
                         (Some(tip), Place::Edge { t, .. }) => (tip, t),
                         _ => unreachable!("edge vertices have a tip"),
@@ -318,11 +375,12 @@ impl GridState {
                 positions[i] = b.p0.lerp(b.p1, b.t);
             }
             if !cells.is_empty() {
-                let mut pts: Vec<DVec3> = cells.iter().map(|&i| positions[i]).collect();
+                let mut pts: Vec<DVec3> =
+                    cells.iter().map(|&i| vertices[i].position(&grid)).collect();
                 let boxes: Vec<(DVec3, DVec3)> = cells
                     .iter()
                     .map(|&i| {
-                        let lo = at(ex.vertices[i].base);
+                        let lo = at(vertices[i].base);
                         (lo, lo + DVec3::splat(grid.cell))
                     })
                     .collect();
@@ -369,10 +427,10 @@ impl GridState {
             }
             stats.normal_evaluations = again.len() as u64;
         }
-        let normals = if want_normals && !ex.triangles.is_empty() {
+        let normals = if want_normals && !triangles.is_empty() {
             let mut normals = gradients.clone();
             if normals.contains(&[0.0; 3]) {
-                let face = face_normals(&positions, &ex.triangles);
+                let face = face_normals(&positions, &triangles);
                 for (o, f) in normals.iter_mut().zip(face) {
                     if *o == [0.0; 3] {
                         *o = f;
@@ -387,54 +445,87 @@ impl GridState {
         let mesh = Mesh {
             positions: positions.iter().map(|p| p.as_vec3().to_array()).collect(),
             normals,
-            triangles: ex.triangles,
+            triangles: triangles.clone(),
             ..Mesh::default()
         };
         stats.vertices = mesh.vertex_count();
         stats.triangles = mesh.triangle_count();
-        self.vertices = ex.vertices;
+        self.vertices = vertices;
         self.positions = positions;
         self.gradients = gradients;
+        self.triangles = triangles;
+        self.slabs = slab_counts;
         Ok((mesh, reused))
     }
 }
 
-/// The lattice points within [`MARGIN`] cells of each box, as inclusive index boxes clipped
-/// to the lattice, overlapping ones merged. A box that is not finite covers everything.
-fn index_boxes(grid: &Grid, changed: &[Aabb]) -> Vec<IndexBox> {
-    let top = grid.dims.map(|d| d.saturating_sub(1));
-    let mut boxes: Vec<IndexBox> = Vec::new();
-    for c in changed {
-        let lo = (c.min - grid.origin) / grid.cell - DVec3::splat(MARGIN);
-        let hi = (c.max - grid.origin) / grid.cell + DVec3::splat(MARGIN);
-        if !(lo.is_finite() && hi.is_finite()) {
-            return vec![([0; 3], top)];
-        }
-        if (0..3).any(|i| hi[i] < 0.0 || lo[i] > top[i] as f64) {
-            continue;
-        }
-        let a = std::array::from_fn(|i| lo[i].floor().max(0.0) as usize);
-        let b = std::array::from_fn(|i| (hi[i].ceil().min(top[i] as f64)) as usize);
-        boxes.push((a, b));
-    }
-    // Merge boxes that overlap, until none do: no point is sampled twice.
-    let meets = |x: &IndexBox, y: &IndexBox| (0..3).all(|i| x.0[i] <= y.1[i] && y.0[i] <= x.1[i]);
-    loop {
-        let mut merged = false;
-        'outer: for i in 0..boxes.len() {
-            for j in i + 1..boxes.len() {
-                if meets(&boxes[i], &boxes[j]) {
-                    let y = boxes.swap_remove(j);
-                    let x = &mut boxes[i];
-                    x.0 = std::array::from_fn(|a| x.0[a].min(y.0[a]));
-                    x.1 = std::array::from_fn(|a| x.1[a].max(y.1[a]));
-                    merged = true;
-                    break 'outer;
+/// The lattice points sampled again: those within [`MARGIN`] cells of a changed box, as
+/// one bit per lattice point (boxes of neighbouring elements overlap, and their bounding box
+/// would hold far more points than they do).
+struct Dirty {
+    dims: [usize; 3],
+    bits: Vec<u64>,
+    /// The lowest and highest sample layer with a marked point.
+    layers: Option<(usize, usize)>,
+}
+
+impl Dirty {
+    fn new(grid: &Grid, changed: &[Aabb]) -> Dirty {
+        let dims = grid.dims;
+        let count = dims[0] * dims[1] * dims[2];
+        let mut d = Dirty { dims, bits: vec![0; count.div_ceil(64)], layers: None };
+        let top = dims.map(|n| n.saturating_sub(1));
+        for c in changed {
+            let lo = (c.min - grid.origin) / grid.cell - DVec3::splat(MARGIN);
+            let hi = (c.max - grid.origin) / grid.cell + DVec3::splat(MARGIN);
+            let (a, b): ([usize; 3], [usize; 3]) = if lo.is_finite() && hi.is_finite() {
+                if (0..3).any(|i| hi[i] < 0.0 || lo[i] > top[i] as f64) {
+                    continue;
+                }
+                (
+                    std::array::from_fn(|i| lo[i].floor().max(0.0) as usize),
+                    std::array::from_fn(|i| hi[i].ceil().min(top[i] as f64) as usize),
+                )
+            } else {
+                // A box that is not finite covers everything.
+                ([0; 3], top)
+            };
+            d.layers = Some(d.layers.map_or((a[2], b[2]), |(lo, hi)| (lo.min(a[2]), hi.max(b[2]))));
+            for k in a[2]..=b[2] {
+                for j in a[1]..=b[1] {
+                    let row = dims[0] * (j + dims[1] * k);
+                    for i in a[0]..=b[0] {
+                        let n = row + i;
+                        d.bits[n / 64] |= 1 << (n % 64);
+                    }
                 }
             }
         }
-        if !merged {
-            return boxes;
+        d
+    }
+
+    /// The lowest and highest sample layer sampled again, if any.
+    fn layers(&self) -> Option<(usize, usize)> {
+        self.layers
+    }
+
+    /// Whether lattice point `p` is sampled again.
+    fn get(&self, p: [u32; 3]) -> bool {
+        let [i, j, k] = p.map(|x| x as usize);
+        let n = i + self.dims[0] * (j + self.dims[1] * k);
+        self.bits[n / 64] >> (n % 64) & 1 == 1
+    }
+
+    /// The indices of the points sampled again, ascending.
+    fn points(&self) -> Vec<usize> {
+        let mut out = Vec::new();
+        for (w, &bits) in self.bits.iter().enumerate() {
+            let mut b = bits;
+            while b != 0 {
+                out.push(w * 64 + b.trailing_zeros() as usize);
+                b &= b - 1;
+            }
         }
+        out
     }
 }

@@ -141,7 +141,7 @@ fn blend() -> impl Strategy<Value = &'static str> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 12, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
 
     /// Every step of a random edit sequence: the incremental mesh is the fresh one, bit for
     /// bit (same vertices in the same order, same normals, same triangles).
