@@ -8,9 +8,10 @@
 //! `SkeletonField::changes_since` in skelform-skeleton for skeletons), and
 //!
 //! 1. samples again only the lattice points within two cells of those boxes;
-//! 2. runs marching cubes over the whole held volume again (cheap next to sampling: sign
-//!    bits skip the empty cubes), which gives the fresh run's vertices and triangles, in
-//!    its order, since the volume is now the fresh run's volume;
+//! 2. runs marching cubes again over the extraction slabs whose sample layers hold such a
+//!    point (a slab reads its own layers and nothing else) and splices them between the
+//!    last run's slabs below and above, which gives the fresh run's vertices and triangles,
+//!    in its order, since the volume is now the fresh run's volume;
 //! 3. takes each vertex whose lattice edge has both ends outside the re-sampled points from
 //!    the last run (root finding along that edge evaluated the field only where it did not
 //!    change, from the same end samples, so it would find the same root), and places the
@@ -57,6 +58,9 @@ pub struct GridState {
     /// What each extraction slab made, in slab order (the vertices and triangles above are
     /// the slabs' one after the other).
     slabs: Vec<SlabCounts>,
+    /// False from the start of an update until it has finished: an update that failed or
+    /// was cancelled half way leaves a state the next update must not trust.
+    whole: bool,
     refine: bool,
     tolerance: f64,
     normals: bool,
@@ -108,6 +112,7 @@ pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats, 
             gradients: Vec::new(),
             triangles: Vec::new(),
             slabs: Vec::new(),
+            whole: true,
             refine: lattice.refine,
             tolerance: lattice.tolerance,
             normals: lattice.normals,
@@ -132,10 +137,12 @@ impl GridState {
     }
 
     /// Whether a run with `options` can update this state (the same lattice, root finding
-    /// and normals); [`GridState::update`] runs from scratch otherwise.
+    /// and normals, and no update that failed or was cancelled since the last good run);
+    /// [`GridState::update`] runs from scratch otherwise.
     pub fn matches(&self, options: &Options) -> bool {
         let l = &options.lattice;
-        options.lattice.grid().is_ok_and(|g| g == self.volume.grid)
+        self.whole
+            && options.lattice.grid().is_ok_and(|g| g == self.volume.grid)
             && l.refine == self.refine
             && l.tolerance.to_bits() == self.tolerance.to_bits()
             && l.normals == self.normals
@@ -164,6 +171,7 @@ impl GridState {
             };
             return Ok((mesh, stats, reuse));
         }
+        self.whole = false;
         options.lattice.threads.install(|| {
             let grid = self.volume.grid;
             let mut stats = Stats { grid_dims: grid.dims, cell: grid.cell, ..Stats::default() };
@@ -187,6 +195,7 @@ impl GridState {
                 // What an empty mesh's explanation reads: the range of every sample.
                 (stats.min_sample, stats.max_sample) = self.volume.value_range();
             }
+            self.whole = true;
             let reuse = Reuse {
                 resampled: stats.samples,
                 reused_vertices: reused,
