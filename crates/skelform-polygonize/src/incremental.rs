@@ -248,19 +248,20 @@ impl GridState {
         } else {
             before(range.end)
         };
-        let shift = |i: u32| (i as i64 + new_vertices.len() as i64 - (v1 - v0) as i64) as u32;
-        let vertices: Vec<GridVertex> = self.vertices[..v0]
-            .iter()
-            .chain(&new_vertices)
-            .chain(&self.vertices[v1..])
-            .copied()
-            .collect();
-        let mut triangles: Vec<[u32; 3]> =
-            Vec::with_capacity(t0 + new_triangles.len() + self.triangles.len() - t1);
-        triangles.extend_from_slice(&self.triangles[..t0]);
-        triangles.extend(new_triangles.iter().map(|t| t.map(|i| i + v0 as u32)));
-        triangles.extend(self.triangles[t1..].iter().map(|t| t.map(shift)));
-        let mut slab_counts = self.slabs.clone();
+        // In place: only what lies above the range moves, and only when its size changed.
+        let added = new_vertices.len();
+        let shift = |i: u32| (i as i64 + added as i64 - (v1 - v0) as i64) as u32;
+        let mut vertices = std::mem::take(&mut self.vertices);
+        let old: Vec<GridVertex> = vertices.splice(v0..v1, new_vertices.iter().copied()).collect();
+        let mut triangles = std::mem::take(&mut self.triangles);
+        let end = t0 + new_triangles.len();
+        triangles.splice(t0..t1, new_triangles.iter().map(|t| t.map(|i| i + v0 as u32)));
+        if added != v1 - v0 {
+            for t in &mut triangles[end..] {
+                *t = t.map(shift);
+            }
+        }
+        let mut slab_counts = std::mem::take(&mut self.slabs);
         if full {
             slab_counts = counts;
         } else {
@@ -273,8 +274,8 @@ impl GridState {
         let t = Instant::now();
         let n = vertices.len();
         let want_normals = lattice.normals;
-        let mut positions: Vec<DVec3>;
-        let mut gradients: Vec<[f32; 3]>;
+        let mut positions = std::mem::take(&mut self.positions);
+        let mut gradients = std::mem::take(&mut self.gradients);
         // The vertices placed here.
         let mut fresh: Vec<usize> = Vec::new();
         let mut reused = 0;
@@ -287,25 +288,20 @@ impl GridState {
             None => unreachable!("a run without an old state extracts every slab"),
             Some(dirty) => {
                 // Outside the range: the last run's vertices, in the same order.
-                let added = new_vertices.len();
-                positions = Vec::with_capacity(n);
-                positions.extend_from_slice(&self.positions[..v0]);
-                positions.extend(new_vertices.iter().map(|v| v.position(&grid)));
-                positions.extend_from_slice(&self.positions[v1..]);
-                gradients = Vec::new();
-                if want_normals {
-                    gradients.reserve(n);
-                    gradients.extend_from_slice(&self.gradients[..v0]);
-                    gradients.resize(v0 + added, [0.0; 3]);
-                    gradients.extend_from_slice(&self.gradients[v1..]);
-                }
+                let placed = new_vertices.iter().map(|v| v.position(&grid));
+                let old_positions: Vec<DVec3> = positions.splice(v0..v1, placed).collect();
+                let old_gradients: Vec<[f32; 3]> = if want_normals {
+                    gradients.splice(v0..v1, std::iter::repeat_n([0.0; 3], added)).collect()
+                } else {
+                    Vec::new()
+                };
                 reused = n - added;
                 let inside = |p: [u32; 3]| dirty.get(p);
                 let clean = |v: &GridVertex| match v.tip() {
                     Some(tip) => !inside(v.base) && !inside(tip),
                     None => false,
                 };
-                let old = &self.vertices[v0..v1];
+                let old = &old;
                 let mut j = 0;
                 let mut map: Option<rustc_hash::FxHashMap<([u32; 3], u8), usize>> = None;
                 for (i, v) in (v0..).zip(&new_vertices) {
@@ -341,9 +337,9 @@ impl GridState {
                     };
                     match found {
                         Some(o) => {
-                            positions[i] = self.positions[v0 + o];
+                            positions[i] = old_positions[o];
                             if want_normals {
-                                gradients[i] = self.gradients[v0 + o];
+                                gradients[i] = old_gradients[o];
                             }
                             reused += 1;
                         }
