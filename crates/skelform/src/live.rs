@@ -36,9 +36,12 @@ use crate::{Error, Meshed, Overrides, Scene, Stats};
 /// let mut live = skelform::Live::new();
 /// live.mesh(&scene, &coarse)?;
 /// // An edit: the index finger's second knuckle bent by 10 degrees more.
-/// let bent = skelform::Scene::parse(&text.replacen("grip2 = 30", "grip2 = 40", 1), "hand.toml")?;
+/// let knuckle = "name = \"index2\"\nparent = \"index1\"\nat = [0.75, 0, 0]\naxes = [\"y\"]\nangles = 30";
+/// let bent = text.replacen(knuckle, &knuckle.replace("angles = 30", "angles = 40"), 1);
+/// let bent = skelform::Scene::parse(&bent, "hand.toml")?;
 /// let meshed = live.mesh(&bent, &coarse)?;
-/// assert!(live.last_run().unwrap().incremental);
+/// let run = live.last_run().unwrap();
+/// assert!(run.incremental && run.reuse.reused_vertices > run.reuse.placed_vertices);
 /// assert_eq!(meshed.mesh, bent.mesh(&coarse)?.mesh); // the fresh run's mesh, bit for bit
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
