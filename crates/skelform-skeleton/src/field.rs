@@ -1262,6 +1262,49 @@ mod tests {
     use super::*;
     use crate::GroupId;
 
+    /// `changes_since` names exactly the boxes of the elements that differ, old and new, and
+    /// refuses changes that every point depends on.
+    #[test]
+    fn changes_are_the_changed_elements_boxes() {
+        let blend = Blend::Convolution(Kernel::Wyvill);
+        let build = |points: &[DVec3]| {
+            let mut s = Skeleton::new();
+            for &p in points {
+                s.add_point(p, 0.2, GroupId::DEFAULT).unwrap();
+            }
+            SkeletonField::new(&s, blend).unwrap()
+        };
+        let (a, b, c) = (DVec3::ZERO, DVec3::X, DVec3::Y);
+        let old = build(&[a, b, c]);
+        let moved = build(&[a, b + DVec3::Z, c]);
+        let boxes = moved.changes_since(&old).unwrap();
+        assert_eq!(boxes.len(), 2);
+        assert!(boxes[0].contains(b) && boxes[1].contains(b + DVec3::Z));
+        assert!(!boxes.iter().any(|x| x.contains(a) || x.contains(c)));
+        assert_eq!(old.changes_since(&old).unwrap(), []);
+        // One element inserted in the middle: its box alone.
+        let more = build(&[a, DVec3::splat(5.0), b, c]);
+        let boxes = more.changes_since(&old).unwrap();
+        assert_eq!(boxes.len(), 1);
+        assert!(boxes[0].contains(DVec3::splat(5.0)) && !boxes[0].contains(b));
+        // Removed: the old box.
+        let fewer = build(&[a, c]);
+        let boxes = fewer.changes_since(&old).unwrap();
+        assert_eq!(boxes.len(), 1);
+        assert!(boxes[0].contains(b));
+        // Another iso value or blend: global.
+        let iso = build(&[a, b, c]).with_iso(0.4).unwrap();
+        assert_eq!(iso.changes_since(&old), Err(GlobalChange::Blend));
+        // A new group: global.
+        let mut s = Skeleton::new();
+        let g = s.add_group("other").unwrap();
+        s.add_point(a, 0.2, GroupId::DEFAULT).unwrap();
+        s.add_point(b, 0.2, g).unwrap();
+        s.add_point(c, 0.2, GroupId::DEFAULT).unwrap();
+        let grouped = SkeletonField::new(&s, blend).unwrap();
+        assert_eq!(grouped.changes_since(&old), Err(GlobalChange::Groups));
+    }
+
     /// A small deterministic generator (xorshift64*), so the random skeletons are the same on
     /// every run.
     struct Rng(u64);
