@@ -10,6 +10,11 @@
 #
 #   bench/interactive.sh [OLD_BINARY] [ROUNDS]      (default: no old binary, 5 rounds)
 #
+# Then the edits, re-meshed by `skelform::Live` (crates/skelform/examples/live_edit.rs) against
+# a fresh run of the edited scene in the same rounds: the hand with the middle finger's
+# second knuckle bent by 10 degrees, and random-1000 with one segment moved by 0.01 (grid
+# method; medians of wall time, mean CPU time per call, whether the meshes are identical).
+#
 # Build the old binary from a worktree of the earlier commit (`git worktree add ../old REV`,
 # `cargo build --release --bin skelform` there). The old binary visits every element's box
 # at every point: on the random scene it takes tens of seconds a run, so give it few rounds.
@@ -18,6 +23,7 @@ old=${1:-}
 rounds=${2:-5}
 cd "$(dirname "$0")/.."
 cargo build --release --quiet --bin skelform
+cargo build --release --quiet -p skelform --example live_edit
 [ -f bench/scenes/random-1000.toml ] || python3 bench/scenes/random-1000.py
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
@@ -70,4 +76,25 @@ for scene, method, res in cases:
         row += (f" {med['old'][0]:.3f} | {med['old'][1]:.3f} | {med['old'][0] / med['new'][0]:.2f} | "
                 f"{med['old'][1] / med['new'][1]:.2f} | {same} |")
     print(row, flush=True)
+
+joint = 'name = "middle2"\nparent = "middle1"\nat = [0.9, 0, 0]\naxes = ["y"]\nangles = 30'
+segment = "a = [0.8113, 0.3725, 0.5330]\nb = [0.9327, 0.3005, 0.5737]"
+edits = [
+    ("hand, a finger joint bent 10°", "examples/skeleton/hand.toml", 128, joint,
+     joint.replace("angles = 30", "angles = 40")),
+    ("random-1000, one element moved", "bench/scenes/random-1000.toml", 256, segment,
+     segment.replace("0.8113", "0.8213").replace("0.9327", "0.9427")),
+]
+print()
+print("| edit | samples | vertices | fresh: wall s | incremental: wall s | incr./fresh wall | "
+      "fresh: CPU s | incremental: CPU s | incr./fresh CPU | re-sampled | reused vertices | same mesh |")
+print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+for name, scene, res, old_text, new_text in edits:
+    doc = json.loads(subprocess.run(
+        ["./target/release/examples/live_edit", scene, str(res), str(max(rounds, 2)), old_text, new_text],
+        check=True, capture_output=True, text=True).stdout)
+    print(f"| {name} | {res} | {doc['vertices']:,} | {doc['fresh_s']:.3f} | {doc['incremental_s']:.4f} | "
+          f"{doc['ratio']:.3f} | {doc['fresh_cpu_s']:.3f} | {doc['incremental_cpu_s']:.4f} | "
+          f"{doc['incremental_cpu_s'] / doc['fresh_cpu_s']:.3f} | {doc['resampled']:,} | "
+          f"{doc['reused_vertices']:,} | {'yes' if doc['same_mesh'] else 'no'} |", flush=True)
 PY

@@ -366,12 +366,19 @@ impl<'a> VolumeView<'a> {
 fn store_samples(values: &[f64], out: &mut [MaybeUninit<f32>]) -> u64 {
     let mut bad = 0;
     for (o, &v) in out.iter_mut().zip(values) {
-        let nan = v.is_nan();
+        let (sample, nan) = to_sample(v);
         bad += u64::from(nan);
-        let clamped = v.clamp(-f32::MAX as f64, f32::MAX as f64) as f32;
-        o.write(if nan { f32::MAX } else { clamped });
+        o.write(sample);
     }
     bad
+}
+
+/// One field value as a sample (see [`store_samples`]), and whether it was NaN.
+#[inline(always)]
+fn to_sample(v: f64) -> (f32, bool) {
+    let nan = v.is_nan();
+    let clamped = v.clamp(-f32::MAX as f64, f32::MAX as f64) as f32;
+    (if nan { f32::MAX } else { clamped }, nan)
 }
 
 /// Samples a field on the layers of one lattice, in any order and from any thread, exactly
@@ -435,6 +442,44 @@ impl<'a> LayerSampling<'a> {
             }
         }
     }
+}
+
+/// Samples `field` again at the lattice points of `volume` whose indices
+/// ([`Grid::index`]) are listed, writing them in place: the values [`sample`] gives there,
+/// bit for bit (the same coordinates, [`Grid::point`]'s, the same sanitizing; a field's
+/// [`Field::eval_many`] must equal its sampler, as [`Field::sampler`] requires). For
+/// incremental re-meshing, where an edit changes the field near some points only. Returns
+/// how many of the new values were NaN.
+pub fn resample_points(field: &dyn Field, volume: &mut Volume, indices: &[usize]) -> u64 {
+    let grid = volume.grid;
+    let [nx, ny, _] = grid.dims;
+    let values: Vec<(Vec<f32>, u64)> = indices
+        .par_chunks(4096)
+        .map(|chunk| {
+            let points: Vec<DVec3> =
+                chunk.iter().map(|&n| grid.point(n % nx, (n / nx) % ny, n / (nx * ny))).collect();
+            let mut values = vec![0.0; points.len()];
+            field.eval_many(&points, &mut values);
+            let mut bad = 0;
+            let out = values
+                .iter()
+                .map(|&v| {
+                    let (sample, nan) = to_sample(v);
+                    bad += u64::from(nan);
+                    sample
+                })
+                .collect();
+            (out, bad)
+        })
+        .collect();
+    let mut bad = 0;
+    for (chunk, (out, b)) in indices.chunks(4096).zip(values) {
+        bad += b;
+        for (&n, v) in chunk.iter().zip(out) {
+            volume.values[n] = v;
+        }
+    }
+    bad
 }
 
 /// Layers sampled together by [`sample`]: a block shares the sampler's cached rows.

@@ -8,6 +8,9 @@
 //!   polygonizer, then the cubes round self-intersection curves re-triangulated so that the
 //!   sheets cross cleanly (edges of four triangles along the curves, which are output as
 //!   polylines); cone apexes fanned; bare lines and points reported.
+//! - [`incremental`]: the grid polygonizer again after a local change of the field: samples
+//!   again only near the changed boxes, re-extracts only the slabs there and splices the
+//!   mesh, bit for bit the fresh run's.
 //! - [`refine`]: root finding along edges and gradient normals, shared by all polygonizers.
 //!
 //! A polygonizer knows nothing of files: it takes a field and options and returns a mesh and
@@ -36,6 +39,7 @@
 pub mod continuation;
 pub mod grid;
 pub mod healed;
+pub mod incremental;
 pub mod lattice;
 pub mod nonmanifold;
 pub mod refine;

@@ -338,6 +338,38 @@ pub struct SkeletonField {
     seeds: Vec<DVec3>,
     min_radius: f64,
     cull: CullGrid,
+    /// What the field was built from, for [`SkeletonField::changes_since`].
+    source: Source,
+}
+
+/// The parts of the skeleton a field depends on, kept to compare two fields.
+#[derive(Clone, Debug, PartialEq)]
+struct Source {
+    elements: Vec<Element>,
+    groups: Vec<crate::skeleton::Group>,
+    junctions: usize,
+}
+
+/// Why two skeletal fields cannot be compared element by element: something that every
+/// point's value depends on changed ([`SkeletonField::changes_since`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GlobalChange {
+    /// The blend, its parameters or the iso value.
+    Blend,
+    /// The blend groups, their links, or which groups have elements (the cliques).
+    Groups,
+    /// A junction (its density is not one element's; see [`crate::junction`]).
+    Junctions,
+}
+
+impl std::fmt::Display for GlobalChange {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            GlobalChange::Blend => "the blend or the iso value changed",
+            GlobalChange::Groups => "the blend groups changed",
+            GlobalChange::Junctions => "the skeleton has junctions",
+        })
+    }
 }
 
 impl SkeletonField {
@@ -446,7 +478,63 @@ impl SkeletonField {
             seeds: skeleton.seed_points(),
             min_radius,
             cull,
+            source: Source {
+                elements: skeleton.elements().to_vec(),
+                groups: skeleton.groups().to_vec(),
+                junctions: skeleton.junctions().len(),
+            },
         })
+    }
+
+    /// Where this field's values may differ from `old`'s: the boxes of influence (old and
+    /// new) of every element that was moved, reshaped, given another radius, strength or
+    /// group, added or removed; empty when the fields are the same. Outside these boxes the
+    /// two fields are equal **bit for bit**, which is what incremental re-meshing relies
+    /// on. Why that holds: a point's value is the elements whose boxes hold it, summed (or
+    /// blended) in element order within each clique, then the least clique; an element
+    /// outside its box is skipped, never added as zero, so an unchanged sequence of
+    /// elements around a point gives the same value. It needs the same cliques, blend and
+    /// iso value; otherwise (or with junctions, whose density couples their limbs) the
+    /// answer is the [`GlobalChange`] that breaks it.
+    ///
+    /// Elements are matched by position in the list when the count is the same; otherwise
+    /// the common beginning and end of the two lists are kept and everything between them
+    /// counts as changed (one element added or removed anywhere is found exactly).
+    pub fn changes_since(&self, old: &SkeletonField) -> Result<Vec<Aabb>, GlobalChange> {
+        if self.blend != old.blend || self.iso.to_bits() != old.iso.to_bits() {
+            return Err(GlobalChange::Blend);
+        }
+        if self.source.junctions > 0 || old.source.junctions > 0 {
+            return Err(GlobalChange::Junctions);
+        }
+        let used = |s: &Source| {
+            let mut g: Vec<crate::GroupId> = s.elements.iter().map(|e| e.group()).collect();
+            g.sort_unstable();
+            g.dedup();
+            g
+        };
+        if self.source.groups != old.source.groups || used(&self.source) != used(&old.source) {
+            return Err(GlobalChange::Groups);
+        }
+        let (a, b) = (&old.source.elements, &self.source.elements);
+        let boxed = |it: &Item| Aabb { min: it.lo, max: it.hi };
+        let mut boxes = Vec::new();
+        if a.len() == b.len() {
+            for (i, (x, y)) in a.iter().zip(b).enumerate() {
+                if x != y {
+                    boxes.push(boxed(&old.items[i]));
+                    boxes.push(boxed(&self.items[i]));
+                }
+            }
+        } else {
+            let head = a.iter().zip(b).take_while(|(x, y)| x == y).count();
+            let rest = a.len().min(b.len()) - head;
+            let tail = a.iter().rev().zip(b.iter().rev()).take(rest).take_while(|(x, y)| x == y);
+            let tail = tail.count();
+            boxes.extend(old.items[head..a.len() - tail].iter().map(boxed));
+            boxes.extend(self.items[head..b.len() - tail].iter().map(boxed));
+        }
+        Ok(boxes)
     }
 
     fn item(e: &Element, blend: Blend) -> Item {
@@ -1173,6 +1261,49 @@ impl Field for SkeletonField {
 mod tests {
     use super::*;
     use crate::GroupId;
+
+    /// `changes_since` names exactly the boxes of the elements that differ, old and new, and
+    /// refuses changes that every point depends on.
+    #[test]
+    fn changes_are_the_changed_elements_boxes() {
+        let blend = Blend::Convolution(Kernel::Wyvill);
+        let build = |points: &[DVec3]| {
+            let mut s = Skeleton::new();
+            for &p in points {
+                s.add_point(p, 0.2, GroupId::DEFAULT).unwrap();
+            }
+            SkeletonField::new(&s, blend).unwrap()
+        };
+        let (a, b, c) = (DVec3::ZERO, DVec3::X, DVec3::Y);
+        let old = build(&[a, b, c]);
+        let moved = build(&[a, b + DVec3::Z, c]);
+        let boxes = moved.changes_since(&old).unwrap();
+        assert_eq!(boxes.len(), 2);
+        assert!(boxes[0].contains(b) && boxes[1].contains(b + DVec3::Z));
+        assert!(!boxes.iter().any(|x| x.contains(a) || x.contains(c)));
+        assert_eq!(old.changes_since(&old).unwrap(), []);
+        // One element inserted in the middle: its box alone.
+        let more = build(&[a, DVec3::splat(5.0), b, c]);
+        let boxes = more.changes_since(&old).unwrap();
+        assert_eq!(boxes.len(), 1);
+        assert!(boxes[0].contains(DVec3::splat(5.0)) && !boxes[0].contains(b));
+        // Removed: the old box.
+        let fewer = build(&[a, c]);
+        let boxes = fewer.changes_since(&old).unwrap();
+        assert_eq!(boxes.len(), 1);
+        assert!(boxes[0].contains(b));
+        // Another iso value or blend: global.
+        let iso = build(&[a, b, c]).with_iso(0.4).unwrap();
+        assert_eq!(iso.changes_since(&old), Err(GlobalChange::Blend));
+        // A new group: global.
+        let mut s = Skeleton::new();
+        let g = s.add_group("other").unwrap();
+        s.add_point(a, 0.2, GroupId::DEFAULT).unwrap();
+        s.add_point(b, 0.2, g).unwrap();
+        s.add_point(c, 0.2, GroupId::DEFAULT).unwrap();
+        let grouped = SkeletonField::new(&s, blend).unwrap();
+        assert_eq!(grouped.changes_since(&old), Err(GlobalChange::Groups));
+    }
 
     /// A small deterministic generator (xorshift64*), so the random skeletons are the same on
     /// every run.

@@ -103,7 +103,7 @@ pub mod skeleton;
 
 pub use curve::{CubicCurve, Frame};
 pub use error::SkeletonError;
-pub use field::{Blend, DEFAULT_ISO, Falloff, SkeletonField};
+pub use field::{Blend, DEFAULT_ISO, Falloff, GlobalChange, SkeletonField};
 pub use geometry::{Polygon, Segment, Shape};
 pub use image::{
     DEFAULT_IMAGE_RESOLUTION, MAX_IMAGE_BYTES, MAX_IMAGE_RESOLUTION, MAX_IMAGE_WORK, PolygonMethod,

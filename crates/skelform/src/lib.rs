@@ -42,6 +42,12 @@
 //! [`Error::is_cancelled`] holds. Limits (grid size, [`Overrides::max_memory`]) are checked
 //! before the work starts.
 //!
+//! # Editing
+//! [`Live`] meshes successive versions of a scene (an editor's) and, with the grid method on
+//! a skeleton scene, re-meshes only around the elements an edit changed; every mesh it
+//! returns is [`Scene::mesh`]'s, bit for bit. [`Live::mesh_progressive`] gives coarse
+//! meshes first and stops when the [`Control`] is cancelled.
+//!
 //! # The parts
 //! The pipeline is one crate a stage, re-exported here: [`field`] (fields and the formula
 //! language), [`skeleton`] (skeletal primitives, blends, convolution), [`leaf`] (leaf forms),
@@ -50,6 +56,7 @@
 #![warn(missing_docs)]
 
 mod error;
+mod live;
 mod loaded;
 mod meshing;
 mod overrides;
@@ -57,6 +64,7 @@ mod stats;
 mod surface;
 
 pub use error::Error;
+pub use live::{Live, LiveRun};
 pub use loaded::Scene;
 pub use meshing::{Lattice, Meshed};
 pub use overrides::{DEFAULT_MAX_MEMORY, Overrides};

@@ -85,7 +85,7 @@ impl Lattice {
 }
 
 /// A method with its options, ready to run: what a scene and overrides come to.
-enum Plan {
+pub(crate) enum Plan {
     Grid(grid::Options),
     NonManifold(Arc<dyn RegionField>, nonmanifold::Options),
     Continuation(continuation::Options),
@@ -141,7 +141,7 @@ impl Scene {
 
     /// The one place that knows which polygonizer each [`Method`] is and how the scene's
     /// settings and the overrides map onto its options.
-    fn plan(&self, o: &Overrides) -> Result<(Method, Plan), Error> {
+    pub(crate) fn plan(&self, o: &Overrides) -> Result<(Method, Plan), Error> {
         let method = o.method.unwrap_or(self.method);
         let resolution = resolution(self, o)?;
         let tolerance = match o.tolerance {

@@ -332,23 +332,72 @@ fn extract_as<V: SlabVertex, L: Level>(
     control: &Control,
     workspace: &Workspace,
 ) -> Result<Extracted<V>, Cancelled> {
+    let slabs = slab_count(grid);
+    let (vertices, triangles, counts) =
+        extract_slabs(grid, values, level, control, workspace, 0..slabs)?;
+    let (ambiguous_faces, tunnels) =
+        counts.iter().fold((0, 0), |(a, t), c| (a + c.ambiguous_faces, t + c.tunnels));
+    Ok((vertices, triangles, ambiguous_faces, tunnels))
+}
+
+/// How many slabs extraction cuts `grid`'s cube layers into.
+pub(crate) fn slab_count(grid: &Grid) -> usize {
+    if has_cells(grid) { (grid.dims[2] - 1).div_ceil(SLAB) } else { 0 }
+}
+
+/// The vertices and triangles of some slabs, and what each of them made.
+pub(crate) type SlabsExtracted<V> = (Vec<V>, Vec<[u32; 3]>, Vec<SlabCounts>);
+
+/// What one slab made.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) struct SlabCounts {
+    pub vertices: usize,
+    pub triangles: usize,
+    pub ambiguous_faces: u64,
+    pub tunnels: u64,
+}
+
+/// Marching cubes over the slabs `range` alone: their vertices and triangles as a whole
+/// extraction would make them, numbered from the range's first vertex (the last slab's
+/// references to the layer above land just past the range's own vertices, on the next
+/// slab's first ones), and what each slab made. Slab `s` reads the sample layers
+/// `s·SLAB ..= (s + 1)·SLAB` only, which is what lets incremental re-meshing splice the
+/// slabs an edit touched into the last extraction.
+pub(crate) fn extract_slabs<V: SlabVertex, L: Level>(
+    grid: &Grid,
+    values: &[f32],
+    level: L,
+    control: &Control,
+    workspace: &Workspace,
+    range: std::ops::Range<usize>,
+) -> Result<SlabsExtracted<V>, Cancelled> {
     let grid = *grid;
-    if !has_cells(&grid) {
-        return Ok((Vec::new(), Vec::new(), 0, 0));
+    if !has_cells(&grid) || range.is_empty() {
+        return Ok((Vec::new(), Vec::new(), Vec::new()));
     }
     let [nx, ny, _] = grid.dims;
     let cube_layers = grid.dims[2] - 1;
     let done = AtomicU64::new(0);
+    let first = range.start;
     let (vertices, triangles, counts) =
-        run_slabs(cube_layers.div_ceil(SLAB), [nx, ny], workspace, |s, scratch, store| {
+        run_slabs(range.len(), [nx, ny], workspace, |s, scratch, store| {
+            let s = s + first;
             let z0 = s * SLAB;
             let z1 = (z0 + SLAB).min(cube_layers);
             let near = Near { values, first: 0, layers: grid.dims[2], dims: grid.dims, level };
-            let counts = extract_slab(&grid, &near, (z0, z1), scratch, store, control)?;
+            let start = store.lens();
+            let (ambiguous_faces, tunnels) =
+                extract_slab(&grid, &near, (z0, z1), scratch, store, control)?;
+            let end = store.lens();
+            let counts = SlabCounts {
+                vertices: end[0] - start[0],
+                triangles: end[1] - start[1],
+                ambiguous_faces,
+                tunnels,
+            };
             slab_done(control, &done, z1 - z0, cube_layers, "extracting").map(|()| counts)
         })?;
-    let (ambiguous_faces, tunnels) = counts.iter().fold((0, 0), |(a, t), c| (a + c.0, t + c.1));
-    Ok((vertices, triangles, ambiguous_faces, tunnels))
+    Ok((vertices, triangles, counts))
 }
 
 /// Adds a slab's `layers` cube layers to the progress count and reports it.

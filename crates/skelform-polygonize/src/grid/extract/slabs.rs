@@ -255,6 +255,12 @@ impl<'a, V: SlabVertex> SlabStore<'a, V> {
         debug_assert!(self.out.vertices.len() < BORROWED as usize);
     }
 
+    /// How many vertices and triangles the output holds (a slab's own are the difference
+    /// between its end and its start).
+    pub(super) fn lens(&self) -> [usize; 2] {
+        [self.out.vertices.len(), self.out.triangles.len()]
+    }
+
     /// The number of the next vertex.
     #[inline]
     pub(super) fn made(&self) -> u32 {

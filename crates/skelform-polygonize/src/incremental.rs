@@ -1,0 +1,536 @@
+//! Incremental re-meshing with the grid method: after an edit that changes the field only
+//! inside some boxes, redo only the lattice there and splice the mesh.
+//!
+//! [`polygonize`] is [`grid::polygonize`] that also returns a [`GridState`]: the sampled
+//! volume, the extraction's vertices (by lattice edge), their placed positions and their
+//! gradient normals. [`GridState::update`] is then given the edited field and the boxes
+//! outside which the field did not change (bit for bit: the caller's promise, e.g.
+//! `SkeletonField::changes_since` in skelform-skeleton for skeletons), and
+//!
+//! 1. samples again only the lattice points within two cells of those boxes;
+//! 2. runs marching cubes again over the extraction slabs whose sample layers hold such a
+//!    point (a slab reads its own layers and nothing else) and splices them between the
+//!    last run's slabs below and above, which gives the fresh run's vertices and triangles,
+//!    in its order, since the volume is now the fresh run's volume;
+//! 3. takes each vertex whose lattice edge has both ends outside the re-sampled points from
+//!    the last run (root finding along that edge evaluated the field only where it did not
+//!    change, from the same end samples, so it would find the same root), and places the
+//!    others (root finding, gradient normals) as a fresh run does.
+//!
+//! Why the result is the fresh run's mesh, bit for bit: the samples are the same (the
+//! unchanged ones because the field is unchanged there, the others because they are
+//! computed as [`skelform_field::grid::sample`] computes them); extraction reads nothing but
+//! the samples; root finding and gradients are per vertex, whatever else is in the batch.
+//! Two things are not per vertex and are redone whole: the few vertices inside a cell
+//! (tunnels), whose Newton projection stops when a whole batch has converged, and the
+//! face-normal fallback where the gradient vanishes, which reads the neighbouring
+//! triangles. The tests compare updates with fresh runs over random edits.
+
+use std::time::Instant;
+
+use glam::DVec3;
+use rayon::prelude::*;
+use skelform_field::grid::{Grid, Relative, Volume, resample_points, sample};
+use skelform_field::{Aabb, Field};
+use skelform_mesh::Mesh;
+
+use crate::Error;
+use crate::grid::extract::{SLAB, SlabCounts, extract_slabs, slab_count};
+use crate::grid::{self, GridVertex, Options, Place, Stats};
+use crate::refine::{Bracket, RootOptions, face_normals, project_to_surface, refine_roots};
+
+/// Cells of margin around a changed box: one so that every lattice edge that meets the box
+/// has both ends re-sampled, one more against rounding in the conversion to indices.
+const MARGIN: f64 = 2.0;
+
+/// Vertices per gradient batch (as in [`crate::refine::gradient_normals`]).
+const CHUNK: usize = 1024;
+
+/// What the last grid run keeps for the next (see the module documentation).
+#[derive(Clone, Debug)]
+pub struct GridState {
+    volume: Volume,
+    vertices: Vec<GridVertex>,
+    positions: Vec<DVec3>,
+    /// Unit gradient normals, zero where the gradient vanished (empty without normals).
+    gradients: Vec<[f32; 3]>,
+    triangles: Vec<[u32; 3]>,
+    /// What each extraction slab made, in slab order (the vertices and triangles above are
+    /// the slabs' one after the other).
+    slabs: Vec<SlabCounts>,
+    /// False from the start of an update until it has finished: an update that failed or
+    /// was cancelled half way leaves a state the next update must not trust.
+    whole: bool,
+    refine: bool,
+    tolerance: f64,
+    normals: bool,
+}
+
+/// What an update reused and what it redid.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Reuse {
+    /// Lattice points sampled again.
+    pub resampled: u64,
+    /// Vertices taken from the last run.
+    pub reused_vertices: usize,
+    /// Vertices placed again (root finding, projection, normals).
+    pub placed_vertices: usize,
+    /// Whether the update had to run from scratch (the lattice or the placement settings
+    /// differed from the state's).
+    pub full: bool,
+}
+
+/// The lattice the options describe, with the memory check of a held volume.
+fn lattice(options: &Options) -> Result<Grid, Error> {
+    let lattice = &options.lattice;
+    let grid = lattice.grid()?;
+    let needed = grid::memory_needed(&grid, false);
+    if needed > lattice.max_memory {
+        return Err(Error::TooMuchMemory { needed, limit: lattice.max_memory, dims: grid.dims });
+    }
+    Ok(grid)
+}
+
+/// [`grid::polygonize`], keeping what an [`GridState::update`] needs. The mesh and
+/// statistics are the same (the volume is always held whole, never streamed, which makes the
+/// same mesh).
+pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats, GridState), Error> {
+    options.lattice.threads.install(|| {
+        let grid = lattice(options)?;
+        let lattice = &options.lattice;
+        let mut stats = Stats { grid_dims: grid.dims, cell: grid.cell, ..Stats::default() };
+        let t = Instant::now();
+        let volume = sample(field, &grid, &lattice.control)?;
+        stats.sampling = t.elapsed();
+        stats.samples = grid.sample_count();
+        stats.non_finite_samples = volume.non_finite;
+        (stats.min_sample, stats.max_sample) = volume.value_range();
+        let mut state = GridState {
+            volume,
+            vertices: Vec::new(),
+            positions: Vec::new(),
+            gradients: Vec::new(),
+            triangles: Vec::new(),
+            slabs: Vec::new(),
+            whole: true,
+            refine: lattice.refine,
+            tolerance: lattice.tolerance,
+            normals: lattice.normals,
+        };
+        let (mesh, _) = state.finish(field, options, &mut stats, None)?;
+        Ok((mesh, stats, state))
+    })
+}
+
+/// A lattice edge vertex's key: its base point and direction.
+fn key(v: &GridVertex) -> Option<([u32; 3], u8)> {
+    match v.place {
+        Place::Edge { dir, .. } => Some((v.base, dir)),
+        Place::Cell { .. } => None,
+    }
+}
+
+impl GridState {
+    /// The lattice the state was sampled on.
+    pub fn grid(&self) -> &Grid {
+        &self.volume.grid
+    }
+
+    /// Whether a run with `options` can update this state (the same lattice, root finding
+    /// and normals, and no update that failed or was cancelled since the last good run);
+    /// [`GridState::update`] runs from scratch otherwise.
+    pub fn matches(&self, options: &Options) -> bool {
+        let l = &options.lattice;
+        self.whole
+            && options.lattice.grid().is_ok_and(|g| g == self.volume.grid)
+            && l.refine == self.refine
+            && l.tolerance.to_bits() == self.tolerance.to_bits()
+            && l.normals == self.normals
+    }
+
+    /// The mesh of `field` (the edited field), which must equal the field of the last run
+    /// outside `changed`, bit for bit; the same mesh as [`grid::polygonize`] of `field`
+    /// with `options`, bit for bit. Samples only near `changed` and places only the vertices
+    /// there. Runs from scratch (and says so in [`Reuse::full`]) when the options do not
+    /// [`match`](GridState::matches).
+    pub fn update(
+        &mut self,
+        field: &dyn Field,
+        options: &Options,
+        changed: &[Aabb],
+    ) -> Result<(Mesh, Stats, Reuse), Error> {
+        if !self.matches(options) {
+            let (mesh, stats, state) = polygonize(field, options)?;
+            let placed = state.vertices.len();
+            *self = state;
+            let reuse = Reuse {
+                resampled: stats.samples,
+                placed_vertices: placed,
+                full: true,
+                ..Reuse::default()
+            };
+            return Ok((mesh, stats, reuse));
+        }
+        self.whole = false;
+        options.lattice.threads.install(|| {
+            let grid = self.volume.grid;
+            let mut stats = Stats { grid_dims: grid.dims, cell: grid.cell, ..Stats::default() };
+            let t = Instant::now();
+            let dirty = Dirty::new(&grid, changed);
+            let points = dirty.points();
+            stats.non_finite_samples = resample_points(field, &mut self.volume, &points);
+            stats.samples = points.len() as u64;
+            let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+            for &n in &points {
+                lo = lo.min(self.volume.values[n]);
+                hi = hi.max(self.volume.values[n]);
+            }
+            (stats.min_sample, stats.max_sample) = (lo, hi);
+            stats.sampling = t.elapsed();
+            if options.lattice.control.is_cancelled() {
+                return Err(Error::Cancelled);
+            }
+            let (mesh, reused) = self.finish(field, options, &mut stats, Some(&dirty))?;
+            if mesh.is_empty() {
+                // What an empty mesh's explanation reads: the range of every sample.
+                (stats.min_sample, stats.max_sample) = self.volume.value_range();
+            }
+            self.whole = true;
+            let reuse = Reuse {
+                resampled: stats.samples,
+                reused_vertices: reused,
+                placed_vertices: mesh.vertex_count() - reused,
+                full: false,
+            };
+            Ok((mesh, stats, reuse))
+        })
+    }
+
+    /// Extraction over the held volume, vertex placement (reusing the old vertices outside
+    /// `dirty` when given), normals; the state takes the new vertices. Returns the mesh and
+    /// how many vertices were reused.
+    fn finish(
+        &mut self,
+        field: &dyn Field,
+        options: &Options,
+        stats: &mut Stats,
+        dirty: Option<&Dirty>,
+    ) -> Result<(Mesh, usize), Error> {
+        let lattice = &options.lattice;
+        let workspace = options.workspace.as_deref().unwrap_or(grid::Workspace::shared());
+        let grid = self.volume.grid;
+        let slabs = slab_count(&grid);
+        // The slabs to extract: all, or those whose sample layers hold a re-sampled point
+        // (slab `s` reads layers `s·SLAB ..= (s + 1)·SLAB`). The others are the last run's.
+        let full = dirty.is_none() || self.slabs.len() != slabs;
+        let range = match dirty.map(Dirty::layers) {
+            _ if full => 0..slabs,
+            None | Some(None) => 0..0,
+            Some(Some((lo, hi))) => lo.div_ceil(SLAB).saturating_sub(1)..(hi / SLAB + 1).min(slabs),
+        };
+        let t = Instant::now();
+        let (new_vertices, new_triangles, counts) = extract_slabs::<GridVertex, _>(
+            &grid,
+            &self.volume.values,
+            Relative,
+            &lattice.control,
+            workspace,
+            range.clone(),
+        )?;
+        // Splice: the slabs below the range, the range, the slabs above it (their vertex
+        // numbers shifted by what the range gained or lost).
+        let before = |n: usize| {
+            self.slabs[..n].iter().fold([0, 0], |[v, t], c| [v + c.vertices, t + c.triangles])
+        };
+        let [v0, t0] = before(range.start);
+        let [v1, t1] = if range.end == slabs {
+            [self.vertices.len(), self.triangles.len()]
+        } else {
+            before(range.end)
+        };
+        // In place: only what lies above the range moves, and only when its size changed.
+        let added = new_vertices.len();
+        let shift = |i: u32| (i as i64 + added as i64 - (v1 - v0) as i64) as u32;
+        let mut vertices = std::mem::take(&mut self.vertices);
+        let old: Vec<GridVertex> = vertices.splice(v0..v1, new_vertices.iter().copied()).collect();
+        let mut triangles = std::mem::take(&mut self.triangles);
+        let end = t0 + new_triangles.len();
+        triangles.splice(t0..t1, new_triangles.iter().map(|t| t.map(|i| i + v0 as u32)));
+        if added != v1 - v0 {
+            for t in &mut triangles[end..] {
+                *t = t.map(shift);
+            }
+        }
+        let mut slab_counts = std::mem::take(&mut self.slabs);
+        if full {
+            slab_counts = counts;
+        } else {
+            slab_counts.splice(range.clone(), counts);
+        }
+        stats.extraction = t.elapsed();
+        stats.ambiguous_faces = slab_counts.iter().map(|c| c.ambiguous_faces).sum();
+        stats.tunnels = slab_counts.iter().map(|c| c.tunnels).sum();
+
+        let t = Instant::now();
+        let n = vertices.len();
+        let want_normals = lattice.normals;
+        let mut positions = std::mem::take(&mut self.positions);
+        let mut gradients = std::mem::take(&mut self.gradients);
+        // The vertices placed here.
+        let mut fresh: Vec<usize> = Vec::new();
+        let mut reused = 0;
+        match dirty {
+            _ if full => {
+                positions = vertices.iter().map(|v| v.position(&grid)).collect();
+                gradients = vec![[0f32; 3]; if want_normals { n } else { 0 }];
+                fresh.extend(0..n);
+            }
+            None => unreachable!("a run without an old state extracts every slab"),
+            Some(dirty) => {
+                // Outside the range: the last run's vertices, in the same order.
+                let placed = new_vertices.iter().map(|v| v.position(&grid));
+                let old_positions: Vec<DVec3> = positions.splice(v0..v1, placed).collect();
+                let old_gradients: Vec<[f32; 3]> = if want_normals {
+                    gradients.splice(v0..v1, std::iter::repeat_n([0.0; 3], added)).collect()
+                } else {
+                    Vec::new()
+                };
+                reused = n - added;
+                let inside = |p: [u32; 3]| dirty.get(p);
+                let clean = |v: &GridVertex| match v.tip() {
+                    Some(tip) => !inside(v.base) && !inside(tip),
+                    None => false,
+                };
+                let old = &old;
+                let mut j = 0;
+                let mut map: Option<rustc_hash::FxHashMap<([u32; 3], u8), usize>> = None;
+                for (i, v) in (v0..).zip(&new_vertices) {
+                    if !clean(v) {
+                        fresh.push(i);
+                        continue;
+                    }
+                    let k = key(v);
+                    // Clean edge vertices come in the same order in both runs (extraction
+                    // numbers them in a fixed order of the lattice's edges): walk the old
+                    // list alongside, skipping its vertices that are not clean.
+                    let found = if let Some(m) = &map {
+                        k.and_then(|k| m.get(&k).copied())
+                    } else {
+                        while j < old.len() && !clean(&old[j]) {
+                            j += 1;
+                        }
+                        if j < old.len() && key(&old[j]) == k {
+                            j += 1;
+                            Some(j - 1)
+                        } else {
+                            // Not the expected order after all: look the rest up.
+                            let m: rustc_hash::FxHashMap<_, _> = old
+                                .iter()
+                                .enumerate()
+                                .filter(|(_, o)| clean(o))
+                                .filter_map(|(n, o)| key(o).map(|k| (k, n)))
+                                .collect();
+                            let f = k.and_then(|k| m.get(&k).copied());
+                            map = Some(m);
+                            f
+                        }
+                    };
+                    match found {
+                        Some(o) => {
+                            positions[i] = old_positions[o];
+                            if want_normals {
+                                gradients[i] = old_gradients[o];
+                            }
+                            reused += 1;
+                        }
+                        None => fresh.push(i),
+                    }
+                }
+            }
+        }
+
+        // Root finding for the fresh edge vertices; every cell vertex is projected again
+        // (their projection stops per batch, so they are projected in the fresh run's
+        // batches).
+        let cells: Vec<usize> = (0..n).filter(|&i| key(&vertices[i]).is_none()).collect();
+        if lattice.refine {
+            let roots = RootOptions {
+                tolerance: lattice.tolerance,
+                t_min: grid::cell::T_MIN,
+                ..RootOptions::default()
+            };
+            let at = |p: [u32; 3]| grid.point(p[0] as usize, p[1] as usize, p[2] as usize);
+            let value =
+                |p: [u32; 3]| self.volume.get(p[0] as usize, p[1] as usize, p[2] as usize) as f64;
+            let edges: Vec<usize> =
+                fresh.iter().copied().filter(|&i| key(&vertices[i]).is_some()).collect();
+            let mut brackets: Vec<Bracket> = edges
+                .iter()
+                .map(|&i| {
+                    let v = &vertices[i];
+                    let (tip, t) = match (v.tip(), v.place) {
+                        (Some(tip), Place::Edge { t, .. }) => (tip, t),
+                        _ => unreachable!("edge vertices have a tip"),
+                    };
+                    Bracket { p0: at(v.base), p1: at(tip), f0: value(v.base), f1: value(tip), t }
+                })
+                .collect();
+            stats.refine_evaluations = refine_roots(field, &mut brackets, &roots);
+            for (&i, b) in edges.iter().zip(&brackets) {
+                positions[i] = b.p0.lerp(b.p1, b.t);
+            }
+            if !cells.is_empty() {
+                let mut pts: Vec<DVec3> =
+                    cells.iter().map(|&i| vertices[i].position(&grid)).collect();
+                let boxes: Vec<(DVec3, DVec3)> = cells
+                    .iter()
+                    .map(|&i| {
+                        let lo = at(vertices[i].base);
+                        (lo, lo + DVec3::splat(grid.cell))
+                    })
+                    .collect();
+                stats.refine_evaluations +=
+                    project_to_surface(field, &mut pts, &boxes, lattice.tolerance * grid.cell);
+                for (&i, p) in cells.iter().zip(pts) {
+                    positions[i] = p;
+                }
+            }
+        }
+        stats.refinement = t.elapsed();
+        if lattice.control.is_cancelled() {
+            return Err(Error::Cancelled);
+        }
+
+        let t = Instant::now();
+        if want_normals {
+            // Cell vertices were placed again: their gradients too.
+            let mut again = fresh.clone();
+            if dirty.is_some() {
+                again.extend(cells.iter().copied());
+                again.sort_unstable();
+                again.dedup();
+            }
+            let pts: Vec<DVec3> = again.iter().map(|&i| positions[i]).collect();
+            let normals: Vec<[f32; 3]> = pts
+                .par_chunks(CHUNK)
+                .flat_map_iter(|pts| {
+                    let mut vals = vec![0.0; pts.len()];
+                    let mut grads = vec![DVec3::ZERO; pts.len()];
+                    field.eval_grad_many(pts, &mut vals, &mut grads);
+                    grads.into_iter().map(|g| {
+                        let n = g.normalize_or_zero();
+                        if n == DVec3::ZERO || !n.is_finite() {
+                            [0.0; 3]
+                        } else {
+                            n.as_vec3().to_array()
+                        }
+                    })
+                })
+                .collect();
+            for (&i, g) in again.iter().zip(normals) {
+                gradients[i] = g;
+            }
+            stats.normal_evaluations = again.len() as u64;
+        }
+        let normals = if want_normals && !triangles.is_empty() {
+            let mut normals = gradients.clone();
+            if normals.contains(&[0.0; 3]) {
+                let face = face_normals(&positions, &triangles);
+                for (o, f) in normals.iter_mut().zip(face) {
+                    if *o == [0.0; 3] {
+                        *o = f;
+                    }
+                }
+            }
+            normals
+        } else {
+            Vec::new()
+        };
+        stats.normals = t.elapsed();
+        let mesh = Mesh {
+            positions: positions.iter().map(|p| p.as_vec3().to_array()).collect(),
+            normals,
+            triangles: triangles.clone(),
+            ..Mesh::default()
+        };
+        stats.vertices = mesh.vertex_count();
+        stats.triangles = mesh.triangle_count();
+        self.vertices = vertices;
+        self.positions = positions;
+        self.gradients = gradients;
+        self.triangles = triangles;
+        self.slabs = slab_counts;
+        Ok((mesh, reused))
+    }
+}
+
+/// The lattice points sampled again: those within [`MARGIN`] cells of a changed box, as
+/// one bit per lattice point (boxes of neighbouring elements overlap, and their bounding box
+/// would hold far more points than they do).
+struct Dirty {
+    dims: [usize; 3],
+    bits: Vec<u64>,
+    /// The lowest and highest sample layer with a marked point.
+    layers: Option<(usize, usize)>,
+}
+
+impl Dirty {
+    fn new(grid: &Grid, changed: &[Aabb]) -> Dirty {
+        let dims = grid.dims;
+        let count = dims[0] * dims[1] * dims[2];
+        let mut d = Dirty { dims, bits: vec![0; count.div_ceil(64)], layers: None };
+        let top = dims.map(|n| n.saturating_sub(1));
+        for c in changed {
+            let lo = (c.min - grid.origin) / grid.cell - DVec3::splat(MARGIN);
+            let hi = (c.max - grid.origin) / grid.cell + DVec3::splat(MARGIN);
+            let (a, b): ([usize; 3], [usize; 3]) = if lo.is_finite() && hi.is_finite() {
+                if (0..3).any(|i| hi[i] < 0.0 || lo[i] > top[i] as f64) {
+                    continue;
+                }
+                (
+                    std::array::from_fn(|i| lo[i].floor().max(0.0) as usize),
+                    std::array::from_fn(|i| hi[i].ceil().min(top[i] as f64) as usize),
+                )
+            } else {
+                // A box that is not finite covers everything.
+                ([0; 3], top)
+            };
+            d.layers = Some(d.layers.map_or((a[2], b[2]), |(lo, hi)| (lo.min(a[2]), hi.max(b[2]))));
+            for k in a[2]..=b[2] {
+                for j in a[1]..=b[1] {
+                    let row = dims[0] * (j + dims[1] * k);
+                    for i in a[0]..=b[0] {
+                        let n = row + i;
+                        d.bits[n / 64] |= 1 << (n % 64);
+                    }
+                }
+            }
+        }
+        d
+    }
+
+    /// The lowest and highest sample layer sampled again, if any.
+    fn layers(&self) -> Option<(usize, usize)> {
+        self.layers
+    }
+
+    /// Whether lattice point `p` is sampled again.
+    fn get(&self, p: [u32; 3]) -> bool {
+        let [i, j, k] = p.map(|x| x as usize);
+        let n = i + self.dims[0] * (j + self.dims[1] * k);
+        self.bits[n / 64] >> (n % 64) & 1 == 1
+    }
+
+    /// The indices of the points sampled again, ascending.
+    fn points(&self) -> Vec<usize> {
+        let mut out = Vec::new();
+        for (w, &bits) in self.bits.iter().enumerate() {
+            let mut b = bits;
+            while b != 0 {
+                out.push(w * 64 + b.trailing_zeros() as usize);
+                b &= b - 1;
+            }
+        }
+        out
+    }
+}
