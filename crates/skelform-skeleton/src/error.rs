@@ -16,6 +16,9 @@ pub enum SkeletonError {
     /// A strength (the weight on an element's density) that is NaN or infinite; any finite
     /// value is accepted, negative ones carve.
     BadStrength(f64),
+    #[error("colour components must be numbers from 0 to 1 (got {0:?})")]
+    /// A colour (red, green, blue) with a component outside `[0, 1]` or not a number.
+    BadColor([f64; 3]),
     #[error("segment has zero length: both ends are at {0:?} (use a point for a point source)")]
     /// A segment whose ends coincide to 10⁻¹² of their magnitude; the value is the end.
     ZeroLengthSegment([f64; 3]),

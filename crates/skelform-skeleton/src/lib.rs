@@ -103,11 +103,11 @@ pub mod skeleton;
 
 pub use curve::{CubicCurve, Frame};
 pub use error::SkeletonError;
-pub use field::{Blend, DEFAULT_ISO, Falloff, SkeletonField};
+pub use field::{Blend, DEFAULT_ISO, Falloff, NEUTRAL_COLOR, SkeletonField};
 pub use geometry::{Polygon, Segment, Shape};
 pub use image::{
     DEFAULT_IMAGE_RESOLUTION, MAX_IMAGE_BYTES, MAX_IMAGE_RESOLUTION, MAX_IMAGE_WORK, PolygonMethod,
 };
 pub use kernel::Kernel;
 pub use pose::{Articulated, Joint, JointId, Pose};
-pub use skeleton::{Element, Group, GroupId, Junction, JunctionJoint, Skeleton};
+pub use skeleton::{Element, Group, GroupId, Junction, JunctionJoint, Skeleton, check_color};
