@@ -15,6 +15,7 @@
 //! a = [0, 0, 0]
 //! b = [0.5, 0, 0]
 //! group = "finger1"
+//! color = [0.9, 0.7, 0.6]      # optional, on any element; `color` in [skeleton]: the default
 //! ```
 
 use std::collections::BTreeMap;
@@ -63,6 +64,8 @@ pub(crate) struct SkeletonSection {
     poses: Option<BTreeMap<Spanned<String>, crate::pose::PoseSpec>>,
     pose: Option<Spanned<String>>,
     junction: Option<Vec<JunctionSpec>>,
+    /// Colour of the elements without their own (DIS ch. 6): `[r, g, b]`, each 0 to 1.
+    color: Option<Spanned<[f64; 3]>>,
 }
 
 /// A joint blended by the joint combination surface (DIS eq. 5.37).
@@ -117,6 +120,8 @@ struct PointSpec {
     group: Option<Spanned<String>>,
     /// The joint whose frame the element is written in.
     joint: Option<Spanned<String>>,
+    /// The element's colour, `[r, g, b]` with each component from 0 to 1.
+    color: Option<Spanned<[f64; 3]>>,
 }
 
 #[derive(Deserialize)]
@@ -129,6 +134,8 @@ struct SegmentSpec {
     group: Option<Spanned<String>>,
     /// The joint whose frame the element is written in.
     joint: Option<Spanned<String>>,
+    /// The element's colour, `[r, g, b]` with each component from 0 to 1.
+    color: Option<Spanned<[f64; 3]>>,
 }
 
 #[derive(Deserialize)]
@@ -140,6 +147,8 @@ struct PolylineSpec {
     group: Option<Spanned<String>>,
     /// The joint whose frame the element is written in.
     joint: Option<Spanned<String>>,
+    /// The element's colour, `[r, g, b]` with each component from 0 to 1.
+    color: Option<Spanned<[f64; 3]>>,
 }
 
 #[derive(Deserialize)]
@@ -154,6 +163,8 @@ struct CurveSpec {
     group: Option<Spanned<String>>,
     /// The joint whose frame the element is written in.
     joint: Option<Spanned<String>>,
+    /// The element's colour, `[r, g, b]` with each component from 0 to 1.
+    color: Option<Spanned<[f64; 3]>>,
 }
 
 #[derive(Deserialize)]
@@ -167,6 +178,8 @@ struct PolygonSpec {
     image_resolution: Option<Spanned<i64>>,
     /// The joint whose frame the element is written in.
     joint: Option<Spanned<String>>,
+    /// The element's colour, `[r, g, b]` with each component from 0 to 1.
+    color: Option<Spanned<[f64; 3]>>,
 }
 
 /// A skeleton section, built.
@@ -395,6 +408,7 @@ pub(crate) fn build(
         }
         let e = Element::new(Shape::Point(at_), r[0]).and_then(|e| e.with_strength(w[0]));
         add(&mut skeleton, e, g, p.at.span().start)?;
+        paint(&mut skeleton, first, &p.color, at)?;
         marks.push((first..skeleton.len(), p.joint.as_ref()));
     }
     for sg in s.segment.iter().flatten() {
@@ -409,6 +423,7 @@ pub(crate) fn build(
             .and_then(|e| e.with_strength(w[0]))
             .and_then(|e| e.with_end_strength(last(&w)));
         add(&mut skeleton, e, g, sg.a.span().start)?;
+        paint(&mut skeleton, first, &sg.color, at)?;
         marks.push((first..skeleton.len(), sg.joint.as_ref()));
     }
     for pl in s.polyline.iter().flatten() {
@@ -431,6 +446,7 @@ pub(crate) fn build(
                 skeleton.set_end_strengths(i, (w[k], w[k + 1])).map_err(|e| err(pat, e))?;
             }
         }
+        paint(&mut skeleton, first, &pl.color, at)?;
         marks.push((first..skeleton.len(), pl.joint.as_ref()));
     }
     for cv in s.curve.iter().flatten() {
@@ -457,6 +473,7 @@ pub(crate) fn build(
             .add_tapered_curve(&curve, tol, (r[0], last(&r)), g)
             .map_err(|e| err(cat, e))?;
         set_strength(&mut skeleton, range, w[0]).map_err(|e| err(cat, e))?;
+        paint(&mut skeleton, first, &cv.color, at)?;
         marks.push((first..skeleton.len(), cv.joint.as_ref()));
     }
     for (kind, list) in [("triangle", &s.triangle), ("polygon", &s.polygon)] {
@@ -486,6 +503,7 @@ pub(crate) fn build(
                 .and_then(|e| e.with_strength(w[0]))
                 .and_then(|e| e.with_polygon_method(method));
             add(&mut skeleton, e, g, vat)?;
+            paint(&mut skeleton, first, &pg.color, at)?;
             marks.push((first..skeleton.len(), pg.joint.as_ref()));
         }
     }
@@ -506,6 +524,9 @@ pub(crate) fn build(
             };
             err(offset, e)
         })?;
+    }
+    if let Some(c) = &s.color {
+        skeleton.set_default_color(*c.get_ref()).map_err(|e| err(c.span().start, e))?;
     }
     if skeleton.is_empty() {
         return Err(at(
@@ -621,6 +642,21 @@ fn polygon_method(
         }
     };
     Ok(m)
+}
+
+/// Gives the elements from `first` on (those just added) the colour `color`, if any, checked (each component from 0
+/// to 1) and reported at its position.
+fn paint(
+    skeleton: &mut Skeleton,
+    first: usize,
+    color: &Option<Spanned<[f64; 3]>>,
+    at: At,
+) -> Result<(), SceneError> {
+    let Some(c) = color else { return Ok(()) };
+    for i in first..skeleton.len() {
+        skeleton.set_color(i, *c.get_ref()).map_err(|e| at(c.span().start, e.to_string()))?;
+    }
+    Ok(())
 }
 
 fn set_strength(

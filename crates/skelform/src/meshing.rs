@@ -257,8 +257,17 @@ impl Scene {
                 healed::polygonize(field, &o).map(|(m, s)| (m, Stats::Healed(Box::new(s))))
             }
         };
-        let (mesh, stats) =
+        let (mut mesh, stats) =
             result.map_err(|source| Error::Polygonize { origin: self.origin.clone(), source })?;
+        // Element colours blended at the vertices (DIS ch. 6), for surfaces of the field; the
+        // non-manifold method's surfaces are labelled by region instead.
+        if method != Method::NonManifold
+            && let Some(skeleton) = &self.skeleton
+        {
+            let points: Vec<DVec3> =
+                mesh.positions.iter().map(|p| DVec3::from_array(p.map(f64::from))).collect();
+            mesh.colors = skeleton.colors(&points).unwrap_or_default();
+        }
         Ok(Meshed { mesh, stats, method, elapsed: started.elapsed() })
     }
 }
