@@ -848,7 +848,7 @@ radius = 0.05
         // A bad range.
         let (l, c, m) =
             error(&format!("[skeleton]\nblend = \"elliptic\"\nrange = -1\nradius = 0.1\n{seg}"));
-        assert_eq!((l, c), (6, 9), "{m}");
+        assert_eq!((l, c), (3 + 6, 9), "{m}");
         assert!(m.contains("range must be a positive number"), "{m}");
         // No elements.
         let (_, _, m) = error("[skeleton]\nradius = 0.1\n");
@@ -998,6 +998,38 @@ radius = 0.05
         let mut v = [0.0; 2];
         s.field.eval_many(&[DVec3::new(0.0, 0.5, -0.5), DVec3::new(0.0, 0.0, 0.05)], &mut v);
         assert!(v[0] < 0.0 && v[1] < 0.0);
+    }
+
+    #[test]
+    fn colours_parse_and_bad_ones_are_reported_where_they_are() {
+        let seg = "[[skeleton.segment]]\na = [0, 0, 0]\nb = [1, 0, 0]\n";
+        let s = parse(&format!(
+            "[skeleton]\nradius = 0.1\ncolor = [0, 0, 1]\n{seg}color = [1, 0, 0]\n\
+             [[skeleton.polyline]]\npoints = [[0, 1, 0], [1, 1, 0], [2, 1, 0]]\ncolor = [0, 1, 0]\n\
+             [[skeleton.point]]\nat = [0, -1, 0]\n"
+        ))
+        .unwrap();
+        let f = s.skeleton.as_ref().unwrap();
+        let c = f
+            .colors(&[
+                DVec3::new(0.5, 0.1, 0.0),
+                DVec3::new(1.5, 1.1, 0.0),
+                DVec3::new(0.0, -1.1, 0.0),
+            ])
+            .unwrap();
+        assert_eq!(c, vec![[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]);
+        // No colour anywhere: no colours.
+        let plain = parse(&format!("[skeleton]\nradius = 0.1\n{seg}")).unwrap();
+        assert!(plain.skeleton.as_ref().unwrap().colors(&[DVec3::ZERO]).is_none());
+        let (l, c, m) = error(&format!("[skeleton]\nradius = 0.1\n{seg}color = [1, 0, 1.5]\n"));
+        assert_eq!((l, c), (3 + 6, 9), "{m}");
+        assert!(m.contains("colour components must be numbers from 0 to 1"), "{m}");
+        let (l, _, m) = error(&format!("[skeleton]\nradius = 0.1\ncolor = [-0.1, 0, 0]\n{seg}"));
+        assert_eq!(l, 3 + 3, "{m}");
+        let (l, _, m) = error(&format!("[skeleton]\nradius = 0.1\n{seg}color = [1, 0]\n"));
+        assert_eq!(l, 3 + 6, "{m}");
+        let (_, _, m) = error(&format!("[skeleton]\nradius = 0.1\n{seg}colour = [1, 0, 0]\n"));
+        assert!(m.contains("colour"), "{m}");
     }
 
     #[test]
