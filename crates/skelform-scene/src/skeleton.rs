@@ -1040,10 +1040,20 @@ radius = 0.05
             let path = entry.unwrap().path();
             if path.extension().is_some_and(|e| e == "toml") {
                 let scene = Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
-                let sk = scene.skeleton.as_ref().expect("a skeleton");
                 assert!(!scene.continuation.seeds.is_empty(), "{}", path.display());
-                for p in sk.seed_points() {
-                    assert!(sk.eval(p) < 0.0, "{}: seed {p} outside", path.display());
+                match scene.skeleton.as_ref() {
+                    Some(sk) => {
+                        for p in sk.seed_points() {
+                            assert!(sk.eval(p) < 0.0, "{}: seed {p} outside", path.display());
+                        }
+                    }
+                    // A ramiform (its own field, seeded from its limbs).
+                    None => {
+                        for &p in &scene.continuation.seeds {
+                            let f = scene.field.eval(p);
+                            assert!(f < 0.0, "{}: seed {p} outside", path.display());
+                        }
+                    }
                 }
                 n += 1;
             }
@@ -1101,6 +1111,7 @@ mod example_meshes {
                 ("elliptic.toml", 1),
                 ("combination.toml", 1),
                 ("skeleton-and-formula.toml", 1),
+                ("trifurcation.toml", 1),
             ],
             None,
         );
