@@ -154,7 +154,7 @@ impl RamiformField {
             }
         }
         let mut field = RamiformField {
-            segments: r.limbs.iter().map(|l| l.segment.clone()).collect(),
+            segments: r.limbs.iter().map(|l| l.segment).collect(),
             radii: vec![0.0; n],
             children,
             roots,
