@@ -7,7 +7,7 @@ use glam::{DVec2, DVec3};
 use skelform_field::{Aabb, RegionField};
 use skelform_leaf::regions::{ABOVE, BELOW, BEYOND, VEIN};
 use skelform_leaf::web::signed_area2;
-use skelform_leaf::{Fillet, Leaf, LeafParams, Side, VeinCurve, VeinKind, Venation, Web};
+use skelform_leaf::{Fillet, Leaf, LeafParams, Side, VeinCurve, VeinKind, VeinRule, Venation, Web};
 use skelform_mesh::{Mesh, RegionPair, RegionTriple};
 use skelform_polygonize::nonmanifold::{Options, Stats, polygonize};
 use skelform_polygonize::{LatticeOptions, Resolution};
@@ -344,8 +344,15 @@ fn tee_in_square(fillet: Fillet) -> (Leaf, skelform_leaf::BladeRegions) {
 
 #[test]
 fn a_tee_fillets_into_a_square_blade() {
-    for fillet in [Fillet::Both, Fillet::Below] {
-        let (leaf, r) = tee_in_square(fillet);
+    for (fillet, rule) in [
+        (Fillet::Both, VeinRule::Capped),
+        (Fillet::Below, VeinRule::Capped),
+        (Fillet::Both, VeinRule::Dissertation),
+        (Fillet::Below, VeinRule::Dissertation),
+    ] {
+        let (leaf, mut r) = tee_in_square(fillet);
+        assert_eq!(r.vein_rule, VeinRule::Dissertation, "the default");
+        r.vein_rule = rule;
         let opts = options(&leaf, &r, 0.04);
         let (m, s) = polygonize(&r, &opts).unwrap();
         eprintln!("{fillet:?}: {:?}", s.triangles_per_pair);
@@ -375,10 +382,28 @@ fn a_tee_fillets_into_a_square_blade() {
         let (_, top) = z_of(RegionPair(VEIN, ABOVE));
         let (bottom, _) = z_of(RegionPair(VEIN, BELOW));
         eprintln!("{fillet:?}: vein from z = {bottom:.3} to {top:.3}");
-        // Below the blade the vein is its convolution surface: one radius deep.
-        assert!((bottom + 0.1).abs() < 0.015, "bottom {bottom}");
+        // Capped, the vein is its convolution surface away from the blade: one radius deep.
+        // By the dissertation's rule it ends where Σ = |d|/r, shallower (Σ = ½ at one
+        // radius): found here by bisection on the region function, and the mesh agrees.
+        let depth = match rule {
+            VeinRule::Capped => 0.1,
+            VeinRule::Dissertation => {
+                let (mut lo, mut hi) = (0.0, 0.2);
+                for _ in 0..60 {
+                    let mid = 0.5 * (lo + hi);
+                    if r.region(DVec3::new(-0.4, -0.2, -mid)) == VEIN {
+                        lo = mid;
+                    } else {
+                        hi = mid;
+                    }
+                }
+                assert!(lo > 0.05 && lo < 0.09, "depth {lo}");
+                lo
+            }
+        };
+        assert!((bottom + depth).abs() < 0.015, "{rule:?}: bottom {bottom}, depth {depth}");
         match fillet {
-            Fillet::Both => assert!((top - 0.1).abs() < 0.015, "top {top}"),
+            Fillet::Both => assert!((top - depth).abs() < 0.015, "{rule:?}: top {top}"),
             // Localized: nothing above the blade is vein; its upper side is the flat blade.
             Fillet::Below => assert!(top.abs() < 0.002, "top {top}"),
         }
