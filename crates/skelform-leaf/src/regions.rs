@@ -145,6 +145,54 @@ impl RegionField for BladeRegions {
         }
     }
 
+    /// Normals for the surfaces of interest (the chapter's `Gradient(p, pair)`), so that
+    /// veins and blade shade smoothly instead of by averaged triangle normals: the blade's
+    /// signed distance for the blade (2, 3), and `Σ − |d|/r` (`Σ − ½` where the capped rule
+    /// caps it) for the vein surfaces, the function whose zero is the vein's boundary. The
+    /// density's gradient is exact; the distance's is the nearest triangle's normal over the
+    /// blade and a central difference beyond the margin.
+    fn gradient(&self, p: DVec3, pair: (u32, u32)) -> Option<DVec3> {
+        let h = 1e-6 * (1.0 + p.abs().max_element());
+        let d = |q: DVec3| self.blade.distance(q).distance;
+        let bd = self.blade.distance(p);
+        // The nearest triangle's normal, turned to where d grows: ∇d over the blade (d is
+        // the distance to its plane there), and the blade's normal up to its margin.
+        let plane = || {
+            let t = self.blade.triangles.get(bd.triangle)?;
+            let [a, b, c] = t.map(|i| self.blade.vertices[i as usize]);
+            let n = (b - a).cross(c - a).normalize_or_zero();
+            (n != DVec3::ZERO).then(|| if d(p + n * h) >= d(p - n * h) { n } else { -n })
+        };
+        // Beyond the margin ∇d is a central difference (d is the distance to the margin).
+        let blade_gradient = || match (bd.side, plane()) {
+            (Side::Above | Side::Below, Some(n)) => n,
+            _ => {
+                DVec3::new(
+                    d(p + DVec3::X * h) - d(p - DVec3::X * h),
+                    d(p + DVec3::Y * h) - d(p - DVec3::Y * h),
+                    d(p + DVec3::Z * h) - d(p - DVec3::Z * h),
+                ) / (2.0 * h)
+            }
+        };
+        match pair {
+            (ABOVE, BELOW) => plane(),
+            (a, b) if a == VEIN || b == VEIN => {
+                let v = self.veins.as_ref()?;
+                let (_, r) = v.density(p);
+                if r == 0.0 {
+                    return None;
+                }
+                let d = bd.distance;
+                let capped = self.vein_rule == VeinRule::Capped
+                    && d.abs() / r >= skelform_skeleton::DEFAULT_ISO;
+                let threshold =
+                    if capped { DVec3::ZERO } else { blade_gradient() * (d.signum() / r) };
+                Some(v.density_gradient(p) - threshold)
+            }
+            _ => None,
+        }
+    }
+
     fn region_ids(&self) -> Option<Vec<u32>> {
         Some(if self.veins.is_some() {
             vec![BEYOND, VEIN, ABOVE, BELOW]

@@ -565,3 +565,62 @@ fn the_smoothed_margin_still_tiles_and_passes_through_every_tip() {
     assert!((sum - enclosed).abs() < 1e-9 * enclosed, "{sum} vs {enclosed}");
     eprintln!("smoothed margin: {} triangles, area {enclosed:.4}", tris.len());
 }
+
+#[test]
+fn veins_and_blade_take_their_normals_from_gradients() {
+    // Every vertex of the tee's blade and veins gets its normal from the region function's
+    // gradient (the run used to report "0 normals from gradients" and the veins shaded
+    // faceted), and the normals are smooth: neighbours on a vein agree closely, and every
+    // normal agrees with its triangles' side.
+    for rule in [VeinRule::Dissertation, VeinRule::Capped] {
+        let (leaf, mut r) = tee_in_square(Fillet::Both);
+        r.vein_rule = rule;
+        let opts = options(&leaf, &r, 0.04);
+        let (m, s) = polygonize(&r, &opts).unwrap();
+        assert_eq!(m.normals.len(), m.positions.len());
+        let used: std::collections::BTreeSet<u32> = m.triangles.iter().flatten().copied().collect();
+        assert!(
+            s.gradient_normals >= used.len() * 9 / 10,
+            "{rule:?}: {} of {}",
+            s.gradient_normals,
+            used.len()
+        );
+        // The blade's normals are its plane's, ±z.
+        let n = |v: u32| DVec3::from_array(m.normals[v as usize].map(f64::from));
+        for (t, l) in m.triangles.iter().zip(&m.labels) {
+            if *l == RegionPair(ABOVE, BELOW) {
+                for &v in t {
+                    let at = DVec3::from_array(m.positions[v as usize].map(f64::from));
+                    assert!(
+                        n(v).z.abs() > 0.999,
+                        "{rule:?}: blade normal {} at {at}, gradient {:?}",
+                        n(v),
+                        r.gradient(at, (ABOVE, BELOW))
+                    );
+                }
+            }
+        }
+        // On the vein's upper surface, away from where it meets the blade, the normals of a
+        // triangle's corners differ by less than 25° (one cell of a tube of radius 2.5
+        // cells), and face the same side as the triangle.
+        let mut worst: f64 = 1.0;
+        for (t, l) in m.triangles.iter().zip(&m.labels) {
+            if *l != RegionPair(VEIN, ABOVE) {
+                continue;
+            }
+            let p = t.map(|v| DVec3::from_array(m.positions[v as usize].map(f64::from)));
+            if p.iter().any(|q| q.z < 0.02) {
+                continue;
+            }
+            let face = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero();
+            for k in 0..3 {
+                worst = worst.min(n(t[k]).dot(n(t[(k + 1) % 3])));
+                assert!(n(t[k]).dot(face).abs() > 0.5, "{rule:?}: {} vs face {face}", n(t[k]));
+            }
+        }
+        // The capped rule's surface has a kink where the cap takes over (|d|/r = ½): its
+        // normals turn by up to 40° across one cell there.
+        let limit: f64 = if rule == VeinRule::Capped { 40.0 } else { 25.0 };
+        assert!(worst > limit.to_radians().cos(), "{rule:?}: worst corner agreement {worst}");
+    }
+}
