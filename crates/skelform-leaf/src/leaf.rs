@@ -7,7 +7,7 @@ use skelform_skeleton::Kernel;
 
 use crate::LeafError;
 use crate::blade::Blade;
-use crate::regions::{BladeRegions, Fillet};
+use crate::regions::{BladeRegions, Fillet, VeinRule};
 use crate::veins::{VeinSegment, Veins};
 use crate::venation::{LeafParams, VeinKind, Venation, wrap};
 use crate::web::{Web, WebStats};
@@ -121,7 +121,12 @@ impl Leaf {
         let segments: Vec<VeinSegment> =
             self.veins.iter().flat_map(|v| Veins::segments_of(&v.points, &v.radii)).collect();
         let veins = if segments.is_empty() { None } else { Some(Veins::new(segments, kernel)?) };
-        Ok(BladeRegions { blade: self.blade.clone(), veins, fillet })
+        Ok(BladeRegions {
+            blade: self.blade.clone(),
+            veins,
+            fillet,
+            vein_rule: VeinRule::default(),
+        })
     }
 
     /// Bounding box of blade and veins (with the veins' full reach under `kernel`).

@@ -57,7 +57,7 @@ pub use blade::{Blade, BladeDistance, Side};
 pub use error::LeafError;
 pub use leaf::{Leaf, VeinCurve};
 pub use patch::{BicubicPatch, PatchBlend};
-pub use regions::{BladeRegions, Fillet};
+pub use regions::{BladeRegions, Fillet, VeinRule};
 pub use veins::{VeinSegment, Veins};
 pub use venation::{LeafParams, Vein, VeinKind, Venation, wrap};
 pub use web::{Web, WebStats};

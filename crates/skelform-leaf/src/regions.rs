@@ -3,7 +3,7 @@
 //!
 //! | id | region | rule, in order |
 //! |---|---|---|
-//! | 1 | vein | `Σ veins > min(|d| / r, ½)` (`fillet = Below`: and not above the blade) |
+//! | 1 | vein | `Σ veins > |d| / r` ([`VeinRule::Dissertation`], the default) or `Σ veins > min(|d| / r, ½)` ([`VeinRule::Capped`]); with `Fillet::Below`, and not above the blade |
 //! | 0 | beyond | beyond the blade's margin |
 //! | 2 | above | `d > 0` |
 //! | 3 | below | otherwise |
@@ -13,11 +13,12 @@
 //! so that veins continue past the margin (the petiole, the rounded vein tips): the vein's
 //! surface there is the pair (0, 1).
 //!
-//! The cap at ½ is ours: the dissertation's rule `Σ > |d|/r` alone makes a vein vanish a
-//! radius away from the blade (a petiole would be cut off where it leaves the leaf). Capped,
-//! a vein away from the blade is its own convolution surface (`Σ = ½`, radius `r`), and the
-//! dissertation's rule governs where it matters, within half a radius of the blade, where the
-//! fillet forms.
+//! The default is the dissertation's rule `Σ > |d|/r` (§7.3). Alone it makes a vein vanish
+//! about a radius away from the blade, so a petiole is cut off where it leaves the leaf; the
+//! capped rule ([`VeinRule::Capped`], ours) keeps it: a vein away from the blade is then its
+//! own convolution surface (`Σ = ½`, radius `r`), and the dissertation's rule governs where
+//! it matters, within half a radius of the blade, where the fillet forms. The generated
+//! leaves with petioles use the capped rule (`vein_rule = "capped"` in their scenes).
 //!
 //! Surfaces of interest: (2, 3) the blade, (1, 2) and (1, 3) the vein above and below the
 //! blade, (0, 1) the vein beyond the margin. Curves of interest: (0, 2, 3) the margin,
@@ -56,6 +57,17 @@ pub enum Fillet {
     Below,
 }
 
+/// Which points near a vein are in it (see the module documentation).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum VeinRule {
+    /// `Σ > |d|/r`, the dissertation's (§7.3): veins exist only near the blade.
+    #[default]
+    Dissertation,
+    /// `Σ > min(|d|/r, ½)`: away from the blade a vein is its own convolution surface, so a
+    /// petiole continues past the margin.
+    Capped,
+}
+
 /// The region function of a blade with veins.
 #[derive(Clone, Debug)]
 pub struct BladeRegions {
@@ -66,6 +78,8 @@ pub struct BladeRegions {
     pub veins: Option<Veins>,
     /// Whether veins fillet into the blade on both sides or only below.
     pub fillet: Fillet,
+    /// Which points near a vein are in it.
+    pub vein_rule: VeinRule,
 }
 
 impl BladeRegions {
@@ -116,7 +130,11 @@ impl RegionField for BladeRegions {
             && !(self.fillet == Fillet::Below && d.side == Side::Above)
         {
             let (sum, r) = v.density(p);
-            if sum > 0.0 && sum > (d.distance.abs() / r).min(skelform_skeleton::DEFAULT_ISO) {
+            let threshold = match self.vein_rule {
+                VeinRule::Dissertation => d.distance.abs() / r,
+                VeinRule::Capped => (d.distance.abs() / r).min(skelform_skeleton::DEFAULT_ISO),
+            };
+            if sum > 0.0 && sum > threshold {
                 return VEIN;
             }
         }
@@ -124,6 +142,54 @@ impl RegionField for BladeRegions {
             Side::Beyond => BEYOND,
             Side::Above => ABOVE,
             Side::Below => BELOW,
+        }
+    }
+
+    /// Normals for the surfaces of interest (the chapter's `Gradient(p, pair)`), so that
+    /// veins and blade shade smoothly instead of by averaged triangle normals: the blade's
+    /// signed distance for the blade (2, 3), and `Σ − |d|/r` (`Σ − ½` where the capped rule
+    /// caps it) for the vein surfaces, the function whose zero is the vein's boundary. The
+    /// density's gradient is exact; the distance's is the nearest triangle's normal over the
+    /// blade and a central difference beyond the margin.
+    fn gradient(&self, p: DVec3, pair: (u32, u32)) -> Option<DVec3> {
+        let h = 1e-6 * (1.0 + p.abs().max_element());
+        let d = |q: DVec3| self.blade.distance(q).distance;
+        let bd = self.blade.distance(p);
+        // The nearest triangle's normal, turned to where d grows: ∇d over the blade (d is
+        // the distance to its plane there), and the blade's normal up to its margin.
+        let plane = || {
+            let t = self.blade.triangles.get(bd.triangle)?;
+            let [a, b, c] = t.map(|i| self.blade.vertices[i as usize]);
+            let n = (b - a).cross(c - a).normalize_or_zero();
+            (n != DVec3::ZERO).then(|| if d(p + n * h) >= d(p - n * h) { n } else { -n })
+        };
+        // Beyond the margin ∇d is a central difference (d is the distance to the margin).
+        let blade_gradient = || match (bd.side, plane()) {
+            (Side::Above | Side::Below, Some(n)) => n,
+            _ => {
+                DVec3::new(
+                    d(p + DVec3::X * h) - d(p - DVec3::X * h),
+                    d(p + DVec3::Y * h) - d(p - DVec3::Y * h),
+                    d(p + DVec3::Z * h) - d(p - DVec3::Z * h),
+                ) / (2.0 * h)
+            }
+        };
+        match pair {
+            (ABOVE, BELOW) => plane(),
+            (a, b) if a == VEIN || b == VEIN => {
+                let v = self.veins.as_ref()?;
+                let (_, r) = v.density(p);
+                if r == 0.0 {
+                    return None;
+                }
+                let d = bd.distance;
+                let capped = self.vein_rule == VeinRule::Capped
+                    && d.abs() / r >= skelform_skeleton::DEFAULT_ISO;
+                let threshold =
+                    if capped { DVec3::ZERO } else { blade_gradient() * (d.signum() / r) };
+                Some(v.density_gradient(p) - threshold)
+            }
+            _ => None,
         }
     }
 

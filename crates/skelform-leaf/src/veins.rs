@@ -104,6 +104,11 @@ impl Veins {
         (sum.max(0.0), nearest.1)
     }
 
+    /// The gradient of the summed vein density at `p` (exact: the convolution's own).
+    pub fn density_gradient(&self, p: DVec3) -> DVec3 {
+        -self.field.gradient(p)
+    }
+
     /// Bounding box of everything the veins reach.
     pub fn bounds(&self) -> (DVec3, DVec3) {
         self.reach

@@ -7,7 +7,7 @@ use glam::{DVec2, DVec3};
 use skelform_field::{Aabb, RegionField};
 use skelform_leaf::regions::{ABOVE, BELOW, BEYOND, VEIN};
 use skelform_leaf::web::signed_area2;
-use skelform_leaf::{Fillet, Leaf, LeafParams, Side, VeinCurve, VeinKind, Venation, Web};
+use skelform_leaf::{Fillet, Leaf, LeafParams, Side, VeinCurve, VeinKind, VeinRule, Venation, Web};
 use skelform_mesh::{Mesh, RegionPair, RegionTriple};
 use skelform_polygonize::nonmanifold::{Options, Stats, polygonize};
 use skelform_polygonize::{LatticeOptions, Resolution};
@@ -344,8 +344,15 @@ fn tee_in_square(fillet: Fillet) -> (Leaf, skelform_leaf::BladeRegions) {
 
 #[test]
 fn a_tee_fillets_into_a_square_blade() {
-    for fillet in [Fillet::Both, Fillet::Below] {
-        let (leaf, r) = tee_in_square(fillet);
+    for (fillet, rule) in [
+        (Fillet::Both, VeinRule::Capped),
+        (Fillet::Below, VeinRule::Capped),
+        (Fillet::Both, VeinRule::Dissertation),
+        (Fillet::Below, VeinRule::Dissertation),
+    ] {
+        let (leaf, mut r) = tee_in_square(fillet);
+        assert_eq!(r.vein_rule, VeinRule::Dissertation, "the default");
+        r.vein_rule = rule;
         let opts = options(&leaf, &r, 0.04);
         let (m, s) = polygonize(&r, &opts).unwrap();
         eprintln!("{fillet:?}: {:?}", s.triangles_per_pair);
@@ -375,10 +382,28 @@ fn a_tee_fillets_into_a_square_blade() {
         let (_, top) = z_of(RegionPair(VEIN, ABOVE));
         let (bottom, _) = z_of(RegionPair(VEIN, BELOW));
         eprintln!("{fillet:?}: vein from z = {bottom:.3} to {top:.3}");
-        // Below the blade the vein is its convolution surface: one radius deep.
-        assert!((bottom + 0.1).abs() < 0.015, "bottom {bottom}");
+        // Capped, the vein is its convolution surface away from the blade: one radius deep.
+        // By the dissertation's rule it ends where Σ = |d|/r, shallower (Σ = ½ at one
+        // radius): found here by bisection on the region function, and the mesh agrees.
+        let depth = match rule {
+            VeinRule::Capped => 0.1,
+            VeinRule::Dissertation => {
+                let (mut lo, mut hi) = (0.0, 0.2);
+                for _ in 0..60 {
+                    let mid = 0.5 * (lo + hi);
+                    if r.region(DVec3::new(-0.4, -0.2, -mid)) == VEIN {
+                        lo = mid;
+                    } else {
+                        hi = mid;
+                    }
+                }
+                assert!(lo > 0.05 && lo < 0.09, "depth {lo}");
+                lo
+            }
+        };
+        assert!((bottom + depth).abs() < 0.015, "{rule:?}: bottom {bottom}, depth {depth}");
         match fillet {
-            Fillet::Both => assert!((top - 0.1).abs() < 0.015, "top {top}"),
+            Fillet::Both => assert!((top - depth).abs() < 0.015, "{rule:?}: top {top}"),
             // Localized: nothing above the blade is vein; its upper side is the flat blade.
             Fillet::Below => assert!(top.abs() < 0.002, "top {top}"),
         }
@@ -539,4 +564,63 @@ fn the_smoothed_margin_still_tiles_and_passes_through_every_tip() {
     let sum: f64 = tris.iter().map(area).sum();
     assert!((sum - enclosed).abs() < 1e-9 * enclosed, "{sum} vs {enclosed}");
     eprintln!("smoothed margin: {} triangles, area {enclosed:.4}", tris.len());
+}
+
+#[test]
+fn veins_and_blade_take_their_normals_from_gradients() {
+    // Every vertex of the tee's blade and veins gets its normal from the region function's
+    // gradient (the run used to report "0 normals from gradients" and the veins shaded
+    // faceted), and the normals are smooth: neighbours on a vein agree closely, and every
+    // normal agrees with its triangles' side.
+    for rule in [VeinRule::Dissertation, VeinRule::Capped] {
+        let (leaf, mut r) = tee_in_square(Fillet::Both);
+        r.vein_rule = rule;
+        let opts = options(&leaf, &r, 0.04);
+        let (m, s) = polygonize(&r, &opts).unwrap();
+        assert_eq!(m.normals.len(), m.positions.len());
+        let used: std::collections::BTreeSet<u32> = m.triangles.iter().flatten().copied().collect();
+        assert!(
+            s.gradient_normals >= used.len() * 9 / 10,
+            "{rule:?}: {} of {}",
+            s.gradient_normals,
+            used.len()
+        );
+        // The blade's normals are its plane's, ±z.
+        let n = |v: u32| DVec3::from_array(m.normals[v as usize].map(f64::from));
+        for (t, l) in m.triangles.iter().zip(&m.labels) {
+            if *l == RegionPair(ABOVE, BELOW) {
+                for &v in t {
+                    let at = DVec3::from_array(m.positions[v as usize].map(f64::from));
+                    assert!(
+                        n(v).z.abs() > 0.999,
+                        "{rule:?}: blade normal {} at {at}, gradient {:?}",
+                        n(v),
+                        r.gradient(at, (ABOVE, BELOW))
+                    );
+                }
+            }
+        }
+        // On the vein's upper surface, away from where it meets the blade, the normals of a
+        // triangle's corners differ by less than 25° (one cell of a tube of radius 2.5
+        // cells), and face the same side as the triangle.
+        let mut worst: f64 = 1.0;
+        for (t, l) in m.triangles.iter().zip(&m.labels) {
+            if *l != RegionPair(VEIN, ABOVE) {
+                continue;
+            }
+            let p = t.map(|v| DVec3::from_array(m.positions[v as usize].map(f64::from)));
+            if p.iter().any(|q| q.z < 0.02) {
+                continue;
+            }
+            let face = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero();
+            for k in 0..3 {
+                worst = worst.min(n(t[k]).dot(n(t[(k + 1) % 3])));
+                assert!(n(t[k]).dot(face).abs() > 0.5, "{rule:?}: {} vs face {face}", n(t[k]));
+            }
+        }
+        // The capped rule's surface has a kink where the cap takes over (|d|/r = ½): its
+        // normals turn by up to 40° across one cell there.
+        let limit: f64 = if rule == VeinRule::Capped { 40.0 } else { 25.0 };
+        assert!(worst > limit.to_radians().cos(), "{rule:?}: worst corner agreement {worst}");
+    }
 }

@@ -56,10 +56,12 @@ pub struct CurveEdge {
     pub label: RegionTriple,
 }
 
-/// Indexed triangles with optional per-vertex normals, per-face labels and curves.
+/// Indexed triangles with optional per-vertex normals and colours, per-face labels and
+/// curves.
 ///
-/// Invariants (checked by [`Mesh::validate`]): every index is in range; `normals` is empty or
-/// as long as `positions`; `labels` is empty or as long as `triangles`.
+/// Invariants (checked by [`Mesh::validate`]): every index is in range; `normals` and
+/// `colors` are each empty or as long as `positions`; `labels` is empty or as long as
+/// `triangles`.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Mesh {
     /// Vertex positions in scene units, as `f32`: the polygonizers evaluate fields and place
@@ -74,6 +76,10 @@ pub struct Mesh {
     pub labels: Vec<RegionPair>,
     /// Curve segments (polylines as edges), or empty.
     pub curves: Vec<CurveEdge>,
+    /// sRGB colours in `[0, 1]` (as displayed), one per vertex, or empty: a skeleton's element
+    /// colours blended at each vertex (DIS ch. 6), written to PLY and glb and drawn by the
+    /// renderer.
+    pub colors: Vec<[f32; 3]>,
 }
 
 /// What is wrong with a mesh that breaks the [`Mesh`] invariants.
@@ -104,6 +110,14 @@ pub enum MeshError {
     NormalCount {
         /// Length of [`Mesh::normals`].
         normals: usize,
+        /// Length of [`Mesh::positions`].
+        vertices: usize,
+    },
+    #[error("{colors} colours for {vertices} vertices")]
+    /// Colours are present but not one per vertex.
+    ColorCount {
+        /// Length of [`Mesh::colors`].
+        colors: usize,
         /// Length of [`Mesh::positions`].
         vertices: usize,
     },
@@ -140,6 +154,9 @@ impl Mesh {
         let n = self.positions.len();
         if !self.normals.is_empty() && self.normals.len() != n {
             return Err(MeshError::NormalCount { normals: self.normals.len(), vertices: n });
+        }
+        if !self.colors.is_empty() && self.colors.len() != n {
+            return Err(MeshError::ColorCount { colors: self.colors.len(), vertices: n });
         }
         if !self.labels.is_empty() && self.labels.len() != self.triangles.len() {
             return Err(MeshError::LabelCount {
@@ -201,6 +218,9 @@ mod tests {
         m.triangles.pop();
         m.labels = vec![RegionPair::new(2, 1), RegionPair(0, 1)];
         assert!(matches!(m.validate(), Err(MeshError::LabelCount { .. })));
+        m.labels.clear();
+        m.colors = vec![[1.0, 0.0, 0.0]; 2];
+        assert_eq!(m.validate(), Err(MeshError::ColorCount { colors: 2, vertices: 3 }));
         assert_eq!(RegionPair::new(2, 1), RegionPair(1, 2));
         assert_eq!(RegionTriple::new([3, 1, 2]).to_string(), "1_2_3");
     }

@@ -62,6 +62,7 @@ fn small_mesh() -> impl Strategy<Value = Mesh> {
                         .into_iter()
                         .map(|(v, l)| CurveEdge { v, label: RegionTriple::new(l) })
                         .collect(),
+                    colors: Vec::new(),
                 })
         },
     )

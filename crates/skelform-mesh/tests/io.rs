@@ -46,7 +46,7 @@ fn sample() -> Mesh {
         CurveEdge { v: [2, 1], label: RegionTriple([0, 1, 2]) },
         CurveEdge { v: [1, 3], label: RegionTriple([1, 2, 7]) },
     ];
-    Mesh { positions, normals, triangles, labels, curves }
+    Mesh { positions, normals, triangles, labels, curves, colors: Vec::new() }
 }
 
 fn bits(m: &Mesh) -> (Vec<[u32; 3]>, Vec<[u32; 3]>) {
@@ -725,4 +725,63 @@ fn in_memory_writers_refuse_invalid_meshes() {
         assert!(matches!(e, IoError::InvalidMesh { .. }));
         assert!(buf.is_empty());
     }
+}
+
+/// The sample with a colour on every vertex, exact in bytes (`k/255`), as a skeleton's
+/// blended element colours would be written.
+fn coloured() -> Mesh {
+    let mut m = sample();
+    m.colors = (0..m.positions.len())
+        .map(|i| [255.0 - 40.0 * i as f32, 17.0 * i as f32, 128.0].map(|c| c / 255.0))
+        .collect();
+    m
+}
+
+#[test]
+fn vertex_colours_round_trip_through_ply_in_both_encodings() {
+    let m = coloured();
+    for ascii in [false, true] {
+        let opts = WriteOptions { ascii, ply_curves: PlyCurves::Inline, ..Default::default() };
+        let bytes = to_bytes(&m, Format::Ply, &opts);
+        let text = String::from_utf8_lossy(&bytes);
+        assert!(
+            text.contains(
+                "property float nz\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nelement face"
+            ),
+            "{text}"
+        );
+        let back = read_ply(&bytes[..]).expect("read");
+        assert_eq!(back.colors.len(), m.colors.len());
+        for (a, b) in back.colors.iter().zip(&m.colors) {
+            for k in 0..3 {
+                assert!((a[k] - b[k]).abs() < 1e-6, "{a:?} vs {b:?}");
+            }
+        }
+        assert_eq!(back.positions, m.positions);
+    }
+    // Colours out of range are clamped when written, never wrapped.
+    let mut bright = coloured();
+    bright.colors[0] = [2.0, -1.0, 0.5];
+    let back = read_ply(&to_bytes(&bright, Format::Ply, &WriteOptions::default())[..]).unwrap();
+    assert_eq!(back.colors[0], [1.0, 0.0, 128.0 / 255.0]);
+}
+
+#[test]
+fn vertex_colours_round_trip_through_glb() {
+    let m = coloured();
+    let bytes = to_bytes(&m, Format::Glb, &WriteOptions::default());
+    let back = skelform_mesh::io::read_glb(&bytes).expect("read");
+    // The glb writes one copy of a vertex per region pair; every copy keeps its colour.
+    assert!(!back.colors.is_empty());
+    assert_eq!(back.colors.len(), back.positions.len());
+    for (p, c) in back.positions.iter().zip(&back.colors) {
+        let i = m.positions.iter().position(|q| q == p).expect("a vertex of the sample");
+        for k in 0..3 {
+            assert!((c[k] - m.colors[i][k]).abs() < 1e-5, "{c:?} vs {:?}", m.colors[i]);
+        }
+    }
+    // A mesh without colours has no COLOR_0 and reads back without colours.
+    let plain = to_bytes(&sample(), Format::Glb, &WriteOptions::default());
+    assert!(!String::from_utf8_lossy(&plain).contains("COLOR_0"));
+    assert!(skelform_mesh::io::read_glb(&plain).unwrap().colors.is_empty());
 }

@@ -37,6 +37,7 @@ fn any_mesh() -> impl Strategy<Value = Mesh> {
                         .into_iter()
                         .map(|(v, l)| CurveEdge { v, label: RegionTriple::new(l) })
                         .collect(),
+                    colors: Vec::new(),
                 })
         },
     )

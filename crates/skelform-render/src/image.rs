@@ -163,7 +163,12 @@ pub(crate) fn to_srgb(c: f32) -> u8 {
 
 /// An sRGB byte to linear light.
 pub(crate) fn to_linear(c: u8) -> f32 {
-    let s = f32::from(c) / 255.0;
+    to_linear_unit(f32::from(c) / 255.0)
+}
+
+/// An sRGB component in `[0, 1]` (clamped) as linear light.
+pub(crate) fn to_linear_unit(s: f32) -> f32 {
+    let s = s.clamp(0.0, 1.0);
     if s <= 0.040_45 { s / 12.92 } else { ((s + 0.055) / 1.055).powf(2.4) }
 }
 

@@ -19,7 +19,8 @@
 //!   invalid mesh or non-finite coordinates; never a panic on user data.
 //!
 //! What it does not do: shadows, reflections or global illumination (one directional light,
-//! a constant ambient term and a soft specular highlight); texture or per-vertex colour;
+//! a constant ambient term and a soft specular highlight); textures (per-vertex colours,
+//! [`Mesh::colors`], are drawn: [`Settings::vertex_colours`]);
 //! text beyond the legend. Transparency composites every layer exactly, front to back, per
 //! pixel (an A-buffer per tile), so it costs memory in proportion to the layers of a tile.
 //!
@@ -190,6 +191,10 @@ pub struct Settings {
     /// outward winding, the inside). Labelled meshes ignore both: the back of a labelled
     /// sheet is its region colour darkened.
     pub back: Rgb,
+    /// Shade an unlabelled mesh with its vertex colours ([`Mesh::colors`], interpolated
+    /// across each triangle; the back in the same colour, darker) instead of `surface` and
+    /// `back`, when it has them.
+    pub vertex_colours: bool,
     /// Colours for particular region pairs; others take the shared palette
     /// ([`skelform_mesh::palette::region_colour`]) in the order of the sorted labels.
     pub region_colours: Vec<(RegionPair, Rgb)>,
@@ -234,6 +239,7 @@ impl Default for Settings {
             light: Light::default(),
             surface: SURFACE_COLOUR,
             back: [222, 160, 118],
+            vertex_colours: true,
             region_colours: Vec::new(),
             curves: true,
             curve_colour: [25, 25, 35],
@@ -359,8 +365,23 @@ impl<'m> Renderer<'m> {
                 .collect();
             (pairs, colour_of)
         };
+        // Linear light, as the shading mixes it; labelled meshes keep their region colours.
+        let vertex_colours = if mesh.labels.is_empty() {
+            mesh.colors.iter().map(|c| c.map(image::to_linear_unit)).collect()
+        } else {
+            Vec::new()
+        };
         Ok(Renderer {
-            prepared: Prepared { mesh, normals, face_normals, colour_of, pairs, lo, hi },
+            prepared: Prepared {
+                mesh,
+                normals,
+                face_normals,
+                colour_of,
+                pairs,
+                vertex_colours,
+                lo,
+                hi,
+            },
         })
     }
 

@@ -46,6 +46,8 @@ pub(crate) struct Prepared<'m> {
     pub colour_of: Vec<u16>,
     /// The distinct labels, sorted; empty for an unlabelled mesh.
     pub pairs: Vec<skelform_mesh::RegionPair>,
+    /// The mesh's vertex colours in linear light (unlabelled meshes only), or empty.
+    pub vertex_colours: Vec<V3>,
     /// Bounds of the vertices that triangles use.
     pub lo: [f32; 3],
     pub hi: [f32; 3],
@@ -484,12 +486,22 @@ impl<'a> View<'a> {
         let ray = self.cam.ray(f64::from(x) + 0.5, f64::from(y) + 0.5).map(|c| c as f32);
         let to_eye = ray.map(|c| -c);
         let ci = p.colour_of[f.tri as usize] as usize;
+        let vertex = (self.s.vertex_colours && !p.vertex_colours.is_empty()).then(|| {
+            let mut c = [0.0f32; 3];
+            for (k, &vi) in t.iter().enumerate() {
+                let vc = p.vertex_colours[vi as usize];
+                for j in 0..3 {
+                    c[j] += b[k] * vc[j];
+                }
+            }
+            c
+        });
         let albedo = if dot(g, to_eye) >= 0.0 {
-            self.look.front[ci]
+            vertex.unwrap_or(self.look.front[ci])
         } else {
             // The back of the face: light it as its own side, in the back colour.
             n = n.map(|c| -c);
-            self.look.back[ci]
+            vertex.map_or(self.look.back[ci], |c| c.map(|v| v * 0.55))
         };
         let l = self.light;
         let lk = self.look;

@@ -476,3 +476,33 @@ fn pngs_are_written_whole_or_not_at_all() {
     let e = img.write_png(&dir.path().join("missing/ball.png")).unwrap_err();
     assert!(e.to_string().starts_with("cannot write "), "{e}");
 }
+
+#[test]
+fn vertex_colours_shade_the_picture() {
+    // A sphere red on its left half (x < 0) and blue on its right, seen from above in flat
+    // light: left pixels red, right pixels blue, in proportion; off, the surface colour.
+    let mut sphere = icosphere(4, [0.0; 3], 1.0);
+    sphere.colors = sphere
+        .positions
+        .iter()
+        .map(|p| if p[0] < 0.0 { [1.0, 0.0, 0.0] } else { [0.0, 0.0, 1.0] })
+        .collect();
+    let s = flat(Settings { view: top(), legend: false, ..small() });
+    let img = render(&sphere, &s).unwrap();
+    let (red, blue) = (count(&img, [255, 0, 0]), count(&img, [0, 0, 255]));
+    assert!(red > 3000 && blue > 3000, "red {red}, blue {blue}");
+    assert!((red as f64 / blue as f64 - 1.0).abs() < 0.1, "red {red}, blue {blue}");
+    // Red pixels lie left of the image's centre, blue right (x grows to the right in a
+    // view from above at azimuth 0).
+    let w = img.width as usize;
+    let mean_x = |c: [u8; 3]| {
+        let xs: Vec<usize> =
+            img.pixels.iter().enumerate().filter(|(_, p)| **p == c).map(|(i, _)| i % w).collect();
+        xs.iter().sum::<usize>() as f64 / xs.len() as f64
+    };
+    assert!(mean_x([255, 0, 0]) < w as f64 / 2.0 && mean_x([0, 0, 255]) > w as f64 / 2.0);
+    // Turned off, the plain surface colour again.
+    let plain = render(&sphere, &Settings { vertex_colours: false, ..s.clone() }).unwrap();
+    assert_eq!(count(&plain, [255, 0, 0]) + count(&plain, [0, 0, 255]), 0);
+    assert!(count(&plain, s.surface) > 6000);
+}

@@ -8,6 +8,7 @@
 //! curvature = 0.6
 //! seed = 1
 //! fillet = "both"        # or "below": veins fillet into the blade's lower side only
+//! vein_rule = "capped"   # or "dissertation" (the default): see skelform_leaf::VeinRule
 //! kernel = "wyvill"      # the veins' convolution kernel
 //! ```
 //!
@@ -26,7 +27,9 @@ use std::sync::Arc;
 
 use serde::Deserialize;
 use skelform_field::{Aabb, DVec3, RegionField};
-use skelform_leaf::{BladeRegions, Fillet, Leaf, LeafError, LeafParams, VeinCurve, WebStats};
+use skelform_leaf::{
+    BladeRegions, Fillet, Leaf, LeafError, LeafParams, VeinCurve, VeinRule, WebStats,
+};
 use skelform_mesh::RegionPair;
 use skelform_skeleton::Kernel;
 use toml::Spanned;
@@ -57,6 +60,8 @@ pub(crate) struct LeafSection {
     max_ratio: Option<Spanned<f64>>,
     kernel: Option<Spanned<String>>,
     fillet: Option<Spanned<String>>,
+    /// "dissertation" (default, `Σ > |d|/r`) or "capped" (`Σ > min(|d|/r, ½)`).
+    vein_rule: Option<Spanned<String>>,
     full_grid: Option<bool>,
     /// A flat blade instead of the generated leaf.
     outline: Option<Spanned<Vec<[f64; 2]>>>,
@@ -142,6 +147,19 @@ pub(crate) fn build(
             }
         },
         None => Fillet::Both,
+    };
+    let vein_rule = match &s.vein_rule {
+        Some(f) => match f.get_ref().as_str() {
+            "dissertation" => VeinRule::Dissertation,
+            "capped" => VeinRule::Capped,
+            other => {
+                return Err(at(
+                    f.span().start,
+                    format!("unknown vein_rule '{other}'; expected dissertation or capped"),
+                ));
+            }
+        },
+        None => VeinRule::Dissertation,
     };
     // Where each key is written, for errors about its value.
     let generated_keys: [(&'static str, Option<usize>); 16] = [
@@ -291,7 +309,8 @@ pub(crate) fn build(
             at(o, e.to_string())
         })?
     };
-    let field = leaf.regions(kernel, fillet).map_err(|e| at(section_at, e.to_string()))?;
+    let mut field = leaf.regions(kernel, fillet).map_err(|e| at(section_at, e.to_string()))?;
+    field.vein_rule = vein_rule;
     let (lo, hi) = leaf.bounds(kernel);
     if !(domain.contains(lo) && domain.contains(hi)) {
         return Err(at(

@@ -29,6 +29,7 @@ mod diag;
 mod leaf;
 mod patch_blend;
 mod pose;
+mod ramiform;
 mod regions;
 mod schema;
 mod skeleton;

@@ -85,6 +85,8 @@ struct File {
     regions: Option<Spanned<crate::regions::RegionsSection>>,
     /// The leaf of chapter 7 as regions (see `crate::leaf`).
     leaf: Option<Spanned<crate::leaf::LeafSection>>,
+    /// A branching skeleton (see `crate::ramiform`).
+    ramiform: Option<Spanned<crate::ramiform::RamiformSection>>,
     output: Option<OutputSection>,
 }
 
@@ -271,6 +273,27 @@ pub(crate) fn build(
         Some(l) => Some(crate::leaf::build(l, &domain, &|o, m| cx.at(o, m))?),
         None => None,
     };
+    // A ramiform is a scene's whole field: it neither blends nor combines with the rest.
+    let ramiform = match &file.ramiform {
+        Some(r) => {
+            let others = [
+                ("[field]", file.field.as_ref().map(|f| f.span().start)),
+                ("[skeleton]", file.skeleton.as_ref().map(|f| f.span().start)),
+                ("[regions]", file.regions.as_ref().map(|f| f.span().start)),
+                ("[leaf]", file.leaf.as_ref().map(|f| f.span().start)),
+            ];
+            if let Some((name, Some(offset))) = others.into_iter().find(|(_, o)| o.is_some()) {
+                return Err(cx.at(
+                    offset,
+                    format!(
+                        "a scene with [ramiform] cannot also have {name}: the ramiform is its field"
+                    ),
+                ));
+            }
+            Some(crate::ramiform::build(r, &|o, m| cx.at(o, m))?)
+        }
+        None => None,
+    };
     let (formula, iso, formula_field) = match &file.field {
         Some(field) => {
             let f = field.get_ref();
@@ -300,6 +323,11 @@ pub(crate) fn build(
             match (&skeleton, regions.is_some() || leaf.is_some()) {
                 // No formula: a constant stands in for `skelform info`.
                 (Some(sk), _) => (placeholder, sk.field.iso().unwrap_or(0.0), None),
+                (None, false) if ramiform.is_some() => (
+                    placeholder,
+                    0.0,
+                    ramiform.as_ref().map(|(f, _)| f.clone() as Arc<dyn skelform_field::Field>),
+                ),
                 // Regions alone: the constant is the (unused) field.
                 (None, true) => {
                     (placeholder.clone(), 0.0, Some(placeholder as Arc<dyn skelform_field::Field>))
@@ -341,6 +369,12 @@ pub(crate) fn build(
     {
         // Seeding from the blade and the veins.
         continuation.seeds = l.seeds.iter().copied().filter(|p| domain.contains(*p)).collect();
+    }
+    if let Some((_, seeds)) = &ramiform
+        && continuation.seeds.is_empty()
+    {
+        // Seeding from the limbs: their middles are inside.
+        continuation.seeds = seeds.iter().copied().filter(|p| domain.contains(*p)).collect();
     }
     if let Some(sk) = &skeleton
         && continuation.seeds.is_empty()

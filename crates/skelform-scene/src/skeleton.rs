@@ -15,6 +15,7 @@
 //! a = [0, 0, 0]
 //! b = [0.5, 0, 0]
 //! group = "finger1"
+//! color = [0.9, 0.7, 0.6]      # optional, on any element; `color` in [skeleton]: the default
 //! ```
 
 use std::collections::BTreeMap;
@@ -63,6 +64,8 @@ pub(crate) struct SkeletonSection {
     poses: Option<BTreeMap<Spanned<String>, crate::pose::PoseSpec>>,
     pose: Option<Spanned<String>>,
     junction: Option<Vec<JunctionSpec>>,
+    /// Colour of the elements without their own (DIS ch. 6): `[r, g, b]`, each 0 to 1.
+    color: Option<Spanned<[f64; 3]>>,
 }
 
 /// A joint blended by the joint combination surface (DIS eq. 5.37).
@@ -117,6 +120,8 @@ struct PointSpec {
     group: Option<Spanned<String>>,
     /// The joint whose frame the element is written in.
     joint: Option<Spanned<String>>,
+    /// The element's colour, `[r, g, b]` with each component from 0 to 1.
+    color: Option<Spanned<[f64; 3]>>,
 }
 
 #[derive(Deserialize)]
@@ -129,6 +134,8 @@ struct SegmentSpec {
     group: Option<Spanned<String>>,
     /// The joint whose frame the element is written in.
     joint: Option<Spanned<String>>,
+    /// The element's colour, `[r, g, b]` with each component from 0 to 1.
+    color: Option<Spanned<[f64; 3]>>,
 }
 
 #[derive(Deserialize)]
@@ -140,6 +147,8 @@ struct PolylineSpec {
     group: Option<Spanned<String>>,
     /// The joint whose frame the element is written in.
     joint: Option<Spanned<String>>,
+    /// The element's colour, `[r, g, b]` with each component from 0 to 1.
+    color: Option<Spanned<[f64; 3]>>,
 }
 
 #[derive(Deserialize)]
@@ -154,6 +163,8 @@ struct CurveSpec {
     group: Option<Spanned<String>>,
     /// The joint whose frame the element is written in.
     joint: Option<Spanned<String>>,
+    /// The element's colour, `[r, g, b]` with each component from 0 to 1.
+    color: Option<Spanned<[f64; 3]>>,
 }
 
 #[derive(Deserialize)]
@@ -167,6 +178,8 @@ struct PolygonSpec {
     image_resolution: Option<Spanned<i64>>,
     /// The joint whose frame the element is written in.
     joint: Option<Spanned<String>>,
+    /// The element's colour, `[r, g, b]` with each component from 0 to 1.
+    color: Option<Spanned<[f64; 3]>>,
 }
 
 /// A skeleton section, built.
@@ -395,6 +408,7 @@ pub(crate) fn build(
         }
         let e = Element::new(Shape::Point(at_), r[0]).and_then(|e| e.with_strength(w[0]));
         add(&mut skeleton, e, g, p.at.span().start)?;
+        paint(&mut skeleton, first, &p.color, at)?;
         marks.push((first..skeleton.len(), p.joint.as_ref()));
     }
     for sg in s.segment.iter().flatten() {
@@ -409,6 +423,7 @@ pub(crate) fn build(
             .and_then(|e| e.with_strength(w[0]))
             .and_then(|e| e.with_end_strength(last(&w)));
         add(&mut skeleton, e, g, sg.a.span().start)?;
+        paint(&mut skeleton, first, &sg.color, at)?;
         marks.push((first..skeleton.len(), sg.joint.as_ref()));
     }
     for pl in s.polyline.iter().flatten() {
@@ -431,6 +446,7 @@ pub(crate) fn build(
                 skeleton.set_end_strengths(i, (w[k], w[k + 1])).map_err(|e| err(pat, e))?;
             }
         }
+        paint(&mut skeleton, first, &pl.color, at)?;
         marks.push((first..skeleton.len(), pl.joint.as_ref()));
     }
     for cv in s.curve.iter().flatten() {
@@ -457,6 +473,7 @@ pub(crate) fn build(
             .add_tapered_curve(&curve, tol, (r[0], last(&r)), g)
             .map_err(|e| err(cat, e))?;
         set_strength(&mut skeleton, range, w[0]).map_err(|e| err(cat, e))?;
+        paint(&mut skeleton, first, &cv.color, at)?;
         marks.push((first..skeleton.len(), cv.joint.as_ref()));
     }
     for (kind, list) in [("triangle", &s.triangle), ("polygon", &s.polygon)] {
@@ -486,6 +503,7 @@ pub(crate) fn build(
                 .and_then(|e| e.with_strength(w[0]))
                 .and_then(|e| e.with_polygon_method(method));
             add(&mut skeleton, e, g, vat)?;
+            paint(&mut skeleton, first, &pg.color, at)?;
             marks.push((first..skeleton.len(), pg.joint.as_ref()));
         }
     }
@@ -506,6 +524,9 @@ pub(crate) fn build(
             };
             err(offset, e)
         })?;
+    }
+    if let Some(c) = &s.color {
+        skeleton.set_default_color(*c.get_ref()).map_err(|e| err(c.span().start, e))?;
     }
     if skeleton.is_empty() {
         return Err(at(
@@ -621,6 +642,21 @@ fn polygon_method(
         }
     };
     Ok(m)
+}
+
+/// Gives the elements from `first` on (those just added) the colour `color`, if any, checked (each component from 0
+/// to 1) and reported at its position.
+fn paint(
+    skeleton: &mut Skeleton,
+    first: usize,
+    color: &Option<Spanned<[f64; 3]>>,
+    at: At,
+) -> Result<(), SceneError> {
+    let Some(c) = color else { return Ok(()) };
+    for i in first..skeleton.len() {
+        skeleton.set_color(i, *c.get_ref()).map_err(|e| at(c.span().start, e.to_string()))?;
+    }
+    Ok(())
 }
 
 fn set_strength(
@@ -965,6 +1001,38 @@ radius = 0.05
     }
 
     #[test]
+    fn colours_parse_and_bad_ones_are_reported_where_they_are() {
+        let seg = "[[skeleton.segment]]\na = [0, 0, 0]\nb = [1, 0, 0]\n";
+        let s = parse(&format!(
+            "[skeleton]\nradius = 0.1\ncolor = [0, 0, 1]\n{seg}color = [1, 0, 0]\n\
+             [[skeleton.polyline]]\npoints = [[0, 1, 0], [1, 1, 0], [2, 1, 0]]\ncolor = [0, 1, 0]\n\
+             [[skeleton.point]]\nat = [0, -1, 0]\n"
+        ))
+        .unwrap();
+        let f = s.skeleton.as_ref().unwrap();
+        let c = f
+            .colors(&[
+                DVec3::new(0.5, 0.1, 0.0),
+                DVec3::new(1.5, 1.1, 0.0),
+                DVec3::new(0.0, -1.1, 0.0),
+            ])
+            .unwrap();
+        assert_eq!(c, vec![[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]);
+        // No colour anywhere: no colours.
+        let plain = parse(&format!("[skeleton]\nradius = 0.1\n{seg}")).unwrap();
+        assert!(plain.skeleton.as_ref().unwrap().colors(&[DVec3::ZERO]).is_none());
+        let (l, c, m) = error(&format!("[skeleton]\nradius = 0.1\n{seg}color = [1, 0, 1.5]\n"));
+        assert_eq!((l, c), (3 + 6, 9), "{m}");
+        assert!(m.contains("colour components must be numbers from 0 to 1"), "{m}");
+        let (l, _, m) = error(&format!("[skeleton]\nradius = 0.1\ncolor = [-0.1, 0, 0]\n{seg}"));
+        assert_eq!(l, 3 + 3, "{m}");
+        let (l, _, m) = error(&format!("[skeleton]\nradius = 0.1\n{seg}color = [1, 0]\n"));
+        assert_eq!(l, 3 + 6, "{m}");
+        let (_, _, m) = error(&format!("[skeleton]\nradius = 0.1\n{seg}colour = [1, 0, 0]\n"));
+        assert!(m.contains("colour"), "{m}");
+    }
+
+    #[test]
     fn the_example_skeleton_scenes_load() {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/skeleton");
         let mut n = 0;
@@ -972,10 +1040,20 @@ radius = 0.05
             let path = entry.unwrap().path();
             if path.extension().is_some_and(|e| e == "toml") {
                 let scene = Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
-                let sk = scene.skeleton.as_ref().expect("a skeleton");
                 assert!(!scene.continuation.seeds.is_empty(), "{}", path.display());
-                for p in sk.seed_points() {
-                    assert!(sk.eval(p) < 0.0, "{}: seed {p} outside", path.display());
+                match scene.skeleton.as_ref() {
+                    Some(sk) => {
+                        for p in sk.seed_points() {
+                            assert!(sk.eval(p) < 0.0, "{}: seed {p} outside", path.display());
+                        }
+                    }
+                    // A ramiform (its own field, seeded from its limbs).
+                    None => {
+                        for &p in &scene.continuation.seeds {
+                            let f = scene.field.eval(p);
+                            assert!(f < 0.0, "{}: seed {p} outside", path.display());
+                        }
+                    }
                 }
                 n += 1;
             }
@@ -1033,6 +1111,7 @@ mod example_meshes {
                 ("elliptic.toml", 1),
                 ("combination.toml", 1),
                 ("skeleton-and-formula.toml", 1),
+                ("trifurcation.toml", 1),
             ],
             None,
         );

@@ -84,6 +84,9 @@ fn bad_leaves_are_errors_with_their_line() {
     let (l, _, m) = parse_err(&format!("{HEAD}[leaf]\nfillet = \"above\"\n"));
     assert_eq!(l, 7);
     assert!(m.contains("both or below"), "{m}");
+    let (l, c, m) = parse_err(&format!("{HEAD}[leaf]\nvein_rule = \"min\"\n"));
+    assert_eq!((l, c), (7, 13));
+    assert!(m.contains("expected dissertation or capped"), "{m}");
     // Outline leaves: generated-leaf keys, veins without radius, radii that do not match.
     let sq = "outline = [[-1, -1], [1, -1], [1, 1], [-1, 1]]\n";
     let (l, _, m) = parse_err(&format!("{HEAD}[leaf]\n{sq}lobes = 3\n"));

@@ -16,6 +16,20 @@ pub enum SkeletonError {
     /// A strength (the weight on an element's density) that is NaN or infinite; any finite
     /// value is accepted, negative ones carve.
     BadStrength(f64),
+    #[error("colour components must be numbers from 0 to 1 (got {0:?})")]
+    /// A colour (red, green, blue) with a component outside `[0, 1]` or not a number.
+    BadColor([f64; 3]),
+    #[error("limb {0} does not exist (a child's parent must be added before it)")]
+    /// A ramiform child names a parent limb that is not (yet) there.
+    UnknownLimb(usize),
+    #[error("limb {0} has no children, so it needs a radius")]
+    /// A ramiform leaf without a radius: only limbs with children take theirs from them.
+    LeafNeedsRadius(usize),
+    #[error(
+        "limb {0} has children, so its radius is matched to theirs at its end (DIS eq. 5.36); give radii to the leaves only"
+    )]
+    /// A ramiform limb with children was given a radius.
+    ParentRadiusGiven(usize),
     #[error("segment has zero length: both ends are at {0:?} (use a point for a point source)")]
     /// A segment whose ends coincide to 10⁻¹² of their magnitude; the value is the end.
     ZeroLengthSegment([f64; 3]),

@@ -340,6 +340,9 @@ pub struct SkeletonField {
     cull: CullGrid,
     /// What the field was built from, for [`SkeletonField::changes_since`].
     source: Source,
+    /// Each element's colour (its own, or the skeleton's default, or [`NEUTRAL_COLOR`]);
+    /// `None` when the skeleton has no colour at all.
+    colors: Option<Vec<[f32; 3]>>,
 }
 
 /// The parts of the skeleton a field depends on, kept to compare two fields.
@@ -371,6 +374,10 @@ impl std::fmt::Display for GlobalChange {
         })
     }
 }
+
+/// The colour of elements that have none when others do and the skeleton sets no default:
+/// the renderer's plain surface colour (sRGB 176, 192, 214).
+pub const NEUTRAL_COLOR: [f32; 3] = [176.0 / 255.0, 192.0 / 255.0, 214.0 / 255.0];
 
 impl SkeletonField {
     /// The field of `skeleton` under `blend`, with the iso value [`DEFAULT_ISO`] for density
@@ -467,6 +474,10 @@ impl SkeletonField {
             cliques.iter_mut().for_each(|c| c.parts.clear());
         }
         let cull = CullGrid::new(&items);
+        let colors = skeleton.has_colors().then(|| {
+            let default = skeleton.default_color().unwrap_or(NEUTRAL_COLOR);
+            skeleton.elements().iter().map(|e| e.color().unwrap_or(default)).collect()
+        });
         Ok(SkeletonField {
             blend,
             iso: DEFAULT_ISO,
@@ -483,6 +494,7 @@ impl SkeletonField {
                 groups: skeleton.groups().to_vec(),
                 junctions: skeleton.junctions().len(),
             },
+            colors,
         })
     }
 
@@ -639,6 +651,140 @@ impl SkeletonField {
     /// documentation), for statistics.
     pub fn cull_grid(&self) -> &CullGrid {
         &self.cull
+    }
+
+    /// Whether the skeleton had colours, so that [`SkeletonField::colors`] gives some.
+    pub fn has_colors(&self) -> bool {
+        self.colors.is_some()
+    }
+
+    /// The surface colour at each of `points` (sRGB in `[0, 1]`), or `None` when the
+    /// skeleton has no colours.
+    ///
+    /// As in DIS ch. 6, where the hand's colours are "derived from colors assigned to the
+    /// skeletal elements", a point's colour is the average of the element colours weighted
+    /// by each element's contribution to the field there, so a surface is its element's
+    /// colour where one element dominates and blends smoothly where elements blend. Only the
+    /// blend set (clique) whose surface the point is on counts: a finger kept apart from its
+    /// neighbour by blend groups does not take the neighbour's colour. The weight is the
+    /// element's density for convolution (its convolution, strength included) and the sum
+    /// blend (`w·k(d²/r²)`); the distance blends (union, super-elliptic, combination) have
+    /// no density, so their weight is the Gaussian kernel of the element's distance in radii,
+    /// `k(d²/r²)`, what the sum blend would give. Elements with negative strength carve and give no colour. A point no
+    /// element reaches takes its nearest element's colour (in radii). Each point is
+    /// independent, so the result does not depend on how the points are batched or on
+    /// threads.
+    pub fn colors(&self, points: &[DVec3]) -> Option<Vec<[f32; 3]>> {
+        let colors = self.colors.as_ref()?;
+        let mut selected = Vec::new();
+        Some(points.iter().map(|&p| self.color_at(colors, p, &mut selected)).collect())
+    }
+
+    fn color_at(&self, colors: &[[f32; 3]], p: DVec3, selected: &mut Vec<usize>) -> [f32; 3] {
+        let cell = self.cull.cell_of(p);
+        let candidates = self.cull.elements(cell);
+        // The clique whose field is least at p: the surface p lies on.
+        let clique = if self.cliques.len() == 1 {
+            &self.cliques[0]
+        } else {
+            let mut best = (f64::INFINITY, 0);
+            for (k, c) in self.cliques.iter().enumerate() {
+                let v = self.clique_value(c, p, candidates, selected);
+                if v < best.0 {
+                    best = (v, k);
+                }
+            }
+            &self.cliques[best.1]
+        };
+        let mut members: Vec<usize> = select(&clique.plain, Some(candidates), selected).to_vec();
+        for &j in &clique.junctions {
+            members.extend(self.junctions[j].limbs.iter().map(|l| l.element));
+        }
+        let (mut sum, mut total) = ([0.0f64; 3], 0.0f64);
+        for &e in &members {
+            let it = &self.items[e];
+            if !it.contains(p) {
+                continue;
+            }
+            let w = self.color_weight(it, p);
+            if w > 0.0 {
+                total += w;
+                for k in 0..3 {
+                    sum[k] += w * f64::from(colors[e][k]);
+                }
+            }
+        }
+        if total > 0.0 {
+            return sum.map(|c| (c / total) as f32);
+        }
+        // Nothing reaches p: its nearest element, measured in radii.
+        let all = clique.plain.iter().copied().chain(
+            clique
+                .junctions
+                .iter()
+                .flat_map(|&j| self.junctions[j].limbs.iter().map(|l| l.element)),
+        );
+        let mut nearest = (f64::INFINITY, None);
+        for e in all {
+            let it = &self.items[e];
+            let (r, _, _, _) = it.radius_strength(p);
+            let d = (p - it.shape.nearest(p)).length() / r;
+            if d < nearest.0 {
+                nearest = (d, Some(e));
+            }
+        }
+        nearest.1.map_or(NEUTRAL_COLOR, |e| colors[e])
+    }
+
+    /// An element's weight in the colour at `p` (see [`SkeletonField::colors`]).
+    fn color_weight(&self, it: &Item, p: DVec3) -> f64 {
+        match self.blend {
+            Blend::Convolution(k) => self.convolve(k, it, p, false).0.max(0.0),
+            Blend::Sum(k) => {
+                let (r, _, w, _) = it.radius_strength(p);
+                let d2 = (p - it.shape.nearest(p)).length_squared();
+                (w * k.value_d(d2 / (r * r)).0).max(0.0)
+            }
+            _ => {
+                let (r, _, w, _) = it.radius_strength(p);
+                if w <= 0.0 {
+                    return 0.0;
+                }
+                let d2 = (p - it.shape.nearest(p)).length_squared();
+                Kernel::Gaussian.value_d(d2 / (r * r)).0
+            }
+        }
+    }
+
+    /// One clique's field value at `p` (as [`SkeletonField::eval_chunk`] computes it for a
+    /// batch), with `candidates` the culling cell's elements.
+    fn clique_value(
+        &self,
+        clique: &Clique,
+        p: DVec3,
+        candidates: &[u32],
+        selected: &mut Vec<usize>,
+    ) -> f64 {
+        let mut acc = self.acc_init();
+        let plain = select(&clique.plain, Some(candidates), selected);
+        if let Blend::SuperElliptic { range, angle_scaled: true, .. } = self.blend {
+            self.angle_scale(plain, range, p, &mut acc);
+        }
+        for &e in plain {
+            let it = &self.items[e];
+            if it.contains(p) {
+                self.accumulate(it, p, &mut acc, false);
+            }
+        }
+        if let Blend::Convolution(k) = self.blend {
+            for &j in &clique.junctions {
+                let junction = &self.junctions[j];
+                if junction.contains(p) {
+                    acc.v += self.junction_density(junction, k, p);
+                }
+            }
+        }
+        self.finish(&acc, p).0
     }
 
     fn acc_init(&self) -> Acc {

@@ -45,6 +45,10 @@
 //! Polygons may use the dissertation's raster-image method instead of the exact integral
 //! ([`PolygonMethod::Image`], appendix A.3), for comparison.
 //!
+//! Branching: a [`Ramiform`] is a tree of limbs whose field is the recursive
+//! `max(f_parent, Σ f_children)` of DIS eqs. 3.3 and 5.36, each parent's radius matched to
+//! its children's at the joint plane ([`ramiform`]).
+//!
 //! Articulation: an [`Articulated`] skeleton hangs elements from a tree of joints; a [`Pose`]
 //! rotates joints and [`Articulated::posed`] gives the plain skeleton to build a field from.
 //!
@@ -99,15 +103,17 @@ pub mod junction;
 pub mod kernel;
 pub mod pose;
 mod quad;
+pub mod ramiform;
 pub mod skeleton;
 
 pub use curve::{CubicCurve, Frame};
 pub use error::SkeletonError;
-pub use field::{Blend, DEFAULT_ISO, Falloff, GlobalChange, SkeletonField};
+pub use field::{Blend, DEFAULT_ISO, Falloff, GlobalChange, NEUTRAL_COLOR, SkeletonField};
 pub use geometry::{Polygon, Segment, Shape};
 pub use image::{
     DEFAULT_IMAGE_RESOLUTION, MAX_IMAGE_BYTES, MAX_IMAGE_RESOLUTION, MAX_IMAGE_WORK, PolygonMethod,
 };
 pub use kernel::Kernel;
 pub use pose::{Articulated, Joint, JointId, Pose};
-pub use skeleton::{Element, Group, GroupId, Junction, JunctionJoint, Skeleton};
+pub use ramiform::{Limb, Ramiform, RamiformField, RamiformOptions};
+pub use skeleton::{Element, Group, GroupId, Junction, JunctionJoint, Skeleton, check_color};

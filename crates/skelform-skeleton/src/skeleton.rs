@@ -63,6 +63,16 @@ pub struct Element {
     end_strength: f64,
     group: GroupId,
     polygon_method: PolygonMethod,
+    color: Option<[f32; 3]>,
+}
+
+/// A colour checked for [`Element::with_color`]: three components in `[0, 1]`.
+pub fn check_color(c: [f64; 3]) -> Result<[f32; 3], SkeletonError> {
+    if c.iter().all(|x| (0.0..=1.0).contains(x)) {
+        Ok(c.map(|x| x as f32))
+    } else {
+        Err(SkeletonError::BadColor(c))
+    }
 }
 
 impl Element {
@@ -80,6 +90,7 @@ impl Element {
             end_strength: 1.0,
             group: GroupId::DEFAULT,
             polygon_method: PolygonMethod::Exact,
+            color: None,
         })
     }
 
@@ -124,6 +135,19 @@ impl Element {
         method.check()?;
         self.polygon_method = method;
         Ok(self)
+    }
+
+    /// The same element with a colour (sRGB, each component in `[0, 1]`): the colour its
+    /// part of the surface takes ([`SkeletonField::colors`](crate::SkeletonField::colors),
+    /// DIS ch. 6, where the hand's colours come from its elements').
+    pub fn with_color(mut self, color: [f64; 3]) -> Result<Element, SkeletonError> {
+        self.color = Some(check_color(color)?);
+        Ok(self)
+    }
+
+    /// The element's own colour, if it has one (otherwise the skeleton's default applies).
+    pub fn color(&self) -> Option<[f32; 3]> {
+        self.color
     }
 
     /// The same element in another group.
@@ -183,6 +207,7 @@ pub struct Skeleton {
     elements: Vec<Element>,
     groups: Vec<Group>,
     junctions: Vec<Junction>,
+    default_color: Option<[f32; 3]>,
 }
 
 /// Joints where segments (its *limbs*) meet, to be blended by the joint combination surface
@@ -231,7 +256,34 @@ impl Skeleton {
             elements: Vec::new(),
             groups: vec![Group { name: "default".into(), blends_with: BTreeSet::new() }],
             junctions: Vec::new(),
+            default_color: None,
         }
+    }
+
+    /// Sets the colour of the elements that have none of their own (sRGB, `[0, 1]`).
+    pub fn set_default_color(&mut self, color: [f64; 3]) -> Result<(), SkeletonError> {
+        self.default_color = Some(check_color(color)?);
+        Ok(())
+    }
+
+    /// The colour of elements without their own, if set.
+    pub fn default_color(&self) -> Option<[f32; 3]> {
+        self.default_color
+    }
+
+    /// Colours element `index` (e.g. every segment of a polyline); out of range: nothing.
+    pub fn set_color(&mut self, index: usize, color: [f64; 3]) -> Result<(), SkeletonError> {
+        let c = check_color(color)?;
+        if let Some(e) = self.elements.get_mut(index) {
+            e.color = Some(c);
+        }
+        Ok(())
+    }
+
+    /// Whether any element, or the skeleton's default, has a colour: only then does a
+    /// mesh of it get vertex colours.
+    pub fn has_colors(&self) -> bool {
+        self.default_color.is_some() || self.elements.iter().any(|e| e.color.is_some())
     }
 
     /// Adds a group. Names are unique.

@@ -133,7 +133,7 @@ impl Live {
             }
             Some(l) => skeleton.changes_since(&l.skeleton).map_err(|g| g.to_string()),
         };
-        let (mesh, stats, state, run) = match (changes, last) {
+        let (mut mesh, stats, state, run) = match (changes, last) {
             (Ok(boxes), Some(mut l)) => {
                 let (mesh, stats, reuse) = l
                     .state
@@ -166,6 +166,7 @@ impl Live {
         };
         self.last = Some(Last { skeleton, state });
         self.run = Some(run);
+        scene.paint(&mut mesh, method);
         Ok(Meshed { mesh, stats: Stats::Grid(stats), method, elapsed: started.elapsed() })
     }
 

@@ -4,6 +4,8 @@
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use rayon::prelude::*;
+
 use skelform_field::{DVec3, RegionField};
 use skelform_mesh::Mesh;
 use skelform_polygonize::{LatticeOptions, MemoryNeed, Resolution, grid};
@@ -257,8 +259,26 @@ impl Scene {
                 healed::polygonize(field, &o).map(|(m, s)| (m, Stats::Healed(Box::new(s))))
             }
         };
-        let (mesh, stats) =
+        let (mut mesh, stats) =
             result.map_err(|source| Error::Polygonize { origin: self.origin.clone(), source })?;
+        self.paint(&mut mesh, method);
         Ok(Meshed { mesh, stats, method, elapsed: started.elapsed() })
+    }
+
+    /// Element colours blended at the vertices (DIS ch. 6), for surfaces of the field; the
+    /// non-manifold method's surfaces are labelled by region instead. Every path that makes
+    /// a mesh of the scene ([`Scene::mesh`], [`crate::Live`]) calls this, so they agree.
+    pub(crate) fn paint(&self, mesh: &mut Mesh, method: Method) {
+        if method != Method::NonManifold
+            && let Some(skeleton) = &self.skeleton
+        {
+            let points: Vec<DVec3> =
+                mesh.positions.iter().map(|p| DVec3::from_array(p.map(f64::from))).collect();
+            // Each vertex's colour is its own sum (the triangle integrals make it costly:
+            // about 17 µs a vertex on the hand), so chunks in parallel give the same colours.
+            let chunks: Option<Vec<Vec<[f32; 3]>>> =
+                points.par_chunks(1024).map(|chunk| skeleton.colors(chunk)).collect();
+            mesh.colors = chunks.map(|c| c.concat()).unwrap_or_default();
+        }
     }
 }

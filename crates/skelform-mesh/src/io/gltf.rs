@@ -5,7 +5,10 @@
 //! per curve label, when the mesh has curves and `WriteOptions::curves` is on (pymeshlab's
 //! reader fails on line primitives: leave them out for it). Every primitive has its own
 //! `POSITION` accessor (with the `min` and `max` glTF requires), a `NORMAL` accessor when
-//! normals are written (triangles only), and 32-bit indices; a vertex shared by two region
+//! normals are written (triangles only), a float `COLOR_0` accessor when the mesh has
+//! vertex colours (sRGB in [`Mesh::colors`], linear in the file, as glTF defines it; the
+//! material's base colour is then white, so the colours show as they are), and 32-bit
+//! indices; a vertex shared by two region
 //! pairs is written once for each. Normals are unit length and turned, where needed, to
 //! agree with the winding of the primitive's triangles (counter-clockwise from the lesser
 //! region, glTF's front face), so viewers light each sheet from its front; meshes without
@@ -18,7 +21,8 @@
 //! padded to 4 bytes (JSON with spaces, BIN with zeros).
 //!
 //! Read: GLB files with their buffers in the BIN chunk or in base64 `data:` URIs (as
-//! Open3D and others write them), float `VEC3` positions and normals, indices of any
+//! Open3D and others write them), float `VEC3` positions, normals and colours (other
+//! colour layouts are skipped), indices of any
 //! unsigned type (or none), triangle and line primitives. The nodes of the default scene
 //! are walked (or the root nodes when there is no scene, or every mesh once when there are
 //! no nodes), and each node's transform (`matrix`, or `translation`, `rotation`, `scale`),
@@ -59,6 +63,18 @@ const CURVE_COLOUR: [u8; 3] = [24, 24, 24];
 fn linear(c: u8) -> f64 {
     let s = f64::from(c) / 255.0;
     if s <= 0.04045 { s / 12.92 } else { ((s + 0.055) / 1.055).powf(2.4) }
+}
+
+/// An sRGB component in `[0, 1]` as the linear value glTF's `COLOR_0` holds.
+fn srgb_to_linear(c: f32) -> f32 {
+    let s = c.clamp(0.0, 1.0);
+    if s <= 0.04045 { s / 12.92 } else { ((s + 0.055) / 1.055).powf(2.4) }
+}
+
+/// A linear `COLOR_0` component back to sRGB in `[0, 1]`.
+fn linear_to_srgb(c: f32) -> f32 {
+    let l = c.clamp(0.0, 1.0);
+    if l <= 0.003_130_8 { l * 12.92 } else { 1.055 * l.powf(1.0 / 2.4) - 0.055 }
 }
 
 /// The binary chunk and the JSON that describes it, built together.
@@ -212,6 +228,12 @@ pub fn encode_glb(mesh: &Mesh, opts: &WriteOptions) -> Result<Vec<u8>, IoError> 
                 .collect();
             attributes["NORMAL"] = json!(b.vec3(&normals, false));
         }
+        let coloured = !mesh.colors.is_empty();
+        if coloured {
+            let colours: Vec<[f32; 3]> =
+                used.iter().map(|&v| mesh.colors[v as usize].map(srgb_to_linear)).collect();
+            attributes["COLOR_0"] = json!(b.vec3(&colours, false));
+        }
         let indices = b.indices(&indices);
         let (name, colour, extras) = match label {
             Some(l) => (
@@ -221,6 +243,8 @@ pub fn encode_glb(mesh: &Mesh, opts: &WriteOptions) -> Result<Vec<u8>, IoError> 
             ),
             None => ("surface".to_string(), SURFACE_COLOUR, json!({})),
         };
+        // Vertex colours multiply the base colour: white lets them show as they are.
+        let colour = if coloured { [255; 3] } else { colour };
         materials.push(json!({
             "name": name,
             "pbrMetallicRoughness": {
@@ -749,6 +773,7 @@ impl<'a> Reader<'a> {
     fn mesh(&self) -> Result<Mesh, IoError> {
         let mut positions: Vec<[f32; 3]> = Vec::new();
         let mut normals: Vec<Option<[f32; 3]>> = Vec::new();
+        let mut colours: Vec<Option<[f32; 3]>> = Vec::new();
         let mut mesh = Mesh::default();
         let mut labels: Vec<Option<RegionPair>> = Vec::new();
         // Line primitives wait until every triangle is read, to be joined to the surfaces.
@@ -761,12 +786,14 @@ impl<'a> Reader<'a> {
                 m.get("primitives").and_then(Value::as_array).map_or(&[][..], |v| v.as_slice());
             // Vertices read once per instance and accessor pair: primitives that share a
             // POSITION accessor share vertices, as the file says; others do not.
-            let mut shared = std::collections::HashMap::<(usize, Option<usize>), u32>::new();
+            let mut shared =
+                std::collections::HashMap::<(usize, Option<usize>, Option<usize>), u32>::new();
             for (pi, p) in prims.iter().enumerate() {
                 let attrs = p.get("attributes");
                 let pos_i = Self::index(attrs.and_then(|a| a.get("POSITION")), "POSITION")?
                     .ok_or_else(|| json_err(format!("mesh {mi} primitive {pi} has no POSITION")))?;
                 let nrm_i = Self::index(attrs.and_then(|a| a.get("NORMAL")), "NORMAL")?;
+                let col_i = Self::index(attrs.and_then(|a| a.get("COLOR_0")), "COLOR_0")?;
                 let mode =
                     p.get("mode").and_then(Value::as_u64).unwrap_or(u64::from(MODE_TRIANGLES));
                 if mode != u64::from(MODE_TRIANGLES) && mode != u64::from(MODE_LINES) {
@@ -804,7 +831,7 @@ impl<'a> Reader<'a> {
                     }
                     continue;
                 }
-                let base = match shared.get(&(pos_i, nrm_i)) {
+                let base = match shared.get(&(pos_i, nrm_i, col_i)) {
                     Some(&b) => b,
                     None => {
                         let prim_normals = match nrm_i {
@@ -832,7 +859,19 @@ impl<'a> Reader<'a> {
                             Some(v) => normals.extend(v.into_iter().map(|q| Some(place.normal(q)))),
                             None => normals.resize(positions.len(), None),
                         }
-                        shared.insert((pos_i, nrm_i), base as u32);
+                        // Float RGB colours are read; other layouts (RGBA, normalized
+                        // integers) are left out rather than refused.
+                        let prim_colours = match col_i {
+                            Some(i) => self.vec3(i).ok().filter(|v| v.len() == n),
+                            None => None,
+                        };
+                        match prim_colours {
+                            Some(v) => {
+                                colours.extend(v.into_iter().map(|c| Some(c.map(linear_to_srgb))))
+                            }
+                            None => colours.resize(positions.len(), None),
+                        }
+                        shared.insert((pos_i, nrm_i, col_i), base as u32);
                         base as u32
                     }
                 };
@@ -871,6 +910,7 @@ impl<'a> Reader<'a> {
                     *at.entry(q.map(|c| (c + 0.0).to_bits())).or_insert_with(|| {
                         positions.push(*q);
                         normals.push(None);
+                        colours.push(None);
                         (positions.len() - 1) as u32
                     })
                 })
@@ -900,6 +940,12 @@ impl<'a> Reader<'a> {
             && normals.iter().any(Option::is_some)
         {
             mesh.normals = normals.into_iter().map(|n| n.unwrap_or([0.0; 3])).collect();
+        }
+        // Colours likewise: when every vertex a triangle uses has one.
+        if colours.iter().zip(&with_normals).all(|(c, &used)| c.is_some() || !used)
+            && colours.iter().any(Option::is_some)
+        {
+            mesh.colors = colours.into_iter().map(|c| c.unwrap_or([0.0; 3])).collect();
         }
         if !labels.is_empty() && labels.iter().all(Option::is_some) {
             mesh.labels = labels.into_iter().flatten().collect();
@@ -949,6 +995,7 @@ mod tests {
                 CurveEdge { v: [0, 1], label: RegionTriple([1, 2, 3]) },
                 CurveEdge { v: [1, 3], label: RegionTriple([1, 2, 3]) },
             ],
+            colors: Vec::new(),
         }
     }
 

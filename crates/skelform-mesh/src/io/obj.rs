@@ -267,6 +267,7 @@ impl Reader {
             triangles: self.triangles,
             labels,
             curves: self.curves,
+            colors: Vec::new(),
         })
     }
 }

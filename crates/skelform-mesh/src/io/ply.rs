@@ -14,7 +14,10 @@
 //! The mesh file of the default layout has only `vertex` and `face` elements, which
 //! trimesh, meshio and pymeshlab read; the curves file is read by trimesh (as a path) and
 //! pymeshlab (as edges), not by meshio, whose PLY reader knows no element but `vertex` and
-//! `face`.
+//! `face`. A mesh with vertex colours ([`Mesh::colors`]) adds `uchar red, green, blue` to
+//! its vertices (each `[0, 1]` component times 255, rounded), the layout MeshLab and
+//! Open3D read as vertex colours; read back, integer colours are divided by their type's
+//! maximum and float ones kept as they are.
 //!
 //! Read: `ascii`, `binary_little_endian` and `binary_big_endian`; every scalar type and its
 //! sized alias (`char`/`int8` ... `double`/`float64`); extra properties and extra elements
@@ -482,7 +485,7 @@ enum Role {
     Indices,
 }
 
-const SLOTS: usize = 7;
+const SLOTS: usize = 10;
 
 /// The roles of `el`'s properties for the given slot names (and the index list for faces).
 /// Returns the roles and which slots are present.
@@ -643,7 +646,11 @@ fn read_body(header: &Header, body: &mut Body) -> Result<Contents, IoError> {
             |body: &Body, i: usize, msg: String| body.error(format!("{} {i}: {msg}", el.name));
         if el.name == "vertex" && !seen_vertex {
             seen_vertex = true;
-            let (roles, has) = roles(el, &["x", "y", "z", "nx", "ny", "nz", "mesh_index"], false)?;
+            let (roles, has) = roles(
+                el,
+                &["x", "y", "z", "nx", "ny", "nz", "mesh_index", "red", "green", "blue"],
+                false,
+            )?;
             if let Some(missing) = ["x", "y", "z"].iter().zip(has).find(|(_, h)| !h) {
                 return Err(IoError::parse(
                     el.line,
@@ -651,9 +658,19 @@ fn read_body(header: &Header, body: &mut Body) -> Result<Contents, IoError> {
                 ));
             }
             let normals = has[3] && has[4] && has[5];
+            // Integer colours are 0..=max of their type (255 for uchar); floats are 0..1.
+            let colours = (has[7] && has[8] && has[9]).then(|| {
+                ["red", "green", "blue"].map(|n| match el.find(n).map(|p| p.kind) {
+                    Some(Kind::Scalar(t)) => t.int_range().map_or(1.0, |(_, hi)| hi as f64),
+                    _ => 1.0,
+                })
+            });
             mesh.positions.reserve(capacity);
             if normals {
                 mesh.normals.reserve(capacity);
+            }
+            if colours.is_some() {
+                mesh.colors.reserve(capacity);
             }
             let mut index = has[6].then(|| Vec::with_capacity(capacity));
             for i in 0..el.count {
@@ -661,6 +678,9 @@ fn read_body(header: &Header, body: &mut Body) -> Result<Contents, IoError> {
                 mesh.positions.push([vals[0] as f32, vals[1] as f32, vals[2] as f32]);
                 if normals {
                     mesh.normals.push([vals[3] as f32, vals[4] as f32, vals[5] as f32]);
+                }
+                if let Some(scale) = colours {
+                    mesh.colors.push([0, 1, 2].map(|k| (vals[7 + k] / scale[k]) as f32));
                 }
                 if let Some(index) = &mut index {
                     index.push(region(vals[6]).map_err(|_| {
@@ -832,6 +852,9 @@ pub fn attach_curves(mesh: &mut Mesh, r: impl BufRead) -> Result<(), IoError> {
             if !mesh.normals.is_empty() {
                 mesh.normals.resize(mesh.positions.len(), [0.0; 3]);
             }
+            if !mesh.colors.is_empty() {
+                mesh.colors.resize(mesh.positions.len(), [0.0; 3]);
+            }
             (0..curves.positions.len()).map(|k| (base + k) as u32).collect()
         }
     };
@@ -902,8 +925,14 @@ fn face_colours(mesh: &Mesh) -> Vec<[u8; 3]> {
         .collect()
 }
 
+/// A colour in `[0, 1]` as PLY's `uchar` (clamped, rounded).
+fn colour_byte(c: f32) -> u8 {
+    (c.clamp(0.0, 1.0) * 255.0).round() as u8
+}
+
 fn write_body(w: &mut impl Write, mesh: &Mesh, opts: &WriteOptions) -> std::io::Result<()> {
     let normals = opts.normals && !mesh.normals.is_empty();
+    let vertex_colours = !mesh.colors.is_empty();
     let labelled = !mesh.labels.is_empty();
     let colours = if labelled { face_colours(mesh) } else { Vec::new() };
     let curves = opts.effective_ply_curves() == PlyCurves::Inline && !mesh.curves.is_empty();
@@ -913,6 +942,9 @@ fn write_body(w: &mut impl Write, mesh: &Mesh, opts: &WriteOptions) -> std::io::
     writeln!(w, "property float x\nproperty float y\nproperty float z")?;
     if normals {
         writeln!(w, "property float nx\nproperty float ny\nproperty float nz")?;
+    }
+    if vertex_colours {
+        writeln!(w, "property uchar red\nproperty uchar green\nproperty uchar blue")?;
     }
     writeln!(w, "element face {}", mesh.triangles.len())?;
     writeln!(w, "property list uchar int vertex_indices")?;
@@ -933,6 +965,10 @@ fn write_body(w: &mut impl Write, mesh: &Mesh, opts: &WriteOptions) -> std::io::
             if normals {
                 let n = mesh.normals[i];
                 write!(w, " {} {} {}", n[0], n[1], n[2])?;
+            }
+            if vertex_colours {
+                let [r, g, b] = mesh.colors[i].map(colour_byte);
+                write!(w, " {r} {g} {b}")?;
             }
             writeln!(w)?;
         }
@@ -957,6 +993,9 @@ fn write_body(w: &mut impl Write, mesh: &Mesh, opts: &WriteOptions) -> std::io::
             p.iter().for_each(|c| buf.extend_from_slice(&c.to_le_bytes()));
             if normals {
                 mesh.normals[i].iter().for_each(|c| buf.extend_from_slice(&c.to_le_bytes()));
+            }
+            if vertex_colours {
+                buf.extend_from_slice(&mesh.colors[i].map(colour_byte));
             }
             w.write_all(&buf)?;
         }

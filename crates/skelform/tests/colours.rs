@@ -1,0 +1,105 @@
+//! Element colours on a meshed scene (`examples/skeleton/colours.toml`): red vertices over
+//! the red segment, blue over the blue one, a blend between; the same colours after a
+//! round trip through PLY and glb; every method colours, the posed hand is skin.
+
+use skelform::mesh::io::{Format, WriteOptions, read_glb, read_ply, write_mesh_to};
+use skelform::{Mesh, Method, Overrides, Resolution, Scene};
+
+fn example(name: &str) -> String {
+    format!("{}/../../examples/{name}", env!("CARGO_MANIFEST_DIR"))
+}
+
+fn meshed(method: Method) -> Mesh {
+    let scene = Scene::load(example("skeleton/colours.toml")).unwrap();
+    let o = Overrides {
+        resolution: Some(Resolution::Samples(64)),
+        method: Some(method),
+        ..Overrides::default()
+    };
+    scene.mesh(&o).unwrap().mesh
+}
+
+const RED: [f32; 3] = [0.85, 0.1, 0.1];
+const BLUE: [f32; 3] = [0.1, 0.2, 0.85];
+
+fn close(a: [f32; 3], b: [f32; 3], tol: f32) -> bool {
+    (0..3).all(|k| (a[k] - b[k]).abs() <= tol)
+}
+
+#[test]
+fn red_near_red_blue_near_blue_blended_between() {
+    for method in [Method::Grid, Method::Continuation] {
+        let m = meshed(method);
+        assert_eq!(m.colors.len(), m.positions.len(), "{method:?}");
+        let (mut reds, mut blues, mut between) = (0, 0, 0);
+        for (p, c) in m.positions.iter().zip(&m.colors) {
+            if p[0] < -0.6 {
+                // Over the red segment, away from the blend: red.
+                assert!(close(*c, RED, 0.01), "{method:?}: {p:?} {c:?}");
+                reds += 1;
+            } else if p[0] > 0.6 {
+                assert!(close(*c, BLUE, 0.01), "{method:?}: {p:?} {c:?}");
+                blues += 1;
+            } else if p[0].abs() < 0.05 && p[1] < -0.1 {
+                // Under the gap, far from the yellow point: half red, half blue.
+                let mid = [0, 1, 2].map(|k| 0.5 * (RED[k] + BLUE[k]));
+                assert!(close(*c, mid, 0.1), "{method:?}: {p:?} {c:?}");
+                between += 1;
+            }
+        }
+        assert!(reds > 300 && blues > 300 && between >= 2, "{reds} {blues} {between}");
+        // Redness falls from left to right along the bottom of the tube.
+        let mut bottom: Vec<(f32, f32)> = m
+            .positions
+            .iter()
+            .zip(&m.colors)
+            .filter(|(p, _)| p[1] < -0.15 && p[2].abs() < 0.05)
+            .map(|(p, c)| (p[0], c[0]))
+            .collect();
+        bottom.sort_by(|a, b| a.0.total_cmp(&b.0));
+        assert!(bottom.windows(2).all(|w| w[1].1 <= w[0].1 + 0.01), "{method:?}");
+    }
+}
+
+#[test]
+fn colours_survive_ply_and_glb() {
+    let m = meshed(Method::Grid);
+    let mut ply = Vec::new();
+    write_mesh_to(&mut ply, &m, Format::Ply, &WriteOptions::default()).unwrap();
+    let back = read_ply(&ply[..]).unwrap();
+    assert!(back.positions == m.positions);
+    for (a, b) in back.colors.iter().zip(&m.colors) {
+        assert!(close(*a, *b, 0.5 / 255.0 + 1e-6), "{a:?} {b:?}");
+    }
+    let mut glb = Vec::new();
+    write_mesh_to(&mut glb, &m, Format::Glb, &WriteOptions::default()).unwrap();
+    // The glb numbers vertices by first use: match them by position.
+    let back = read_glb(&glb).unwrap();
+    assert_eq!(back.colors.len(), m.positions.len());
+    let at: std::collections::HashMap<[u32; 3], usize> =
+        m.positions.iter().enumerate().map(|(i, p)| (p.map(f32::to_bits), i)).collect();
+    for (p, a) in back.positions.iter().zip(&back.colors) {
+        let b = m.colors[at[&p.map(f32::to_bits)]];
+        assert!(close(*a, b, 1e-5), "{a:?} {b:?}");
+    }
+}
+
+#[test]
+fn the_hand_is_skin_with_bluish_veins() {
+    let scene = Scene::load(example("skeleton/hand.toml")).unwrap();
+    let o = Overrides {
+        resolution: Some(Resolution::Samples(48)),
+        pose: Some("grip".into()),
+        ..Overrides::default()
+    };
+    let m = scene.mesh(&o).unwrap().mesh;
+    assert_eq!(m.colors.len(), m.positions.len());
+    let skin = [0.88, 0.67, 0.56];
+    let n_skin = m.colors.iter().filter(|c| close(**c, skin, 1e-3)).count();
+    // Most of the hand is skin; the veins tint some of the back bluish (less red, more
+    // blue than skin), never beyond the vein colour itself.
+    assert!(n_skin * 10 > m.colors.len() * 8, "{n_skin} of {}", m.colors.len());
+    let tinted = m.colors.iter().filter(|c| c[2] > skin[2] + 0.02 && c[0] < skin[0]).count();
+    assert!(tinted > 0);
+    assert!(m.colors.iter().all(|c| c[2] <= 0.72 + 1e-4 && c[0] >= 0.62 - 1e-4));
+}
