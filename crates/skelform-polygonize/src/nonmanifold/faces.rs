@@ -223,13 +223,13 @@ impl Run<'_> {
             if !inside(mid + w * side) {
                 w = -w;
             }
-            let mut apex = mid + w * side * 3f64.sqrt() * 0.5;
             let (rx, ry) = (self.region_at(px), self.region_at(py));
             let (x, y) = (s.from, s.to);
             if ![rx, ry].iter().all(|&r| r == x || r == y) {
                 // The first triangle already has a corner in a third region (the crossing is
                 // within 2ε of it along the edge): it is the final triangle.
                 self.stats.face_vertices_at_crossing += 1;
+                let apex = mid + w * side * 3f64.sqrt() * 0.5;
                 return clamp((px + py + apex) / 3.0);
             }
             if !(rx == x && ry == y) {
@@ -238,16 +238,25 @@ impl Run<'_> {
                 }
                 std::mem::swap(&mut px, &mut py);
             }
-            // The strip may run up to two triangles beyond the face: where the regions meet
-            // on (or within ε of) the face's own edge, as when a wall falls half-way between
-            // lattice planes, the contour reaches the foreign region only just outside.
-            for _ in 0..max_steps {
-                if outside(apex) > 2.0 * side {
-                    break;
-                }
-                let r = self.region_at(apex);
-                if !flip_strip(r, x, y, &mut px, &mut py, &mut apex) {
-                    return clamp((px + py + apex) / 3.0);
+            // Into the face first; then the other way, for a crossing within a triangle of a
+            // corner where the contour runs along the face's side (a wall in the plane of
+            // that side, as a sheet on a lattice plane): there the first way can lead off
+            // the face at once, and the contour lies the other way.
+            for w in [w, -w] {
+                let (mut px, mut py) = (px, py);
+                let mut apex = mid + w * side * 3f64.sqrt() * 0.5;
+                // The strip may run up to two triangles beyond the face: where the regions
+                // meet on (or within ε of) the face's own edge, as when a wall falls half-way
+                // between lattice planes, the contour reaches the foreign region only just
+                // outside.
+                for _ in 0..max_steps {
+                    if outside(apex) > 2.0 * side {
+                        break;
+                    }
+                    let r = self.region_at(apex);
+                    if !flip_strip(r, x, y, &mut px, &mut py, &mut apex) {
+                        return clamp((px + py + apex) / 3.0);
+                    }
                 }
             }
         }
