@@ -205,7 +205,12 @@ impl Run<'_> {
         };
         let side = 4.0 * self.eps;
         let max_steps = (8.0 * (b - a).length().max((c - a).length()) / side) as usize + 16;
-        for s in starts {
+        // Every start into the face first; then every start the other way, for a crossing
+        // within a triangle of a corner where the contour runs along the face's side (a wall
+        // in the plane of that side, as a sheet on a lattice plane): there the first way can
+        // lead off the face at once, and the contour lies the other way.
+        for (pass, s) in [false, true].into_iter().flat_map(|p| starts.iter().map(move |s| (p, s)))
+        {
             let v = self.positions[s.vertex as usize];
             // The crossing lies on one of the three edges; find which, to step along it.
             let edge_dir = [(a, b), (b, c), (c, a)]
@@ -220,7 +225,7 @@ impl Run<'_> {
             let mut py = v + edge_dir * side * 0.5;
             let mid = (px + py) * 0.5;
             let mut w = n.normalize().cross(py - px).normalize();
-            if !inside(mid + w * side) {
+            if inside(mid + w * side) == pass {
                 w = -w;
             }
             let (rx, ry) = (self.region_at(px), self.region_at(py));
@@ -238,25 +243,17 @@ impl Run<'_> {
                 }
                 std::mem::swap(&mut px, &mut py);
             }
-            // Into the face first; then the other way, for a crossing within a triangle of a
-            // corner where the contour runs along the face's side (a wall in the plane of
-            // that side, as a sheet on a lattice plane): there the first way can lead off
-            // the face at once, and the contour lies the other way.
-            for w in [w, -w] {
-                let (mut px, mut py) = (px, py);
-                let mut apex = mid + w * side * 3f64.sqrt() * 0.5;
-                // The strip may run up to two triangles beyond the face: where the regions
-                // meet on (or within ε of) the face's own edge, as when a wall falls half-way
-                // between lattice planes, the contour reaches the foreign region only just
-                // outside.
-                for _ in 0..max_steps {
-                    if outside(apex) > 2.0 * side {
-                        break;
-                    }
-                    let r = self.region_at(apex);
-                    if !flip_strip(r, x, y, &mut px, &mut py, &mut apex) {
-                        return clamp((px + py + apex) / 3.0);
-                    }
+            let mut apex = mid + w * side * 3f64.sqrt() * 0.5;
+            // The strip may run up to two triangles beyond the face: where the regions meet
+            // on (or within ε of) the face's own edge, as when a wall falls half-way between
+            // lattice planes, the contour reaches the foreign region only just outside.
+            for _ in 0..max_steps {
+                if outside(apex) > 2.0 * side {
+                    break;
+                }
+                let r = self.region_at(apex);
+                if !flip_strip(r, x, y, &mut px, &mut py, &mut apex) {
+                    return clamp((px + py + apex) / 3.0);
                 }
             }
         }

@@ -19,7 +19,9 @@
 //! opposite side of its triangle is moved onto it (the side split there), degenerate
 //! triangles dropped, and vertices duplicated per region pair so each sheet has its own
 //! normal: the region function's gradient for the pair where it has one (the chapter's
-//! `Gradient(p, pair)`), else the pair's area-weighted triangle normals.
+//! `Gradient(p, pair)`), else the pair's area-weighted triangle normals. Beyond the chapter,
+//! ties are broken by moving every point whose region is asked by one tiny generic vector
+//! (see `nudge`), so lattice points on a wall never fall to the region function's tie rule.
 //! [`verify`] checks a result against its region function.
 //!
 //! Guarantees: deterministic output on any thread count; every triangle labelled with a
@@ -302,7 +304,7 @@ fn polygonize_here(regions: &dyn RegionField, options: &Options) -> Result<(Mesh
 }
 
 /// The perturbation that breaks ties: every point whose region the run asks for is moved by
-/// this fixed vector, `ε / 64` long, in the direction `(1, √2 − 1, 1 − √3)`, which no plane
+/// this fixed vector, `ε / 1024` long, in the direction `(1, √2 − 1, 1 − √3)`, which no plane
 /// through lattice points with small integer normals contains.
 ///
 /// Walls that pass exactly through lattice points (a sheet on a lattice plane, the
@@ -315,13 +317,13 @@ fn polygonize_here(regions: &dyn RegionField, options: &Options) -> Result<(Mesh
 /// crossings. Moved by the same vector, every point lies strictly on one side of such a
 /// wall, decided the same way wherever it is asked (corners, sections, bisection, contour
 /// following), as if the lattice were offset by an infinitesimal generic amount; the
-/// geometric error, `ε / 64`, is far below the ε to which vertices are placed. (Which way
+/// geometric error, `ε / 1024`, is far below the ε to which vertices are placed. (Which way
 /// is arbitrary; with `z` negative a sheet on a lattice plane has its lattice points on its
 /// lower side, and the tee's fillets meet it without folds, which the other way gives
 /// at the foot of each fillet.)
 fn nudge(eps: f64) -> DVec3 {
     let d = DVec3::new(1.0, std::f64::consts::SQRT_2 - 1.0, 1.0 - 3f64.sqrt());
-    d.normalize() * (eps / 64.0)
+    d.normalize() * (eps / 1024.0)
 }
 
 /// What a run with `options` on `grid` holds before it finds the surface: the full grid's
