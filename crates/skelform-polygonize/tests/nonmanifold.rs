@@ -425,7 +425,7 @@ fn a_symmetric_foam_has_no_coincident_or_folded_faces() {
             })
             .map_or(0, |i| i as u32 + 1)
     });
-    for cell in [0.1, 0.08, 0.05, 0.04] {
+    for cell in [0.1, 0.09, 0.08, 0.07, 0.06, 0.05, 0.045, 0.04] {
         let opts = Options { lattice: lattice(Aabb::cube(1.0), cell), ..Options::default() };
         let (mesh, stats) = polygonize(&regions, &opts).unwrap();
         let report = check(&mesh);
