@@ -403,3 +403,38 @@ fn loops_keep_the_saucer_a_non_manifold_complex() {
     let v = skelform_polygonize::nonmanifold::verify::verify(&m, &regions, 2.0 * s.epsilon);
     assert_eq!((v.vertices_reversed, v.triangles_reversed), (0, 0), "{v:?}");
 }
+
+/// Issue 18: four bubbles of a foam at the vertices of a tetrahedron, each region the points
+/// within `r` of its centre and nearer to it than to the others (as ordered regions in a
+/// scene write it: a point whose field is zero, on a wall, is claimed by neither bubble and
+/// falls to the outside, 0). On a lattice centred on the origin many lattice points lie
+/// exactly on the walls; unperturbed they made coincident, oppositely wound triangles and
+/// folded edges at every cell from 0.1 to 0.04.
+#[test]
+fn a_symmetric_foam_has_no_coincident_or_folded_faces() {
+    let (s, r) = (0.3, 0.45);
+    let centres =
+        [DVec3::new(s, s, s), DVec3::new(s, -s, -s), DVec3::new(-s, s, -s), DVec3::new(-s, -s, s)];
+    let regions = FnRegions(move |p: DVec3| {
+        let d = centres.map(|c| (p - c).length());
+        (0..4)
+            .find(|&i| {
+                let nearest_other =
+                    (0..4).filter(|&j| j != i).map(|j| d[j]).fold(f64::MAX, f64::min);
+                (d[i] - r).max(d[i] - nearest_other) < 0.0
+            })
+            .map_or(0, |i| i as u32 + 1)
+    });
+    for cell in [0.1, 0.09, 0.08, 0.07, 0.06, 0.05, 0.045, 0.04] {
+        let opts = Options { lattice: lattice(Aabb::cube(1.0), cell), ..Options::default() };
+        let (mesh, stats) = polygonize(&regions, &opts).unwrap();
+        let report = check(&mesh);
+        assert_eq!(report.coincident_faces, 0, "cell {cell}");
+        assert_eq!(report.folded_edges, 0, "cell {cell}");
+        assert_eq!(report.duplicate_faces, 0, "cell {cell}");
+        // The four bubbles and their six walls all come out.
+        let pairs: BTreeSet<RegionPair> = stats.triangles_per_pair.iter().map(|p| p.0).collect();
+        assert_eq!(pairs.len(), 10, "cell {cell}: {pairs:?}");
+        assert_eq!(stats.face_vertex_fallbacks, 0, "cell {cell}");
+    }
+}

@@ -161,3 +161,35 @@ fn the_lattice_tells_each_methods_up_front_need_and_a_run_is_refused_by_it() {
     let full = foam.lattice(&Overrides::default()).unwrap();
     assert!(matches!(full.need, MemoryNeed::FullGrid(b) if b > 1 << 20), "{full:?}");
 }
+
+/// Issue 18: on every non-manifold example, fewer than 1% of face vertices fall back to the
+/// mean of the face's crossings (the tee in its square, whose sheet lies on a lattice
+/// plane, had half of them: saw-toothed borders), and no faces coincide or fold.
+#[test]
+fn nonmanifold_examples_place_their_face_vertices_by_following_the_contours() {
+    let dir = format!("{}/../../examples/nonmanifold", env!("CARGO_MANIFEST_DIR"));
+    let mut names: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .collect();
+    names.sort();
+    assert!(names.len() >= 10, "{names:?}");
+    for path in names {
+        let m = Scene::load(&path).unwrap().mesh(&Overrides::default()).unwrap();
+        let Stats::NonManifold(s) = &m.stats else { panic!("{path:?}: not non-manifold") };
+        assert!(s.face_vertices > 0, "{path:?}");
+        assert!(
+            s.face_vertex_fallbacks * 100 < s.face_vertices,
+            "{path:?}: {} of {} face vertices fell back",
+            s.face_vertex_fallbacks,
+            s.face_vertices
+        );
+        let r = check(&m.mesh);
+        assert_eq!(r.coincident_faces, 0, "{path:?}");
+        // The three-lobed leaf's three folded edges are not ties (it has them unperturbed).
+        if !path.ends_with("leaf-three-lobes.toml") {
+            assert_eq!(r.folded_edges, 0, "{path:?}");
+        }
+    }
+}

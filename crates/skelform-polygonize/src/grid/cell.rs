@@ -110,37 +110,23 @@ pub fn polygonize_case(case: usize, v: &[f32; 8], sink: &mut impl CubeSink) -> C
             local[e as usize] = sink.edge_vertex(e as usize, [v[c0], v[c1]]);
         }
     }
-    let tube = if entry.loop_count == 2 { tunnel(v, entry.caps_inside) } else { None };
-    if let Some(saddle) = tube {
-        outcome.tunnel = true;
-        let at = |e: &u8| (local[*e as usize], cube_point(*e, v));
-        let a: Vec<(u32, [f64; 3])> = t.loop_edges(entry, 0).iter().map(at).collect();
-        let b: Vec<(u32, [f64; 3])> = t.loop_edges(entry, 1).iter().map(at).collect();
-        // A ring shaped like loop b, half its size, around the saddle: the tube runs
-        // a → ring → b, so every rung has one end that only this cube has.
-        let cb = centroid(b.iter().map(|x| x.1));
-        // Each ring vertex lies on the interpolant's level set, on the ray from the saddle
-        // in the direction of its loop-b vertex from loop b's centre (the tube's waist:
-        // the saddle has the tube's sign, and across the tube the interpolant changes it);
-        // where that ray stays on the saddle's side inside the cube, the vertex is put at half
-        // the way instead.
-        let ring: Vec<(u32, [f64; 3])> = b
-            .iter()
-            .map(|&(_, p)| {
-                let dir: [f64; 3] = std::array::from_fn(|d| p[d] - cb[d]);
-                let offset = level_on_ray(v, saddle.p, dir).unwrap_or_else(|| {
-                    onto_level(
-                        v,
-                        std::array::from_fn(|d| (saddle.p[d] + 0.5 * dir[d]).clamp(0.01, 0.99)),
-                    )
-                });
-                (sink.cell_vertex(offset), offset)
+    // A tube through the interior, if the interpolant has one: its saddle and the two loops
+    // it joins. Two loops join when a saddle joins the caps' side (MC33 4.1.2, 6.1.2, 7.4.2,
+    // 10.1.2, 12.1.2); three loops whose corner groups form a path join the two loops
+    // around the middle group of one side when a saddle joins the other side's two groups
+    // (13.5.2), the third loop staying a disk.
+    let tube = match entry.loop_count {
+        2 => tunnel(v, entry.caps_inside).map(|s| (s, 0, 1)),
+        3 => entry.path_end.and_then(|ends| {
+            [true, false].into_iter().zip(ends).find_map(|(side, end)| {
+                let mut joined = (0..3).filter(|&l| l != end as usize);
+                let (a, b) = (joined.next()?, joined.next()?);
+                tunnel(v, side).map(|s| (s, a, b))
             })
-            .collect();
-        let rev: Vec<(u32, [f64; 3])> = ring.iter().rev().copied().collect();
-        zip_loops(&a, &ring, |tri| sink.triangle(tri));
-        zip_loops(&rev, &b, |tri| sink.triangle(tri));
-    } else {
+        }),
+        _ => None,
+    };
+    let Some((saddle, la, lb)) = tube else {
         if let Some(l) = entry.center_loop {
             let edges = t.loop_edges(entry, l as usize);
             // The loop's centroid moved along the gradient line onto the interpolant's
@@ -150,6 +136,53 @@ pub fn polygonize_case(case: usize, v: &[f32; 8], sink: &mut impl CubeSink) -> C
         }
         for tri in t.triangles(entry) {
             sink.triangle(tri.map(|e| local[e as usize]));
+        }
+        return outcome;
+    };
+    outcome.tunnel = true;
+    let at = |e: &u8| (local[*e as usize], cube_point(*e, v));
+    let a: Vec<(u32, [f64; 3])> = t.loop_edges(entry, la).iter().map(at).collect();
+    let b: Vec<(u32, [f64; 3])> = t.loop_edges(entry, lb).iter().map(at).collect();
+    // A ring shaped like loop b, half its size, around the saddle: the tube runs
+    // a → ring → b, so every rung has one end that only this cube has.
+    let cb = centroid(b.iter().map(|x| x.1));
+    // Each ring vertex lies on the interpolant's level set, on the ray from the saddle in the
+    // direction of its loop-b vertex from loop b's centre (the tube's waist: the saddle has
+    // the tube's sign, and across the tube the interpolant changes it); where that ray stays
+    // on the saddle's side inside the cube, the vertex is put at half the way instead.
+    let ring: Vec<(u32, [f64; 3])> = b
+        .iter()
+        .map(|&(_, p)| {
+            let dir: [f64; 3] = std::array::from_fn(|d| p[d] - cb[d]);
+            let offset = level_on_ray(v, saddle.p, dir).unwrap_or_else(|| {
+                onto_level(
+                    v,
+                    std::array::from_fn(|d| (saddle.p[d] + 0.5 * dir[d]).clamp(0.01, 0.99)),
+                )
+            });
+            (sink.cell_vertex(offset), offset)
+        })
+        .collect();
+    let rev: Vec<(u32, [f64; 3])> = ring.iter().rev().copied().collect();
+    zip_loops(&a, &ring, |tri| sink.triangle(tri));
+    zip_loops(&rev, &b, |tri| sink.triangle(tri));
+    // A third loop stays a disk, with the table's triangles over it (each triangle lies on
+    // one loop).
+    if entry.loop_count == 3 {
+        let mut on_tube = [false; 13];
+        for l in [la, lb] {
+            for &e in t.loop_edges(entry, l) {
+                on_tube[e as usize] = true;
+            }
+        }
+        if let Some(l) = entry.center_loop.filter(|&l| l as usize != la && l as usize != lb) {
+            let c = centroid(t.loop_edges(entry, l as usize).iter().map(|e| cube_point(*e, v)));
+            local[CENTER as usize] = sink.cell_vertex(onto_level(v, c));
+        }
+        for tri in t.triangles(entry) {
+            if !tri.iter().any(|&e| on_tube[e as usize]) {
+                sink.triangle(tri.map(|e| local[e as usize]));
+            }
         }
     }
     outcome

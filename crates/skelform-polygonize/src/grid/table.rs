@@ -39,6 +39,12 @@ pub struct Entry {
     /// The loop fanned from an interior vertex ([`CENTER`]), if any (at most one: such
     /// loops have eight or more of the twelve edges).
     pub center_loop: Option<u8>,
+    /// For three loops whose corner groups form a path (two groups of each sign: MC33's
+    /// configuration 13.5), the loop left as a disk when the interior joins the two groups
+    /// of one side, per side (`[inside, outside]`): the interpolant can join them by a tube
+    /// through the interior (13.5.2), and that tube runs between the two loops that bound
+    /// the other side's middle group, leaving the loop around the other side's end group.
+    pub path_end: Option<[u8; 2]>,
 }
 
 /// The whole table.
@@ -202,8 +208,40 @@ fn caps_inside(inside: u8, decisions: u8) -> bool {
     corner_groups(inside, decisions, true) > corner_groups(inside, decisions, false)
 }
 
+/// For three loops on a cube whose corner groups form a path (two groups of each sign), the
+/// loop around each side's end group, indexed by the *other* side (`[inside, outside]`):
+/// the loop that stays a disk when that other side's two groups join through the interior.
+/// `None` for three loops in a star (one group of one sign), which never join.
+fn path_ends(inside: u8, decisions: u8, loops: &[Vec<u8>]) -> Option<[u8; 2]> {
+    let mut ends = [0u8; 2];
+    for (k, joining_inside) in [true, false].into_iter().enumerate() {
+        let other = corner_group_labels(inside, decisions, !joining_inside);
+        let mine = corner_group_labels(inside, decisions, joining_inside);
+        let count = |l: &[u8; 8]| l.iter().filter(|&&g| g != u8::MAX).max().map_or(0, |&m| m + 1);
+        if count(&other) != 2 || count(&mine) != 2 {
+            return None;
+        }
+        // A loop borders a group when one of its crossing edges has an end in that group.
+        let borders =
+            |l: &[u8], g: u8| l.iter().any(|&e| EDGES[e as usize].iter().any(|&c| other[c] == g));
+        let end = (0..2u8).find_map(|g| {
+            let b: Vec<usize> = (0..loops.len()).filter(|&i| borders(&loops[i], g)).collect();
+            (b.len() == 1).then(|| b[0] as u8)
+        })?;
+        ends[k] = end;
+    }
+    Some(ends)
+}
+
 /// Connected groups of corners on the given side, over cube edges and across decided faces.
 pub fn corner_groups(inside: u8, decisions: u8, side_inside: bool) -> usize {
+    let labels = corner_group_labels(inside, decisions, side_inside);
+    labels.iter().filter(|&&g| g != u8::MAX).max().map_or(0, |&m| m as usize + 1)
+}
+
+/// The group of each corner on the given side (numbered from 0 in corner order), `u8::MAX`
+/// for corners of the other side.
+pub fn corner_group_labels(inside: u8, decisions: u8, side_inside: bool) -> [u8; 8] {
     let on = |c: usize| (inside & (1 << c) != 0) == side_inside;
     let mut parent: Vec<usize> = (0..8).collect();
     fn root(p: &mut [usize], mut c: usize) -> usize {
@@ -236,10 +274,17 @@ pub fn corner_groups(inside: u8, decisions: u8, side_inside: bool) -> usize {
             }
         }
     }
-    let mut roots: Vec<usize> = (0..8).filter(|&c| on(c)).map(|c| root(&mut parent, c)).collect();
-    roots.sort_unstable();
-    roots.dedup();
-    roots.len()
+    let (mut labels, mut of_root) = ([u8::MAX; 8], [u8::MAX; 8]);
+    let mut next = 0u8;
+    for c in (0..8).filter(|&c| on(c)) {
+        let r = root(&mut parent, c);
+        if of_root[r] == u8::MAX {
+            of_root[r] = next;
+            next += 1;
+        }
+        labels[c] = of_root[r];
+    }
+    labels
 }
 
 impl CaseTable {
@@ -283,6 +328,9 @@ impl CaseTable {
                 e.tri_count = (t.tris.len() - e.tri_start as usize) as u8;
                 if loops.len() == 2 {
                     e.caps_inside = caps_inside(case as u8, decisions);
+                }
+                if loops.len() == 3 {
+                    e.path_end = path_ends(case as u8, decisions, &loops);
                 }
                 t.entries[case * 64 + decisions as usize] = e;
             }

@@ -205,7 +205,12 @@ impl Run<'_> {
         };
         let side = 4.0 * self.eps;
         let max_steps = (8.0 * (b - a).length().max((c - a).length()) / side) as usize + 16;
-        for s in starts {
+        // Every start into the face first; then every start the other way, for a crossing
+        // within a triangle of a corner where the contour runs along the face's side (a wall
+        // in the plane of that side, as a sheet on a lattice plane): there the first way can
+        // lead off the face at once, and the contour lies the other way.
+        for (pass, s) in [false, true].into_iter().flat_map(|p| starts.iter().map(move |s| (p, s)))
+        {
             let v = self.positions[s.vertex as usize];
             // The crossing lies on one of the three edges; find which, to step along it.
             let edge_dir = [(a, b), (b, c), (c, a)]
@@ -220,16 +225,16 @@ impl Run<'_> {
             let mut py = v + edge_dir * side * 0.5;
             let mid = (px + py) * 0.5;
             let mut w = n.normalize().cross(py - px).normalize();
-            if !inside(mid + w * side) {
+            if inside(mid + w * side) == pass {
                 w = -w;
             }
-            let mut apex = mid + w * side * 3f64.sqrt() * 0.5;
             let (rx, ry) = (self.region_at(px), self.region_at(py));
             let (x, y) = (s.from, s.to);
             if ![rx, ry].iter().all(|&r| r == x || r == y) {
                 // The first triangle already has a corner in a third region (the crossing is
                 // within 2ε of it along the edge): it is the final triangle.
                 self.stats.face_vertices_at_crossing += 1;
+                let apex = mid + w * side * 3f64.sqrt() * 0.5;
                 return clamp((px + py + apex) / 3.0);
             }
             if !(rx == x && ry == y) {
@@ -238,6 +243,7 @@ impl Run<'_> {
                 }
                 std::mem::swap(&mut px, &mut py);
             }
+            let mut apex = mid + w * side * 3f64.sqrt() * 0.5;
             // The strip may run up to two triangles beyond the face: where the regions meet
             // on (or within ε of) the face's own edge, as when a wall falls half-way between
             // lattice planes, the contour reaches the foreign region only just outside.
