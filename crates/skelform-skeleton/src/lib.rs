@@ -100,6 +100,7 @@ pub mod kernel;
 pub mod pose;
 mod quad;
 pub mod skeleton;
+pub mod sweep;
 
 pub use curve::{CubicCurve, Frame};
 pub use error::SkeletonError;
@@ -111,3 +112,4 @@ pub use image::{
 pub use kernel::Kernel;
 pub use pose::{Articulated, Joint, JointId, Pose};
 pub use skeleton::{Element, Group, GroupId, Junction, JunctionJoint, Skeleton};
+pub use sweep::{Sweep, SweepSettings, SweptField};
