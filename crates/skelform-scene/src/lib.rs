@@ -32,6 +32,7 @@ mod pose;
 mod regions;
 mod schema;
 mod skeleton;
+mod sweep;
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;

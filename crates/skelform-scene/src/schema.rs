@@ -385,7 +385,7 @@ pub(crate) fn build(
         leaf,
         field,
         articulation: skeleton.as_ref().and_then(|s| s.articulation.clone()),
-        skeleton: skeleton.map(|s| s.field),
+        skeleton: skeleton.and_then(|s| s.skeleton),
         formula,
         iso,
         output: Output {

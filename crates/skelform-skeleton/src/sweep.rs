@@ -327,6 +327,7 @@ pub struct SweptField {
     sweeps: Vec<Sweep>,
     boxes: Vec<(DVec3, DVec3)>,
     mode: Mode,
+    blend: Blend,
     iso: f64,
     bounds: Aabb,
     step: f64,
@@ -372,6 +373,7 @@ impl SweptField {
             sweeps,
             boxes,
             mode,
+            blend,
             iso,
             bounds: bounds.ok_or(SkeletonError::Empty)?,
             step,
@@ -383,8 +385,8 @@ impl SweptField {
     pub fn with_iso(mut self, iso: f64) -> Result<SweptField, SkeletonError> {
         if let Some(s) = self.skeleton.take() {
             self.skeleton = Some(s.with_iso(iso)?);
-        } else if !matches!(self.mode, Mode::Density(_)) {
-            return Err(SkeletonError::IsoNotApplicable("union"));
+        } else if !self.blend.has_iso() {
+            return Err(SkeletonError::IsoNotApplicable(self.blend.name()));
         } else if !(iso.is_finite() && iso > 0.0) {
             return Err(SkeletonError::BadParameter {
                 name: "iso",
@@ -400,7 +402,7 @@ impl SweptField {
     pub fn iso(&self) -> Option<f64> {
         match &self.skeleton {
             Some(s) => s.iso(),
-            None => matches!(self.mode, Mode::Density(_)).then_some(self.iso),
+            None => self.blend.has_iso().then_some(self.iso),
         }
     }
 
@@ -441,34 +443,90 @@ fn inside(b: &(DVec3, DVec3), p: DVec3) -> bool {
     p.cmpge(b.0).all() && p.cmple(b.1).all()
 }
 
+impl SweptField {
+    /// Changes skeleton values `out` at `points` into the values with the sweeps added.
+    fn add_sweeps(&self, points: &[DVec3], out: &mut [f64]) {
+        for (p, o) in points.iter().zip(out.iter_mut()) {
+            for (s, b) in self.sweeps.iter().zip(&self.boxes) {
+                if !inside(b, *p) {
+                    continue;
+                }
+                let rho = s.rho(*p);
+                match self.mode {
+                    Mode::Density(k) => *o -= s.strength * k.value(rho * rho),
+                    Mode::Union(cap) => *o = o.min(rho.min(cap) - 1.0),
+                }
+            }
+        }
+    }
+
+    /// The value far from everything: the iso value (density), or the union's cap.
+    fn empty_value(&self) -> f64 {
+        match self.mode {
+            Mode::Density(_) => self.iso,
+            Mode::Union(cap) => cap - 1.0,
+        }
+    }
+}
+
+/// Without sweeps every call goes to the skeleton's field (its culled batches and exact
+/// gradients); with sweeps the skeleton's batch is taken first and the sweeps added to it.
 impl Field for SweptField {
     fn eval(&self, p: DVec3) -> f64 {
-        let base = self.skeleton.as_ref().map(|s| s.eval(p));
-        match self.mode {
-            Mode::Density(k) => {
-                let mut f = base.unwrap_or(self.iso);
-                for (s, b) in self.sweeps.iter().zip(&self.boxes) {
-                    if inside(b, p) {
-                        let rho = s.rho(p);
-                        f -= s.strength * k.value(rho * rho);
-                    }
-                }
-                f
+        let mut v = [0.0];
+        self.eval_many(&[p], &mut v);
+        v[0]
+    }
+
+    fn eval_many(&self, points: &[DVec3], out: &mut [f64]) {
+        match &self.skeleton {
+            Some(s) => s.eval_many(points, out),
+            None => out.fill(self.empty_value()),
+        }
+        self.add_sweeps(points, out);
+    }
+
+    fn eval_layer(&self, xs: &[f64], ys: &[f64], z: f64, out: &mut [f64]) {
+        match &self.skeleton {
+            Some(s) => s.eval_layer(xs, ys, z, out),
+            None => out.fill(self.empty_value()),
+        }
+        if !self.sweeps.is_empty() {
+            let points: Vec<DVec3> =
+                ys.iter().flat_map(|&y| xs.iter().map(move |&x| DVec3::new(x, y, z))).collect();
+            self.add_sweeps(&points, out);
+        }
+    }
+
+    fn gradient(&self, p: DVec3) -> DVec3 {
+        match &self.skeleton {
+            Some(s) if self.sweeps.is_empty() => s.gradient(p),
+            _ => {
+                let h = self.step;
+                let d = |e: DVec3| (self.eval(p + e * h) - self.eval(p - e * h)) / (2.0 * h);
+                DVec3::new(d(DVec3::X), d(DVec3::Y), d(DVec3::Z))
             }
-            Mode::Union(cap) => {
-                let mut f = base.unwrap_or(cap - 1.0);
-                for (s, b) in self.sweeps.iter().zip(&self.boxes) {
-                    if inside(b, p) {
-                        f = f.min(s.rho(p).min(cap) - 1.0);
-                    }
+        }
+    }
+
+    fn eval_grad_many(&self, points: &[DVec3], values: &mut [f64], grads: &mut [DVec3]) {
+        match &self.skeleton {
+            Some(s) if self.sweeps.is_empty() => s.eval_grad_many(points, values, grads),
+            _ => {
+                self.eval_many(points, values);
+                for (p, g) in points.iter().zip(grads.iter_mut()) {
+                    *g = self.gradient(*p);
                 }
-                f
             }
         }
     }
 
     fn gradient_step(&self) -> f64 {
         self.step
+    }
+
+    fn has_exact_gradient(&self) -> bool {
+        self.sweeps.is_empty() && self.skeleton.as_ref().is_some_and(|s| s.has_exact_gradient())
     }
 
     fn bounds(&self) -> Option<Aabb> {
