@@ -261,6 +261,29 @@ mod tests {
                 n += 1;
             }
         }
+        // Texture coordinates (§5.7) of the horn's vertices: in [0, 1], `u` increasing with
+        // the nearest curve parameter.
+        let sweep = skelform_skeleton::Sweep::new(
+            [[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.2, 0.5], [1.1, 0.4, 1.0]]
+                .map(DVec3::from_array),
+            [[0.22, 0.12], [0.16, 0.09], [0.09, 0.06], [0.04, 0.03]],
+            1.0,
+            skelform_skeleton::SweepSettings {
+                initial_normal: Some(DVec3::Z),
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let mut tu: Vec<(f64, f64)> = Vec::new();
+        for p in &mesh.positions {
+            let p = DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+            let [u, v] = sweep.uv(p);
+            assert!((0.0..=1.0).contains(&u) && (0.0..=1.0).contains(&v), "{p}: {u} {v}");
+            tu.push((sweep.nearest_t(p), u));
+        }
+        tu.sort_by(|a, b| a.0.total_cmp(&b.0));
+        assert!(tu.windows(2).all(|w| w[1].1 >= w[0].1), "u not monotone along the curve");
+        assert!(tu[0].1 == 0.0 && tu[tu.len() - 1].1 == 1.0, "the caps map to u = 0 and 1");
         println!("horn: {} triangles, {n} horn vertices, worst {worst:.4} cells off", r.faces);
         assert!(n > 500, "{n} vertices checked");
     }
