@@ -345,6 +345,7 @@ impl SweptField {
         blend: Blend,
     ) -> Result<SweptField, SkeletonError> {
         let blend = skeleton.as_ref().map_or(blend, |s| s.blend());
+        blend.check()?;
         let iso = skeleton.as_ref().and_then(|s| s.iso()).unwrap_or(DEFAULT_ISO);
         if skeleton.is_none() && sweeps.is_empty() {
             return Err(SkeletonError::Empty);
@@ -650,5 +651,13 @@ mod tests {
         let p = DVec3::new(1.5, 0.5, 1.0) + DVec3::new(0.0, 0.0, 0.3);
         assert!(f.eval(p) < skf.eval(p) - 0.1);
         assert_eq!(f.seed_points().len(), 2);
+        // Sweeps alone under a blend with a bad parameter are refused like a skeleton.
+        let bad = Blend::SuperElliptic { range: -1.0, thumbweight: 2.0, angle_scaled: false };
+        assert!(SweptField::new(None, vec![s.clone()], bad).is_err());
+        // Under the union the value is the sweep's `ρ − 1`.
+        let u = SweptField::new(None, vec![s], Blend::Union(crate::Falloff::Linear)).unwrap();
+        assert!(u.eval(fr.origin + 0.2 * fr.normal).abs() < 1e-9);
+        assert!((u.eval(fr.origin) + 1.0).abs() < 1e-9);
+        assert!(u.iso().is_none());
     }
 }
