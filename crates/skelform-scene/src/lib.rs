@@ -33,6 +33,7 @@ mod ramiform;
 mod regions;
 mod schema;
 mod skeleton;
+mod sweep;
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;

@@ -348,10 +348,10 @@ pub(crate) fn build(
                     cx.at(at, "'combine' needs a [field] formula to combine the skeleton with")
                 );
             }
-            sk.field.clone()
+            sk.surface()
         }
         (Some(sk), Some(f)) => match sk.combine {
-            Some((op, _)) => Arc::new(Combined::new(sk.field.clone(), f, op)),
+            Some((op, _)) => Arc::new(Combined::new(sk.surface(), f, op)),
             None => {
                 return Err(cx.at(
                     sk.section_at,
@@ -419,7 +419,7 @@ pub(crate) fn build(
         leaf,
         field,
         articulation: skeleton.as_ref().and_then(|s| s.articulation.clone()),
-        skeleton: skeleton.map(|s| s.field),
+        skeleton: skeleton.and_then(|s| s.skeleton),
         formula,
         iso,
         output: Output {

@@ -27,7 +27,7 @@ use skelform_field::combine::Combine;
 use skelform_skeleton::{
     Blend, CubicCurve, DEFAULT_IMAGE_RESOLUTION, Element, Falloff, GroupId, Kernel,
     MAX_IMAGE_RESOLUTION, Polygon, PolygonMethod, Segment, Shape, Skeleton, SkeletonError,
-    SkeletonField,
+    SkeletonField, SweptField,
 };
 use toml::Spanned;
 
@@ -57,6 +57,8 @@ pub(crate) struct SkeletonSection {
     segment: Option<Vec<SegmentSpec>>,
     polyline: Option<Vec<PolylineSpec>>,
     curve: Option<Vec<CurveSpec>>,
+    /// Generalized cylinders (see `crate::sweep`).
+    sweep: Option<Vec<crate::sweep::SweepSpec>>,
     triangle: Option<Vec<PolygonSpec>>,
     polygon: Option<Vec<PolygonSpec>>,
     /// Joints and poses (see `crate::pose`).
@@ -184,10 +186,26 @@ struct PolygonSpec {
 
 /// A skeleton section, built.
 pub(crate) struct Built {
-    pub field: Arc<SkeletonField>,
+    /// The skeleton's field with the sweeps added: the surface.
+    pub field: Arc<SweptField>,
+    /// The skeleton's field alone (none when the section has only sweeps).
+    pub skeleton: Option<Arc<SkeletonField>>,
     pub combine: Option<(Combine, usize)>,
     pub section_at: usize,
     pub articulation: Option<crate::pose::Articulation>,
+}
+
+impl Built {
+    /// The field the scene's surface is of: the skeleton's own field, shared with
+    /// [`Built::skeleton`], when there are no sweeps (the two are then the same values, and a
+    /// caller can tell by pointer that the surface is the skeleton alone, as incremental
+    /// re-meshing does), else the swept field.
+    pub fn surface(&self) -> Arc<dyn skelform_field::Field> {
+        match &self.skeleton {
+            Some(sk) if self.field.sweeps().is_empty() => sk.clone(),
+            _ => self.field.clone(),
+        }
+    }
 }
 
 pub(crate) fn build(
@@ -528,11 +546,12 @@ pub(crate) fn build(
     if let Some(c) = &s.color {
         skeleton.set_default_color(*c.get_ref()).map_err(|e| err(c.span().start, e))?;
     }
-    if skeleton.is_empty() {
+    let sweeps = crate::sweep::build(s.sweep.as_deref().unwrap_or(&[]), at)?;
+    if skeleton.is_empty() && sweeps.is_empty() {
         return Err(at(
             section_at,
             "the skeleton has no elements: add [[skeleton.point]], [[skeleton.segment]], \
-             [[skeleton.polyline]], [[skeleton.curve]], [[skeleton.triangle]] or [[skeleton.polygon]]"
+             [[skeleton.polyline]], [[skeleton.curve]], [[skeleton.triangle]], [[skeleton.polygon]] or [[skeleton.sweep]]"
                 .into(),
         ));
     }
@@ -543,7 +562,7 @@ pub(crate) fn build(
     };
     let (skeleton, articulation) = crate::pose::articulate(&spec, skeleton, &marks, choice, at)?;
 
-    let mut field = SkeletonField::new(&skeleton, blend).map_err(|e| {
+    let bad_blend = |e: SkeletonError| {
         let offset = match &e {
             SkeletonError::BadParameter { name: "range", .. } => {
                 s.range.as_ref().map(|r| r.span().start)
@@ -557,7 +576,13 @@ pub(crate) fn build(
             _ => None,
         };
         err(offset.unwrap_or(blend_at), e)
-    })?;
+    };
+    let skeleton_field = if skeleton.is_empty() {
+        None
+    } else {
+        Some(SkeletonField::new(&skeleton, blend).map_err(bad_blend)?)
+    };
+    let mut field = SweptField::new(skeleton_field, sweeps, blend).map_err(bad_blend)?;
     if let Some(i) = &s.iso {
         field = field.with_iso(*i.get_ref()).map_err(|e| err(i.span().start, e))?;
     }
@@ -580,7 +605,8 @@ pub(crate) fn build(
             c.span().start,
         )),
     };
-    Ok(Built { field: Arc::new(field), combine, section_at, articulation })
+    let skeleton = field.skeleton().cloned().map(Arc::new);
+    Ok(Built { field: Arc::new(field), skeleton, combine, section_at, articulation })
 }
 
 /// The polygon method from `polygon_method` and `image_resolution` keys (a polygon's own,

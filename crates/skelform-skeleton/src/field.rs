@@ -139,7 +139,7 @@ impl Blend {
         matches!(self, Blend::Convolution(_) | Blend::Sum(_) | Blend::Combination { .. })
     }
 
-    fn check(&self) -> Result<(), SkeletonError> {
+    pub(crate) fn check(&self) -> Result<(), SkeletonError> {
         let positive = |name, v: f64| {
             if v.is_finite() && v > 0.0 {
                 Ok(())

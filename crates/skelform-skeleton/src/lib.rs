@@ -105,6 +105,7 @@ pub mod pose;
 mod quad;
 pub mod ramiform;
 pub mod skeleton;
+pub mod sweep;
 
 pub use curve::{CubicCurve, Frame};
 pub use error::SkeletonError;
@@ -117,3 +118,4 @@ pub use kernel::Kernel;
 pub use pose::{Articulated, Joint, JointId, Pose};
 pub use ramiform::{Limb, Ramiform, RamiformField, RamiformOptions};
 pub use skeleton::{Element, Group, GroupId, Junction, JunctionJoint, Skeleton, check_color};
+pub use sweep::{Sweep, SweepSettings, SweptField};
