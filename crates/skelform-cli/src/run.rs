@@ -172,6 +172,7 @@ impl RunArgs {
             streaming: Some(self.stream.into()),
             max_memory: Some(memory_limit(self.max_memory, self.quiet)),
             workspace: None,
+            colors: None,
             control: progress::control(show_progress),
         })
     }

@@ -18,10 +18,15 @@ pub enum Level {
     Full = 1,
 }
 
-/// Meshes `scene` at one level: the one call the studio makes into the library, kept
-/// apart so that an incremental re-mesher can take its place. A cancelled run returns an
-/// error for which [`skelform::Error::is_cancelled`] holds.
+/// Meshes `scene` at one level: the one call the studio makes into the library. `live`
+/// keeps what the last run of this level made, so that an edit that moves, reshapes or
+/// re-angles a few skeletal elements re-meshes only what their influence reaches
+/// ([`skelform::Live`]: the same mesh as a fresh run, bit for bit); other edits, and other
+/// methods than the grid, run in full. Vertex colours are left out: the page shades by
+/// region. A cancelled run returns an error for which [`skelform::Error::is_cancelled`]
+/// holds (and `live` forgets its state, so the next run is a full one).
 pub fn mesh_scene(
+    live: &mut skelform::Live,
     scene: &skelform::Scene,
     pose: Option<&str>,
     level: Level,
@@ -30,6 +35,7 @@ pub fn mesh_scene(
 ) -> Result<Mesh, skelform::Error> {
     let mut overrides = Overrides {
         pose: pose.map(str::to_string),
+        colors: Some(false),
         control: control.clone(),
         ..Overrides::default()
     };
@@ -39,7 +45,7 @@ pub fn mesh_scene(
         // Linear interpolation along lattice edges: the coarse surface is a preview.
         overrides.refine = Some(false);
     }
-    Ok(scene.mesh(&overrides)?.mesh)
+    Ok(live.mesh(scene, &overrides)?.mesh)
 }
 
 /// The magic that opens every mesh frame.
@@ -138,6 +144,8 @@ pub fn start(
 }
 
 fn worker(rx: Receiver<Job>, coarse_factor: f64, publish: impl Fn(Outcome)) {
+    // One incremental re-mesher per level: each keeps the lattice of its own resolution.
+    let mut live = [skelform::Live::default(), skelform::Live::default()];
     while let Ok(mut job) = rx.recv() {
         // Only the newest of the jobs that queued up meanwhile is worth doing.
         while let Ok(newer) = rx.try_recv() {
@@ -148,8 +156,14 @@ fn worker(rx: Receiver<Job>, coarse_factor: f64, publish: impl Fn(Outcome)) {
                 break;
             }
             let start = Instant::now();
-            let result =
-                mesh_scene(&job.scene, job.pose.as_deref(), level, coarse_factor, &job.control);
+            let result = mesh_scene(
+                &mut live[level as usize],
+                &job.scene,
+                job.pose.as_deref(),
+                level,
+                coarse_factor,
+                &job.control,
+            );
             let ms = start.elapsed().as_secs_f64() * 1e3;
             match result {
                 Ok(mesh) => publish(Outcome::Mesh {

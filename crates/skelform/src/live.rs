@@ -166,7 +166,7 @@ impl Live {
         };
         self.last = Some(Last { skeleton, state });
         self.run = Some(run);
-        scene.paint(&mut mesh, method);
+        scene.paint(&mut mesh, method, o);
         Ok(Meshed { mesh, stats: Stats::Grid(stats), method, elapsed: started.elapsed() })
     }
 

@@ -261,15 +261,16 @@ impl Scene {
         };
         let (mut mesh, stats) =
             result.map_err(|source| Error::Polygonize { origin: self.origin.clone(), source })?;
-        self.paint(&mut mesh, method);
+        self.paint(&mut mesh, method, o);
         Ok(Meshed { mesh, stats, method, elapsed: started.elapsed() })
     }
 
     /// Element colours blended at the vertices (DIS ch. 6), for surfaces of the field; the
     /// non-manifold method's surfaces are labelled by region instead. Every path that makes
     /// a mesh of the scene ([`Scene::mesh`], [`crate::Live`]) calls this, so they agree.
-    pub(crate) fn paint(&self, mesh: &mut Mesh, method: Method) {
+    pub(crate) fn paint(&self, mesh: &mut Mesh, method: Method, overrides: &Overrides) {
         if method != Method::NonManifold
+            && overrides.colors != Some(false)
             && let Some(skeleton) = &self.skeleton
         {
             let points: Vec<DVec3> =

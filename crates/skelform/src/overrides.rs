@@ -57,6 +57,10 @@ pub struct Overrides {
     /// that meshes on every edit keeps its own, so its runs neither wait for nor grow the
     /// buffers of other work in the process.
     pub workspace: Option<Arc<Workspace>>,
+    /// Blend the skeleton's element colours into vertex colours (`None`: when the scene's
+    /// skeleton has colours). Each vertex's colour costs about an evaluation of the field,
+    /// so a front end that does not show them (the studio) turns them off.
+    pub colors: Option<bool>,
     /// Progress reports and cancellation for the run.
     pub control: Control,
 }
