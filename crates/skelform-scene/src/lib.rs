@@ -34,6 +34,8 @@ mod regions;
 mod schema;
 mod skeleton;
 mod sweep;
+#[cfg(test)]
+mod testing;
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;

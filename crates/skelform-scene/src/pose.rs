@@ -396,11 +396,7 @@ middle = 90
 
     /// The error's line (counting HEAD's five lines), column and message.
     fn error(body: &str) -> (usize, usize, String) {
-        match parse(body, None) {
-            Err(SceneError::At { line, column, message, .. }) => (line, column, message),
-            Err(e) => panic!("an error without a position: {e}"),
-            Ok(_) => panic!("accepted:\n{body}"),
-        }
+        crate::testing::error_position(parse(body, None), body)
     }
 
     /// Where the tip bone's end is: the point on its axis where the field is lowest beyond

@@ -714,11 +714,7 @@ mod tests {
 
     /// The error's line (counting the three lines of HEAD), column and message.
     fn error(body: &str) -> (usize, usize, String) {
-        match parse(body) {
-            Err(SceneError::At { line, column, message, .. }) => (line, column, message),
-            Err(e) => panic!("an error without a position: {e}"),
-            Ok(_) => panic!("accepted:\n{body}"),
-        }
+        crate::testing::error_position(parse(body), body)
     }
 
     #[test]

@@ -149,7 +149,7 @@ pub(crate) fn build(specs: &[SweepSpec], at: At) -> Result<Vec<Sweep>, SceneErro
 
 #[cfg(test)]
 mod tests {
-    use crate::{Scene, SceneError};
+    use crate::Scene;
     use skelform_field::{DVec3, Field};
     use skelform_mesh::check::check;
     use skelform_polygonize::LatticeOptions;
@@ -158,11 +158,7 @@ mod tests {
     const HEAD: &str = "[domain]\nmin = [-1, -1, -1]\nmax = [2, 2, 2]\n[skeleton]\n";
 
     fn error(body: &str) -> (usize, usize, String) {
-        match Scene::parse(&format!("{HEAD}{body}"), "s.toml") {
-            Err(SceneError::At { line, column, message, .. }) => (line, column, message),
-            Err(e) => panic!("an error without a position: {e}"),
-            Ok(_) => panic!("accepted: {body}"),
-        }
+        crate::testing::error_position(Scene::parse(&format!("{HEAD}{body}"), "s.toml"), body)
     }
 
     #[test]

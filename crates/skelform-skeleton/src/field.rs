@@ -375,6 +375,16 @@ impl std::fmt::Display for GlobalChange {
     }
 }
 
+/// A density blend's iso value must be positive: far from the skeleton the density is 0, and
+/// that must be outside.
+pub(crate) fn check_iso(iso: f64) -> Result<(), SkeletonError> {
+    if iso.is_finite() && iso > 0.0 {
+        Ok(())
+    } else {
+        Err(SkeletonError::BadParameter { name: "iso", value: iso, expected: "a positive number" })
+    }
+}
+
 /// The colour of elements that have none when others do and the skeleton sets no default:
 /// the renderer's plain surface colour (sRGB 176, 192, 214).
 pub const NEUTRAL_COLOR: [f32; 3] = [176.0 / 255.0, 192.0 / 255.0, 214.0 / 255.0];
@@ -609,13 +619,7 @@ impl SkeletonField {
         if !self.blend.has_iso() {
             return Err(SkeletonError::IsoNotApplicable(self.blend.name()));
         }
-        if !(iso.is_finite() && iso > 0.0) {
-            return Err(SkeletonError::BadParameter {
-                name: "iso",
-                value: iso,
-                expected: "a positive number",
-            });
-        }
+        check_iso(iso)?;
         self.iso = iso;
         Ok(self)
     }

@@ -388,12 +388,8 @@ impl SweptField {
             self.skeleton = Some(s.with_iso(iso)?);
         } else if !self.blend.has_iso() {
             return Err(SkeletonError::IsoNotApplicable(self.blend.name()));
-        } else if !(iso.is_finite() && iso > 0.0) {
-            return Err(SkeletonError::BadParameter {
-                name: "iso",
-                value: iso,
-                expected: "a positive number",
-            });
+        } else {
+            crate::field::check_iso(iso)?;
         }
         self.iso = iso;
         Ok(self)
