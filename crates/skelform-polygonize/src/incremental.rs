@@ -29,7 +29,6 @@
 use std::time::Instant;
 
 use glam::DVec3;
-use rayon::prelude::*;
 use skelform_field::grid::{Grid, Relative, Volume, resample_points, sample};
 use skelform_field::{Aabb, Field};
 use skelform_mesh::Mesh;
@@ -37,14 +36,13 @@ use skelform_mesh::Mesh;
 use crate::Error;
 use crate::grid::extract::{SLAB, SlabCounts, extract_slabs, slab_count};
 use crate::grid::{self, GridVertex, Options, Place, Stats};
-use crate::refine::{Bracket, RootOptions, face_normals, project_to_surface, refine_roots};
+use crate::refine::{
+    Bracket, RootOptions, fill_from_faces, project_to_surface, refine_roots, unit_gradients,
+};
 
 /// Cells of margin around a changed box: one so that every lattice edge that meets the box
 /// has both ends re-sampled, one more against rounding in the conversion to indices.
 const MARGIN: f64 = 2.0;
-
-/// Vertices per gradient batch (as in [`crate::refine::gradient_normals`]).
-const CHUNK: usize = 1024;
 
 /// What the last grid run keeps for the next (see the module documentation).
 #[derive(Clone, Debug)]
@@ -411,22 +409,7 @@ impl GridState {
                 again.dedup();
             }
             let pts: Vec<DVec3> = again.iter().map(|&i| positions[i]).collect();
-            let normals: Vec<[f32; 3]> = pts
-                .par_chunks(CHUNK)
-                .flat_map_iter(|pts| {
-                    let mut vals = vec![0.0; pts.len()];
-                    let mut grads = vec![DVec3::ZERO; pts.len()];
-                    field.eval_grad_many(pts, &mut vals, &mut grads);
-                    grads.into_iter().map(|g| {
-                        let n = g.normalize_or_zero();
-                        if n == DVec3::ZERO || !n.is_finite() {
-                            [0.0; 3]
-                        } else {
-                            n.as_vec3().to_array()
-                        }
-                    })
-                })
-                .collect();
+            let normals = unit_gradients(field, &pts);
             for (&i, g) in again.iter().zip(normals) {
                 gradients[i] = g;
             }
@@ -434,14 +417,7 @@ impl GridState {
         }
         let normals = if want_normals && !triangles.is_empty() {
             let mut normals = gradients.clone();
-            if normals.contains(&[0.0; 3]) {
-                let face = face_normals(&positions, &triangles);
-                for (o, f) in normals.iter_mut().zip(face) {
-                    if *o == [0.0; 3] {
-                        *o = f;
-                    }
-                }
-            }
+            fill_from_faces(&mut normals, &positions, &triangles);
             normals
         } else {
             Vec::new()

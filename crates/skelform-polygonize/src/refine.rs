@@ -220,28 +220,35 @@ pub fn gradient_normals(
     positions: &[DVec3],
     triangles: &[[u32; 3]],
 ) -> (Vec<[f32; 3]>, u64) {
+    let mut normals = unit_gradients(field, positions);
+    fill_from_faces(&mut normals, positions, triangles);
+    (normals, positions.len() as u64)
+}
+
+/// The field's unit gradient at each position (a batch per chunk, in parallel), or zero
+/// where it vanishes or is not finite. Each point's value is its own, whatever the chunks.
+pub(crate) fn unit_gradients(field: &dyn Field, positions: &[DVec3]) -> Vec<[f32; 3]> {
     let mut normals = vec![[0f32; 3]; positions.len()];
-    let bad: usize = normals
-        .par_chunks_mut(CHUNK)
-        .zip(positions.par_chunks(CHUNK))
-        .map(|(out, pts)| {
-            let mut vals = vec![0.0; pts.len()];
-            let mut grads = vec![DVec3::ZERO; pts.len()];
-            field.eval_grad_many(pts, &mut vals, &mut grads);
-            let mut bad = 0;
-            for (o, g) in out.iter_mut().zip(&grads) {
-                let n = g.normalize_or_zero();
-                if n == DVec3::ZERO || !n.is_finite() {
-                    bad += 1;
-                    *o = [0.0; 3];
-                } else {
-                    *o = n.as_vec3().to_array();
-                }
-            }
-            bad
-        })
-        .sum();
-    if bad > 0 {
+    normals.par_chunks_mut(CHUNK).zip(positions.par_chunks(CHUNK)).for_each(|(out, pts)| {
+        let mut vals = vec![0.0; pts.len()];
+        let mut grads = vec![DVec3::ZERO; pts.len()];
+        field.eval_grad_many(pts, &mut vals, &mut grads);
+        for (o, g) in out.iter_mut().zip(&grads) {
+            let n = g.normalize_or_zero();
+            *o = if n == DVec3::ZERO || !n.is_finite() { [0.0; 3] } else { n.as_vec3().to_array() };
+        }
+    });
+    normals
+}
+
+/// Replaces the zero normals (no gradient there) by the area-weighted normal of the
+/// surrounding triangles.
+pub(crate) fn fill_from_faces(
+    normals: &mut [[f32; 3]],
+    positions: &[DVec3],
+    triangles: &[[u32; 3]],
+) {
+    if normals.contains(&[0.0; 3]) {
         let face = face_normals(positions, triangles);
         for (o, f) in normals.iter_mut().zip(face) {
             if *o == [0.0; 3] {
@@ -249,7 +256,6 @@ pub fn gradient_normals(
             }
         }
     }
-    (normals, positions.len() as u64)
 }
 
 /// Area-weighted vertex normals from the triangles alone.
