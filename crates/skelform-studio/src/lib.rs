@@ -144,27 +144,15 @@ impl Place {
         if p.extension().and_then(|e| e.to_str()) != Some(extension) {
             return Err(StudioError::Edit(format!("'{name}' does not end in .{extension}")));
         }
-        Ok(self.dir.join(p))
+        let path = self.dir.join(p);
+        // The writers write through a symbolic link to its target, which may lie anywhere.
+        if std::fs::symlink_metadata(&path).is_ok_and(|m| m.file_type().is_symlink()) {
+            return Err(StudioError::Edit(format!(
+                "'{name}' is a symbolic link; the studio writes only plain files in the scene's folder"
+            )));
+        }
+        Ok(path)
     }
-}
-
-/// Writes `bytes` to `path` through a temporary file in the same folder, renamed over it,
-/// so that the file is either the old one or the new one, never half-written.
-pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), StudioError> {
-    use std::io::Write;
-    let dir = path.parent().ok_or_else(|| StudioError::Edit("no folder".into()))?;
-    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("scene");
-    let tmp = dir.join(format!(".{name}.{}.tmp", new_token()?));
-    let result = (|| {
-        let mut f = std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    Ok(result?)
 }
 
 /// Runs the studio on a runtime of its own until the process ends: what the command line

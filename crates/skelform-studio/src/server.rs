@@ -22,7 +22,7 @@ use toml_edit::DocumentMut;
 use crate::edit::{self, Step};
 use crate::mesher::{self, Job, Level, Outcome};
 use crate::slice::{self, SliceSpec};
-use crate::{Place, Settings, Shared, StudioError, write_atomic};
+use crate::{Place, Settings, Shared, StudioError};
 
 const INDEX: &str = include_str!("../assets/index.html");
 const APP_JS: &str = include_str!("../assets/app.js");
@@ -715,7 +715,9 @@ impl State {
     }
 
     fn save(&self, g: &mut MutexGuard<'_, Doc>) -> Result<Option<String>, StudioError> {
-        write_atomic(&self.place.file, g.text.as_bytes())?;
+        // Through a temporary file renamed over the scene (removed on a signal): the file is
+        // the old text or the new, never half-written. The path is canonical: no link.
+        skelform::mesh::io::atomic::write(&self.place.file, g.text.as_bytes())?;
         g.saved = g.text.clone();
         self.broadcast(Out::Text(self.state_message(g)));
         Ok(Some(json!({"type": "saved", "file": self.origin_name}).to_string()))

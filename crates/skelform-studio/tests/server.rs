@@ -330,6 +330,20 @@ async fn exports_go_to_the_scenes_folder_only() {
         assert_eq!(reply["type"], "error", "export to {bad} was accepted");
     }
     assert_eq!(files_in(r.file.parent().unwrap()), vec!["tee.toml".to_string()]);
+    // A plain name that is a link out of the folder is refused, and the target untouched.
+    #[cfg(unix)]
+    {
+        let outside = tempfile::tempdir().unwrap();
+        let target = outside.path().join("victim.glb");
+        std::fs::write(&target, b"untouched").unwrap();
+        let link = r.file.parent().unwrap().join("link.glb");
+        std::os::unix::fs::symlink(&target, &link).unwrap();
+        send(&mut ws, json!({"seq": 1, "op": "export", "format": "glb", "file": "link.glb"})).await;
+        let reply = next_state(&mut ws).await;
+        assert_eq!(reply["type"], "error", "export through a link was accepted");
+        assert_eq!(std::fs::read(&target).unwrap(), b"untouched");
+        std::fs::remove_file(&link).unwrap();
+    }
     send(&mut ws, json!({"seq": 2, "op": "export", "format": "ply"})).await;
     let reply = loop {
         if let Message::Text(t) = next(&mut ws).await {
