@@ -145,6 +145,22 @@ impl PreparedPolygon {
         }
     }
 
+    /// The angle the polygon winds about `q`, summed from each edge's arc tangents: `2π`
+    /// times the winding number, but `π` on an edge and the interior angle at a vertex.
+    fn winding_angle(&self, q: DVec2) -> f64 {
+        let mut theta = 0.0;
+        for e in &self.edges {
+            let rel = e.start - q;
+            let ta = rel.dot(e.dir);
+            let hs = rel.perp_dot(e.dir);
+            if hs != 0.0 {
+                let h = hs.abs();
+                theta += hs.signum() * ((ta + e.len).atan2(h) - ta.atan2(h));
+            }
+        }
+        theta
+    }
+
     pub(crate) fn eval(&self, kernel: Kernel, p: DVec3, want_grad: bool) -> (f64, DVec3) {
         let w = (p - self.origin) * self.inv_r;
         let q = DVec2::new(w.dot(self.e1), w.dot(self.e2));
@@ -159,11 +175,18 @@ impl PreparedPolygon {
         if !want_grad && z2 >= support2 && kernel.tail(z.abs()) == 0.0 {
             return (0.0, DVec3::ZERO);
         }
-        let mut theta = 0.0;
         let mut tail_sum = 0.0;
         let mut k_sum = 0.0;
         let mut grad_q = DVec2::ZERO;
-        for e in &self.edges {
+        // The angles the edges subtend add up to 2π times the winding number of the
+        // polygon about `q`, so it is counted by crossings rather than summed from arc
+        // tangents; only when `q` lies on or next to an edge's line are the angles summed
+        // after all.
+        let mut winding = 0i32;
+        let mut on_a_line = false;
+        let poly = if self.adaptive { None } else { kernel.w_polynomial() };
+        let k = self.edges.len();
+        for (i, e) in self.edges.iter().enumerate() {
             let rel = e.start - q;
             let ta = rel.dot(e.dir);
             let tb = ta + e.len;
@@ -174,14 +197,31 @@ impl PreparedPolygon {
                 let n_out = DVec2::new(e.dir.y, -e.dir.x);
                 grad_q -= n_out * kernel.line_integral(z2 + h * h, ta, tb).0;
             }
-            if h == 0.0 {
-                continue; // q on the edge's line: the wedge has no area
+            if h < 1e-9 {
+                // Near an edge's line, rounding could give the crossing test and the
+                // wedge's orientation different sides: the angles are summed instead.
+                on_a_line = true;
+                if h == 0.0 {
+                    continue; // q on the edge's line: the wedge has no area
+                }
             }
-            let sign = hs.signum();
-            let (pa, pb) = (ta.atan2(h), tb.atan2(h));
-            theta += sign * (pb - pa);
+            // Crossings of the ray from q along +e1, counted with the sign of `hs`, the
+            // same sign that orients the edge's wedge below, so the two always agree.
+            let (ya, yb) = (e.start.y - q.y, self.edges[(i + 1) % k].start.y - q.y);
+            if ya <= 0.0 && yb > 0.0 && hs > 0.0 {
+                winding += 1;
+            } else if ya > 0.0 && yb <= 0.0 && hs < 0.0 {
+                winding -= 1;
+            }
             if z2 + h * h >= support2 {
                 continue; // the whole edge is beyond the kernel's reach
+            }
+            let sign = hs.signum();
+            if let Some((alpha, tail, kern)) = &poly {
+                let (t, kk) = wedge_closed(*alpha, tail, kern, z2, h, ta, tb, want_grad);
+                tail_sum += sign * t;
+                k_sum += sign * kk;
+                continue;
             }
             if kernel == Kernel::Gaussian && !self.adaptive {
                 // T = k/(2ω) for the Gaussian: one integral serves value and gradient.
@@ -190,10 +230,15 @@ impl PreparedPolygon {
                 k_sum += sign * part;
                 continue;
             }
+            let (pa, pb) = (ta.atan2(h), tb.atan2(h));
             tail_sum += sign * edge_integral(kernel, z2, h, pa, pb, false);
             if want_grad {
                 k_sum += sign * edge_integral(kernel, z2, h, pa, pb, true);
             }
+        }
+        let mut theta = TAU * f64::from(winding);
+        if on_a_line {
+            theta = self.winding_angle(q);
         }
         let turns = (theta / TAU).round();
         if (theta - turns * TAU).abs() < 1e-9 {
@@ -215,9 +260,6 @@ impl PreparedPolygon {
 /// a kernel breakpoint so that every piece is smooth.
 fn edge_integral(kernel: Kernel, z2: f64, h: f64, pa: f64, pb: f64, of_kernel: bool) -> f64 {
     let h2 = h * h;
-    if let Some((alpha, tail, k)) = kernel.w_polynomial() {
-        return edge_integral_closed(alpha, if of_kernel { &k } else { &tail }, z2, h2, pa, pb);
-    }
     if kernel == Kernel::Gaussian {
         // T(σ) = e^{−ωσ²}/(2ω): factor out e^{−ω(z² + h²)} and integrate e^{−ω h² tan² φ}.
         let f = |phi: f64| {
@@ -271,52 +313,75 @@ fn edge_integral(kernel: Kernel, z2: f64, h: f64, pa: f64, pb: f64, of_kernel: b
     total
 }
 
-/// The closed form of [`edge_integral`] for a kernel that is a polynomial `Σ cₙ wⁿ` in
-/// `w = 1 − α σ²` on its support. With `x = tan φ`, `σ² = z² + h²(1 + x²)`, so
-/// `w = w₀ − b x²` (`w₀ = 1 − α(z² + h²)`, `b = α h²`), `dφ = dx/(1 + x²)`, and the integrand
-/// is a polynomial `G(x²)` over `1 + x²`. Dividing, `G(y) = (1 + y) Q(y) + G(−1)`, so the
-/// integral is `∫ Q(x²) dx + G(−1)·Δφ`: powers of `x` and the angle itself. Every term is
-/// bounded (`b x² ≤ w₀ ≤ 1` on the support), so nothing large cancels.
-fn edge_integral_closed(alpha: f64, c: &[f64; 5], z2: f64, h2: f64, pa: f64, pb: f64) -> f64 {
+/// One edge's wedge in closed form, for a kernel that is a polynomial `Σ cₙ wⁿ` in
+/// `w = 1 − α σ²` on its support: the integrals of the tail `T` and (when `want_k`) of the
+/// kernel `k` over the angle the edge subtends, `σ = √(z² + h² sec² φ)`. With `x = tan φ`,
+/// `σ² = z² + h²(1 + x²)`, so `w = w₀ − b x²` (`w₀ = 1 − α(z² + h²)`, `b = α h²`),
+/// `dφ = dx/(1 + x²)`, and the integrand is a polynomial `G(x²)` over `1 + x²`. Dividing,
+/// `G(y) = (1 + y) Q(y) + G(−1)`, so the integral is `∫ Q(x²) dx + G(−1)·Δφ`: powers of `x`
+/// and the angle itself. Every term is bounded (`b x² ≤ w₀ ≤ 1` on the support), so nothing
+/// large cancels. The ends are the edge's ends `ta`, `tb` along it (`x = t/h`) clipped to
+/// where `w` reaches 0, and the angle between them is one arc tangent of their difference,
+/// so no tangent of an angle is ever taken.
+#[allow(clippy::too_many_arguments)]
+fn wedge_closed(
+    alpha: f64,
+    tail: &[f64; 5],
+    kern: &[f64; 5],
+    z2: f64,
+    h: f64,
+    ta: f64,
+    tb: f64,
+    want_k: bool,
+) -> (f64, f64) {
+    let h2 = h * h;
     let w0 = 1.0 - alpha * (z2 + h2);
     if w0 <= 0.0 {
-        return 0.0;
+        return (0.0, 0.0);
+    }
+    // Where w reaches 0 along the edge: |t| = √(w₀/α).
+    let half = (w0 / alpha).sqrt();
+    let (t0, t1) = (ta.max(-half), tb.min(half));
+    if t1 <= t0 {
+        return (0.0, 0.0);
+    }
+    let dphi = (h * (t1 - t0)).atan2(h2 + t0 * t1);
+    // |x| is bounded by √(w₀/b); the clamp only keeps an edge at a denormal distance finite
+    // (its terms are multiplied by powers of b = 0 there).
+    let (x0, x1) = ((t0 / h).clamp(-1e30, 1e30), (t1 / h).clamp(-1e30, 1e30));
+    // (x1^e − x0^e)/e for e = 1, 3, 5, 7.
+    let (s0, s1) = (x0 * x0, x1 * x1);
+    let mut d = [0.0f64; 4];
+    let (mut p0, mut p1) = (x0, x1);
+    for (j, dj) in d.iter_mut().enumerate() {
+        *dj = (p1 - p0) / (2 * j + 1) as f64;
+        p0 *= s0;
+        p1 *= s1;
     }
     let b = alpha * h2;
-    // Where w reaches 0: |x| = √(w₀/b).
-    let xmax = (w0 / b).sqrt();
-    let (x0, x1) = (pa.tan().max(-xmax), pb.tan().min(xmax));
-    if x1 <= x0 {
-        return 0.0;
-    }
-    let (p0, p1) = (pa.max(-xmax.atan()), pb.min(xmax.atan()));
-    // g_j: coefficients of G(y) = Σ cₙ (w₀ − b y)ⁿ in powers of y.
-    let mut g = [0.0f64; 5];
-    for (n, &cn) in c.iter().enumerate() {
-        if cn == 0.0 {
-            continue;
+    let integral = |c: &[f64; 5]| {
+        // g_j: coefficients of G(y) = Σ cₙ (w₀ − b y)ⁿ in powers of y.
+        let mut g = [0.0f64; 5];
+        for (n, &cn) in c.iter().enumerate() {
+            if cn == 0.0 {
+                continue;
+            }
+            let mut binom = 1.0;
+            for (j, gj) in g.iter_mut().enumerate().take(n + 1) {
+                *gj += cn * binom * w0.powi((n - j) as i32) * (-b).powi(j as i32);
+                binom = binom * (n - j) as f64 / (j + 1) as f64;
+            }
         }
-        let mut binom = 1.0;
-        for (j, gj) in g.iter_mut().enumerate().take(n + 1) {
-            *gj += cn * binom * w0.powi((n - j) as i32) * (-b).powi(j as i32);
-            binom = binom * (n - j) as f64 / (j + 1) as f64;
+        // Synthetic division by (1 + y): q_{m−1} = g_m, q_{j−1} = g_j − q_j; remainder g₀ − q₀.
+        let mut q = [0.0f64; 4];
+        q[3] = g[4];
+        for j in (1..4).rev() {
+            q[j - 1] = g[j] - q[j];
         }
-    }
-    // Synthetic division by (1 + y): q_{m−1} = g_m, q_{j−1} = g_j − q_j; remainder g₀ − q₀.
-    let mut q = [0.0f64; 4];
-    q[3] = g[4];
-    for j in (1..4).rev() {
-        q[j - 1] = g[j] - q[j];
-    }
-    let rem = g[0] - q[0];
-    let mut poly = 0.0;
-    for (j, qj) in q.iter().enumerate() {
-        if *qj != 0.0 {
-            let e = 2 * j as i32 + 1;
-            poly += qj * (x1.powi(e) - x0.powi(e)) / e as f64;
-        }
-    }
-    poly + rem * (p1 - p0)
+        let rem = g[0] - q[0];
+        q.iter().zip(&d).map(|(qj, dj)| qj * dj).sum::<f64>() + rem * dphi
+    };
+    (integral(tail), if want_k { integral(kern) } else { 0.0 })
 }
 
 /// The normalised convolution of one element (strength 1) with `kernel` at `p`, and its

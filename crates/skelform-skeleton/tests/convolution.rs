@@ -308,8 +308,10 @@ fn convolution_gradients_match_central_differences() {
     }
 }
 
-#[test]
-fn gaussian_polygon_fast_path_equals_adaptive_quadrature() {
+/// The fast polygon paths (the Gaussian's edges by `erf`s, the polynomial kernels' wedges in
+/// closed form, the winding angle counted by crossings) against every edge integrated by
+/// adaptive quadrature with the angles summed from arc tangents.
+fn polygon_fast_path_equals_adaptive_quadrature(kernel: Kernel) {
     use skelform_skeleton::convolution::convolve_adaptive;
     // The trapezoid of fig. 6.3 and a thin sliver, at points near, on and far, including
     // points on edges' lines (h = 0), at vertices and beyond the kernel's reach.
@@ -320,29 +322,53 @@ fn gaussian_polygon_fast_path_equals_adaptive_quadrature() {
     ];
     let r = 0.1;
     let mut worst: f64 = 0.0;
+    let mut compare = |shape: &Shape, p: DVec3| {
+        let (a, ga) = convolve(kernel, shape, r, p);
+        let (b, gb) = convolve_adaptive(kernel, shape, r, p);
+        // Relative 1e-6; below 1e-15 of the plateau (far beyond the Gaussian's cut-off at
+        // 2^-40) both are rounding noise.
+        assert!((a - b).abs() <= 1e-6 * b.abs() + 1e-15, "{kernel:?} at {p}: {a:e} vs {b:e}");
+        if b.abs() > 1e-12 {
+            worst = worst.max((a - b).abs() / b.abs());
+        }
+        assert!((ga - gb).length() <= 1e-6 * gb.length() + 1e-12, "{kernel:?}: ∇ at {p}");
+    };
     for poly in &shapes {
         let shape = Shape::Polygon(poly.clone());
         for i in -4..=14 {
             for j in -4..=8 {
                 for z in [0.0, 1e-9, 0.03, 0.1, 0.25, 0.55] {
-                    let p = DVec3::new(0.05 * i as f64, 0.05 * j as f64, z);
-                    let (a, ga) = convolve(Kernel::Gaussian, &shape, r, p);
-                    let (b, gb) = convolve_adaptive(Kernel::Gaussian, &shape, r, p);
-                    // Relative 1e-6; below 1e-15 of the plateau (far beyond the Gaussian's
-                    // cut-off at 2^-40) both are rounding noise.
-                    assert!((a - b).abs() <= 1e-6 * b.abs() + 1e-15, "at {p}: {a:e} vs {b:e}");
-                    if b.abs() > 1e-12 {
-                        worst = worst.max((a - b).abs() / b.abs());
-                    }
-                    assert!((ga - gb).length() <= 1e-6 * gb.length() + 1e-12, "∇ at {p}");
+                    compare(&shape, DVec3::new(0.05 * i as f64, 0.05 * j as f64, z));
                 }
             }
         }
-        for vtx in poly.vertices() {
-            let (a, _) = convolve(Kernel::Gaussian, &shape, r, *vtx);
-            let (b, _) = convolve_adaptive(Kernel::Gaussian, &shape, r, *vtx);
-            assert!((a - b).abs() < 1e-6 * b, "at vertex {vtx}");
+        // Next to the vertices and across the edges' lines, where the crossing count and
+        // the wedges' orientation must agree.
+        let vs = poly.vertices();
+        for (k, vtx) in vs.iter().enumerate() {
+            let next = vs[(k + 1) % vs.len()];
+            let along = (next - *vtx).normalize();
+            let across = DVec3::Z.cross(along);
+            for d in [0.0, 1e-14, -1e-14, 1e-10, -1e-10, 1e-7, -1e-7, 1e-4, -1e-4] {
+                for t in [-0.02, -1e-9, 0.0, 1e-9, 0.3] {
+                    for z in [0.0, 0.05] {
+                        compare(&shape, *vtx + t * (next - *vtx) + d * across + z * DVec3::Z);
+                        compare(&shape, *vtx + t * along + d * across + z * DVec3::Z);
+                    }
+                }
+            }
         }
     }
-    println!("worst relative difference {worst:.2e}");
+    println!("{kernel:?}: worst relative difference {worst:.2e}");
+}
+
+#[test]
+fn gaussian_polygon_fast_path_equals_adaptive_quadrature() {
+    polygon_fast_path_equals_adaptive_quadrature(Kernel::Gaussian);
+}
+
+#[test]
+fn polynomial_kernels_closed_form_polygon_equals_adaptive_quadrature() {
+    polygon_fast_path_equals_adaptive_quadrature(Kernel::Wyvill);
+    polygon_fast_path_equals_adaptive_quadrature(Kernel::Triweight);
 }
