@@ -835,22 +835,33 @@ impl SkeletonField {
 
     /// Adds one element's influence at `p` (already known to be inside its box).
     #[inline]
-    fn accumulate(&self, it: &Item, p: DVec3, acc: &mut Acc, want_grad: bool) {
+    /// One element's share of an additive blend (convolution, sum) at `p`, and its gradient
+    /// (zero without `want_grad`); zero for the other blends.
+    fn additive(&self, it: &Item, p: DVec3, want_grad: bool) -> (f64, DVec3) {
         match self.blend {
-            Blend::Convolution(k) => {
-                let (v, g) = self.convolve(k, it, p, want_grad);
-                acc.v += v;
-                acc.g += g;
-            }
+            Blend::Convolution(k) => self.convolve(k, it, p, want_grad),
             Blend::Sum(k) => {
                 let v = p - it.shape.nearest(p);
                 let (r, gr, w, gw) = it.radius_strength(p);
                 let d2 = v.length_squared();
                 let (kv, dk) = k.value_d(d2 / (r * r));
-                acc.v += w * kv;
-                if want_grad {
-                    acc.g += (v - gr * (d2 / r)) * (2.0 * w * dk / (r * r)) + gw * kv;
-                }
+                let g = if want_grad {
+                    (v - gr * (d2 / r)) * (2.0 * w * dk / (r * r)) + gw * kv
+                } else {
+                    DVec3::ZERO
+                };
+                (w * kv, g)
+            }
+            _ => (0.0, DVec3::ZERO),
+        }
+    }
+
+    fn accumulate(&self, it: &Item, p: DVec3, acc: &mut Acc, want_grad: bool) {
+        match self.blend {
+            Blend::Convolution(_) | Blend::Sum(_) => {
+                let (v, g) = self.additive(it, p, want_grad);
+                acc.v += v;
+                acc.g += g;
             }
             Blend::Union(falloff) => {
                 let v = p - it.shape.nearest(p);
@@ -930,6 +941,30 @@ impl SkeletonField {
                 acc.scale_g = DVec3::ZERO;
             }
         }
+    }
+
+    /// A junction's density at `p` and, with `want_grad`, its gradient by central
+    /// differences (zero without).
+    fn junction_share(
+        &self,
+        junction: &PreparedJunction,
+        k: Kernel,
+        p: DVec3,
+        want_grad: bool,
+    ) -> (f64, DVec3) {
+        let v = self.junction_density(junction, k, p);
+        let mut g = DVec3::ZERO;
+        if want_grad {
+            let h = junction.step;
+            for axis in 0..3 {
+                let mut dp = DVec3::ZERO;
+                dp[axis] = h;
+                g[axis] = (self.junction_density(junction, k, p + dp)
+                    - self.junction_density(junction, k, p - dp))
+                    / (2.0 * h);
+            }
+        }
+        (v, g)
     }
 
     /// A junction's combined density at `p` (see [`crate::junction`]).
@@ -1051,6 +1086,86 @@ impl SkeletonField {
         }
     }
 
+    /// [`SkeletonField::eval_chunk`] for the additive blends (convolution, sum), whose
+    /// running state is a value and a gradient: the general accumulator carries every
+    /// blend's state (some 350 bytes), and filling it for every point, group and clique cost
+    /// more than the elements themselves where few reach. The sums are added in the same
+    /// order as there, so the values are the same to the bit.
+    fn eval_chunk_additive(
+        &self,
+        pts: &[DVec3],
+        candidates: Option<&[u32]>,
+        values: &mut [f64],
+        mut grads: Option<&mut [DVec3]>,
+        scratch: &mut Scratch,
+    ) {
+        let want_grad = grads.is_some();
+        let n = pts.len();
+        let Scratch { group_sums, sums, best, selected, .. } = scratch;
+        let zero = (0.0, DVec3::ZERO);
+        let add = |elements: &[usize], sums: &mut [(f64, DVec3)]| {
+            for &e in elements {
+                let it = &self.items[e];
+                for (p, s) in pts.iter().zip(sums.iter_mut()) {
+                    if it.contains(*p) {
+                        let (v, g) = self.additive(it, *p, want_grad);
+                        s.0 += v;
+                        s.1 += g;
+                    }
+                }
+            }
+        };
+        if let Some(shared) = &self.shared {
+            group_sums.resize(shared.groups.len(), vec![zero; CHUNK]);
+            for (elements, sums) in shared.groups.iter().zip(group_sums.iter_mut()) {
+                sums[..n].fill(zero);
+                add(select(elements, candidates, selected), &mut sums[..n]);
+            }
+        }
+        sums.resize(CHUNK, zero);
+        best.resize(CHUNK, zero);
+        let (sums, best) = (&mut sums[..n], &mut best[..n]);
+        best.fill((f64::INFINITY, DVec3::ZERO));
+        for clique in &self.cliques {
+            sums.fill(zero);
+            if self.shared.is_some() {
+                for &part in &clique.parts {
+                    for (s, g) in sums.iter_mut().zip(&group_sums[part][..n]) {
+                        s.0 += g.0;
+                        s.1 += g.1;
+                    }
+                }
+            } else {
+                add(select(&clique.plain, candidates, selected), sums);
+            }
+            if let Blend::Convolution(k) = self.blend {
+                for &j in &clique.junctions {
+                    let junction = &self.junctions[j];
+                    for (p, s) in pts.iter().zip(sums.iter_mut()) {
+                        if junction.contains(*p) {
+                            let (v, g) = self.junction_share(junction, k, *p, want_grad);
+                            s.0 += v;
+                            s.1 += g;
+                        }
+                    }
+                }
+            }
+            for (s, b) in sums.iter().zip(best.iter_mut()) {
+                // `finish` of an additive blend.
+                let f = self.iso - s.0;
+                if f < b.0 {
+                    *b = (f, -s.1);
+                }
+            }
+        }
+        for (i, b) in best.iter().enumerate() {
+            values[i] = b.0;
+            if let Some(g) = grads.as_deref_mut() {
+                g[i] = b.1;
+            }
+        }
+    }
+
     /// Evaluates at most [`CHUNK`] points. With `candidates` (ascending element indices, a
     /// culling cell's), only those elements are visited: the caller guarantees that every
     /// other element's box misses every point.
@@ -1063,11 +1178,15 @@ impl SkeletonField {
         scratch: &mut Scratch,
     ) {
         debug_assert!(pts.len() <= CHUNK);
+        if matches!(self.blend, Blend::Convolution(_) | Blend::Sum(_)) {
+            self.eval_chunk_additive(pts, candidates, values, grads, scratch);
+            return;
+        }
         let want_grad = grads.is_some();
         let init = self.acc_init();
         {
             let n = pts.len();
-            let Scratch { group_accs, selected, accs, best } = scratch;
+            let Scratch { group_accs, selected, accs, best, .. } = scratch;
             // Only the first `n` of each are used: a chunk of a culling cell is often short,
             // and the accumulators are large.
             accs.resize(CHUNK, init);
@@ -1112,17 +1231,9 @@ impl SkeletonField {
                             if !junction.contains(*p) {
                                 continue;
                             }
-                            acc.v += self.junction_density(junction, k, *p);
+                            let (v, g) = self.junction_share(junction, k, *p, want_grad);
+                            acc.v += v;
                             if want_grad {
-                                let h = junction.step;
-                                let mut g = DVec3::ZERO;
-                                for axis in 0..3 {
-                                    let mut dp = DVec3::ZERO;
-                                    dp[axis] = h;
-                                    g[axis] = (self.junction_density(junction, k, *p + dp)
-                                        - self.junction_density(junction, k, *p - dp))
-                                        / (2.0 * h);
-                                }
                                 acc.g += g;
                             }
                         }
@@ -1148,6 +1259,10 @@ impl SkeletonField {
 /// Buffers one batch evaluation reuses across its chunks.
 #[derive(Default)]
 struct Scratch {
+    /// Each shared group's sums (additive blends).
+    group_sums: Vec<Vec<(f64, DVec3)>>,
+    /// One clique's sums (additive blends).
+    sums: Vec<(f64, DVec3)>,
     /// Each shared group's accumulators.
     group_accs: Vec<Vec<Acc>>,
     /// One clique's accumulators.
