@@ -56,9 +56,15 @@ pub struct GridState {
     /// What each extraction slab made, in slab order (the vertices and triangles above are
     /// the slabs' one after the other).
     slabs: Vec<SlabCounts>,
-    /// False from the start of an update until it has finished: an update that failed or
-    /// was cancelled half way leaves a state the next update must not trust.
+    /// False while an update replaces vertices: one that failed there leaves a state the
+    /// next update must not trust.
     whole: bool,
+    /// The changed boxes of updates that were cancelled before they replaced any vertex.
+    /// Such an update leaves, within these boxes, samples of a field newer than the
+    /// vertices; everywhere else the state is the last finished run's. The next update
+    /// samples and places again within them as well as within its own boxes, so a
+    /// cancelled edit (a newer one came) does not cost the next a run from scratch.
+    pending: Vec<Aabb>,
     refine: bool,
     tolerance: f64,
     normals: bool,
@@ -111,6 +117,7 @@ pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats, 
             triangles: Vec::new(),
             slabs: Vec::new(),
             whole: true,
+            pending: Vec::new(),
             refine: lattice.refine,
             tolerance: lattice.tolerance,
             normals: lattice.normals,
@@ -169,12 +176,12 @@ impl GridState {
             };
             return Ok((mesh, stats, reuse));
         }
-        self.whole = false;
+        self.pending.extend_from_slice(changed);
         options.lattice.threads.install(|| {
             let grid = self.volume.grid;
             let mut stats = Stats { grid_dims: grid.dims, cell: grid.cell, ..Stats::default() };
             let t = Instant::now();
-            let dirty = Dirty::new(&grid, changed);
+            let dirty = Dirty::new(&grid, &self.pending);
             let points = dirty.points();
             stats.non_finite_samples = resample_points(field, &mut self.volume, &points);
             stats.samples = points.len() as u64;
@@ -193,7 +200,7 @@ impl GridState {
                 // What an empty mesh's explanation reads: the range of every sample.
                 (stats.min_sample, stats.max_sample) = self.volume.value_range();
             }
-            self.whole = true;
+            self.pending.clear();
             let reuse = Reuse {
                 resampled: stats.samples,
                 reused_vertices: reused,
@@ -249,6 +256,8 @@ impl GridState {
         // In place: only what lies above the range moves, and only when its size changed.
         let added = new_vertices.len();
         let shift = |i: u32| (i as i64 + added as i64 - (v1 - v0) as i64) as u32;
+        // From here on the vertex lists are being replaced: not to be trusted until done.
+        self.whole = false;
         let mut vertices = std::mem::take(&mut self.vertices);
         let old: Vec<GridVertex> = vertices.splice(v0..v1, new_vertices.iter().copied()).collect();
         let mut triangles = std::mem::take(&mut self.triangles);
@@ -395,7 +404,9 @@ impl GridState {
             }
         }
         stats.refinement = t.elapsed();
-        if lattice.control.is_cancelled() {
+        // An update goes on to the end from here: what is left is proportional to the
+        // vertices it placed, and stopping would cost the next update a run from scratch.
+        if dirty.is_none() && lattice.control.is_cancelled() {
             return Err(Error::Cancelled);
         }
 
@@ -436,6 +447,7 @@ impl GridState {
         self.gradients = gradients;
         self.triangles = triangles;
         self.slabs = slab_counts;
+        self.whole = true;
         Ok((mesh, reused))
     }
 }

@@ -87,7 +87,8 @@ impl Live {
 
     /// Meshes `scene` with `overrides`: the mesh [`Scene::mesh`] makes, bit for bit,
     /// re-meshing only what changed since the last call where it can (see [`Live`]). A
-    /// cancelled or failed run forgets what was kept (the next is a full one).
+    /// failed run forgets what was kept (the next is a full one); a cancelled incremental
+    /// run keeps it, with the boxes it had started to re-sample, for the next to redo.
     pub fn mesh(&mut self, scene: &Scene, overrides: &Overrides) -> Result<Meshed, Error> {
         if let Some(pose) = &overrides.pose {
             let posed = scene.posed(pose)?;
@@ -96,7 +97,7 @@ impl Live {
         }
         let last = self.last.take();
         let result = self.mesh_here(scene, overrides, last);
-        if result.is_err() {
+        if result.as_ref().is_err_and(|e| !e.is_cancelled()) {
             self.last = None;
         }
         result
@@ -135,10 +136,18 @@ impl Live {
         };
         let (mut mesh, stats, state, run) = match (changes, last) {
             (Ok(boxes), Some(mut l)) => {
-                let (mesh, stats, reuse) = l
-                    .state
-                    .update(scene.field.as_ref(), &options, &boxes)
-                    .map_err(polygonize_error)?;
+                let (mesh, stats, reuse) =
+                    match l.state.update(scene.field.as_ref(), &options, &boxes) {
+                        Ok(done) => done,
+                        Err(e) => {
+                            if matches!(e, skelform_polygonize::Error::Cancelled) {
+                                // Still the last finished run's skeleton outside the
+                                // boxes the state now holds as pending.
+                                self.last = Some(l);
+                            }
+                            return Err(polygonize_error(e));
+                        }
+                    };
                 let run = LiveRun { incremental: !reuse.full, full_because: None, reuse };
                 (mesh, stats, l.state, run)
             }

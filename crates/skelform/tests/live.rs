@@ -247,3 +247,42 @@ fn progressive_levels_and_cancellation() {
     assert!(err.is_cancelled(), "{err}");
     assert_eq!(calls, 1);
 }
+
+/// An edit cancelled by a newer one (the studio's case) does not cost the next a run from
+/// scratch: the cancelled update had already sampled its boxes with its own field, and the
+/// next samples them again with the newest, giving the fresh run's mesh.
+#[test]
+fn a_cancelled_edit_leaves_the_next_incremental_and_exact() {
+    let o = Overrides::default();
+    let base = sketch("convolution");
+    let mut live = Live::new();
+    live.mesh(&base.scene(), &o).unwrap();
+
+    // The cancelled edit moves one free point along x; the newest moves the other free
+    // point to the same height instead, far from the first: its re-extracted slabs cross
+    // the cancelled edit's samples, which must be taken again with the newest field.
+    let mut cancelled = base.clone();
+    cancelled.points[0].0[0] += 0.25;
+    let control = Control::default();
+    control.cancel();
+    let stopped = Overrides { control, ..Overrides::default() };
+    let err = live.mesh(&cancelled.scene(), &stopped).unwrap_err();
+    assert!(err.is_cancelled(), "{err}");
+
+    let mut newest = base.clone();
+    newest.points[1].0[2] = base.points[0].0[2];
+    let s = newest.scene();
+    let m = live.mesh(&s, &o).unwrap();
+    let run = live.last_run().unwrap();
+    assert!(run.incremental, "{run:?}");
+    assert_eq!(m.mesh, s.mesh(&o).unwrap().mesh);
+
+    // And the state is whole again: a plain edit after it is exact too.
+    let mut after = newest.clone();
+    after.angles[0] -= 10.0;
+    after.points[0].0[1] -= 0.1;
+    let s = after.scene();
+    let m = live.mesh(&s, &o).unwrap();
+    assert!(live.last_run().unwrap().incremental);
+    assert_eq!(m.mesh, s.mesh(&o).unwrap().mesh);
+}
