@@ -130,6 +130,31 @@ use skelform::polygonize::nonmanifold;
 mod common;
 use common::{example, skelform};
 
+/// Issue 18: the non-manifold polygonizer evaluates the region function at most twice as
+/// often as a conventional tetrahedral polygonizer would on the same cubes (the count the
+/// library reports beside its own), on the chapter's examples, the full-grid one
+/// (sphere-and-square) among them. The counts are exact, so this is not a timing.
+#[test]
+fn evaluations_stay_within_twice_a_conventional_polygonizer() {
+    for (name, most) in [
+        ("nonmanifold/saucer-and-square.toml", 2.0),
+        ("nonmanifold/sphere-and-square.toml", 2.0),
+        ("nonmanifold/sphere-plane-hole.toml", 2.0),
+        ("nonmanifold/sphere-with-hole.toml", 2.0),
+        ("nonmanifold/tee-in-square.toml", 2.0),
+        ("nonmanifold/leaf.toml", 2.0),
+    ] {
+        let (_, _, s) = mesh_example(name);
+        let ratio = s.region_evaluations as f64 / s.conventional_evaluations as f64;
+        assert!(
+            ratio <= most,
+            "{name}: {} region evaluations, {} conventional: {ratio:.2}x",
+            s.region_evaluations,
+            s.conventional_evaluations
+        );
+    }
+}
+
 /// Every example of the chapter: the surfaces and curves it describes, vertices between
 /// their regions, triangles facing their lesser region, the expected edge degrees once the
 /// per-pair copies are welded, closed curves, and no triangle crossing another.

@@ -201,7 +201,8 @@ fn evaluations_compare_with_a_conventional_polygonizer() {
         "region evaluations {} vs conventional {}: {ratio:.1}×",
         s.region_evaluations, s.conventional_evaluations
     );
-    assert!(ratio > 1.0);
+    // Issue 18: at most twice a conventional polygonizer (the chapter's reading cost 7×).
+    assert!(ratio > 1.0 && ratio <= 2.0);
     let curves: BTreeSet<_> = s.curve_length_per_triple.iter().map(|(t, _)| *t).collect();
     assert!(!curves.is_empty());
 }
@@ -371,7 +372,9 @@ fn a_surface_poking_through_one_edge_is_kept_with_loops() {
     };
     let (m, s) = polygonize(&ball, &base).unwrap();
     assert_eq!(m.triangle_count(), 0, "the chapter truncates the loop: {s:?}");
-    assert!(s.looped_pairs_ignored >= 1);
+    // Without loops, a segment whose ends lie in one region is not even sectioned: the
+    // pair it would find is dropped anyway (issue 18, evaluation cost).
+    assert_eq!((s.edge_vertices, s.looped_pairs_ignored), (0, 0), "{s:?}");
     let (m, s) = polygonize(&ball, &Options { loops: true, ..base }).unwrap();
     eprintln!("{s:?}");
     let r = check(&m);

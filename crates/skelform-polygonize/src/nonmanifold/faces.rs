@@ -243,6 +243,14 @@ impl Run<'_> {
                 }
                 std::mem::swap(&mut px, &mut py);
             }
+            // Into the face, the coarse stride first; the fine strip from the crossing
+            // when that fails, and for the other way (a few triangles at most).
+            if !pass
+                && let Some(p) =
+                    self.coarse_then_fine(v, edge_dir, w, (x, y), side, max_steps, &outside)
+            {
+                return clamp(p);
+            }
             let mut apex = mid + w * side * 3f64.sqrt() * 0.5;
             // The strip may run up to two triangles beyond the face: where the regions meet
             // on (or within ε of) the face's own edge, as when a wall falls half-way between
@@ -260,6 +268,87 @@ impl Run<'_> {
         self.stats.face_vertex_fallbacks += 1;
         let n = crossings.len() as f64;
         crossings.iter().map(|w| self.positions[w.vertex as usize]).sum::<DVec3>() / n
+    }
+}
+
+/// How many times longer the sides of the contour follower's coarse triangles are than
+/// its fine ones (a power of two: the coarse base is halved down to a fine side).
+const COARSE: f64 = 4.0;
+
+impl Run<'_> {
+    /// The face vertex's contour walk in two strides: a strip of triangles [`COARSE`] times
+    /// the fine side follows the contour (x, y) from the crossing at `v` (on a face side of
+    /// direction `d`, the walk heading into the face along `w`) to the first triangle that
+    /// meets a foreign region or leaves the face; its base, which straddles the contour,
+    /// is bisected down to a fine side and the fine strip walks on from there to the
+    /// foreign region, whose last triangle's centre is returned. `None` when the coarse
+    /// start does not straddle the contour or the fine walk fails: the caller then walks
+    /// the fine strip all the way, as before.
+    ///
+    /// Why: the fine strip's side is 4ε (a 64th of a cell), so reaching a meeting point
+    /// half a face away took some fifty evaluations per face vertex, as much as sectioning
+    /// every edge once cost. The coarse stride covers the way in a quarter of the steps and
+    /// the fine one still ends at a fine triangle touching the foreign region, so the
+    /// vertex is placed where the fine walk alone puts it, unless a foreign region touches
+    /// the contour only between the coarse triangles' corners (a feature finer than a coarse
+    /// side, 16ε, where the fine walk stops earlier).
+    #[allow(clippy::too_many_arguments)]
+    fn coarse_then_fine(
+        &mut self,
+        v: DVec3,
+        d: DVec3,
+        w: DVec3,
+        (x, y): (u32, u32),
+        side: f64,
+        max_steps: usize,
+        outside: &dyn Fn(DVec3) -> f64,
+    ) -> Option<DVec3> {
+        // The fine strip's lattice: its first triangle is (o, o + e1, o + e2). The coarse
+        // triangles are made of its points (four fine sides to a coarse one), the first with
+        // its base along the face side through the crossing, so the fine walk resumed on a
+        // coarse base walks the same fine triangles as the fine walk from the crossing.
+        let (e1, e2) = (d * side, d * side * 0.5 + w * side * 3f64.sqrt() * 0.5);
+        let o = v - e1 * 0.5;
+        let (mut px, mut py) = (o - e1 * (COARSE * 0.5), o + e1 * (COARSE * 0.5));
+        let mut apex = px + e2 * COARSE;
+        let (rx, ry) = (self.region_at(px), self.region_at(py));
+        if (rx, ry) == (y, x) {
+            std::mem::swap(&mut px, &mut py);
+        } else if (rx, ry) != (x, y) {
+            return None;
+        }
+        let coarse_steps = max_steps / COARSE as usize + 16;
+        // The coarse strip stops at the face's sides: beyond them, where the fine strip may
+        // still go a little way, the fine one decides.
+        for _ in 0..coarse_steps {
+            if outside(apex) > 0.0 {
+                break;
+            }
+            let r = self.region_at(apex);
+            if !flip_strip(r, x, y, &mut px, &mut py, &mut apex) {
+                break;
+            }
+        }
+        let ahead = (apex - (px + py) * 0.5) / COARSE;
+        while px.distance(py) > side * (1.0 + 1e-9) {
+            let m = (px + py) * 0.5;
+            match self.region_at(m) {
+                r if r == x => px = m,
+                r if r == y => py = m,
+                _ => return None,
+            }
+        }
+        let mut apex = (px + py) * 0.5 + ahead;
+        for _ in 0..(4.0 * COARSE * COARSE) as usize + 16 {
+            if outside(apex) > 2.0 * side {
+                return None;
+            }
+            let r = self.region_at(apex);
+            if !flip_strip(r, x, y, &mut px, &mut py, &mut apex) {
+                return Some((px + py + apex) / 3.0);
+            }
+        }
+        None
     }
 }
 

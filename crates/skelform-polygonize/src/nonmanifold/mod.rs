@@ -24,6 +24,21 @@
 //! (see `nudge`), so lattice points on a wall never fall to the region function's tie rule.
 //! [`verify`] checks a result against its region function.
 //!
+//! Cost (issue 18): beyond the chapter, what every segment and face vertex costs is cut to
+//! what a conventional polygonizer pays, so a run evaluates the region function at most
+//! about twice as often as a tetrahedral polygonizer on the same cubes
+//! (`Stats::conventional_evaluations`; `bench/methods.sh` prints the ratio), where the
+//! chapter's reading cost five to fifteen times. Region values at lattice points and the
+//! crossings of each segment are computed once and shared by the five tetrahedra of a cube
+//! and its neighbours; the changing sections of a segment are found by bisecting over the
+//! section points instead of sampling all of them (the same sections wherever each region
+//! is met once along the segment, see `Run::sections`); a segment whose ends lie in one
+//! region is sectioned only with `Options::loops`, since without it what the chapter finds
+//! there is a looped pair it drops (none was kept on any example; a wedge of two other
+//! regions across such a segment, thinner than the cell, is missed); and the contour
+//! follower strides in triangles four times larger before its small ones
+//! (`Run::coarse_then_fine`).
+//!
 //! Guarantees: deterministic output on any thread count; every triangle labelled with a
 //! pair of interest; intersection curves output as labelled polylines. Not guaranteed
 //! (the chapter's stated limits): one face vertex per face and one internal vertex per
@@ -129,7 +144,8 @@ pub struct Stats {
     pub region_evaluations: u64,
     /// What a conventional (manifold) tetrahedral polygonizer would evaluate on the same
     /// cells: the corners, and eight bisection steps on each edge whose ends differ (the
-    /// chapter's comparison, about four times fewer).
+    /// chapter's comparison: it reports about four times fewer than its method; this one
+    /// evaluates at most about twice as many, see the module's "Cost").
     pub conventional_evaluations: u64,
     /// Cubes visited (by propagation from the starts, or every cube in full-grid mode).
     pub cells_visited: u64,
@@ -146,7 +162,8 @@ pub struct Stats {
     /// along its edge (the follower's first triangle would already hold it).
     pub face_vertices_at_crossing: usize,
     /// Looped crossings ((a,b) then (b,a) on one edge: a surface poking through) left out, as
-    /// the chapter does.
+    /// the chapter does. Only those met on segments whose ends differ are counted: without
+    /// `Options::loops` a segment whose ends share a region is not sectioned at all.
     pub looped_pairs_ignored: usize,
     /// Looped pairs kept (`Options::loops`), and their face vertices placed by following
     /// the contour (the rest by a fallback half a crossing gap into the face).
