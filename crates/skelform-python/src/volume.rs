@@ -228,7 +228,7 @@ struct Vertex {
 impl SlabVertex for Vertex {
     const READS_NEAR: bool = true;
 
-    #[inline]
+    #[inline(always)]
     fn make<L: Level>(grid: &Grid, v: GridVertex, _: [f32; 2], near: &Near<'_, L>) -> Self {
         let position = v.position(grid).as_vec3().to_array();
         let g = match edge_gradient(grid, &v, position, near) {

@@ -178,9 +178,17 @@ impl<L: Level> Near<'_, L> {
 
     /// Asks the CPU to bring sample layer `k` into its cache, if it is there to read.
     fn prefetch_layer(&self, k: usize) {
-        let layer = self.dims[0] * self.dims[1];
-        if (self.first..self.first + self.layers).contains(&k) {
-            prefetch(&self.values[(k - self.first) * layer..][..layer]);
+        self.prefetch_rows(k, 0..self.dims[1]);
+    }
+
+    /// Asks the CPU to bring rows `rows` of sample layer `k` into its cache, if they are
+    /// there to read.
+    #[inline]
+    fn prefetch_rows(&self, k: usize, rows: std::ops::Range<usize>) {
+        let [nx, ny, _] = self.dims;
+        if (self.first..self.first + self.layers).contains(&k) && rows.end <= ny {
+            let layer = &self.values[(k - self.first) * nx * ny..][..nx * ny];
+            prefetch(&layer[rows.start * nx..rows.end * nx]);
         }
     }
 }
@@ -451,9 +459,13 @@ fn extract_slab<V: SlabVertex, L: Level>(
     lower.build(below, nx, ny, words);
     store.begin();
     if V::READS_NEAR {
-        // The bottom layer's records read the layers on either side of it.
+        // The records of the first layer of cubes read the layers from z0 − 1 to z0 + 2;
+        // the cubes of each layer fetch, row by row, the layer the records of the next one
+        // reach (below). On one thread the slab below fetched these already, and a fetch
+        // of what is in the cache costs next to nothing.
         near.prefetch_layer(z0.wrapping_sub(1));
         near.prefetch_layer(z0 + 1);
+        near.prefetch_layer(z0 + 2);
     }
     lower.offset = store.made();
     lower.emit(grid, local(z0), near, z0, store);
@@ -461,11 +473,6 @@ fn extract_slab<V: SlabVertex, L: Level>(
     for k in z0..z1 {
         if control.is_cancelled() {
             return Err(Cancelled);
-        }
-        if V::READS_NEAR {
-            // The records of this layer of cubes read up to layer k + 2, which the sign
-            // passes have not read yet.
-            near.prefetch_layer(k + 2);
         }
         layer_signs(local(k + 1), nx, words, above, threshold);
         upper.build(above, nx, ny, words);
@@ -493,12 +500,19 @@ fn extract_slab<V: SlabVertex, L: Level>(
         };
         // The samples of the layer after next, row by row with the rows of cubes: fetched
         // while the cubes are worked on, they are in the cache when the next layer's sign
-        // pass reads them, instead of that pass waiting on memory.
-        let ahead = (k + 2 <= z1).then(|| local(k + 2));
+        // pass reads them, instead of that pass waiting on memory. Records that read the
+        // samples around their vertex reach a layer further, k + 3 from the next layer of
+        // cubes (whose layer k + 2 this loop's predecessor fetched): fetched here the same
+        // way, rather than all at once before the layer, which would stall the core on a
+        // few thousand outstanding fetches.
+        let ahead = (!V::READS_NEAR && k + 2 <= z1).then(|| local(k + 2));
         let fetch = |j: usize| {
+            let end = if j + 2 == ny { ny } else { j + 1 };
             if let Some(next) = ahead {
-                let end = if j + 2 == ny { ny } else { j + 1 };
                 prefetch(&next[j * nx..end * nx]);
+            }
+            if V::READS_NEAR {
+                near.prefetch_rows(k + 3, j..end);
             }
         };
         for_each_mixed_cube(below, above, nx, ny, fetch, |i, j, case| {
