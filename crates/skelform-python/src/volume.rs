@@ -17,7 +17,7 @@ use rayon::prelude::*;
 use skelform::DVec3;
 use skelform::volume::{
     Grid, GridVertex, Level, MAX_SAMPLES_PER_AXIS, Near, Place, SlabVertex, Volume, VolumeView,
-    extract_view_records, extract_volume_records, sanitize_sample,
+    extract_view_records_into, extract_volume_records, sanitize_sample,
 };
 use std::sync::{Mutex, PoisonError};
 
@@ -214,6 +214,15 @@ fn keep_buffer(values: Vec<f32>) {
         *BUFFER.lock().unwrap_or_else(PoisonError::into_inner) = values;
     }
 }
+
+/// The vertex records of the last call, kept for the next (emptied): written again
+/// without a page fault a page, where fresh memory for them costs as much as a tenth of an
+/// extraction. Only an extraction of a volume read in place on one thread uses them (more
+/// threads assemble their slabs into fresh memory).
+static VERTICES: Mutex<Vec<Vertex>> = Mutex::new(Vec::new());
+
+/// The most vertex records kept between calls (about 0.9 GiB).
+const KEEP_VERTICES: usize = 1 << 25;
 
 /// A vertex as the conventions need it, made by the extractor while the samples around it
 /// are in the cache: its position and, from the gradient there, its unit normal (down the
@@ -561,7 +570,11 @@ fn extract<T: Sample>(a: ArrayView3<'_, T>, o: &Options<'_>, run: &Run) -> PyRes
     let (v, layout) = layout(a, o.step)?;
     let samples = samples(v, &layout, level)?;
     let records = match &samples {
-        Samples::InPlace(view) => extract_view_records::<Vertex>(view, &run.control),
+        Samples::InPlace(view) => {
+            let kept =
+                std::mem::take(&mut *VERTICES.lock().unwrap_or_else(PoisonError::into_inner));
+            extract_view_records_into::<Vertex>(view, &run.control, kept)
+        }
         Samples::Converted(volume) => extract_volume_records::<Vertex>(volume, &run.control),
     };
     // The samples are done with once extracted: a converted buffer goes back for the next
@@ -611,7 +624,12 @@ fn extract<T: Sample>(a: ArrayView3<'_, T>, o: &Options<'_>, run: &Run) -> PyRes
             ex.vertices.len()
         )));
     }
-    Ok(conventions(&layout, ex, o.ascent))
+    let (flat, mut vertices) = conventions(&layout, ex, o.ascent);
+    if vertices.capacity() <= KEEP_VERTICES {
+        vertices.clear();
+        *VERTICES.lock().unwrap_or_else(PoisonError::into_inner) = vertices;
+    }
+    Ok(flat)
 }
 
 /// Runs `op` on `pool`, or on the current (global) pool.
@@ -629,7 +647,8 @@ fn install<R: Send>(
 /// faces wound for the gradient direction, the gradient size as the value. The vertex
 /// arrays are written once, in blocks on the pool's threads, into memory that is not
 /// zeroed first; the faces are the extractor's triangles, rewound and retyped in place.
-fn conventions(layout: &Layout, ex: Extracted, ascent: bool) -> Flat {
+/// Gives the vertex records back, for the next call.
+fn conventions(layout: &Layout, ex: Extracted, ascent: bool) -> (Flat, Vec<Vertex>) {
     /// Vertices per parallel task: enough to make a task's start-up cost nothing.
     const BLOCK: usize = 1 << 13;
     let n = ex.vertices.len();
@@ -669,5 +688,5 @@ fn conventions(layout: &Layout, ex: Extracted, ascent: bool) -> Flat {
     }
     // In place (the same size and alignment): the caller checked that the numbers fit.
     let faces: Vec<i32> = triangles.into_flattened().into_iter().map(|i| i as i32).collect();
-    (positions, faces, normals, values)
+    ((positions, faces, normals, values), ex.vertices)
 }

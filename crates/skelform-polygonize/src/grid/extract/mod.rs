@@ -280,8 +280,14 @@ pub fn extract_with(
     control: &Control,
     workspace: &Workspace,
 ) -> Result<Extraction, Cancelled> {
-    let (vertices, triangles, ambiguous_faces, tunnels) =
-        extract_as::<GridVertex, _>(&volume.grid, &volume.values, Relative, control, workspace)?;
+    let (vertices, triangles, ambiguous_faces, tunnels) = extract_as::<GridVertex, _>(
+        &volume.grid,
+        &volume.values,
+        Relative,
+        control,
+        workspace,
+        Vec::new(),
+    )?;
     Ok(Extraction { vertices, triangles, ambiguous_faces, tunnels })
 }
 
@@ -297,8 +303,14 @@ pub fn extract_volume_records<V: SlabVertex>(
     volume: &Volume,
     control: &Control,
 ) -> Result<(Vec<V>, Vec<[u32; 3]>), Cancelled> {
-    let (vertices, triangles, _, _) =
-        extract_as::<V, _>(&volume.grid, &volume.values, Relative, control, Workspace::shared())?;
+    let (vertices, triangles, _, _) = extract_as::<V, _>(
+        &volume.grid,
+        &volume.values,
+        Relative,
+        control,
+        Workspace::shared(),
+        Vec::new(),
+    )?;
     Ok((vertices, triangles))
 }
 
@@ -307,8 +319,24 @@ pub fn extract_view_records<V: SlabVertex>(
     view: &VolumeView<'_>,
     control: &Control,
 ) -> Result<(Vec<V>, Vec<[u32; 3]>), Cancelled> {
-    let (vertices, triangles, _, _) =
-        extract_as::<V, _>(&view.grid, view.values, view.level, control, Workspace::shared())?;
+    extract_view_records_into(view, control, Vec::new())
+}
+
+/// [`extract_view_records`] that writes the vertices into `vertices` (emptied first) when
+/// one thread makes the whole mesh: a caller that extracts again and again passes back the
+/// vertices of its last call, whose memory is then written without a page fault a page.
+/// (On more threads the slabs are assembled into fresh memory and `vertices` is dropped.)
+pub fn extract_view_records_into<V: SlabVertex>(
+    view: &VolumeView<'_>,
+    control: &Control,
+    vertices: Vec<V>,
+) -> Result<(Vec<V>, Vec<[u32; 3]>), Cancelled> {
+    let (grid, values, workspace) = (&view.grid, view.values, Workspace::shared());
+    // At level +0 the samples are the raw values sanitised: the same, read with less work.
+    let (vertices, triangles, _, _) = match view.level.at_zero() {
+        Some(zero) => extract_as::<V, _>(grid, values, zero, control, workspace, vertices)?,
+        None => extract_as::<V, _>(grid, values, view.level, control, workspace, vertices)?,
+    };
     Ok((vertices, triangles))
 }
 
@@ -332,17 +360,19 @@ pub(crate) fn has_cells(grid: &Grid) -> bool {
     grid.dims.iter().all(|&d| d >= 2)
 }
 
-/// Extraction over `values` (`grid.index` order, raw values read through `level`).
+/// Extraction over `values` (`grid.index` order, raw values read through `level`); one
+/// thread writes the vertices into `reuse` (see [`extract_view_records_into`]).
 fn extract_as<V: SlabVertex, L: Level>(
     grid: &Grid,
     values: &[f32],
     level: L,
     control: &Control,
     workspace: &Workspace,
+    reuse: Vec<V>,
 ) -> Result<Extracted<V>, Cancelled> {
     let slabs = slab_count(grid);
     let (vertices, triangles, counts) =
-        extract_slabs(grid, values, level, control, workspace, 0..slabs)?;
+        extract_slabs(grid, values, level, control, workspace, 0..slabs, reuse)?;
     let (ambiguous_faces, tunnels) =
         counts.iter().fold((0, 0), |(a, t), c| (a + c.ambiguous_faces, t + c.tunnels));
     Ok((vertices, triangles, ambiguous_faces, tunnels))
@@ -370,7 +400,8 @@ pub(crate) struct SlabCounts {
 /// references to the layer above land just past the range's own vertices, on the next
 /// slab's first ones), and what each slab made. Slab `s` reads the sample layers
 /// `s·SLAB ..= (s + 1)·SLAB` only, which is what lets incremental re-meshing splice the
-/// slabs an edit touched into the last extraction.
+/// slabs an edit touched into the last extraction. On one thread the vertices are written
+/// into `reuse` (emptied first; see [`extract_view_records_into`]).
 pub(crate) fn extract_slabs<V: SlabVertex, L: Level>(
     grid: &Grid,
     values: &[f32],
@@ -378,6 +409,7 @@ pub(crate) fn extract_slabs<V: SlabVertex, L: Level>(
     control: &Control,
     workspace: &Workspace,
     range: std::ops::Range<usize>,
+    reuse: Vec<V>,
 ) -> Result<SlabsExtracted<V>, Cancelled> {
     let grid = *grid;
     if !has_cells(&grid) || range.is_empty() {
@@ -388,7 +420,7 @@ pub(crate) fn extract_slabs<V: SlabVertex, L: Level>(
     let done = AtomicU64::new(0);
     let first = range.start;
     let (vertices, triangles, counts) =
-        run_slabs(range.len(), [nx, ny], workspace, |s, scratch, store| {
+        run_slabs(range.len(), [nx, ny], workspace, reuse, |s, scratch, store| {
             let s = s + first;
             let z0 = s * SLAB;
             let z1 = (z0 + SLAB).min(cube_layers);

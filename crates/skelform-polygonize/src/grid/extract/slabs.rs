@@ -43,10 +43,14 @@ type Assembled<V, T> = (Vec<V>, Vec<[u32; 3]>, Vec<T>);
 /// vertices go after all those of the slabs below it, its triangles' numbers shifted by as
 /// many (a reference to the layer above, numbered just past the slab's own vertices, lands on
 /// the next slab's first ones).
+///
+/// On one thread the vertices go into `reuse` (emptied first), whose capacity is kept as it
+/// is when it has some: a caller's buffer from its last extraction, already in memory.
 pub(super) fn run_slabs<V, T, E>(
     slabs: usize,
     [nx, ny]: [usize; 2],
     workspace: &Workspace,
+    reuse: Vec<V>,
     slab: impl Fn(usize, &mut Scratch, &mut SlabStore<V>) -> Result<T, E> + Sync,
 ) -> Result<Assembled<V, T>, E>
 where
@@ -56,14 +60,19 @@ where
 {
     let threads = rayon::current_num_threads().min(slabs);
     if threads <= 1 {
-        let (mut out, mut scratch) = (Output::default(), Scratch::new(nx, ny));
+        let reused = reuse.capacity() > 0;
+        let mut out = Output { vertices: reuse, triangles: Vec::new() };
+        out.vertices.clear();
+        let mut scratch = Scratch::new(nx, ny);
         let (mut hint, mut results) = ((0, 0), Vec::with_capacity(slabs));
         for k in 0..slabs {
             let before = (out.vertices.len(), out.triangles.len());
             results.push(slab(k, &mut scratch, &mut SlabStore::new(&mut out, hint))?);
             hint = (out.vertices.len() - before.0, out.triangles.len() - before.1);
         }
-        out.vertices.shrink_to_fit();
+        if !reused {
+            out.vertices.shrink_to_fit();
+        }
         out.triangles.shrink_to_fit();
         return Ok((out.vertices, out.triangles, results));
     }
