@@ -286,7 +286,7 @@ pub fn extract_with(
         Relative,
         control,
         workspace,
-        Vec::new(),
+        Default::default(),
     )?;
     Ok(Extraction { vertices, triangles, ambiguous_faces, tunnels })
 }
@@ -309,7 +309,7 @@ pub fn extract_volume_records<V: SlabVertex>(
         Relative,
         control,
         Workspace::shared(),
-        Vec::new(),
+        Default::default(),
     )?;
     Ok((vertices, triangles))
 }
@@ -319,23 +319,24 @@ pub fn extract_view_records<V: SlabVertex>(
     view: &VolumeView<'_>,
     control: &Control,
 ) -> Result<(Vec<V>, Vec<[u32; 3]>), Cancelled> {
-    extract_view_records_into(view, control, Vec::new())
+    extract_view_records_into(view, control, Default::default())
 }
 
-/// [`extract_view_records`] that writes the vertices into `vertices` (emptied first) when
-/// one thread makes the whole mesh: a caller that extracts again and again passes back the
-/// vertices of its last call, whose memory is then written without a page fault a page.
-/// (On more threads the slabs are assembled into fresh memory and `vertices` is dropped.)
+/// [`extract_view_records`] that writes the vertices and triangles into `reuse` (emptied
+/// first) when one thread makes the whole mesh: a caller that extracts again and again
+/// passes back the arrays of its last call, whose memory is then written without a page
+/// fault a page. (On more threads the slabs are assembled into fresh memory and `reuse` is
+/// dropped.)
 pub fn extract_view_records_into<V: SlabVertex>(
     view: &VolumeView<'_>,
     control: &Control,
-    vertices: Vec<V>,
+    reuse: (Vec<V>, Vec<[u32; 3]>),
 ) -> Result<(Vec<V>, Vec<[u32; 3]>), Cancelled> {
     let (grid, values, workspace) = (&view.grid, view.values, Workspace::shared());
     // At level +0 the samples are the raw values sanitised: the same, read with less work.
     let (vertices, triangles, _, _) = match view.level.at_zero() {
-        Some(zero) => extract_as::<V, _>(grid, values, zero, control, workspace, vertices)?,
-        None => extract_as::<V, _>(grid, values, view.level, control, workspace, vertices)?,
+        Some(zero) => extract_as::<V, _>(grid, values, zero, control, workspace, reuse)?,
+        None => extract_as::<V, _>(grid, values, view.level, control, workspace, reuse)?,
     };
     Ok((vertices, triangles))
 }
@@ -361,14 +362,15 @@ pub(crate) fn has_cells(grid: &Grid) -> bool {
 }
 
 /// Extraction over `values` (`grid.index` order, raw values read through `level`); one
-/// thread writes the vertices into `reuse` (see [`extract_view_records_into`]).
+/// thread writes the vertices and triangles into `reuse` (see
+/// [`extract_view_records_into`]).
 fn extract_as<V: SlabVertex, L: Level>(
     grid: &Grid,
     values: &[f32],
     level: L,
     control: &Control,
     workspace: &Workspace,
-    reuse: Vec<V>,
+    reuse: (Vec<V>, Vec<[u32; 3]>),
 ) -> Result<Extracted<V>, Cancelled> {
     let slabs = slab_count(grid);
     let (vertices, triangles, counts) =
@@ -401,7 +403,7 @@ pub(crate) struct SlabCounts {
 /// slab's first ones), and what each slab made. Slab `s` reads the sample layers
 /// `s·SLAB ..= (s + 1)·SLAB` only, which is what lets incremental re-meshing splice the
 /// slabs an edit touched into the last extraction. On one thread the vertices are written
-/// into `reuse` (emptied first; see [`extract_view_records_into`]).
+/// and triangles into `reuse` (emptied first; see [`extract_view_records_into`]).
 pub(crate) fn extract_slabs<V: SlabVertex, L: Level>(
     grid: &Grid,
     values: &[f32],
@@ -409,7 +411,7 @@ pub(crate) fn extract_slabs<V: SlabVertex, L: Level>(
     control: &Control,
     workspace: &Workspace,
     range: std::ops::Range<usize>,
-    reuse: Vec<V>,
+    reuse: (Vec<V>, Vec<[u32; 3]>),
 ) -> Result<SlabsExtracted<V>, Cancelled> {
     let grid = *grid;
     if !has_cells(&grid) || range.is_empty() {

@@ -113,7 +113,7 @@ pub fn extract_streamed_with<V: SlabVertex, S: LayerSource>(
         slabs,
         [nx, ny],
         workspace,
-        Vec::new(),
+        Default::default(),
         |s, scratch, store| -> Result<Part, _> {
             let z0 = s * SLAB;
             let z1 = (z0 + SLAB).min(cube_layers);
