@@ -316,6 +316,31 @@ impl Shifted {
     pub fn level(&self) -> f64 {
         self.level
     }
+
+    /// This reading without its arithmetic when the level is +0 (a caller's usual level):
+    /// `x − 0` is `x`, exactly, in `f64` and back in `f32`, so a sample is the raw value
+    /// sanitised. (Not at −0, where `−0 − (−0)` is +0.)
+    pub fn at_zero(&self) -> Option<AtZero> {
+        (self.level.to_bits() == 0).then_some(AtZero { threshold: self.threshold })
+    }
+}
+
+/// [`Shifted`] at level +0, read without the subtraction ([`Shifted::at_zero`]): the same
+/// samples bit for bit, with three fewer conversions and subtractions a read.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AtZero {
+    threshold: f32,
+}
+
+impl Level for AtZero {
+    #[inline(always)]
+    fn sample(self, raw: f32) -> f32 {
+        sanitize_sample(raw).0
+    }
+    #[inline(always)]
+    fn threshold(self) -> f32 {
+        self.threshold
+    }
 }
 
 impl Level for Shifted {
@@ -606,7 +631,13 @@ mod tests {
                 let mut v = [(f64::from(x) - l) as f32];
                 sanitize(&mut v);
                 assert_eq!(v[0].to_bits(), s.sample(x).to_bits());
+                // At +0 the reading without the subtraction is the same, bit for bit.
+                if let Some(z) = s.at_zero() {
+                    assert_eq!(z.sample(x).to_bits(), s.sample(x).to_bits(), "value {x:e}");
+                    assert_eq!(z.threshold().to_bits(), s.threshold().to_bits());
+                }
             }
+            assert_eq!(s.at_zero().is_some(), l.to_bits() == 0, "level {l:e}");
         }
     }
 

@@ -241,6 +241,7 @@ impl GridState {
             &lattice.control,
             workspace,
             range.clone(),
+            Default::default(),
         )?;
         // Splice: the slabs below the range, the range, the slabs above it (their vertex
         // numbers shifted by what the range gained or lost).

@@ -20,6 +20,7 @@
 mod errors;
 mod field;
 mod mesh;
+mod pooled;
 mod run;
 mod scene;
 mod volume;

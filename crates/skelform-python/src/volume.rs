@@ -10,18 +10,19 @@
 //! does, so that dtypes and errors match too.
 
 use numpy::ndarray::{ArrayView3, Axis, s};
-use numpy::{Element, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray3};
+use numpy::{Element, PyArray1, PyArray2, PyReadonlyArray3};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use rayon::prelude::*;
 use skelform::DVec3;
 use skelform::volume::{
     Grid, GridVertex, Level, MAX_SAMPLES_PER_AXIS, Near, Place, SlabVertex, Volume, VolumeView,
-    extract_view_records, extract_volume_records, sanitize_sample,
+    extract_view_records_into, extract_volume_records, sanitize_sample,
 };
 use std::sync::{Mutex, PoisonError};
 
 use crate::errors::polygonize_error;
+use crate::pooled;
 use crate::run::{Run, pool};
 
 /// Element types read straight from the array, without a conversion copy in NumPy.
@@ -215,6 +216,17 @@ fn keep_buffer(values: Vec<f32>) {
     }
 }
 
+/// The vertex records and triangles of the last call, kept for the next (emptied): written
+/// again without a page fault a page, where fresh memory for them costs as much as a tenth
+/// of an extraction. Only an extraction of a volume read in place on one thread writes into
+/// them (more threads assemble their slabs into fresh memory); the faces handed to Python
+/// are a copy of the triangles, in memory the allocator has usually had back from the
+/// arrays of an earlier call.
+static RECORDS: Mutex<(Vec<Vertex>, Vec<[u32; 3]>)> = Mutex::new((Vec::new(), Vec::new()));
+
+/// The most vertex records, and triangles, kept between calls (about 0.9 and 0.4 GiB).
+const KEEP_RECORDS: usize = 1 << 25;
+
 /// A vertex as the conventions need it, made by the extractor while the samples around it
 /// are in the cache: its position and, from the gradient there, its unit normal (down the
 /// gradient) and the gradient's size; in the extractor's axes.
@@ -228,7 +240,7 @@ struct Vertex {
 impl SlabVertex for Vertex {
     const READS_NEAR: bool = true;
 
-    #[inline]
+    #[inline(always)]
     fn make<L: Level>(grid: &Grid, v: GridVertex, _: [f32; 2], near: &Near<'_, L>) -> Self {
         let position = v.position(grid).as_vec3().to_array();
         let g = match edge_gradient(grid, &v, position, near) {
@@ -540,11 +552,14 @@ pub(crate) fn marching_cubes_core<'py>(
         read!(f32, f64, i8, i16, i32, i64, u8, u16, u32, u64)?;
     let n = positions.len() / 3;
     let f = faces.len() / 3;
+    debug_assert_eq!((3 * n, 3 * f), (positions.len(), faces.len()));
+    // Over the vectors' own memory, which goes back to the pool for the next call when
+    // NumPy lets go of it.
     Ok((
-        PyArray1::from_vec(py, positions).reshape([n, 3])?,
-        PyArray1::from_vec(py, faces).reshape([f, 3])?,
-        PyArray1::from_vec(py, normals).reshape([n, 3])?,
-        PyArray1::from_vec(py, values),
+        pooled::array2(py, positions, 3)?,
+        pooled::array2(py, faces, 3)?,
+        pooled::array2(py, normals, 3)?,
+        pooled::array1(py, values)?,
     ))
 }
 
@@ -561,7 +576,10 @@ fn extract<T: Sample>(a: ArrayView3<'_, T>, o: &Options<'_>, run: &Run) -> PyRes
     let (v, layout) = layout(a, o.step)?;
     let samples = samples(v, &layout, level)?;
     let records = match &samples {
-        Samples::InPlace(view) => extract_view_records::<Vertex>(view, &run.control),
+        Samples::InPlace(view) => {
+            let kept = std::mem::take(&mut *RECORDS.lock().unwrap_or_else(PoisonError::into_inner));
+            extract_view_records_into::<Vertex>(view, &run.control, kept)
+        }
         Samples::Converted(volume) => extract_volume_records::<Vertex>(volume, &run.control),
     };
     // The samples are done with once extracted: a converted buffer goes back for the next
@@ -611,7 +629,18 @@ fn extract<T: Sample>(a: ArrayView3<'_, T>, o: &Options<'_>, run: &Run) -> PyRes
             ex.vertices.len()
         )));
     }
-    Ok(conventions(&layout, ex, o.ascent))
+    let (flat, Extracted { mut vertices, mut triangles }) = conventions(&layout, ex, o.ascent);
+    vertices.clear();
+    triangles.clear();
+    let fits = |capacity: usize| capacity <= KEEP_RECORDS;
+    let mut kept = RECORDS.lock().unwrap_or_else(PoisonError::into_inner);
+    if fits(vertices.capacity()) {
+        kept.0 = vertices;
+    }
+    if fits(triangles.capacity()) {
+        kept.1 = triangles;
+    }
+    Ok(flat)
 }
 
 /// Runs `op` on `pool`, or on the current (global) pool.
@@ -628,14 +657,15 @@ fn install<R: Send>(
 /// Flat arrays in scikit-image's conventions: vertices and normals in array axis order,
 /// faces wound for the gradient direction, the gradient size as the value. The vertex
 /// arrays are written once, in blocks on the pool's threads, into memory that is not
-/// zeroed first; the faces are the extractor's triangles, rewound and retyped in place.
-fn conventions(layout: &Layout, ex: Extracted, ascent: bool) -> Flat {
+/// zeroed first, and so are the faces, the extractor's triangles rewound and retyped. Gives
+/// the records back, for the next call.
+fn conventions(layout: &Layout, ex: Extracted, ascent: bool) -> (Flat, Extracted) {
     /// Vertices per parallel task: enough to make a task's start-up cost nothing.
     const BLOCK: usize = 1 << 13;
     let n = ex.vertices.len();
-    let mut positions = Vec::<f32>::with_capacity(3 * n);
-    let mut normals = Vec::<f32>::with_capacity(3 * n);
-    let mut values = Vec::<f32>::with_capacity(n);
+    let mut positions = pooled::take::<f32>(3 * n);
+    let mut normals = pooled::take::<f32>(3 * n);
+    let mut values = pooled::take::<f32>(n);
     positions.spare_capacity_mut()[..3 * n]
         .par_chunks_mut(3 * BLOCK)
         .zip(normals.spare_capacity_mut()[..3 * n].par_chunks_mut(3 * BLOCK))
@@ -663,11 +693,22 @@ fn conventions(layout: &Layout, ex: Extracted, ascent: bool) -> Flat {
     // the array's axis order is a reflection of them when it is (2, 1, 0).
     let reflected = layout.axis_of == [2, 1, 0];
     let flip = reflected != ascent;
-    let mut triangles = ex.triangles;
-    if flip {
-        triangles.par_chunks_mut(BLOCK).for_each(|ts| ts.iter_mut().for_each(|t| t.swap(1, 2)));
-    }
-    // In place (the same size and alignment): the caller checked that the numbers fit.
-    let faces: Vec<i32> = triangles.into_flattened().into_iter().map(|i| i as i32).collect();
-    (positions, faces, normals, values)
+    let f = ex.triangles.len();
+    let mut faces = pooled::take::<i32>(3 * f);
+    // The caller checked that the numbers fit.
+    let order = if flip { [0, 2, 1] } else { [0, 1, 2] };
+    faces.spare_capacity_mut()[..3 * f]
+        .par_chunks_mut(3 * BLOCK)
+        .zip(ex.triangles.par_chunks(BLOCK))
+        .for_each(|(out, ts)| {
+            for (o, t) in out.chunks_exact_mut(3).zip(ts) {
+                o[0].write(t[order[0]] as i32);
+                o[1].write(t[order[1]] as i32);
+                o[2].write(t[order[2]] as i32);
+            }
+        });
+    // SAFETY: the blocks above cover the first 3·f elements, block `b` with triangles
+    // `b·BLOCK..`, each triangle writing its three.
+    unsafe { faces.set_len(3 * f) };
+    ((positions, faces, normals, values), ex)
 }

@@ -221,3 +221,35 @@ def test_normals_and_values_are_the_sample_gradient(order, dtype):
         normals, sizes = reference_normals(vol, level, v)
         np.testing.assert_allclose(n, normals, rtol=1e-6, atol=1e-7)
         np.testing.assert_allclose(values, sizes, rtol=1e-6, atol=1e-7)
+
+
+def test_arrays_outlive_later_calls():
+    """The arrays are over memory that goes back to a pool when NumPy drops them: arrays and
+    views a caller keeps are never written by later calls, and dropped ones are reused."""
+    vol = sphere(48).astype(np.float32)
+    first = skelform.marching_cubes(vol, 0.0, threads=1)
+    kept = [a.copy() for a in first]
+    view = first[0][5:, 1]
+    view_copy = view.copy()
+    for a in first:
+        assert a.flags.c_contiguous and a.flags.writeable and a.flags.aligned
+    for level in (1.0, -2.0, 0.0, 0.5):
+        for threads in (1, 2):
+            skelform.marching_cubes(vol, level, threads=threads)
+            other = skelform.marching_cubes(vol + 3.0, level, threads=threads)
+            del other
+    for a, b in zip(first, kept):
+        assert np.array_equal(a, b)
+    del first
+    for level in (1.0, 0.0):
+        again = skelform.marching_cubes(vol, level, threads=1)
+        assert again[0].shape[1] == 3
+    assert np.array_equal(view, view_copy)
+    # Writing into returned arrays (as NumPy allows) does not reach later results.
+    a = skelform.marching_cubes(vol, 0.0, threads=1)
+    for x in a:
+        x[...] = 7
+    del a
+    b = skelform.marching_cubes(vol, 0.0, threads=1)
+    for x, y in zip(b, kept):
+        assert np.array_equal(x, y)

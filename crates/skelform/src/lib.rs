@@ -105,13 +105,13 @@ pub use skelform_scene as scene;
 /// placed by linear interpolation; the mesh is the same on any number of threads.
 pub mod volume {
     pub use skelform_field::grid::{
-        Grid, Level, MAX_SAMPLES_PER_AXIS, Relative, Shifted, Volume, VolumeView, sanitize,
+        AtZero, Grid, Level, MAX_SAMPLES_PER_AXIS, Relative, Shifted, Volume, VolumeView, sanitize,
         sanitize_sample,
     };
     pub use skelform_polygonize::grid::{
         Cancelled, GridVertex, LayerSource, Near, Place, SlabVertex, StreamError, Streamed,
         extract_mesh, extract_streamed, extract_view_mesh, extract_view_records,
-        extract_volume_records,
+        extract_view_records_into, extract_volume_records,
     };
 
     /// Builds the marching-cubes case table now (a few milliseconds, once per process), so

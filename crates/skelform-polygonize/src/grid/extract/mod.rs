@@ -178,9 +178,17 @@ impl<L: Level> Near<'_, L> {
 
     /// Asks the CPU to bring sample layer `k` into its cache, if it is there to read.
     fn prefetch_layer(&self, k: usize) {
-        let layer = self.dims[0] * self.dims[1];
-        if (self.first..self.first + self.layers).contains(&k) {
-            prefetch(&self.values[(k - self.first) * layer..][..layer]);
+        self.prefetch_rows(k, 0..self.dims[1]);
+    }
+
+    /// Asks the CPU to bring rows `rows` of sample layer `k` into its cache, if they are
+    /// there to read.
+    #[inline]
+    fn prefetch_rows(&self, k: usize, rows: std::ops::Range<usize>) {
+        let [nx, ny, _] = self.dims;
+        if (self.first..self.first + self.layers).contains(&k) && rows.end <= ny {
+            let layer = &self.values[(k - self.first) * nx * ny..][..nx * ny];
+            prefetch(&layer[rows.start * nx..rows.end * nx]);
         }
     }
 }
@@ -272,8 +280,14 @@ pub fn extract_with(
     control: &Control,
     workspace: &Workspace,
 ) -> Result<Extraction, Cancelled> {
-    let (vertices, triangles, ambiguous_faces, tunnels) =
-        extract_as::<GridVertex, _>(&volume.grid, &volume.values, Relative, control, workspace)?;
+    let (vertices, triangles, ambiguous_faces, tunnels) = extract_as::<GridVertex, _>(
+        &volume.grid,
+        &volume.values,
+        Relative,
+        control,
+        workspace,
+        Default::default(),
+    )?;
     Ok(Extraction { vertices, triangles, ambiguous_faces, tunnels })
 }
 
@@ -289,8 +303,14 @@ pub fn extract_volume_records<V: SlabVertex>(
     volume: &Volume,
     control: &Control,
 ) -> Result<(Vec<V>, Vec<[u32; 3]>), Cancelled> {
-    let (vertices, triangles, _, _) =
-        extract_as::<V, _>(&volume.grid, &volume.values, Relative, control, Workspace::shared())?;
+    let (vertices, triangles, _, _) = extract_as::<V, _>(
+        &volume.grid,
+        &volume.values,
+        Relative,
+        control,
+        Workspace::shared(),
+        Default::default(),
+    )?;
     Ok((vertices, triangles))
 }
 
@@ -299,8 +319,25 @@ pub fn extract_view_records<V: SlabVertex>(
     view: &VolumeView<'_>,
     control: &Control,
 ) -> Result<(Vec<V>, Vec<[u32; 3]>), Cancelled> {
-    let (vertices, triangles, _, _) =
-        extract_as::<V, _>(&view.grid, view.values, view.level, control, Workspace::shared())?;
+    extract_view_records_into(view, control, Default::default())
+}
+
+/// [`extract_view_records`] that writes the vertices and triangles into `reuse` (emptied
+/// first) when one thread makes the whole mesh: a caller that extracts again and again
+/// passes back the arrays of its last call, whose memory is then written without a page
+/// fault a page. (On more threads the slabs are assembled into fresh memory and `reuse` is
+/// dropped.)
+pub fn extract_view_records_into<V: SlabVertex>(
+    view: &VolumeView<'_>,
+    control: &Control,
+    reuse: (Vec<V>, Vec<[u32; 3]>),
+) -> Result<(Vec<V>, Vec<[u32; 3]>), Cancelled> {
+    let (grid, values, workspace) = (&view.grid, view.values, Workspace::shared());
+    // At level +0 the samples are the raw values sanitised: the same, read with less work.
+    let (vertices, triangles, _, _) = match view.level.at_zero() {
+        Some(zero) => extract_as::<V, _>(grid, values, zero, control, workspace, reuse)?,
+        None => extract_as::<V, _>(grid, values, view.level, control, workspace, reuse)?,
+    };
     Ok((vertices, triangles))
 }
 
@@ -324,17 +361,20 @@ pub(crate) fn has_cells(grid: &Grid) -> bool {
     grid.dims.iter().all(|&d| d >= 2)
 }
 
-/// Extraction over `values` (`grid.index` order, raw values read through `level`).
+/// Extraction over `values` (`grid.index` order, raw values read through `level`); one
+/// thread writes the vertices and triangles into `reuse` (see
+/// [`extract_view_records_into`]).
 fn extract_as<V: SlabVertex, L: Level>(
     grid: &Grid,
     values: &[f32],
     level: L,
     control: &Control,
     workspace: &Workspace,
+    reuse: (Vec<V>, Vec<[u32; 3]>),
 ) -> Result<Extracted<V>, Cancelled> {
     let slabs = slab_count(grid);
     let (vertices, triangles, counts) =
-        extract_slabs(grid, values, level, control, workspace, 0..slabs)?;
+        extract_slabs(grid, values, level, control, workspace, 0..slabs, reuse)?;
     let (ambiguous_faces, tunnels) =
         counts.iter().fold((0, 0), |(a, t), c| (a + c.ambiguous_faces, t + c.tunnels));
     Ok((vertices, triangles, ambiguous_faces, tunnels))
@@ -362,7 +402,8 @@ pub(crate) struct SlabCounts {
 /// references to the layer above land just past the range's own vertices, on the next
 /// slab's first ones), and what each slab made. Slab `s` reads the sample layers
 /// `s·SLAB ..= (s + 1)·SLAB` only, which is what lets incremental re-meshing splice the
-/// slabs an edit touched into the last extraction.
+/// slabs an edit touched into the last extraction. On one thread the vertices are written
+/// and triangles into `reuse` (emptied first; see [`extract_view_records_into`]).
 pub(crate) fn extract_slabs<V: SlabVertex, L: Level>(
     grid: &Grid,
     values: &[f32],
@@ -370,6 +411,7 @@ pub(crate) fn extract_slabs<V: SlabVertex, L: Level>(
     control: &Control,
     workspace: &Workspace,
     range: std::ops::Range<usize>,
+    reuse: (Vec<V>, Vec<[u32; 3]>),
 ) -> Result<SlabsExtracted<V>, Cancelled> {
     let grid = *grid;
     if !has_cells(&grid) || range.is_empty() {
@@ -380,7 +422,7 @@ pub(crate) fn extract_slabs<V: SlabVertex, L: Level>(
     let done = AtomicU64::new(0);
     let first = range.start;
     let (vertices, triangles, counts) =
-        run_slabs(range.len(), [nx, ny], workspace, |s, scratch, store| {
+        run_slabs(range.len(), [nx, ny], workspace, reuse, |s, scratch, store| {
             let s = s + first;
             let z0 = s * SLAB;
             let z1 = (z0 + SLAB).min(cube_layers);
@@ -451,9 +493,13 @@ fn extract_slab<V: SlabVertex, L: Level>(
     lower.build(below, nx, ny, words);
     store.begin();
     if V::READS_NEAR {
-        // The bottom layer's records read the layers on either side of it.
+        // The records of the first layer of cubes read the layers from z0 − 1 to z0 + 2;
+        // the cubes of each layer fetch, row by row, the layer the records of the next one
+        // reach (below). On one thread the slab below fetched these already, and a fetch
+        // of what is in the cache costs next to nothing.
         near.prefetch_layer(z0.wrapping_sub(1));
         near.prefetch_layer(z0 + 1);
+        near.prefetch_layer(z0 + 2);
     }
     lower.offset = store.made();
     lower.emit(grid, local(z0), near, z0, store);
@@ -461,11 +507,6 @@ fn extract_slab<V: SlabVertex, L: Level>(
     for k in z0..z1 {
         if control.is_cancelled() {
             return Err(Cancelled);
-        }
-        if V::READS_NEAR {
-            // The records of this layer of cubes read up to layer k + 2, which the sign
-            // passes have not read yet.
-            near.prefetch_layer(k + 2);
         }
         layer_signs(local(k + 1), nx, words, above, threshold);
         upper.build(above, nx, ny, words);
@@ -493,12 +534,19 @@ fn extract_slab<V: SlabVertex, L: Level>(
         };
         // The samples of the layer after next, row by row with the rows of cubes: fetched
         // while the cubes are worked on, they are in the cache when the next layer's sign
-        // pass reads them, instead of that pass waiting on memory.
-        let ahead = (k + 2 <= z1).then(|| local(k + 2));
+        // pass reads them, instead of that pass waiting on memory. Records that read the
+        // samples around their vertex reach a layer further, k + 3 from the next layer of
+        // cubes (whose layer k + 2 this loop's predecessor fetched): fetched here the same
+        // way, rather than all at once before the layer, which would stall the core on a
+        // few thousand outstanding fetches.
+        let ahead = (!V::READS_NEAR && k + 2 <= z1).then(|| local(k + 2));
         let fetch = |j: usize| {
+            let end = if j + 2 == ny { ny } else { j + 1 };
             if let Some(next) = ahead {
-                let end = if j + 2 == ny { ny } else { j + 1 };
                 prefetch(&next[j * nx..end * nx]);
+            }
+            if V::READS_NEAR {
+                near.prefetch_rows(k + 3, j..end);
             }
         };
         for_each_mixed_cube(below, above, nx, ny, fetch, |i, j, case| {

@@ -191,8 +191,10 @@ fn for_each_bit(words: &[Counted], mut f: impl FnMut(usize)) {
 }
 
 /// The record of the vertex where the surface crosses the lattice edge from sample `base`
-/// along `axis`, whose end samples are `ends`.
-#[inline]
+/// along `axis`, whose end samples are `ends`. (Always inlined into the loops over a row's
+/// crossed edges: a record that reads the samples around its vertex is most of the cost of
+/// a vertex, and as a call it is returned through memory and overlaps less with the next.)
+#[inline(always)]
 fn edge_record<V: SlabVertex, L: Level>(
     grid: &Grid,
     base: [usize; 3],

@@ -43,10 +43,15 @@ type Assembled<V, T> = (Vec<V>, Vec<[u32; 3]>, Vec<T>);
 /// vertices go after all those of the slabs below it, its triangles' numbers shifted by as
 /// many (a reference to the layer above, numbered just past the slab's own vertices, lands on
 /// the next slab's first ones).
+///
+/// On one thread the vertices and triangles go into `reuse` (emptied first), whose capacity
+/// is kept as it is when it has some: a caller's arrays from its last extraction, already in
+/// memory.
 pub(super) fn run_slabs<V, T, E>(
     slabs: usize,
     [nx, ny]: [usize; 2],
     workspace: &Workspace,
+    reuse: (Vec<V>, Vec<[u32; 3]>),
     slab: impl Fn(usize, &mut Scratch, &mut SlabStore<V>) -> Result<T, E> + Sync,
 ) -> Result<Assembled<V, T>, E>
 where
@@ -56,15 +61,23 @@ where
 {
     let threads = rayon::current_num_threads().min(slabs);
     if threads <= 1 {
-        let (mut out, mut scratch) = (Output::default(), Scratch::new(nx, ny));
+        let reused = [reuse.0.capacity() > 0, reuse.1.capacity() > 0];
+        let mut out = Output { vertices: reuse.0, triangles: reuse.1 };
+        out.vertices.clear();
+        out.triangles.clear();
+        let mut scratch = Scratch::new(nx, ny);
         let (mut hint, mut results) = ((0, 0), Vec::with_capacity(slabs));
         for k in 0..slabs {
             let before = (out.vertices.len(), out.triangles.len());
             results.push(slab(k, &mut scratch, &mut SlabStore::new(&mut out, hint))?);
             hint = (out.vertices.len() - before.0, out.triangles.len() - before.1);
         }
-        out.vertices.shrink_to_fit();
-        out.triangles.shrink_to_fit();
+        if !reused[0] {
+            out.vertices.shrink_to_fit();
+        }
+        if !reused[1] {
+            out.triangles.shrink_to_fit();
+        }
         return Ok((out.vertices, out.triangles, results));
     }
     let chain = Mutex::new(Chain::new(slabs));

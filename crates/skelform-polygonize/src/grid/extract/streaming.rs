@@ -109,8 +109,12 @@ pub fn extract_streamed_with<V: SlabVertex, S: LayerSource>(
     let slabs = cube_layers.div_ceil(SLAB);
     let done = AtomicU64::new(0);
     type Part = ((u64, u64), u64, (f32, f32), u64, std::time::Duration, std::time::Duration);
-    let (vertices, triangles, parts) =
-        run_slabs(slabs, [nx, ny], workspace, |s, scratch, store| -> Result<Part, _> {
+    let (vertices, triangles, parts) = run_slabs(
+        slabs,
+        [nx, ny],
+        workspace,
+        Default::default(),
+        |s, scratch, store| -> Result<Part, _> {
             let z0 = s * SLAB;
             let z1 = (z0 + SLAB).min(cube_layers);
             let last = z1 == cube_layers;
@@ -157,7 +161,8 @@ pub fn extract_streamed_with<V: SlabVertex, S: LayerSource>(
             slab_done(control, &done, z1 - z0, cube_layers, "sampling and extracting")
                 .map_err(|_| StreamError::Cancelled)?;
             Ok((counts, non_finite, range, fetched, sourced, extracted))
-        })?;
+        },
+    )?;
     let mut stats = StreamStats {
         min_sample: f32::INFINITY,
         max_sample: f32::NEG_INFINITY,
