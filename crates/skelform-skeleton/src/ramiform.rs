@@ -33,12 +33,33 @@
 //! distance in radii, which keeps values and gradients well scaled everywhere (the density
 //! itself grows without bound at the skeleton). The maximum leaves a crease where the
 //! parent's round cap meets the children, as in the dissertation's fig. 5.59.
+//!
+//! **Limits.** A tree has at most [`MAX_LIMBS`] limbs, none more than [`MAX_DEPTH`] deep (a
+//! root is depth 1), and matching the radii may take at most [`MAX_JOINT_WORK`] steps
+//! (directions times the limbs below each parent, summed over the parents): every evaluation
+//! visits every limb, recursing once per level, and each parent's radius search evaluates its
+//! whole subtree along every direction, so without them a chain 30,000 limbs deep ran for
+//! minutes (and could overflow the stack). [`Ramiform::add_root`] and [`Ramiform::add_child`]
+//! refuse a limb over the first two; [`RamiformField::new`] checks the third before it matches
+//! any radius.
 
 use glam::DVec3;
 use skelform_field::{Aabb, Field};
 
 use crate::SkeletonError;
 use crate::geometry::Segment;
+
+/// The most limbs a [`Ramiform`] may have.
+pub const MAX_LIMBS: usize = 1024;
+
+/// The deepest a limb may hang below its root (a root is depth 1): the field's evaluation
+/// recurses once per level.
+pub const MAX_DEPTH: usize = 64;
+
+/// The most radius-matching work [`RamiformField::new`] may take: the directions searched
+/// times the number of limbs below each parent, summed over the parents (about a second of
+/// one core per million).
+pub const MAX_JOINT_WORK: u64 = 4_000_000;
 
 /// One limb of a [`Ramiform`] as given.
 #[derive(Clone, Debug, PartialEq)]
@@ -55,6 +76,8 @@ pub struct Limb {
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Ramiform {
     limbs: Vec<Limb>,
+    /// Each limb's depth, a root being 1.
+    depths: Vec<usize>,
 }
 
 /// How a [`RamiformField`] matches radii at joints.
@@ -91,7 +114,9 @@ impl Ramiform {
         radius: Option<f64>,
     ) -> Result<usize, SkeletonError> {
         check_radius(radius)?;
+        self.check_count()?;
         self.limbs.push(Limb { segment: Segment::new(a, b)?, parent: None, radius });
+        self.depths.push(1);
         Ok(self.limbs.len() - 1)
     }
 
@@ -103,9 +128,34 @@ impl Ramiform {
         radius: Option<f64>,
     ) -> Result<usize, SkeletonError> {
         check_radius(radius)?;
+        self.check_count()?;
         let a = self.limbs.get(parent).ok_or(SkeletonError::UnknownLimb(parent))?.segment.b();
+        let depth = self.depths[parent] + 1;
+        if depth > MAX_DEPTH {
+            return Err(SkeletonError::TooDeep { limb: self.limbs.len(), depth });
+        }
         self.limbs.push(Limb { segment: Segment::new(a, b)?, parent: Some(parent), radius });
+        self.depths.push(depth);
         Ok(self.limbs.len() - 1)
+    }
+
+    /// The depth of limb `i` (a root is 1), or `None` when there is no such limb.
+    pub fn depth(&self, i: usize) -> Option<usize> {
+        self.depths.get(i).copied()
+    }
+
+    fn check_count(&self) -> Result<(), SkeletonError> {
+        if self.limbs.len() >= MAX_LIMBS {
+            return Err(SkeletonError::TooManyLimbs(self.limbs.len() + 1));
+        }
+        Ok(())
+    }
+
+    /// The radius-matching work of [`MAX_JOINT_WORK`] with `directions` directions.
+    pub fn joint_work(&self, directions: usize) -> u64 {
+        // Each limb is below every one of its ancestors: depth − 1 of them.
+        let below: u64 = self.depths.iter().map(|&d| d as u64 - 1).sum();
+        below.saturating_mul(directions as u64)
     }
 }
 
@@ -143,6 +193,10 @@ impl RamiformField {
                 value: options.directions as f64,
                 expected: "at least 8",
             });
+        }
+        let work = r.joint_work(options.directions);
+        if work > MAX_JOINT_WORK {
+            return Err(SkeletonError::JointWorkTooLarge { work });
         }
         let n = r.limbs.len();
         let mut children = vec![Vec::new(); n];
