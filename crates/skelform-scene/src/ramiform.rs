@@ -250,7 +250,7 @@ mod tests {
         let text = chain(MAX_DEPTH).replace("[ramiform]\n", "[ramiform]\ndirections = 100000\n");
         let (l, c, m) = error(&text);
         assert_eq!((l, c), (5, 14), "{m}");
-        assert!(m.contains("direction-limb steps") && m.contains("over the limit"), "{m}");
+        assert!(m.contains("limb searches") && m.contains("over the limit"), "{m}");
     }
 
     #[test]

@@ -475,8 +475,23 @@ mod tests {
             n += 1;
         }
         assert!(n > 300, "{n} vertices checked");
-        // The star's tips are 0.95 from its centre, its notches 0.42.
-        assert!((reach.1 - 0.95).abs() < 0.06 && (reach.0 - 0.42).abs() < 0.06, "{reach:?}");
+        // The star's tips and notches: the farthest inside pixel centre and the nearest
+        // outside one.
+        let (mut tip, mut notch) = (0.0_f64, f64::INFINITY);
+        for r in 0..h {
+            for c in 0..w {
+                let x = -1.0 + (c as f64 + 0.5) * 2.0 / w as f64;
+                let y = 1.0 - (r as f64 + 0.5) * 2.0 / h as f64;
+                let rad = (x * x + y * y).sqrt();
+                if image.inside(c, r) {
+                    tip = tip.max(rad);
+                } else {
+                    notch = notch.min(rad);
+                }
+            }
+        }
+        assert!(tip > 0.85 && notch < 0.6, "{tip} {notch}");
+        assert!((reach.1 - tip).abs() < 0.05 && (reach.0 - notch).abs() < 0.05, "{reach:?}");
     }
 
     /// The example horn meshes as one closed, genus-0 piece, and its vertices away from the

@@ -36,11 +36,11 @@ pub enum SkeletonError {
         depth: usize,
     },
     #[error(
-        "matching the ramiform's radii would take {work} direction-limb steps (directions x limbs below each parent, summed), over the limit of {max}: use fewer directions or a shallower tree",
+        "matching the ramiform's radii would take {work} limb searches (the searches along directions at each parent times the limbs below it, summed), over the limit of {max}: use fewer directions or a smaller tree",
         max = crate::ramiform::MAX_JOINT_WORK
     )]
-    /// Radius matching whose cost, [`RamiformOptions::directions`](crate::RamiformOptions)
-    /// times the limbs below each parent summed over the parents, is over
+    /// Radius matching whose cost ([`Ramiform::joint_work`](crate::Ramiform::joint_work)) is
+    /// over
     /// [`MAX_JOINT_WORK`](crate::ramiform::MAX_JOINT_WORK); refused before any is matched.
     JointWorkTooLarge {
         /// The cost as defined above.
