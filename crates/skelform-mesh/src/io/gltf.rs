@@ -663,7 +663,12 @@ impl<'a> Reader<'a> {
             .and_then(Value::as_u64)
             .and_then(|c| usize::try_from(c).ok())
             .unwrap_or(0);
-        let elem = size * if want == "VEC3" { 3 } else { 1 };
+        let elem = size
+            * match want {
+                "VEC3" => 3,
+                "VEC2" => 2,
+                _ => 1,
+            };
         let view_i = Self::index(a.get("bufferView"), "bufferView")?
             .ok_or_else(|| json_err(format!("accessor {i} has no buffer view")))?;
         let view = self
