@@ -377,17 +377,30 @@ fn the_khronos_validator_finds_no_errors() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(std::fs::read(&coloured).unwrap().windows(7).any(|w| w == b"COLOR_0"));
+    // Texture coordinates (TEXCOORD_0) from a sweep.
+    let textured = dir.path().join("horn.glb");
+    let o = skelform(&[
+        "mesh",
+        &example("skeleton/horn.toml"),
+        "-o",
+        s(&textured),
+        "--resolution",
+        "32",
+        "-q",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(std::fs::read(&textured).unwrap().windows(10).any(|w| w == b"TEXCOORD_0"));
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/gltf-validate.js");
     let o = Command::new("node")
         .arg(&script)
         .arg(&validator)
-        .args([&labelled, &torus, &bare, &coloured])
+        .args([&labelled, &torus, &bare, &coloured, &textured])
         .output()
         .expect("run node");
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "validator: {out}\n{}", stderr(&o));
     let reports: Vec<Value> = out.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
-    assert_eq!(reports.len(), 4);
+    assert_eq!(reports.len(), 5);
     for r in reports {
         assert_eq!(r["errors"], 0, "{r}");
         assert_eq!(r["warnings"], 0, "{r}");

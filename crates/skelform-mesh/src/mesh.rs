@@ -56,11 +56,11 @@ pub struct CurveEdge {
     pub label: RegionTriple,
 }
 
-/// Indexed triangles with optional per-vertex normals and colours, per-face labels and
-/// curves.
+/// Indexed triangles with optional per-vertex normals, colours and texture coordinates,
+/// per-face labels and curves.
 ///
-/// Invariants (checked by [`Mesh::validate`]): every index is in range; `normals` and
-/// `colors` are each empty or as long as `positions`; `labels` is empty or as long as
+/// Invariants (checked by [`Mesh::validate`]): every index is in range; `normals`,
+/// `colors` and `uvs` are each empty or as long as `positions`; `labels` is empty or as long as
 /// `triangles`.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Mesh {
@@ -80,6 +80,11 @@ pub struct Mesh {
     /// colours blended at each vertex (DIS ch. 6), written to PLY and glb and drawn by the
     /// renderer.
     pub colors: Vec<[f32; 3]>,
+    /// Texture coordinates `[u, v]`, one per vertex, or empty: for a scene with sweeps, the
+    /// sweep's arc-length fraction and angle fraction (DIS §5.7), written to glb
+    /// (`TEXCOORD_0`), OBJ (`vt`) and PLY (`u`, `v`). Per vertex, so a triangle across a
+    /// sweep's seam (`v` = 0 = 1) interpolates backwards across the whole range.
+    pub uvs: Vec<[f32; 2]>,
 }
 
 /// What is wrong with a mesh that breaks the [`Mesh`] invariants.
@@ -121,6 +126,14 @@ pub enum MeshError {
         /// Length of [`Mesh::positions`].
         vertices: usize,
     },
+    #[error("{uvs} texture coordinates for {vertices} vertices")]
+    /// Texture coordinates are present but not one per vertex.
+    UvCount {
+        /// Length of [`Mesh::uvs`].
+        uvs: usize,
+        /// Length of [`Mesh::positions`].
+        vertices: usize,
+    },
     #[error("{labels} labels for {triangles} triangles")]
     /// Labels are present but not one per triangle.
     LabelCount {
@@ -157,6 +170,9 @@ impl Mesh {
         }
         if !self.colors.is_empty() && self.colors.len() != n {
             return Err(MeshError::ColorCount { colors: self.colors.len(), vertices: n });
+        }
+        if !self.uvs.is_empty() && self.uvs.len() != n {
+            return Err(MeshError::UvCount { uvs: self.uvs.len(), vertices: n });
         }
         if !self.labels.is_empty() && self.labels.len() != self.triangles.len() {
             return Err(MeshError::LabelCount {
@@ -221,6 +237,9 @@ mod tests {
         m.labels.clear();
         m.colors = vec![[1.0, 0.0, 0.0]; 2];
         assert_eq!(m.validate(), Err(MeshError::ColorCount { colors: 2, vertices: 3 }));
+        m.colors.clear();
+        m.uvs = vec![[0.0, 1.0]; 4];
+        assert_eq!(m.validate(), Err(MeshError::UvCount { uvs: 4, vertices: 3 }));
         assert_eq!(RegionPair::new(2, 1), RegionPair(1, 2));
         assert_eq!(RegionTriple::new([3, 1, 2]).to_string(), "1_2_3");
     }

@@ -63,6 +63,7 @@ fn small_mesh() -> impl Strategy<Value = Mesh> {
                         .map(|(v, l)| CurveEdge { v, label: RegionTriple::new(l) })
                         .collect(),
                     colors: Vec::new(),
+                    uvs: Vec::new(),
                 })
         },
     )

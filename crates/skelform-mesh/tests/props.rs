@@ -38,6 +38,7 @@ fn any_mesh() -> impl Strategy<Value = Mesh> {
                         .map(|(v, l)| CurveEdge { v, label: RegionTriple::new(l) })
                         .collect(),
                     colors: Vec::new(),
+                    uvs: Vec::new(),
                 })
         },
     )

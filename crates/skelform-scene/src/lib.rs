@@ -96,6 +96,10 @@ pub struct Scene {
     /// The skeletal field when the scene has a `[skeleton]` (already in `field`, alone or
     /// combined with the formula), for statistics and seeds.
     pub skeleton: Option<Arc<skelform_skeleton::SkeletonField>>,
+    /// The skeleton's field with its sweeps, when `[skeleton]` has `[[skeleton.sweep]]`s:
+    /// what gives mesh vertices their texture coordinates
+    /// ([`SweptField::uv`](skelform_skeleton::SweptField::uv)).
+    pub sweeps: Option<Arc<skelform_skeleton::SweptField>>,
     /// The compiled formula (before the iso value), for `skelform info`; the constant `1`
     /// when the scene has a skeleton and no `[field]`.
     pub formula: Arc<Formula>,
@@ -119,6 +123,10 @@ pub struct LoadOptions {
     /// §2.8): each joint's rotation is interpolated, never the elements' positions, so limbs
     /// keep their lengths.
     pub toward: Option<PoseBlend>,
+    /// The folder that relative paths in the file (a sweep's `section_image`) are taken
+    /// from: the scene file's folder. `None`: the current folder ([`Scene::load_with`]
+    /// fills it in from the file's path when it is `None`).
+    pub base: Option<PathBuf>,
 }
 
 /// Part of the way towards another pose: [`LoadOptions::toward`].
@@ -288,7 +296,11 @@ impl Scene {
         let shown = path.display().to_string();
         let text = std::fs::read_to_string(path)
             .map_err(|source| SceneError::Io { path: shown.clone(), source })?;
-        let mut scene = Scene::parse_with(&text, &shown, options)?;
+        let mut options = options.clone();
+        if options.base.is_none() {
+            options.base = path.parent().map(Path::to_path_buf);
+        }
+        let mut scene = Scene::parse_with(&text, &shown, &options)?;
         if let (Some(file), Some(dir)) = (&scene.output.file, path.parent()) {
             scene.output.file = Some(dir.join(file));
         }

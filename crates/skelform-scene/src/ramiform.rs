@@ -18,6 +18,7 @@ use std::sync::Arc;
 
 use serde::Deserialize;
 use skelform_field::DVec3;
+use skelform_skeleton::ramiform::MAX_LIMBS;
 use skelform_skeleton::{Ramiform, RamiformField, RamiformOptions, SkeletonError};
 use toml::Spanned;
 
@@ -59,6 +60,15 @@ pub(crate) fn build(
             ));
         }
         options.directions = v as usize;
+    }
+    // Counted before any limb is built, so that a huge tree costs only its parse.
+    let count = s.limb.as_ref().map_or(0, Vec::len);
+    if count > MAX_LIMBS {
+        let over = &s.limb.as_ref().map_or(section_at, |l| l[MAX_LIMBS].b.span().start);
+        return Err(at(
+            *over,
+            format!("the ramiform has {count} limbs, over the limit of {MAX_LIMBS}"),
+        ));
     }
     let mut tree = Ramiform::new();
     let mut names: BTreeMap<&str, usize> = BTreeMap::new();
@@ -114,6 +124,7 @@ pub(crate) fn build(
                 };
                 tree.add_child(parent, b, radius).map_err(|e| match e {
                     SkeletonError::BadRadius(_) => err(radius_at, e),
+                    SkeletonError::TooDeep { .. } => err(p.span().start, e),
                     e => err(l.b.span().start, e),
                 })?
             }
@@ -132,6 +143,9 @@ pub(crate) fn build(
         let offset = match &e {
             SkeletonError::LeafNeedsRadius(i) => limb_at.get(*i).map(|l| l.0),
             SkeletonError::ParentRadiusGiven(i) => limb_at.get(*i).map(|l| l.1),
+            SkeletonError::JointWorkTooLarge { .. } => {
+                s.directions.as_ref().map(|d| d.span().start)
+            }
             _ => None,
         };
         err(offset.unwrap_or(section_at), e)
@@ -170,6 +184,73 @@ mod tests {
         assert!(s.field.eval(DVec3::new(0.0, 0.0, 1.0 + 0.0)) < 0.0);
         assert!(s.field.eval(DVec3::new(0.0, 0.6, 0.5)) > 0.0);
         assert!(s.skeleton.is_none());
+    }
+
+    /// A chain of `n` limbs, each named and hanging from the one before, the last a leaf.
+    fn chain(n: usize) -> String {
+        let mut t = String::from("[ramiform]\n");
+        for i in 0..n {
+            t += &format!("[[ramiform.limb]]\nname = \"l{i}\"\n");
+            if i == 0 {
+                t += "a = [0, 0, 0]\n";
+            } else {
+                t += &format!("parent = \"l{}\"\n", i - 1);
+            }
+            t += &format!("b = [0, {}, {}]\n", (i % 2) as f64 * 0.01, (i + 1) as f64 * 0.01);
+            if i + 1 == n {
+                t += "radius = 0.005\n";
+            }
+        }
+        t
+    }
+
+    #[test]
+    fn limb_count_and_depth_are_limited_before_any_work() {
+        use skelform_skeleton::ramiform::{MAX_DEPTH, MAX_LIMBS};
+        // As deep as allowed is a scene.
+        assert!(parse(&chain(MAX_DEPTH)).is_ok());
+        // One deeper: refused at the parent of the limb over the limit.
+        let text = chain(MAX_DEPTH + 1);
+        let (l, c, m) = error(&text);
+        let line = text.lines().position(|x| x == format!("parent = \"l{}\"", MAX_DEPTH - 1));
+        assert_eq!((l, c), (3 + line.unwrap() + 1, 10), "{m}");
+        assert!(
+            m.contains(&format!("{} limbs deep, over the limit of {MAX_DEPTH}", MAX_DEPTH + 1)),
+            "{m}"
+        );
+        // Too many limbs (30,000 in a chain ran for minutes): refused at the first one over,
+        // in a moment.
+        let started = std::time::Instant::now();
+        let text = chain(30_000);
+        let (l, _, m) = error(&text);
+        assert!(m.contains(&format!("30000 limbs, over the limit of {MAX_LIMBS}")), "{m}");
+        let line = text.lines().position(|x| x == format!("name = \"l{MAX_LIMBS}\""));
+        assert_eq!(l, 3 + line.unwrap() + 3, "{m}");
+        assert!(started.elapsed().as_secs() < 10);
+        // A wide tree of as many limbs as allowed parses: one root and its leaves.
+        let mut wide = String::from(
+            "[ramiform]\n[[ramiform.limb]]\nname = \"r\"\na = [0, 0, 0]\nb = [0, 0, 1]\n",
+        );
+        for i in 1..MAX_LIMBS {
+            let a = i as f64 * 0.01;
+            wide += &format!(
+                "[[ramiform.limb]]\nparent = \"r\"\nb = [{}, {}, 1.5]\nradius = 0.01\n",
+                a.cos(),
+                a.sin()
+            );
+        }
+        let (_, _, m) = error(&format!(
+            "{wide}[[ramiform.limb]]\nparent = \"r\"\nb = [0, 1, 1]\nradius = 0.01\n"
+        ));
+        assert!(
+            m.contains(&format!("{} limbs, over the limit of {MAX_LIMBS}", MAX_LIMBS + 1)),
+            "{m}"
+        );
+        // Radius matching's cost: many directions on a deep chain are refused at `directions`.
+        let text = chain(MAX_DEPTH).replace("[ramiform]\n", "[ramiform]\ndirections = 100000\n");
+        let (l, c, m) = error(&text);
+        assert_eq!((l, c), (5, 14), "{m}");
+        assert!(m.contains("limb searches") && m.contains("over the limit"), "{m}");
     }
 
     #[test]

@@ -246,7 +246,7 @@ pub(crate) fn build(
                 toward: options.toward.as_ref(),
                 origin,
             };
-            Some(crate::skeleton::build(s, &|o, m| cx.at(o, m), choice)?)
+            Some(crate::skeleton::build(s, &|o, m| cx.at(o, m), choice, options.base.as_deref())?)
         }
         None => {
             if let Some(p) = options.pose.as_ref().or(options.toward.as_ref().map(|b| &b.pose)) {
@@ -419,6 +419,7 @@ pub(crate) fn build(
         leaf,
         field,
         articulation: skeleton.as_ref().and_then(|s| s.articulation.clone()),
+        sweeps: skeleton.as_ref().filter(|s| !s.field.sweeps().is_empty()).map(|s| s.field.clone()),
         skeleton: skeleton.and_then(|s| s.skeleton),
         formula,
         iso,

@@ -212,6 +212,7 @@ pub(crate) fn build(
     s: &Spanned<SkeletonSection>,
     at: At,
     choice: crate::pose::Choice,
+    base: Option<&std::path::Path>,
 ) -> Result<Built, SceneError> {
     let section_at = s.span().start;
     let s = s.get_ref();
@@ -546,7 +547,7 @@ pub(crate) fn build(
     if let Some(c) = &s.color {
         skeleton.set_default_color(*c.get_ref()).map_err(|e| err(c.span().start, e))?;
     }
-    let sweeps = crate::sweep::build(s.sweep.as_deref().unwrap_or(&[]), at)?;
+    let sweeps = crate::sweep::build(s.sweep.as_deref().unwrap_or(&[]), at, base)?;
     if skeleton.is_empty() && sweeps.is_empty() {
         return Err(at(
             section_at,

@@ -3,8 +3,12 @@
 //! element of the [`skelform_skeleton::Skeleton`]: it is added to the skeleton's field by
 //! [`skelform_skeleton::SweptField`].
 
+use std::path::Path;
+use std::sync::Arc;
+
 use serde::Deserialize;
 use skelform_field::DVec3;
+use skelform_skeleton::sweep::{MAX_SECTION_PIXELS, SectionImage};
 use skelform_skeleton::{Sweep, SweepSettings};
 use toml::Spanned;
 
@@ -17,8 +21,12 @@ use crate::diag::At;
 pub(crate) struct SweepSpec {
     /// The four Bézier control points of the curve swept along.
     points: Spanned<Vec<[f64; 3]>>,
-    /// `"circle"` (default) or `"ellipse"`.
+    /// `"circle"` (default), `"ellipse"` or `"image"` (the default when `section_image` is
+    /// given).
     section: Option<Spanned<String>>,
+    /// A grayscale PNG whose light pixels are the section, over `[−a, a] × [−b, b]`;
+    /// relative to the scene file's folder.
+    section_image: Option<Spanned<String>>,
     /// Circle: one radius, or one per control point.
     radius: Option<Spanned<OneOrList<f64>>>,
     /// Ellipse: one `[a, b]` pair, or one per control point (`a` along the frame's normal,
@@ -58,8 +66,90 @@ fn per_point<T: Copy>(list: &[T], at: At, offset: usize, key: &str) -> Result<[T
     }
 }
 
-/// The sweeps of a skeleton section.
-pub(crate) fn build(specs: &[SweepSpec], at: At) -> Result<Vec<Sweep>, SceneError> {
+/// The most bytes a section image file may have, checked before it is read: a PNG of the
+/// largest size, [`MAX_SECTION_PIXELS`] on a side, in 16-bit RGBA without compression
+/// takes 8 MiB.
+pub const MAX_SECTION_FILE_BYTES: u64 = 16 << 20;
+
+#[derive(Clone, Copy, PartialEq)]
+enum Kind {
+    Circle,
+    Ellipse,
+    Image,
+}
+
+/// Reads the section image `name` (relative to `base`), checking its file size and
+/// dimensions before decoding; errors at `offset`.
+fn load_section(
+    name: &str,
+    base: Option<&Path>,
+    at: At,
+    offset: usize,
+) -> Result<SectionImage, SceneError> {
+    let path = match base {
+        Some(dir) if Path::new(name).is_relative() => dir.join(name),
+        _ => Path::new(name).to_path_buf(),
+    };
+    let shown = path.display();
+    let fail = |m: String| at(offset, format!("section_image '{shown}': {m}"));
+    let file = std::fs::File::open(&path).map_err(|e| fail(format!("cannot open it: {e}")))?;
+    let bytes = file.metadata().map_err(|e| fail(format!("cannot read it: {e}")))?.len();
+    if bytes > MAX_SECTION_FILE_BYTES {
+        return Err(fail(format!(
+            "the file has {bytes} bytes, over the limit of {MAX_SECTION_FILE_BYTES}"
+        )));
+    }
+    let mut decoder = png::Decoder::new(std::io::BufReader::new(file));
+    let info =
+        decoder.read_header_info().map_err(|e| fail(format!("not a readable PNG image: {e}")))?;
+    let (w, h) = (info.width as usize, info.height as usize);
+    if w.max(h) > MAX_SECTION_PIXELS || w.min(h) < 2 {
+        return Err(fail(format!(
+            "the image is {w}x{h} pixels; a section image is 2 to {MAX_SECTION_PIXELS} on a side"
+        )));
+    }
+    decoder.set_transformations(png::Transformations::EXPAND | png::Transformations::STRIP_16);
+    let mut reader =
+        decoder.read_info().map_err(|e| fail(format!("not a readable PNG image: {e}")))?;
+    let size = reader
+        .output_buffer_size()
+        .ok_or_else(|| fail("the image is too large to decode".to_string()))?;
+    let mut buf = vec![0; size];
+    let frame =
+        reader.next_frame(&mut buf).map_err(|e| fail(format!("cannot decode the image: {e}")))?;
+    let channels = frame.color_type.samples();
+    let (fw, fh) = (frame.width as usize, frame.height as usize);
+    // A pixel is inside when it is at least half light (and at least half opaque).
+    let mut inside = Vec::with_capacity(fw * fh);
+    for r in 0..fh {
+        let row = &buf[r * frame.line_size..][..fw * channels];
+        for px in row.chunks_exact(channels) {
+            let (light, alpha) = match px {
+                [g] => (f64::from(*g), 255.0),
+                [g, a] => (f64::from(*g), f64::from(*a)),
+                [r, g, b] => (
+                    0.2126 * f64::from(*r) + 0.7152 * f64::from(*g) + 0.0722 * f64::from(*b),
+                    255.0,
+                ),
+                [r, g, b, a, ..] => (
+                    0.2126 * f64::from(*r) + 0.7152 * f64::from(*g) + 0.0722 * f64::from(*b),
+                    f64::from(*a),
+                ),
+                [] => (0.0, 0.0),
+            };
+            inside.push(light >= 127.5 && alpha >= 127.5);
+        }
+    }
+    SectionImage::from_mask(fw, fh, &inside).map_err(|e| fail(e.to_string()))
+}
+
+/// The sweeps of a skeleton section; section images are read relative to `base` (the
+/// current folder when `None`).
+pub(crate) fn build(
+    specs: &[SweepSpec],
+    at: At,
+    base: Option<&Path>,
+) -> Result<Vec<Sweep>, SceneError> {
     let mut out = Vec::with_capacity(specs.len());
     for sp in specs {
         let pat = sp.points.span().start;
@@ -71,20 +161,59 @@ pub(crate) fn build(specs: &[SweepSpec], at: At) -> Result<Vec<Sweep>, SceneErro
             ));
         }
         let control = [0, 1, 2, 3].map(|i| DVec3::from_array(pts[i]));
-        let ellipse = match &sp.section {
-            None => false,
-            Some(s) => match s.get_ref().as_str() {
-                "circle" => false,
-                "ellipse" => true,
+        let kind = match (&sp.section, &sp.section_image) {
+            (None, None) => Kind::Circle,
+            (None, Some(_)) => Kind::Image,
+            (Some(s), _) => match s.get_ref().as_str() {
+                "circle" => Kind::Circle,
+                "ellipse" => Kind::Ellipse,
+                "image" => Kind::Image,
                 other => {
                     return Err(at(
                         s.span().start,
-                        format!("unknown section '{other}'; expected circle or ellipse"),
+                        format!("unknown section '{other}'; expected circle, ellipse or image"),
                     ));
                 }
             },
         };
+        match (kind, &sp.section_image, &sp.section) {
+            (Kind::Image, None, Some(s)) => {
+                return Err(at(
+                    s.span().start,
+                    "section = \"image\" needs section_image = \"FILE.png\"".into(),
+                ));
+            }
+            (Kind::Circle | Kind::Ellipse, Some(i), _) => {
+                return Err(at(
+                    i.span().start,
+                    "section_image is for section = \"image\" (or no section key)".into(),
+                ));
+            }
+            _ => {}
+        }
+        let image_radii = match (kind, &sp.radius, &sp.radii) {
+            (Kind::Image, Some(_), Some(r)) => {
+                return Err(at(r.span().start, "give radius or radii, not both".into()));
+            }
+            (Kind::Image, Some(r), None) => Some(
+                per_point(r.get_ref().as_slice(), at, r.span().start, "radius")?.map(|r| [r, r]),
+            ),
+            (Kind::Image, None, Some(r)) => {
+                Some(per_point(r.get_ref().as_slice(), at, r.span().start, "radii")?)
+            }
+            (Kind::Image, None, None) => {
+                return Err(at(
+                    pat,
+                    "an image section needs radius (or radii = [[a, b], ...]): the image's \
+                     half-width and half-height"
+                        .into(),
+                ));
+            }
+            _ => None,
+        };
+        let ellipse = kind == Kind::Ellipse;
         let radii: [[f64; 2]; 4] = match (ellipse, &sp.radius, &sp.radii) {
+            _ if kind == Kind::Image => image_radii.unwrap_or([[1.0; 2]; 4]),
             (false, Some(r), None) => {
                 per_point(r.get_ref().as_slice(), at, r.span().start, "radius")?.map(|r| [r, r])
             }
@@ -125,6 +254,11 @@ pub(crate) fn build(specs: &[SweepSpec], at: At) -> Result<Vec<Sweep>, SceneErro
             ..SweepSettings::default()
         };
         let strength = sp.strength.as_ref().map_or(1.0, |w| *w.get_ref());
+        // Read only once everything written in the table is known good.
+        let image = match &sp.section_image {
+            Some(i) => Some(Arc::new(load_section(i.get_ref(), base, at, i.span().start)?)),
+            None => None,
+        };
         let sweep = Sweep::new(control, radii, strength, settings).map_err(|e| {
             let offset = match (&e, &sp.strength, &sp.radius, &sp.radii) {
                 (skelform_skeleton::SkeletonError::BadStrength(_), Some(w), _, _) => w.span().start,
@@ -142,7 +276,10 @@ pub(crate) fn build(specs: &[SweepSpec], at: At) -> Result<Vec<Sweep>, SceneErro
                 "normal is along the curve's start tangent; it must point across the curve".into(),
             ));
         }
-        out.push(sweep);
+        out.push(match image {
+            Some(im) => sweep.with_image(im),
+            None => sweep,
+        });
     }
     Ok(out)
 }
@@ -176,7 +313,7 @@ mod tests {
         let (l, _, m) =
             error(&format!("[[skeleton.sweep]]\n{pts}section = \"square\"\nradius = [0.1]\n"));
         assert_eq!(l, 7, "{m}");
-        assert!(m.contains("circle or ellipse"), "{m}");
+        assert!(m.contains("circle, ellipse or image"), "{m}");
         let (l, _, m) =
             error(&format!("[[skeleton.sweep]]\n{pts}section = \"ellipse\"\nradius = [0.1]\n"));
         assert_eq!(l, 8, "{m}");
@@ -213,6 +350,148 @@ mod tests {
         assert!(s.field.eval(DVec3::new(0.1, 0.0, 0.0)).abs() < 1e-9);
         assert!(s.field.eval(DVec3::new(0.0, -0.1, 0.0)).abs() < 1e-9, "the cap");
         assert!(!s.continuation.seeds.is_empty());
+    }
+
+    /// A grayscale PNG of `w × h` pixels at a fresh path in the temporary folder.
+    fn png_file(name: &str, w: u32, h: u32, value: impl Fn(u32, u32) -> u8) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("skelform-sweep-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join(name);
+        let file = std::io::BufWriter::new(std::fs::File::create(&path).unwrap());
+        let mut e = png::Encoder::new(file, w, h);
+        e.set_color(png::ColorType::Grayscale);
+        e.set_depth(png::BitDepth::Eight);
+        let mut wr = e.write_header().unwrap();
+        let data: Vec<u8> =
+            (0..h).flat_map(|r| (0..w).map(move |c| (c, r))).map(|(c, r)| value(c, r)).collect();
+        wr.write_image_data(&data).unwrap();
+        wr.finish().unwrap();
+        path
+    }
+
+    #[test]
+    fn bad_section_images_are_refused_with_their_position() {
+        let pts = "points = [[0, 0, 0], [0, 1, 0], [1, 1, 0], [1, 0, 0]]\n";
+        let (l, c, m) = error(&format!(
+            "[[skeleton.sweep]]\n{pts}section_image = \"no-such-file.png\"\nradius = 0.1\n"
+        ));
+        assert_eq!((l, c), (7, 17), "{m}");
+        assert!(m.contains("no-such-file.png") && m.contains("cannot open"), "{m}");
+        // Over the size limit: refused from the header, before decoding.
+        let big = png_file("big.png", 2000, 4, |_, _| 255);
+        let (l, _, m) = error(&format!(
+            "[[skeleton.sweep]]\n{pts}section_image = {:?}\nradius = 0.1\n",
+            big.display().to_string()
+        ));
+        assert_eq!(l, 7, "{m}");
+        assert!(m.contains("2000x4 pixels") && m.contains("2 to 1024"), "{m}");
+        // No pixel inside.
+        let dark = png_file("dark.png", 8, 8, |_, _| 20);
+        let (l, _, m) = error(&format!(
+            "[[skeleton.sweep]]\n{pts}section_image = {:?}\nradius = 0.1\n",
+            dark.display().to_string()
+        ));
+        assert_eq!(l, 7, "{m}");
+        assert!(m.contains("no pixel inside"), "{m}");
+        // Not a PNG.
+        let text = big.with_file_name("text.png");
+        std::fs::write(&text, "not an image").unwrap();
+        let (_, _, m) = error(&format!(
+            "[[skeleton.sweep]]\n{pts}section_image = {:?}\nradius = 0.1\n",
+            text.display().to_string()
+        ));
+        assert!(m.contains("not a readable PNG"), "{m}");
+        // The keys that go with an image section.
+        let (l, _, m) =
+            error(&format!("[[skeleton.sweep]]\n{pts}section = \"image\"\nradius = 0.1\n"));
+        assert_eq!(l, 7, "{m}");
+        assert!(m.contains("needs section_image"), "{m}");
+        let (l, _, m) = error(&format!(
+            "[[skeleton.sweep]]\n{pts}section = \"ellipse\"\nsection_image = \"x.png\"\nradii = [[0.1, 0.2]]\n"
+        ));
+        assert_eq!(l, 8, "{m}");
+        assert!(m.contains("section_image is for section = \"image\""), "{m}");
+        let (l, _, m) = error(&format!("[[skeleton.sweep]]\n{pts}section_image = \"x.png\"\n"));
+        assert_eq!(l, 6, "{m}");
+        assert!(m.contains("needs radius"), "{m}");
+        let _ = std::fs::remove_dir_all(big.parent().unwrap());
+    }
+
+    /// The star example's mesh has the image's shape: vertices in the middle of the sweep,
+    /// in the section's normalised coordinates, lie where the mask changes from inside to
+    /// outside (inside and outside pixels both within a cell and a pixel), and reach the
+    /// star's tips and notches.
+    #[test]
+    fn an_image_section_meshes_to_the_image_shape() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../examples/skeleton/star-sweep.toml");
+        let scene = Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+        let lattice = LatticeOptions {
+            domain: scene.domain,
+            resolution: scene.resolution,
+            ..Default::default()
+        };
+        let (mesh, _) =
+            polygonize(&*scene.field, &Options { lattice, ..Default::default() }).unwrap();
+        let r = check(&mesh);
+        assert_eq!(r.components.len(), 1);
+        let c = &r.components[0];
+        assert!(c.closed && c.orientable && c.inconsistent_edges == 0 && c.euler == 2);
+        let cell = (scene.domain.max - scene.domain.min).max_element() / 127.0;
+        let sweep = &scene.sweeps.as_ref().unwrap().sweeps()[0];
+        let image = sweep.image().unwrap();
+        let (w, h) = image.size();
+        assert_eq!((w, h), (64, 64));
+        // The mask, read back independently of the distance table.
+        let mask = |x: f64, y: f64| -> Option<bool> {
+            let c = ((x + 1.0) * 0.5 * w as f64).floor();
+            let r = ((1.0 - y) * 0.5 * h as f64).floor();
+            (c >= 0.0 && r >= 0.0 && (c as usize) < w && (r as usize) < h)
+                .then(|| image.inside(c as usize, r as usize))
+        };
+        let (mut n, mut reach) = (0, (f64::INFINITY, 0.0_f64));
+        for p in &mesh.positions {
+            let p = DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+            let l = sweep.locate(p);
+            if !(0.35..=0.65).contains(&l.t) || l.s != 0.0 {
+                continue;
+            }
+            let (x, y) = (l.x / l.radii[0], l.y / l.radii[1]);
+            // A cell in normalised units, and a pixel (2 / 64).
+            let tol = cell / l.radii[0] + 2.0 / w as f64;
+            let (mut inside, mut outside) = (false, false);
+            for k in 0..32 {
+                let a = k as f64 * std::f64::consts::TAU / 32.0;
+                for f in [0.0, 0.5, 1.0] {
+                    match mask(x + f * tol * a.cos(), y + f * tol * a.sin()) {
+                        Some(true) => inside = true,
+                        _ => outside = true,
+                    }
+                }
+            }
+            assert!(inside && outside, "{p}: ({x:.3}, {y:.3}) is not on the star's boundary");
+            let rad = (x * x + y * y).sqrt();
+            reach = (reach.0.min(rad), reach.1.max(rad));
+            n += 1;
+        }
+        assert!(n > 300, "{n} vertices checked");
+        // The star's tips and notches: the farthest inside pixel centre and the nearest
+        // outside one.
+        let (mut tip, mut notch) = (0.0_f64, f64::INFINITY);
+        for r in 0..h {
+            for c in 0..w {
+                let x = -1.0 + (c as f64 + 0.5) * 2.0 / w as f64;
+                let y = 1.0 - (r as f64 + 0.5) * 2.0 / h as f64;
+                let rad = (x * x + y * y).sqrt();
+                if image.inside(c, r) {
+                    tip = tip.max(rad);
+                } else {
+                    notch = notch.min(rad);
+                }
+            }
+        }
+        assert!(tip > 0.85 && notch < 0.6, "{tip} {notch}");
+        assert!((reach.1 - tip).abs() < 0.05 && (reach.0 - notch).abs() < 0.05, "{reach:?}");
     }
 
     /// The example horn meshes as one closed, genus-0 piece, and its vertices away from the

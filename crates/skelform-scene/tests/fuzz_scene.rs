@@ -65,7 +65,14 @@ fn examples() -> &'static [(String, String)] {
 
 /// The checks every verdict of `Scene::parse` must pass.
 fn verdict(text: &str) -> Result<Option<Scene>, String> {
-    match Scene::parse(text, ORIGIN) {
+    verdict_in(text, None)
+}
+
+/// [`verdict`] with relative paths in the text (a sweep's `section_image`) taken from `base`.
+fn verdict_in(text: &str, base: Option<&Path>) -> Result<Option<Scene>, String> {
+    let options =
+        skelform_scene::LoadOptions { base: base.map(Path::to_path_buf), ..Default::default() };
+    match Scene::parse_with(text, ORIGIN, &options) {
         Ok(scene) => {
             exercise(&scene)?;
             Ok(Some(scene))
@@ -125,8 +132,13 @@ fn exercise(scene: &Scene) -> Result<(), String> {
 
 #[test]
 fn every_example_parses() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples");
     for (name, text) in examples() {
-        if let Err(e) = verdict(text).and_then(|s| s.ok_or_else(|| "refused".to_string())) {
+        // Relative paths from the example's own folder, as a load takes them.
+        let base = root.join(name).parent().map(Path::to_path_buf);
+        if let Err(e) =
+            verdict_in(text, base.as_deref()).and_then(|s| s.ok_or_else(|| "refused".to_string()))
+        {
             // The error itself, for a refused example.
             let why = Scene::parse(text, name).err().map_or(e, |e| e.to_string());
             panic!("examples/{name}: {why}");

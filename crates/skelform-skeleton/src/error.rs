@@ -22,6 +22,33 @@ pub enum SkeletonError {
     #[error("limb {0} does not exist (a child's parent must be added before it)")]
     /// A ramiform child names a parent limb that is not (yet) there.
     UnknownLimb(usize),
+    #[error("a ramiform may have at most {max} limbs (got {0})", max = crate::ramiform::MAX_LIMBS)]
+    /// A ramiform with more than [`MAX_LIMBS`](crate::ramiform::MAX_LIMBS) limbs; refused
+    /// when the limb over the limit is added, before any radius is matched.
+    TooManyLimbs(usize),
+    #[error("limb {limb} would be {depth} limbs deep, over the limit of {max} (a root is depth 1)", max = crate::ramiform::MAX_DEPTH)]
+    /// A ramiform child deeper than [`MAX_DEPTH`](crate::ramiform::MAX_DEPTH) limbs below
+    /// its root: evaluation recurses once per level.
+    TooDeep {
+        /// The index the limb would have had.
+        limb: usize,
+        /// Its depth (a root is 1).
+        depth: usize,
+    },
+    #[error(
+        "matching the ramiform's radii would take {work} limb searches (the searches along directions at each parent times the limbs below it, summed), over the limit of {max}: use fewer directions or a smaller tree",
+        max = crate::ramiform::MAX_JOINT_WORK
+    )]
+    /// Radius matching whose cost ([`Ramiform::joint_work`](crate::Ramiform::joint_work)) is
+    /// over
+    /// [`MAX_JOINT_WORK`](crate::ramiform::MAX_JOINT_WORK); refused before any is matched.
+    JointWorkTooLarge {
+        /// The cost as defined above.
+        work: u64,
+    },
+    #[error("{0}")]
+    /// A sweep's section image that cannot be used (its size, or no pixel inside).
+    BadSectionImage(String),
     #[error("limb {0} has no children, so it needs a radius")]
     /// A ramiform leaf without a radius: only limbs with children take theirs from them.
     LeafNeedsRadius(usize),

@@ -33,12 +33,39 @@
 //! distance in radii, which keeps values and gradients well scaled everywhere (the density
 //! itself grows without bound at the skeleton). The maximum leaves a crease where the
 //! parent's round cap meets the children, as in the dissertation's fig. 5.59.
+//!
+//! **Limits.** A tree has at most [`MAX_LIMBS`] limbs, none more than [`MAX_DEPTH`] deep (a
+//! root is depth 1), and matching the radii may take at most [`MAX_JOINT_WORK`] limb
+//! searches ([`Ramiform::joint_work`]): every evaluation
+//! visits every limb, recursing once per level, and each parent's radius search evaluates its
+//! whole subtree along every direction, so without them a chain 30,000 limbs deep ran for
+//! minutes (and could overflow the stack). [`Ramiform::add_root`] and [`Ramiform::add_child`]
+//! refuse a limb over the first two; [`RamiformField::new`] checks the third before it matches
+//! any radius.
 
 use glam::DVec3;
 use skelform_field::{Aabb, Field};
 
 use crate::SkeletonError;
 use crate::geometry::Segment;
+
+/// The most limbs a [`Ramiform`] may have.
+pub const MAX_LIMBS: usize = 1024;
+
+/// The deepest a limb may hang below its root (a root is depth 1): the field's evaluation
+/// recurses once per level.
+pub const MAX_DEPTH: usize = 64;
+
+/// The most radius-matching work [`RamiformField::new`] may take
+/// ([`Ramiform::joint_work`]: searches along a direction times the limbs below each parent,
+/// summed over the parents; a search is about 90 evaluations of a limb, 2 to 4 µs measured,
+/// so the limit is a few seconds of one core: a 64-deep chain at the default 72 directions
+/// is 270,000, a binary tree of 1023 limbs 1.6 million).
+pub const MAX_JOINT_WORK: u64 = 2_000_000;
+
+/// Searches along a direction that refining one local maximum of a parent's radius takes
+/// (golden-section search).
+pub const GOLDEN_STEPS: u64 = 62;
 
 /// One limb of a [`Ramiform`] as given.
 #[derive(Clone, Debug, PartialEq)]
@@ -55,6 +82,8 @@ pub struct Limb {
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Ramiform {
     limbs: Vec<Limb>,
+    /// Each limb's depth, a root being 1.
+    depths: Vec<usize>,
 }
 
 /// How a [`RamiformField`] matches radii at joints.
@@ -91,7 +120,9 @@ impl Ramiform {
         radius: Option<f64>,
     ) -> Result<usize, SkeletonError> {
         check_radius(radius)?;
+        self.check_count()?;
         self.limbs.push(Limb { segment: Segment::new(a, b)?, parent: None, radius });
+        self.depths.push(1);
         Ok(self.limbs.len() - 1)
     }
 
@@ -103,9 +134,52 @@ impl Ramiform {
         radius: Option<f64>,
     ) -> Result<usize, SkeletonError> {
         check_radius(radius)?;
+        self.check_count()?;
         let a = self.limbs.get(parent).ok_or(SkeletonError::UnknownLimb(parent))?.segment.b();
+        let depth = self.depths[parent] + 1;
+        if depth > MAX_DEPTH {
+            return Err(SkeletonError::TooDeep { limb: self.limbs.len(), depth });
+        }
         self.limbs.push(Limb { segment: Segment::new(a, b)?, parent: Some(parent), radius });
+        self.depths.push(depth);
         Ok(self.limbs.len() - 1)
+    }
+
+    /// The depth of limb `i` (a root is 1), or `None` when there is no such limb.
+    pub fn depth(&self, i: usize) -> Option<usize> {
+        self.depths.get(i).copied()
+    }
+
+    fn check_count(&self) -> Result<(), SkeletonError> {
+        if self.limbs.len() >= MAX_LIMBS {
+            return Err(SkeletonError::TooManyLimbs(self.limbs.len() + 1));
+        }
+        Ok(())
+    }
+
+    /// The radius-matching work of [`MAX_JOINT_WORK`] with `directions` directions: for
+    /// each parent, the limbs below it times the searches along a direction it may take
+    /// (every direction, and [`GOLDEN_STEPS`] more for each local maximum refined, at most
+    /// one per child and one per two directions).
+    pub fn joint_work(&self, directions: usize) -> u64 {
+        let n = self.limbs.len();
+        let (mut below, mut children) = (vec![0u64; n], vec![0u64; n]);
+        // Children come after their parents: the reverse order sums subtrees bottom up.
+        for i in (0..n).rev() {
+            if let Some(p) = self.limbs[i].parent {
+                below[p] += below[i] + 1;
+                children[p] += 1;
+            }
+        }
+        let d = directions as u64;
+        (0..n)
+            .filter(|&i| children[i] > 0)
+            .map(|i| {
+                let searches =
+                    d.saturating_add(GOLDEN_STEPS.saturating_mul(children[i].min(d / 2)));
+                below[i].saturating_mul(searches)
+            })
+            .fold(0, u64::saturating_add)
     }
 }
 
@@ -143,6 +217,10 @@ impl RamiformField {
                 value: options.directions as f64,
                 expected: "at least 8",
             });
+        }
+        let work = r.joint_work(options.directions);
+        if work > MAX_JOINT_WORK {
+            return Err(SkeletonError::JointWorkTooLarge { work });
         }
         let n = r.limbs.len();
         let mut children = vec![Vec::new(); n];
@@ -234,14 +312,19 @@ impl RamiformField {
         for k in 0..directions {
             let (prev, next) =
                 (samples[(k + directions - 1) % directions], samples[(k + 1) % directions]);
-            if samples[k] < prev || samples[k] < next {
+            // Not a maximum, or a plateau (a child straight ahead gives the same distance all
+            // round, up to rounding): nothing to refine.
+            if samples[k] < prev
+                || samples[k] < next
+                || samples[k] - prev.min(next) <= 1e-9 * samples[k]
+            {
                 continue;
             }
             let (mut a, mut b) = (step * (k as f64 - 1.0), step * (k as f64 + 1.0));
             let mut c = b - inv_phi * (b - a);
             let mut d = a + inv_phi * (b - a);
             let (mut fc, mut fd) = (reach(c), reach(d));
-            for _ in 0..60 {
+            for _ in 0..GOLDEN_STEPS - 2 {
                 if fc > fd {
                     b = d;
                     d = c;
@@ -314,5 +397,52 @@ impl Field for RamiformField {
 
     fn bounds(&self) -> Option<Aabb> {
         Some(self.bounds)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A chain of `n` limbs up z, the last a leaf.
+    fn chain(n: usize) -> Result<Ramiform, SkeletonError> {
+        let mut r = Ramiform::new();
+        let mut last =
+            r.add_root(DVec3::ZERO, DVec3::new(0.0, 0.0, 0.1), (n == 1).then_some(0.02))?;
+        for i in 1..n {
+            let b = DVec3::new(0.01 * (i % 2) as f64, 0.0, 0.1 * (i + 1) as f64);
+            last = r.add_child(last, b, (i + 1 == n).then_some(0.02))?;
+        }
+        Ok(r)
+    }
+
+    #[test]
+    fn depth_count_and_work_are_limited() {
+        let r = chain(MAX_DEPTH).unwrap();
+        assert_eq!(r.depth(MAX_DEPTH - 1), Some(MAX_DEPTH));
+        // Each parent has one child: 72 directions and one refinement, times the limbs below.
+        let below = (MAX_DEPTH * (MAX_DEPTH - 1) / 2) as u64;
+        assert_eq!(r.joint_work(72), below * (72 + GOLDEN_STEPS));
+        let f = RamiformField::new(&r, &RamiformOptions::default()).unwrap();
+        assert!(f.eval(DVec3::new(0.0, 0.0, 3.0)) < 0.0);
+        assert!(matches!(
+            chain(MAX_DEPTH + 1),
+            Err(SkeletonError::TooDeep { limb, depth }) if limb == MAX_DEPTH && depth == MAX_DEPTH + 1
+        ));
+        let mut wide = Ramiform::new();
+        let root = wide.add_root(DVec3::ZERO, DVec3::Z, None).unwrap();
+        for i in 1..MAX_LIMBS {
+            let a = i as f64 * 0.01;
+            wide.add_child(root, DVec3::new(a.cos(), a.sin(), 1.5), Some(0.01)).unwrap();
+        }
+        assert_eq!(
+            wide.add_child(root, DVec3::new(0.0, 1.0, 1.0), Some(0.01)),
+            Err(SkeletonError::TooManyLimbs(MAX_LIMBS + 1))
+        );
+        let heavy = RamiformOptions { directions: 100_000 };
+        assert!(matches!(
+            RamiformField::new(&r, &heavy),
+            Err(SkeletonError::JointWorkTooLarge { work }) if work > MAX_JOINT_WORK
+        ));
     }
 }

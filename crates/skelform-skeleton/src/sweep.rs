@@ -25,6 +25,16 @@
 //! is the nearest sampled frame turned by the smallest rotation onto the tangent at `t`
 //! (the dissertation's step, fig. 5.7), so the section does not twist, whatever the curve.
 //!
+//! **Image sections** (§5.3–5.4, where the dissertation's cross-sections are arbitrary
+//! planar curves): a [`SectionImage`] replaces the ellipse by a shape given as a grayscale
+//! mask over the square `[−1, 1]²` of the section plane, scaled by the semi-axes (`a` along
+//! the normal, across the image's columns, `b` along the binormal, up its rows). Its
+//! section term is `1 + d`, with `d` the signed distance to the mask's boundary in those
+//! normalised units (negative inside), from an exact Euclidean distance transform of the
+//! mask interpolated bilinearly between pixel centres (beyond the square, the distance to
+//! it is added): 1 on the boundary, less inside, growing like the distance outside, as the
+//! ellipse's `ρ` does. The boundary is known to half a pixel.
+//!
 //! Texture coordinates (§5.7): `u` is the arc-length fraction at the nearest curve point,
 //! `v` the angle around the section from the normal toward the binormal, as a fraction of a
 //! turn, both in `[0, 1]` ([`Sweep::uv`]).
@@ -63,6 +73,197 @@ impl Default for SweepSettings {
     }
 }
 
+/// The largest side, in pixels, of a [`SectionImage`]: the image method's own limit
+/// ([`crate::image::MAX_IMAGE_RESOLUTION`]).
+pub const MAX_SECTION_PIXELS: usize = crate::image::MAX_IMAGE_RESOLUTION;
+
+/// A cross-section given by a mask image (see the module documentation): a signed distance
+/// table over the square `[−1, 1]²`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SectionImage {
+    width: usize,
+    height: usize,
+    /// Signed distance (negative inside) at each pixel centre, rows from the top, in the
+    /// normalised units of the square.
+    distance: Vec<f64>,
+    /// The mask as given.
+    mask: Vec<bool>,
+}
+
+impl SectionImage {
+    /// A section from a `width × height` mask, rows from the top: `inside[r * width + c]`
+    /// says whether pixel `(c, r)` is inside. Errors: a side under 2 or over
+    /// [`MAX_SECTION_PIXELS`], a mask of another length, or no pixel inside.
+    pub fn from_mask(
+        width: usize,
+        height: usize,
+        inside: &[bool],
+    ) -> Result<SectionImage, SkeletonError> {
+        let bad = |reason: String| SkeletonError::BadSectionImage(reason);
+        for side in [width, height] {
+            if !(2..=MAX_SECTION_PIXELS).contains(&side) {
+                return Err(bad(format!(
+                    "a section image is 2 to {MAX_SECTION_PIXELS} pixels on a side (got                      {width}x{height})"
+                )));
+            }
+        }
+        if inside.len() != width * height {
+            return Err(bad(format!("{} mask values for {width}x{height} pixels", inside.len())));
+        }
+        if !inside.iter().any(|&b| b) {
+            return Err(bad(
+                "the section image has no pixel inside (none lighter than half)".into()
+            ));
+        }
+        // Pixel size in normalised units: the square's side, 2, over the pixels across.
+        let (px, py) = (2.0 / width as f64, 2.0 / height as f64);
+        let to_in = edt(width, height, px, py, |i| inside[i]);
+        let to_out = edt(width, height, px, py, |i| !inside[i]);
+        // Between centres the boundary lies half a pixel from each: the distance to the
+        // nearest centre of the other kind, less half the pixel (the smaller side).
+        let half = 0.5 * px.min(py);
+        let distance: Vec<f64> = (0..width * height)
+            .map(|i| if inside[i] { -(to_out[i] - half) } else { to_in[i] - half })
+            .collect();
+        // One pass of the [1 2 1]/4 filter each way takes the edge off the mask's pixel
+        // steps (it moves the boundary by less than half a pixel).
+        let distance = smooth(width, height, &distance);
+        Ok(SectionImage { width, height, distance, mask: inside.to_vec() })
+    }
+
+    /// Width and height in pixels.
+    pub fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+
+    /// The signed distance (negative inside) from the section's boundary at `(x, y)` in the
+    /// square's units (`x` right across the columns, `y` up the rows).
+    pub fn distance(&self, x: f64, y: f64) -> f64 {
+        let (cx, cy) = (x.clamp(-1.0, 1.0), y.clamp(-1.0, 1.0));
+        let beyond = ((x - cx).powi(2) + (y - cy).powi(2)).sqrt();
+        // Pixel-centre coordinates: column c's centre is at x = −1 + (c + ½)·2/width.
+        let fx = ((cx + 1.0) * 0.5 * self.width as f64 - 0.5).clamp(0.0, (self.width - 1) as f64);
+        let fy = ((1.0 - cy) * 0.5 * self.height as f64 - 0.5).clamp(0.0, (self.height - 1) as f64);
+        let (c0, r0) =
+            ((fx.floor() as usize).min(self.width - 2), (fy.floor() as usize).min(self.height - 2));
+        let (tx, ty) = (fx - c0 as f64, fy - r0 as f64);
+        // Catmull-Rom in both directions (C¹, so normals by differences are smooth),
+        // neighbours beyond the border clamped to it.
+        let at = |c: isize, r: isize| {
+            let c = c.clamp(0, self.width as isize - 1) as usize;
+            let r = r.clamp(0, self.height as isize - 1) as usize;
+            self.distance[r * self.width + c]
+        };
+        let (wx, wy) = (catmull_rom(tx), catmull_rom(ty));
+        let mut sum = 0.0;
+        for (j, wyj) in wy.iter().enumerate() {
+            let r = r0 as isize - 1 + j as isize;
+            let row: f64 =
+                wx.iter().enumerate().map(|(i, w)| w * at(c0 as isize - 1 + i as isize, r)).sum();
+            sum += wyj * row;
+        }
+        sum + beyond
+    }
+
+    /// Whether pixel `(c, r)` (rows from the top) is inside the mask as given.
+    pub fn inside(&self, c: usize, r: usize) -> bool {
+        self.mask[r * self.width + c]
+    }
+}
+
+/// The weights of the four Catmull-Rom nodes around a point a fraction `t` past the second.
+fn catmull_rom(t: f64) -> [f64; 4] {
+    let (t2, t3) = (t * t, t * t * t);
+    [
+        0.5 * (-t3 + 2.0 * t2 - t),
+        0.5 * (3.0 * t3 - 5.0 * t2 + 2.0),
+        0.5 * (-3.0 * t3 + 4.0 * t2 + t),
+        0.5 * (t3 - t2),
+    ]
+}
+
+/// One pass of the `[1 2 1] / 4` filter along rows and columns, borders clamped.
+fn smooth(width: usize, height: usize, d: &[f64]) -> Vec<f64> {
+    let mut rows = vec![0.0; d.len()];
+    for r in 0..height {
+        for c in 0..width {
+            let at = |c: usize| d[r * width + c];
+            rows[r * width + c] =
+                0.25 * at(c.saturating_sub(1)) + 0.5 * at(c) + 0.25 * at((c + 1).min(width - 1));
+        }
+    }
+    let mut out = vec![0.0; d.len()];
+    for r in 0..height {
+        for c in 0..width {
+            let at = |r: usize| rows[r * width + c];
+            out[r * width + c] =
+                0.25 * at(r.saturating_sub(1)) + 0.5 * at(r) + 0.25 * at((r + 1).min(height - 1));
+        }
+    }
+    out
+}
+
+/// Euclidean distance from each pixel centre to the nearest centre where `target` holds,
+/// pixels `px × py` (Felzenszwalb and Huttenlocher's two passes of lower parabolas).
+fn edt(width: usize, height: usize, px: f64, py: f64, target: impl Fn(usize) -> bool) -> Vec<f64> {
+    const FAR: f64 = 1e20;
+    let mut d2: Vec<f64> = (0..width * height).map(|i| if target(i) { 0.0 } else { FAR }).collect();
+    let mut line = Vec::new();
+    let mut out = Vec::new();
+    // Columns (along y), then rows (along x).
+    for c in 0..width {
+        line.clear();
+        line.extend((0..height).map(|r| d2[r * width + c]));
+        lower_envelope(&line, py, &mut out);
+        for r in 0..height {
+            d2[r * width + c] = out[r];
+        }
+    }
+    for r in 0..height {
+        line.clear();
+        line.extend_from_slice(&d2[r * width..(r + 1) * width]);
+        lower_envelope(&line, px, &mut out);
+        d2[r * width..(r + 1) * width].copy_from_slice(&out);
+    }
+    d2.into_iter().map(f64::sqrt).collect()
+}
+
+/// `out[q] = min_p (f[p] + ((q − p)·step)²)`: the 1-D squared distance transform.
+fn lower_envelope(f: &[f64], step: f64, out: &mut Vec<f64>) {
+    let n = f.len();
+    out.clear();
+    out.resize(n, 0.0);
+    let s2 = step * step;
+    let mut v = vec![0usize; n];
+    let mut z = vec![0.0f64; n + 1];
+    let mut k = 0;
+    z[0] = f64::NEG_INFINITY;
+    z[1] = f64::INFINITY;
+    let cross = |q: usize, p: usize| -> f64 {
+        let (q, p) = (q as f64, p as f64);
+        ((f[q as usize] / s2 + q * q) - (f[p as usize] / s2 + p * p)) / (2.0 * (q - p))
+    };
+    for q in 1..n {
+        let mut s = cross(q, v[k]);
+        while s <= z[k] {
+            k -= 1;
+            s = cross(q, v[k]);
+        }
+        k += 1;
+        v[k] = q;
+        z[k] = s;
+        z[k + 1] = f64::INFINITY;
+    }
+    k = 0;
+    for (q, o) in out.iter_mut().enumerate() {
+        while z[k + 1] < q as f64 {
+            k += 1;
+        }
+        let d = (q as f64 - v[k] as f64) * step;
+        *o = d * d + f[v[k]];
+    }
+}
+
 /// A cross-section swept along a cubic Bézier curve (see the module documentation).
 #[derive(Clone, Debug)]
 pub struct Sweep {
@@ -79,6 +280,8 @@ pub struct Sweep {
     lo: DVec3,
     hi: DVec3,
     max_radius: f64,
+    /// The section's shape when it is an image; an ellipse otherwise.
+    image: Option<std::sync::Arc<SectionImage>>,
 }
 
 /// Where a point lies relative to a sweep.
@@ -159,7 +362,31 @@ impl Sweep {
         // within their range.
         let lo = control.iter().fold(control[0], |m, c| m.min(*c));
         let hi = control.iter().fold(control[0], |m, c| m.max(*c));
-        Ok(Sweep { curve, radii, strength, settings, ts, frames, arc, lo, hi, max_radius })
+        Ok(Sweep {
+            curve,
+            radii,
+            strength,
+            settings,
+            ts,
+            frames,
+            arc,
+            lo,
+            hi,
+            max_radius,
+            image: None,
+        })
+    }
+
+    /// The same sweep with the section `image` in place of the ellipse, scaled by the
+    /// semi-axes (see the module documentation).
+    pub fn with_image(mut self, image: std::sync::Arc<SectionImage>) -> Sweep {
+        self.image = Some(image);
+        self
+    }
+
+    /// The section image, when the section is one.
+    pub fn image(&self) -> Option<&SectionImage> {
+        self.image.as_deref()
     }
 
     /// A circular section of radius `radii[i]` at control point `i`.
@@ -194,6 +421,10 @@ impl Sweep {
 
     /// The box of the curve widened by `reach` radii: outside it `ρ > reach`.
     pub fn bounds(&self, reach: f64) -> (DVec3, DVec3) {
+        // An image's shape reaches the square's corners, √2 radii out, where the ellipse
+        // reaches 1: `ρ = 1 + d` exceeds `reach` only beyond `reach + √2 − 1` radii.
+        let reach =
+            if self.image.is_some() { reach + std::f64::consts::SQRT_2 - 1.0 } else { reach };
         let w = DVec3::splat(reach * self.max_radius);
         (self.lo - w, self.hi + w)
     }
@@ -210,20 +441,35 @@ impl Sweep {
         r
     }
 
-    /// The rotation-minimising frame at `t`: the nearest sampled frame turned onto the
-    /// tangent at `t`.
+    /// The rotation-minimising frame at `t`: the sampled frames on either side turned onto
+    /// the tangent at `t` by the smallest rotation, their normals then blended by angle
+    /// about the tangent, so that the frame turns continuously with `t` (taking the nearer
+    /// sample alone would twist the section by a step half-way between samples, which an
+    /// image section's sharp corners show as slivers).
     pub fn frame_at(&self, t: f64) -> Frame {
         let t = t.clamp(0.0, 1.0);
-        let i = ((t * (self.ts.len() - 1) as f64).round() as usize).min(self.ts.len() - 1);
-        let f = self.frames[i];
+        let x = t * (self.ts.len() - 1) as f64;
+        let i = (x.floor() as usize).min(self.ts.len() - 2);
+        let w = (x - i as f64).clamp(0.0, 1.0);
+        let near = self.frames[if w < 0.5 { i } else { i + 1 }];
         let origin = self.curve.point(t);
         match self.curve.velocity(t).try_normalize() {
             Some(tangent) => {
-                let rot = DQuat::from_rotation_arc(f.tangent, tangent);
-                let normal = (rot * f.normal).reject_from(tangent).normalize();
+                let turned = |f: &Frame| {
+                    let rot = DQuat::from_rotation_arc(f.tangent, tangent);
+                    (rot * f.normal).reject_from(tangent).try_normalize()
+                };
+                let normal = match (turned(&self.frames[i]), turned(&self.frames[i + 1])) {
+                    (Some(n0), Some(n1)) => {
+                        let angle = n0.cross(n1).dot(tangent).atan2(n0.dot(n1));
+                        DQuat::from_axis_angle(tangent, w * angle) * n0
+                    }
+                    (Some(n), None) | (None, Some(n)) => n,
+                    (None, None) => tangent.any_orthonormal_vector(),
+                };
                 Frame { origin, tangent, normal, binormal: tangent.cross(normal) }
             }
-            None => Frame { origin, ..f },
+            None => Frame { origin, ..near },
         }
     }
 
@@ -278,7 +524,10 @@ impl Sweep {
         let y = d.dot(frame.binormal);
         let radii = self.radii_at(t);
         let c = (radii[0] * radii[1]).sqrt();
-        let section = ((x / radii[0]).powi(2) + (y / radii[1]).powi(2)).sqrt();
+        let section = match &self.image {
+            None => ((x / radii[0]).powi(2) + (y / radii[1]).powi(2)).sqrt(),
+            Some(im) => (1.0 + im.distance(x / radii[0], y / radii[1])).max(0.0),
+        };
         let rho = if s == 0.0 {
             section
         } else if self.settings.caps {

@@ -76,6 +76,7 @@ impl Scene {
         options: LoadOptions,
     ) -> Result<Scene, Error> {
         let pose = options.pose.clone();
+        let options = LoadOptions { base: options.base.or_else(|| base.clone()), ..options };
         let mut description = skelform_scene::Scene::parse_with(&text, origin, &options)?;
         let output_refused = description.output.file.as_deref().and_then(outside_folder);
         if let (Some(file), Some(dir)) = (&description.output.file, &base) {
@@ -107,6 +108,7 @@ impl Scene {
         let options = LoadOptions {
             pose: Some(from.to_string()),
             toward: Some(skelform_scene::PoseBlend { pose: to.to_string(), t }),
+            ..LoadOptions::default()
         };
         Scene::build(self.text.clone(), &self.description.origin, self.base.clone(), options)
     }

@@ -265,7 +265,8 @@ impl Scene {
         Ok(Meshed { mesh, stats, method, elapsed: started.elapsed() })
     }
 
-    /// Element colours blended at the vertices (DIS ch. 6), for surfaces of the field; the
+    /// Element colours blended at the vertices (DIS ch. 6), and texture coordinates from the
+    /// sweeps ([`texture_coordinates`]), for surfaces of the field; the
     /// non-manifold method's surfaces are labelled by region instead. Every path that makes
     /// a mesh of the scene ([`Scene::mesh`], [`crate::Live`]) calls this, so they agree.
     pub(crate) fn paint(&self, mesh: &mut Mesh, method: Method, overrides: &Overrides) {
@@ -281,5 +282,33 @@ impl Scene {
                 points.par_chunks(1024).map(|chunk| skeleton.colors(chunk)).collect();
             mesh.colors = chunks.map(|c| c.concat()).unwrap_or_default();
         }
+        if method != Method::NonManifold
+            && let Some(swept) = &self.sweeps
+        {
+            mesh.uvs = texture_coordinates(swept, &mesh.positions);
+        }
     }
+}
+
+/// Texture coordinates (DIS §5.7) for the vertices of a scene with sweeps: each vertex takes
+/// the `[u, v]` of the sweep whose normalised distance `ρ` is least there (the sweep whose
+/// surface it is on, or nearest to, in that sweep's radii; [`SweptField::uv`]): `u` the
+/// arc-length fraction at the nearest curve point, `v` the angle around the section as a
+/// fraction of a turn. A vertex beyond the reach of every sweep (on a skeleton element away
+/// from them) gets `[0, 0]`.
+///
+/// [`SweptField::uv`]: skelform_skeleton::SweptField::uv
+pub(crate) fn texture_coordinates(
+    swept: &skelform_skeleton::SweptField,
+    positions: &[[f32; 3]],
+) -> Vec<[f32; 2]> {
+    positions
+        .par_chunks(1024)
+        .flat_map_iter(|chunk| {
+            chunk.iter().map(|p| {
+                let uv = swept.uv(DVec3::from_array(p.map(f64::from))).unwrap_or([0.0; 2]);
+                uv.map(|c| c as f32)
+            })
+        })
+        .collect()
 }

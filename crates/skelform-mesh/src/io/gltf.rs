@@ -7,8 +7,9 @@
 //! `POSITION` accessor (with the `min` and `max` glTF requires), a `NORMAL` accessor when
 //! normals are written (triangles only), a float `COLOR_0` accessor when the mesh has
 //! vertex colours (sRGB in [`Mesh::colors`], linear in the file, as glTF defines it; the
-//! material's base colour is then white, so the colours show as they are), and 32-bit
-//! indices; a vertex shared by two region
+//! material's base colour is then white, so the colours show as they are), a float
+//! `TEXCOORD_0` accessor when the mesh has texture coordinates ([`Mesh::uvs`], as they
+//! are), and 32-bit indices; a vertex shared by two region
 //! pairs is written once for each. Normals are unit length and turned, where needed, to
 //! agree with the winding of the primitive's triangles (counter-clockwise from the lesser
 //! region, glTF's front face), so viewers light each sheet from its front; meshes without
@@ -21,8 +22,8 @@
 //! padded to 4 bytes (JSON with spaces, BIN with zeros).
 //!
 //! Read: GLB files with their buffers in the BIN chunk or in base64 `data:` URIs (as
-//! Open3D and others write them), float `VEC3` positions, normals and colours (other
-//! colour layouts are skipped), indices of any
+//! Open3D and others write them), float `VEC3` positions, normals and colours and float
+//! `VEC2` `TEXCOORD_0` (other colour and texture-coordinate layouts are skipped), indices of any
 //! unsigned type (or none), triangle and line primitives. The nodes of the default scene
 //! are walked (or the root nodes when there is no scene, or every mesh once when there are
 //! no nodes), and each node's transform (`matrix`, or `translation`, `rotation`, `scale`),
@@ -124,6 +125,18 @@ impl Builder {
             a["max"] = json!(hi.map(f64::from));
         }
         self.accessors.push(a);
+        self.accessors.len() - 1
+    }
+
+    fn vec2(&mut self, data: &[[f32; 2]]) -> usize {
+        let bytes: Vec<u8> = data.iter().flatten().flat_map(|c| c.to_le_bytes()).collect();
+        let view = self.view(&bytes, ARRAY_BUFFER);
+        self.accessors.push(json!({
+            "bufferView": view,
+            "componentType": FLOAT,
+            "count": data.len(),
+            "type": "VEC2",
+        }));
         self.accessors.len() - 1
     }
 
@@ -233,6 +246,12 @@ pub fn encode_glb(mesh: &Mesh, opts: &WriteOptions) -> Result<Vec<u8>, IoError> 
             let colours: Vec<[f32; 3]> =
                 used.iter().map(|&v| mesh.colors[v as usize].map(srgb_to_linear)).collect();
             attributes["COLOR_0"] = json!(b.vec3(&colours, false));
+        }
+        if !mesh.uvs.is_empty() {
+            // glTF's texture space has v down the image: our v (around the section) is
+            // written as is, so an image's rows run around the section.
+            let uvs: Vec<[f32; 2]> = used.iter().map(|&v| mesh.uvs[v as usize]).collect();
+            attributes["TEXCOORD_0"] = json!(b.vec2(&uvs));
         }
         let indices = b.indices(&indices);
         let (name, colour, extras) = match label {
@@ -644,7 +663,12 @@ impl<'a> Reader<'a> {
             .and_then(Value::as_u64)
             .and_then(|c| usize::try_from(c).ok())
             .unwrap_or(0);
-        let elem = size * if want == "VEC3" { 3 } else { 1 };
+        let elem = size
+            * match want {
+                "VEC3" => 3,
+                "VEC2" => 2,
+                _ => 1,
+            };
         let view_i = Self::index(a.get("bufferView"), "bufferView")?
             .ok_or_else(|| json_err(format!("accessor {i} has no buffer view")))?;
         let view = self
@@ -688,6 +712,21 @@ impl<'a> Reader<'a> {
 
     fn vec3(&self, i: usize) -> Result<Vec<[f32; 3]>, IoError> {
         let (data, count, stride, component) = self.accessor(i, "VEC3")?;
+        if component != FLOAT {
+            return Err(json_err(format!("accessor {i}: only float vectors are supported")));
+        }
+        Ok((0..count)
+            .map(|k| {
+                std::array::from_fn(|c| {
+                    let at = k * stride + 4 * c;
+                    f32::from_le_bytes([data[at], data[at + 1], data[at + 2], data[at + 3]])
+                })
+            })
+            .collect())
+    }
+
+    fn vec2(&self, i: usize) -> Result<Vec<[f32; 2]>, IoError> {
+        let (data, count, stride, component) = self.accessor(i, "VEC2")?;
         if component != FLOAT {
             return Err(json_err(format!("accessor {i}: only float vectors are supported")));
         }
@@ -774,6 +813,7 @@ impl<'a> Reader<'a> {
         let mut positions: Vec<[f32; 3]> = Vec::new();
         let mut normals: Vec<Option<[f32; 3]>> = Vec::new();
         let mut colours: Vec<Option<[f32; 3]>> = Vec::new();
+        let mut uvs: Vec<Option<[f32; 2]>> = Vec::new();
         let mut mesh = Mesh::default();
         let mut labels: Vec<Option<RegionPair>> = Vec::new();
         // Line primitives wait until every triangle is read, to be joined to the surfaces.
@@ -786,14 +826,14 @@ impl<'a> Reader<'a> {
                 m.get("primitives").and_then(Value::as_array).map_or(&[][..], |v| v.as_slice());
             // Vertices read once per instance and accessor pair: primitives that share a
             // POSITION accessor share vertices, as the file says; others do not.
-            let mut shared =
-                std::collections::HashMap::<(usize, Option<usize>, Option<usize>), u32>::new();
+            let mut shared = std::collections::HashMap::<(usize, [Option<usize>; 3]), u32>::new();
             for (pi, p) in prims.iter().enumerate() {
                 let attrs = p.get("attributes");
                 let pos_i = Self::index(attrs.and_then(|a| a.get("POSITION")), "POSITION")?
                     .ok_or_else(|| json_err(format!("mesh {mi} primitive {pi} has no POSITION")))?;
                 let nrm_i = Self::index(attrs.and_then(|a| a.get("NORMAL")), "NORMAL")?;
                 let col_i = Self::index(attrs.and_then(|a| a.get("COLOR_0")), "COLOR_0")?;
+                let uv_i = Self::index(attrs.and_then(|a| a.get("TEXCOORD_0")), "TEXCOORD_0")?;
                 let mode =
                     p.get("mode").and_then(Value::as_u64).unwrap_or(u64::from(MODE_TRIANGLES));
                 if mode != u64::from(MODE_TRIANGLES) && mode != u64::from(MODE_LINES) {
@@ -831,7 +871,7 @@ impl<'a> Reader<'a> {
                     }
                     continue;
                 }
-                let base = match shared.get(&(pos_i, nrm_i, col_i)) {
+                let base = match shared.get(&(pos_i, [nrm_i, col_i, uv_i])) {
                     Some(&b) => b,
                     None => {
                         let prim_normals = match nrm_i {
@@ -871,7 +911,16 @@ impl<'a> Reader<'a> {
                             }
                             None => colours.resize(positions.len(), None),
                         }
-                        shared.insert((pos_i, nrm_i, col_i), base as u32);
+                        // Float texture coordinates likewise.
+                        let prim_uvs = match uv_i {
+                            Some(i) => self.vec2(i).ok().filter(|v| v.len() == n),
+                            None => None,
+                        };
+                        match prim_uvs {
+                            Some(v) => uvs.extend(v.into_iter().map(Some)),
+                            None => uvs.resize(positions.len(), None),
+                        }
+                        shared.insert((pos_i, [nrm_i, col_i, uv_i]), base as u32);
                         base as u32
                     }
                 };
@@ -911,6 +960,7 @@ impl<'a> Reader<'a> {
                         positions.push(*q);
                         normals.push(None);
                         colours.push(None);
+                        uvs.push(None);
                         (positions.len() - 1) as u32
                     })
                 })
@@ -946,6 +996,11 @@ impl<'a> Reader<'a> {
             && colours.iter().any(Option::is_some)
         {
             mesh.colors = colours.into_iter().map(|c| c.unwrap_or([0.0; 3])).collect();
+        }
+        if uvs.iter().zip(&with_normals).all(|(c, &used)| c.is_some() || !used)
+            && uvs.iter().any(Option::is_some)
+        {
+            mesh.uvs = uvs.into_iter().map(|c| c.unwrap_or([0.0; 2])).collect();
         }
         if !labels.is_empty() && labels.iter().all(Option::is_some) {
             mesh.labels = labels.into_iter().flatten().collect();
@@ -996,6 +1051,7 @@ mod tests {
                 CurveEdge { v: [1, 3], label: RegionTriple([1, 2, 3]) },
             ],
             colors: Vec::new(),
+            uvs: Vec::new(),
         }
     }
 

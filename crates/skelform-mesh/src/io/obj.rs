@@ -1,11 +1,12 @@
 //! Wavefront OBJ.
 //!
 //! Written: `v x y z`; `vn` lines when normals are written (then faces are `f a//a b//b c//c`,
-//! otherwise `f a b c`, 1-based); a labelled mesh has one group `g region_A_B` per region
+//! otherwise `f a b c`, 1-based); `vt u v` lines, one per vertex, when the mesh has texture
+//! coordinates (then corners are `a/a/a`, or `a/a` without normals); a labelled mesh has one group `g region_A_B` per region
 //! pair, its faces sorted by label (stable: the order within a group is kept); curves are
 //! `l i j` segments in groups `g curve_A_B_C`, sorted by label the same way.
 //!
-//! Read: `v` (a 4th `w` or colour components are ignored), `vn`, `vt` (ignored), `f` with
+//! Read: `v` (a 4th `w` or colour components are ignored), `vn`, `vt` (a 3rd `w` ignored), `f` with
 //! `v`, `v/vt`, `v//vn` and `v/vt/vn` corners, negative (relative) indices and forward
 //! references, polygons fan-triangulated; `l` polylines of two or more vertices become curve
 //! segments; `\` line continuations; `#` comments, blank lines, `mtllib`, `usemtl`, `s` and
@@ -26,7 +27,8 @@
 //! Normals: OBJ normals belong to face corners; they become per-vertex normals when every
 //! face corner has one and each vertex always gets the same normal (the same `vn` index or
 //! bit-identical `vn` values). Otherwise, or when no corner has one, `normals` is empty.
-//! Vertices that no face uses then get a zero normal.
+//! Vertices that no face uses then get a zero normal. Texture coordinates likewise become
+//! per-vertex `uvs` when every corner has one and each vertex always gets the same one.
 
 use std::io::{BufRead, Write};
 use std::path::{Path, PathBuf};
@@ -45,6 +47,9 @@ struct Reader {
     triangles: Vec<[u32; 3]>,
     /// The normal index of each triangle corner, `NONE` where absent.
     corner_normals: Vec<[u32; 3]>,
+    texcoords: Vec<[f32; 2]>,
+    /// The texture-coordinate index of each triangle corner, `NONE` where absent.
+    corner_uvs: Vec<[u32; 3]>,
     labels: Vec<Option<RegionPair>>,
     curves: Vec<CurveEdge>,
     face_label: Option<RegionPair>,
@@ -53,7 +58,9 @@ struct Reader {
     /// check forward references once the whole file is read.
     max_vertex: Option<(u32, usize)>,
     max_normal: Option<(u32, usize)>,
-    corners: Vec<(u32, u32)>,
+    max_uv: Option<(u32, usize)>,
+    /// Each corner's vertex, normal and texture-coordinate indices.
+    corners: Vec<(u32, u32, u32)>,
 }
 
 /// A label name `prefix` followed by `N` numbers separated by `_`.
@@ -124,6 +131,29 @@ impl Reader {
                 let n = three_numbers(&mut words, line, "vn")?;
                 self.normals.push(n);
             }
+            "vt" => {
+                let mut uv = [0.0f32; 2];
+                for (k, c) in uv.iter_mut().enumerate() {
+                    let word = words.next();
+                    // `vt u` alone is allowed (v = 0), as the format says.
+                    if word.is_none() && k == 1 {
+                        break;
+                    }
+                    *c = word.and_then(|w| w.parse().ok()).ok_or_else(|| {
+                        IoError::parse(line, "expected vt followed by one to three numbers")
+                    })?;
+                }
+                if self.texcoords.len() >= limits::MAX_VERTICES {
+                    return Err(IoError::parse(
+                        line,
+                        format!(
+                            "more than {} texture coordinates; skelform reads at most that many",
+                            limits::MAX_VERTICES
+                        ),
+                    ));
+                }
+                self.texcoords.push(uv);
+            }
             "f" | "fo" => self.face(words, line)?,
             "l" => self.polyline(words, line)?,
             "g" | "o" => {
@@ -155,15 +185,18 @@ impl Reader {
             let mut parts = word.split('/');
             let v = parts.next().unwrap_or_default();
             let v = Self::index(v, self.positions.len(), line, "vertex", &mut self.max_vertex)?;
-            if let Some(vt) = parts.next()
-                && !vt.is_empty()
-                && vt.parse::<i64>().is_err()
-            {
-                return Err(IoError::parse(
-                    line,
-                    format!("expected a texture index in '{word}', found '{vt}'"),
-                ));
-            }
+            let t = match parts.next() {
+                Some(vt) if !vt.is_empty() => {
+                    if vt.parse::<i64>().is_err() {
+                        return Err(IoError::parse(
+                            line,
+                            format!("expected a texture index in '{word}', found '{vt}'"),
+                        ));
+                    }
+                    Self::index(vt, self.texcoords.len(), line, "texture", &mut self.max_uv)?
+                }
+                _ => NONE,
+            };
             let n = match parts.next() {
                 Some(vn) if !vn.is_empty() => {
                     Self::index(vn, self.normals.len(), line, "normal", &mut self.max_normal)?
@@ -176,7 +209,7 @@ impl Reader {
                     format!("expected a face corner v, v/vt, v//vn or v/vt/vn, found '{word}'"),
                 ));
             }
-            self.corners.push((v, n));
+            self.corners.push((v, n, t));
         }
         if self.corners.len() < 3 {
             return Err(IoError::parse(
@@ -197,6 +230,7 @@ impl Reader {
         for k in 2..c.len() {
             self.triangles.push([c[0].0, c[k - 1].0, c[k].0]);
             self.corner_normals.push([c[0].1, c[k - 1].1, c[k].1]);
+            self.corner_uvs.push([c[0].2, c[k - 1].2, c[k].2]);
             self.labels.push(self.face_label);
         }
         Ok(())
@@ -218,7 +252,7 @@ impl Reader {
                     format!("expected a line vertex v or v/vt, found '{word}'"),
                 ));
             }
-            self.corners.push((v, NONE));
+            self.corners.push((v, NONE, NONE));
         }
         if self.corners.len() < 2 {
             return Err(IoError::parse(
@@ -255,7 +289,20 @@ impl Reader {
                 ),
             ));
         }
-        let normals = vertex_normals(n, &self.triangles, &self.corner_normals, &self.normals);
+        if let Some((i, line)) = self.max_uv
+            && i as usize >= self.texcoords.len()
+        {
+            return Err(IoError::parse(
+                line,
+                format!(
+                    "texture index {} is out of range: the file has {} texture coordinates",
+                    i as u64 + 1,
+                    self.texcoords.len()
+                ),
+            ));
+        }
+        let normals = per_vertex(n, &self.triangles, &self.corner_normals, &self.normals);
+        let uvs = per_vertex(n, &self.triangles, &self.corner_uvs, &self.texcoords);
         let labels = if self.labels.iter().any(Option::is_some) {
             self.labels.into_iter().map(|l| l.unwrap_or(RegionPair(0, 1))).collect()
         } else {
@@ -268,17 +315,19 @@ impl Reader {
             labels,
             curves: self.curves,
             colors: Vec::new(),
+            uvs,
         })
     }
 }
 
-/// Per-vertex normals from per-corner normal indices, when they agree (see the module docs).
-fn vertex_normals(
+/// Per-vertex normals (or texture coordinates) from per-corner indices, when they agree (see
+/// the module docs).
+fn per_vertex<const N: usize>(
     vertices: usize,
     triangles: &[[u32; 3]],
     corners: &[[u32; 3]],
-    normals: &[[f32; 3]],
-) -> Vec<[f32; 3]> {
+    normals: &[[f32; N]],
+) -> Vec<[f32; N]> {
     if corners.is_empty() || corners.iter().flatten().any(|&c| c == NONE) {
         return Vec::new();
     }
@@ -296,7 +345,7 @@ fn vertex_normals(
             }
         }
     }
-    chosen.iter().map(|&c| if c == NONE { [0.0; 3] } else { normals[c as usize] }).collect()
+    chosen.iter().map(|&c| if c == NONE { [0.0; N] } else { normals[c as usize] }).collect()
 }
 
 /// Reads an OBJ file from `r`.
@@ -424,12 +473,18 @@ fn write_body(
             writeln!(w, "vn {} {} {}", n[0], n[1], n[2])?;
         }
     }
+    // One `vt` per vertex, at the vertex's own index.
+    let uvs = !mesh.uvs.is_empty();
+    for t in &mesh.uvs {
+        writeln!(w, "vt {} {}", t[0], t[1])?;
+    }
     let face = |w: &mut dyn Write, t: &[u32; 3]| {
         let [a, b, c] = t.map(|i| i as u64 + 1);
-        if normals {
-            writeln!(w, "f {a}//{a} {b}//{b} {c}//{c}")
-        } else {
-            writeln!(w, "f {a} {b} {c}")
+        match (normals, uvs) {
+            (true, true) => writeln!(w, "f {a}/{a}/{a} {b}/{b}/{b} {c}/{c}/{c}"),
+            (true, false) => writeln!(w, "f {a}//{a} {b}//{b} {c}//{c}"),
+            (false, true) => writeln!(w, "f {a}/{a} {b}/{b} {c}/{c}"),
+            (false, false) => writeln!(w, "f {a} {b} {c}"),
         }
     };
     if mesh.labels.is_empty() {

@@ -17,7 +17,9 @@
 //! `face`. A mesh with vertex colours ([`Mesh::colors`]) adds `uchar red, green, blue` to
 //! its vertices (each `[0, 1]` component times 255, rounded), the layout MeshLab and
 //! Open3D read as vertex colours; read back, integer colours are divided by their type's
-//! maximum and float ones kept as they are.
+//! maximum and float ones kept as they are. A mesh with texture coordinates ([`Mesh::uvs`])
+//! adds `float u, v` after them (the names trimesh and MeshLab read; `s, t` and
+//! `texture_u, texture_v` are read too).
 //!
 //! Read: `ascii`, `binary_little_endian` and `binary_big_endian`; every scalar type and its
 //! sized alias (`char`/`int8` ... `double`/`float64`); extra properties and extra elements
@@ -485,7 +487,7 @@ enum Role {
     Indices,
 }
 
-const SLOTS: usize = 10;
+const SLOTS: usize = 16;
 
 /// The roles of `el`'s properties for the given slot names (and the index list for faces).
 /// Returns the roles and which slots are present.
@@ -648,7 +650,24 @@ fn read_body(header: &Header, body: &mut Body) -> Result<Contents, IoError> {
             seen_vertex = true;
             let (roles, has) = roles(
                 el,
-                &["x", "y", "z", "nx", "ny", "nz", "mesh_index", "red", "green", "blue"],
+                &[
+                    "x",
+                    "y",
+                    "z",
+                    "nx",
+                    "ny",
+                    "nz",
+                    "mesh_index",
+                    "red",
+                    "green",
+                    "blue",
+                    "u",
+                    "v",
+                    "s",
+                    "t",
+                    "texture_u",
+                    "texture_v",
+                ],
                 false,
             )?;
             if let Some(missing) = ["x", "y", "z"].iter().zip(has).find(|(_, h)| !h) {
@@ -672,6 +691,11 @@ fn read_body(header: &Header, body: &mut Body) -> Result<Contents, IoError> {
             if colours.is_some() {
                 mesh.colors.reserve(capacity);
             }
+            // The first complete pair of texture-coordinate names.
+            let uv = [10, 12, 14].into_iter().find(|&k| has[k] && has[k + 1]);
+            if uv.is_some() {
+                mesh.uvs.reserve(capacity);
+            }
             let mut index = has[6].then(|| Vec::with_capacity(capacity));
             for i in 0..el.count {
                 read_instance(body, el, &roles, i, vertices, &mut vals, &mut poly)?;
@@ -681,6 +705,9 @@ fn read_body(header: &Header, body: &mut Body) -> Result<Contents, IoError> {
                 }
                 if let Some(scale) = colours {
                     mesh.colors.push([0, 1, 2].map(|k| (vals[7 + k] / scale[k]) as f32));
+                }
+                if let Some(k) = uv {
+                    mesh.uvs.push([vals[k] as f32, vals[k + 1] as f32]);
                 }
                 if let Some(index) = &mut index {
                     index.push(region(vals[6]).map_err(|_| {
@@ -855,6 +882,9 @@ pub fn attach_curves(mesh: &mut Mesh, r: impl BufRead) -> Result<(), IoError> {
             if !mesh.colors.is_empty() {
                 mesh.colors.resize(mesh.positions.len(), [0.0; 3]);
             }
+            if !mesh.uvs.is_empty() {
+                mesh.uvs.resize(mesh.positions.len(), [0.0; 2]);
+            }
             (0..curves.positions.len()).map(|k| (base + k) as u32).collect()
         }
     };
@@ -933,6 +963,7 @@ fn colour_byte(c: f32) -> u8 {
 fn write_body(w: &mut impl Write, mesh: &Mesh, opts: &WriteOptions) -> std::io::Result<()> {
     let normals = opts.normals && !mesh.normals.is_empty();
     let vertex_colours = !mesh.colors.is_empty();
+    let uvs = !mesh.uvs.is_empty();
     let labelled = !mesh.labels.is_empty();
     let colours = if labelled { face_colours(mesh) } else { Vec::new() };
     let curves = opts.effective_ply_curves() == PlyCurves::Inline && !mesh.curves.is_empty();
@@ -945,6 +976,9 @@ fn write_body(w: &mut impl Write, mesh: &Mesh, opts: &WriteOptions) -> std::io::
     }
     if vertex_colours {
         writeln!(w, "property uchar red\nproperty uchar green\nproperty uchar blue")?;
+    }
+    if uvs {
+        writeln!(w, "property float u\nproperty float v")?;
     }
     writeln!(w, "element face {}", mesh.triangles.len())?;
     writeln!(w, "property list uchar int vertex_indices")?;
@@ -969,6 +1003,9 @@ fn write_body(w: &mut impl Write, mesh: &Mesh, opts: &WriteOptions) -> std::io::
             if vertex_colours {
                 let [r, g, b] = mesh.colors[i].map(colour_byte);
                 write!(w, " {r} {g} {b}")?;
+            }
+            if uvs {
+                write!(w, " {} {}", mesh.uvs[i][0], mesh.uvs[i][1])?;
             }
             writeln!(w)?;
         }
@@ -996,6 +1033,9 @@ fn write_body(w: &mut impl Write, mesh: &Mesh, opts: &WriteOptions) -> std::io::
             }
             if vertex_colours {
                 buf.extend_from_slice(&mesh.colors[i].map(colour_byte));
+            }
+            if uvs {
+                mesh.uvs[i].iter().for_each(|c| buf.extend_from_slice(&c.to_le_bytes()));
             }
             w.write_all(&buf)?;
         }
