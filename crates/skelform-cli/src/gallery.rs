@@ -10,8 +10,8 @@ use std::path::{Component, Path, PathBuf};
 
 use anyhow::anyhow;
 use clap::Args;
-use skelform::mesh::io::atomic;
 use skelform::Mesh;
+use skelform::mesh::io::atomic;
 use skelform::render::{Renderer, Settings, View};
 
 use crate::render::{failure, parse_size};
@@ -215,8 +215,8 @@ fn more_pictures(
         let name = format!("{stem}-{}.png", v.name);
         image.write_png(&a.out.join(&name)).map_err(failure)?;
         let caption = match &v.pose {
-            Some(p) => format!("{} ({p})", v.name),
-            None => v.name.clone(),
+            Some(p) if !v.name.contains(p.as_str()) => format!("{} ({p})", v.name),
+            _ => v.name.clone(),
         };
         more.push((caption, name));
     }
@@ -287,7 +287,11 @@ fn page(a: &GalleryArgs, entries: &[Entry]) -> String {
         let _ = writeln!(
             s,
             "{}",
-            e.more.iter().map(|(caption, _)| caption.replace('|', "\\|")).collect::<Vec<_>>().join(" | ")
+            e.more
+                .iter()
+                .map(|(caption, _)| caption.replace('|', "\\|"))
+                .collect::<Vec<_>>()
+                .join(" | ")
         );
         let _ = writeln!(s, "{}", vec!["---"; e.more.len()].join("|"));
         let _ = writeln!(
@@ -295,7 +299,9 @@ fn page(a: &GalleryArgs, entries: &[Entry]) -> String {
             "{}",
             e.more
                 .iter()
-                .map(|(caption, file)| format!("<img src=\"{file}\" width=\"240\" alt=\"{caption}\">"))
+                .map(|(caption, file)| format!(
+                    "<img src=\"{file}\" width=\"240\" alt=\"{caption}\">"
+                ))
                 .collect::<Vec<_>>()
                 .join(" | ")
         );

@@ -51,19 +51,20 @@ pub use regions::Regions;
 pub use schema::{Method, ParseMethodError};
 pub use skelform_field::combine::Combine;
 
-/// A loaded, validated scene.
 /// A picture of a scene in the gallery beside its default one (`[scene] views`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct GalleryView {
     /// Names the picture: `hand.toml` with view `back` is drawn as `…-hand-back.png`.
     pub name: String,
-    /// Where the camera looks from, in degrees, as `skelform render --view`.
+    /// Where the camera looks from, in degrees, as `skelform render --view`: the azimuth …
     pub azimuth: f64,
+    /// … and the elevation (from -90 to 90).
     pub elevation: f64,
     /// The pose to draw it in (default: the scene's).
     pub pose: Option<String>,
 }
 
+/// A loaded, validated scene.
 #[derive(Clone)]
 pub struct Scene {
     /// Where it came from (for messages); `"<string>"` when parsed from text.

@@ -416,7 +416,10 @@ pub(crate) fn build(
     for v in file.scene.iter().flat_map(|s| s.views.iter().flatten()) {
         let name = v.name.get_ref();
         let plain = |c: char| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-';
-        if name.is_empty() || !name.chars().all(plain) || views.iter().any(|w: &crate::GalleryView| w.name == *name) {
+        if name.is_empty()
+            || !name.chars().all(plain)
+            || views.iter().any(|w: &crate::GalleryView| w.name == *name)
+        {
             return Err(cx.at(
                 v.name.span().start,
                 format!("view name '{name}' must be unique and made of a-z, 0-9 and '-' (it names a picture)"),
@@ -429,11 +432,19 @@ pub(crate) fn build(
                 format!("a view is [azimuth, elevation] in degrees, the elevation from -90 to 90 (got [{azimuth}, {elevation}])"),
             ));
         }
-        views.push(crate::GalleryView { name: name.clone(), azimuth, elevation, pose: v.pose.clone() });
+        views.push(crate::GalleryView {
+            name: name.clone(),
+            azimuth,
+            elevation,
+            pose: v.pose.clone(),
+        });
     }
     let turntable = match file.scene.as_ref().and_then(|s| s.turntable.as_ref()) {
         Some(t) if !(2..=120).contains(t.get_ref()) => {
-            return Err(cx.at(t.span().start, format!("turntable takes 2 to 120 frames (got {})", t.get_ref())));
+            return Err(cx.at(
+                t.span().start,
+                format!("turntable takes 2 to 120 frames (got {})", t.get_ref()),
+            ));
         }
         t => t.map(|t| *t.get_ref()),
     };
