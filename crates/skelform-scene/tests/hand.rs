@@ -406,3 +406,28 @@ fn the_nails_are_on_the_fingertips_backs_in_nail_colour() {
         }
     }
 }
+
+/// `[scene] views` and `turntable` ask the gallery for the hand from the back, the palm, the
+/// side and the fingertips, in the grip, and turning; a bad view is an error at its place.
+#[test]
+fn the_scene_asks_the_gallery_for_more_views() {
+    let scene = hand("rest");
+    let names: Vec<&str> = scene.views.iter().map(|v| v.name.as_str()).collect();
+    for want in ["back", "palm", "side", "fingertips", "grip"] {
+        assert!(names.contains(&want), "{names:?}");
+    }
+    let grip = scene.views.iter().find(|v| v.name == "grip").unwrap();
+    assert_eq!(grip.pose.as_deref(), Some("grip"));
+    assert_eq!(scene.turntable, Some(24));
+    let text = std::fs::read_to_string(hand_path()).unwrap();
+    for (from, to, says) in [
+        ("name = \"back\"", "name = \"../back\"", "view name"),
+        ("name = \"palm\"", "name = \"back\"", "unique"),
+        ("view = [0, 90]", "view = [0, 95]", "elevation"),
+        ("turntable = 24", "turntable = 1", "turntable"),
+    ] {
+        assert!(text.contains(from), "{from}");
+        let e = Scene::parse(&text.replacen(from, to, 1), "hand.toml").unwrap_err().to_string();
+        assert!(e.contains(says) && e.starts_with("hand.toml:"), "{to}: {e}");
+    }
+}
