@@ -313,12 +313,12 @@ fn width_and_length(scene: &Scene, f: usize) -> (f64, f64) {
 #[test]
 fn fingers_are_about_four_times_as_long_as_wide() {
     let open = hand("open");
-    for f in 0..5 {
+    for (f, name) in FINGERS.iter().enumerate() {
         let (width, length) = width_and_length(&open, f);
         let ratio = length / width;
-        println!("{}: length {length:.3}, width {width:.3}, ratio {ratio:.2}", FINGERS[f]);
+        println!("{name}: length {length:.3}, width {width:.3}, ratio {ratio:.2}");
         let range = if f == 0 { 2.5..=4.0 } else { 3.0..=5.0 };
-        assert!(range.contains(&ratio), "{}: {ratio:.2}", FINGERS[f]);
+        assert!(range.contains(&ratio), "{name}: {ratio:.2}");
     }
 }
 
