@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Issue 20's interactive-speed goals, from scratch (scene parsed, field built, mesh written):
-#   the 85-element hand at a 128-samples cell (continuation, the issue's case, and grid), and
+#   the chapter-6 hand (109 elements) at a 128-samples cell (continuation, the issue's case, and grid), and
 #   1000 random segments and points (bench/scenes/random-1000.toml) at a 256-samples cell.
 # Prints a table: medians over R rounds of the tool's own wall time (`seconds.total`) and of
 # the process's CPU time (user + system, all threads), field evaluations per output vertex,

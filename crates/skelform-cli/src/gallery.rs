@@ -10,8 +10,9 @@ use std::path::{Component, Path, PathBuf};
 
 use anyhow::anyhow;
 use clap::Args;
+use skelform::Mesh;
 use skelform::mesh::io::atomic;
-use skelform::render::{Renderer, Settings};
+use skelform::render::{Renderer, Settings, View};
 
 use crate::render::{failure, parse_size};
 use crate::{Failure, input, run, runtime};
@@ -95,6 +96,8 @@ struct Entry {
     triangles: usize,
     evaluations: u64,
     notes: Vec<String>,
+    /// The scene's further pictures (`[scene] views` and `turntable`): caption and file.
+    more: Vec<(String, String)>,
 }
 
 /// Every `.toml` under `dir`, sorted by path.
@@ -152,6 +155,7 @@ fn one(a: &GalleryArgs, settings: &Settings, scene_path: &Path) -> Entry {
         triangles: 0,
         evaluations: 0,
         notes: Vec::new(),
+        more: Vec::new(),
     };
     let result = (|| -> Result<String, Failure> {
         let scene = run::load_scene(scene_path, None)?;
@@ -173,17 +177,69 @@ fn one(a: &GalleryArgs, settings: &Settings, scene_path: &Path) -> Entry {
         let image = Renderer::new(&mesh).and_then(|r| r.render(&settings)).map_err(failure)?;
         let file = picture_name(&a.examples, scene_path);
         image.write_png(&a.out.join(&file)).map_err(failure)?;
+        entry.more = more_pictures(a, &settings, scene_path, &scene, mesh, &file)?;
         Ok(file)
     })();
     entry.picture = result.map_err(|f| f.error.map_or_else(String::new, |e| e.to_string()));
     entry
 }
 
+/// Milliseconds each frame of a turntable is shown.
+const TURNTABLE_FRAME_MS: u16 = 80;
+
+/// The pictures `[scene] views` and `turntable` ask for, beside the scene's picture `file`:
+/// each view in its pose (meshed once per pose), and the turntable at half the size, so that
+/// the animated PNG stays small.
+fn more_pictures(
+    a: &GalleryArgs,
+    settings: &Settings,
+    scene_path: &Path,
+    scene: &skelform::Scene,
+    mesh: Mesh,
+    file: &str,
+) -> Result<Vec<(String, String)>, Failure> {
+    let stem = file.trim_end_matches(".png");
+    let mut meshes: Vec<(Option<String>, Mesh)> = vec![(None, mesh)];
+    let mut more = Vec::new();
+    for v in &scene.views {
+        if !meshes.iter().any(|(p, _)| *p == v.pose) {
+            let posed = run::load_scene(scene_path, v.pose.as_deref())?;
+            let meshed = run::run_scene(&posed, &a.run)?;
+            run::surface(&posed, &meshed, true)?;
+            meshes.push((v.pose.clone(), meshed.mesh));
+        }
+        let mesh = &meshes.iter().find(|(p, _)| *p == v.pose).unwrap().1;
+        let view = View { azimuth: v.azimuth, elevation: v.elevation };
+        let s = Settings { view, ..settings.clone() };
+        let image = Renderer::new(mesh).and_then(|r| r.render(&s)).map_err(failure)?;
+        let name = format!("{stem}-{}.png", v.name);
+        image.write_png(&a.out.join(&name)).map_err(failure)?;
+        let caption = match &v.pose {
+            Some(p) if !v.name.contains(p.as_str()) => format!("{} ({p})", v.name),
+            _ => v.name.clone(),
+        };
+        more.push((caption, name));
+    }
+    if let Some(frames) = scene.turntable {
+        let s = Settings {
+            width: (settings.width / 2).max(1),
+            height: (settings.height / 2).max(1),
+            ..settings.clone()
+        };
+        let name = format!("{stem}-turntable.png");
+        Renderer::new(&meshes[0].1)
+            .and_then(|r| r.write_turntable(&s, frames, TURNTABLE_FRAME_MS, &a.out.join(&name)))
+            .map_err(failure)?;
+        more.push((format!("turntable, {frames} frames"), name));
+    }
+    Ok(more)
+}
+
 fn page(a: &GalleryArgs, entries: &[Entry]) -> String {
     let mut s = String::new();
     let (w, h) = a.size;
     let _ = writeln!(s, "{MARK}");
-    let made: Vec<&str> = entries.iter().filter_map(|e| e.picture.as_deref().ok()).collect();
+    let made: Vec<&str> = made_pictures(entries);
     let _ = writeln!(s, "{PICTURES} {} -->", made.join(" "));
     let _ = writeln!(s, "# Gallery\n");
     let _ = writeln!(
@@ -226,7 +282,40 @@ fn page(a: &GalleryArgs, entries: &[Entry]) -> String {
             cell(notes.join("; ")),
         );
     }
+    for e in entries.iter().filter(|e| e.picture.is_ok() && !e.more.is_empty()) {
+        let _ = writeln!(s, "\n## More of {}\n", e.name);
+        let _ = writeln!(
+            s,
+            "{}",
+            e.more
+                .iter()
+                .map(|(caption, _)| caption.replace('|', "\\|"))
+                .collect::<Vec<_>>()
+                .join(" | ")
+        );
+        let _ = writeln!(s, "{}", vec!["---"; e.more.len()].join("|"));
+        let _ = writeln!(
+            s,
+            "{}",
+            e.more
+                .iter()
+                .map(|(caption, file)| format!(
+                    "<img src=\"{file}\" width=\"240\" alt=\"{caption}\">"
+                ))
+                .collect::<Vec<_>>()
+                .join(" | ")
+        );
+    }
     s
+}
+
+/// Every picture the run made: the scenes' own and their further ones.
+fn made_pictures(entries: &[Entry]) -> Vec<&str> {
+    entries
+        .iter()
+        .filter_map(|e| e.picture.as_deref().ok().map(|p| (p, e)))
+        .flat_map(|(p, e)| std::iter::once(p).chain(e.more.iter().map(|(_, f)| f.as_str())))
+        .collect()
 }
 
 pub fn gallery(a: GalleryArgs) -> Result<(), Failure> {
@@ -276,8 +365,8 @@ pub fn gallery(a: GalleryArgs) -> Result<(), Failure> {
 
     // Pictures the earlier run made that no scene makes any more go; nothing else does.
     let readme = a.out.join("README.md");
-    let made: Vec<&String> = entries.iter().filter_map(|e| e.picture.as_ref().ok()).collect();
-    for old in previous.iter().filter(|f| !made.contains(f)) {
+    let made = made_pictures(&entries);
+    for old in previous.iter().filter(|f| !made.contains(&f.as_str())) {
         // Names from the page are file names of ours, never paths.
         if Path::new(old).components().count() == 1 && old.ends_with(".png") {
             let _ = std::fs::remove_file(a.out.join(old));

@@ -1,5 +1,5 @@
-//! The hand of DIS chapter 6 (`examples/skeleton/hand.toml`: 85 elements, Wyvill
-//! convolution, six blending sets) sampled on 64³ and 128³ lattices the way the grid
+//! The hand of DIS chapter 6 (`examples/skeleton/hand.toml`: 109 elements, Wyvill
+//! convolution, eight blending sets) sampled on 64³ and 128³ lattices the way the grid
 //! polygonizer samples (z-layers in parallel on all cores, each row through the field's
 //! batch path). Throughput is in lattice points per second.
 //!

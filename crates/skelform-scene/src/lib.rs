@@ -51,6 +51,19 @@ pub use regions::Regions;
 pub use schema::{Method, ParseMethodError};
 pub use skelform_field::combine::Combine;
 
+/// A picture of a scene in the gallery beside its default one (`[scene] views`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct GalleryView {
+    /// Names the picture: `hand.toml` with view `back` is drawn as `…-hand-back.png`.
+    pub name: String,
+    /// Where the camera looks from, in degrees, as `skelform render --view`: the azimuth …
+    pub azimuth: f64,
+    /// … and the elevation (from -90 to 90).
+    pub elevation: f64,
+    /// The pose to draw it in (default: the scene's).
+    pub pose: Option<String>,
+}
+
 /// A loaded, validated scene.
 #[derive(Clone)]
 pub struct Scene {
@@ -64,6 +77,12 @@ pub struct Scene {
     /// The dissertation figure the scene reproduces (`figure = "3.12"` in `[scene]`), shown
     /// beside its picture in the gallery.
     pub figure: Option<String>,
+    /// `[scene] views`: more pictures of the scene for the gallery, each from its own view
+    /// and in its own pose.
+    pub views: Vec<GalleryView>,
+    /// `[scene] turntable`: the gallery also draws the scene turning once about z, in this
+    /// many frames (an animated PNG).
+    pub turntable: Option<u32>,
     /// `[domain]`: the box the polygonizer may visit; a surface that leaves it is cut open
     /// there.
     pub domain: Aabb,

@@ -97,6 +97,18 @@ struct SceneInfo {
     description: Option<String>,
     /// The figure of the dissertation the scene reproduces, e.g. "3.12" (for the gallery).
     figure: Option<String>,
+    /// More pictures of the scene in the gallery, each from its own view (and pose).
+    views: Option<Vec<ViewSpec>>,
+    /// Frames of a turntable (an animated PNG) in the gallery.
+    turntable: Option<Spanned<u32>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ViewSpec {
+    name: Spanned<String>,
+    view: Spanned<[f64; 2]>,
+    pose: Option<String>,
 }
 
 #[derive(Deserialize)]
@@ -400,8 +412,47 @@ pub(crate) fn build(
         None => None,
     };
 
+    let mut views = Vec::new();
+    for v in file.scene.iter().flat_map(|s| s.views.iter().flatten()) {
+        let name = v.name.get_ref();
+        let plain = |c: char| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-';
+        if name.is_empty()
+            || !name.chars().all(plain)
+            || views.iter().any(|w: &crate::GalleryView| w.name == *name)
+        {
+            return Err(cx.at(
+                v.name.span().start,
+                format!("view name '{name}' must be unique and made of a-z, 0-9 and '-' (it names a picture)"),
+            ));
+        }
+        let [azimuth, elevation] = *v.view.get_ref();
+        if !azimuth.is_finite() || !(-90.0..=90.0).contains(&elevation) {
+            return Err(cx.at(
+                v.view.span().start,
+                format!("a view is [azimuth, elevation] in degrees, the elevation from -90 to 90 (got [{azimuth}, {elevation}])"),
+            ));
+        }
+        views.push(crate::GalleryView {
+            name: name.clone(),
+            azimuth,
+            elevation,
+            pose: v.pose.clone(),
+        });
+    }
+    let turntable = match file.scene.as_ref().and_then(|s| s.turntable.as_ref()) {
+        Some(t) if !(2..=120).contains(t.get_ref()) => {
+            return Err(cx.at(
+                t.span().start,
+                format!("turntable takes 2 to 120 frames (got {})", t.get_ref()),
+            ));
+        }
+        t => t.map(|t| *t.get_ref()),
+    };
+
     Ok(Scene {
         origin: origin.to_string(),
+        views,
+        turntable,
         name: file.scene.as_ref().and_then(|s| s.name.clone()),
         description: file.scene.as_ref().and_then(|s| s.description.clone()),
         figure: file.scene.as_ref().and_then(|s| s.figure.clone()),

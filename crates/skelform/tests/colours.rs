@@ -85,7 +85,7 @@ fn colours_survive_ply_and_glb() {
 }
 
 #[test]
-fn the_hand_is_skin_with_bluish_veins() {
+fn the_hand_is_skin_with_bluish_veins_and_nails() {
     let scene = Scene::load(example("skeleton/hand.toml")).unwrap();
     let o = Overrides {
         resolution: Some(Resolution::Samples(48)),
@@ -101,5 +101,16 @@ fn the_hand_is_skin_with_bluish_veins() {
     assert!(n_skin * 10 > m.colors.len() * 8, "{n_skin} of {}", m.colors.len());
     let tinted = m.colors.iter().filter(|c| c[2] > skin[2] + 0.02 && c[0] < skin[0]).count();
     assert!(tinted > 0);
-    assert!(m.colors.iter().all(|c| c[2] <= 0.72 + 1e-4 && c[0] >= 0.62 - 1e-4));
+    // The nails are nail-coloured (a sharp union: no blending into the skin).
+    let nail = [0.96, 0.83, 0.8];
+    let n_nail = m.colors.iter().filter(|c| close(**c, nail, 1e-3)).count();
+    assert!(n_nail > 0 && n_nail * 20 < m.colors.len(), "{n_nail} nail of {}", m.colors.len());
+    // Every colour is a blend of the skin's, the veins' and the nails'.
+    let vein = [0.62, 0.58, 0.72];
+    for c in &m.colors {
+        for i in 0..3 {
+            let (lo, hi) = (skin[i].min(vein[i]).min(nail[i]), skin[i].max(vein[i]).max(nail[i]));
+            assert!(c[i] >= lo - 1e-4 && c[i] <= hi + 1e-4, "{c:?}");
+        }
+    }
 }
