@@ -9,8 +9,19 @@
 //!
 //! Guarantees: each lattice corner is evaluated once (values are kept in sparse bricks) and
 //! each edge root is found once and shared; a surface closed inside the domain comes out closed,
-//! manifold and consistently oriented; the output does not depend on the thread count
-//! (cubes are processed in waves, each in lattice order). Not guaranteed: components without
+//! manifold and consistently oriented; the output does not depend on the thread count.
+//!
+//! Threads: the field evaluations are split from the bookkeeping. An evaluation pass first
+//! walks the surfaces from every component's starting cube at once, wave by wave, and
+//! evaluates each wave's new corners in one parallel batch (the waves of all components
+//! together are large enough to share out even when each component is small). The
+//! components are then propagated one after another, each in waves processed in lattice
+//! order, on one thread, from the values already known: the cubes, vertices and triangles
+//! come in the order a run on one thread makes them. Every corner is still evaluated once,
+//! and a value depends on its point alone, so the mesh is the same, byte for byte, on any
+//! thread count. Seeds are searched from in parallel too, each on its own.
+//!
+//! Not guaranteed: components without
 //! a seed are found (give seeds, or let the domain search look for them; it can miss
 //! components smaller than its stride).
 
@@ -240,8 +251,12 @@ fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats)
     run.stats.search = t.elapsed();
 
     let t = Instant::now();
-    for (seed_index, seed, start) in starts {
-        let Some(cube) = run.surface_cube_near(start) else {
+    let near = run.surface_cubes_near(starts.iter().map(|s| s.2));
+    if options.limit.is_none() {
+        run.discover(near.iter().flatten().copied())?;
+    }
+    for ((seed_index, seed, start), near) in starts.into_iter().zip(near) {
+        let Some(cube) = near else {
             run.stats.seed_notes.push(SeedNote::NoSurface { seed });
             continue;
         };
@@ -295,19 +310,58 @@ impl<'a> Run<'a> {
         }
     }
 
-    /// A cube the surface crosses: the one holding `p` or, when the surface slips between its
-    /// corners there, one of its 26 neighbours (the first in lattice order).
-    fn surface_cube_near(&mut self, p: DVec3) -> Option<[u32; 3]> {
-        let c = self.cubes.cube_of_u32(p);
-        let candidates: Vec<[u32; 3]> = std::iter::once(c).chain(self.cubes.around(c)).collect();
-        self.evaluate_corners(&candidates);
-        candidates.into_iter().find(|&k| {
-            let case = case_of(&self.cube_values(k));
-            case != 0 && case != 255
-        })
+    /// For each point, a cube the surface crosses: the one holding the point or, when the
+    /// surface slips between its corners there, one of its 26 neighbours (the first in
+    /// lattice order). The corners of all the points' cubes are evaluated in one batch.
+    fn surface_cubes_near(&mut self, points: impl Iterator<Item = DVec3>) -> Vec<Option<[u32; 3]>> {
+        let candidates: Vec<Vec<[u32; 3]>> = points
+            .map(|p| {
+                let c = self.cubes.cube_of_u32(p);
+                std::iter::once(c).chain(self.cubes.around(c)).collect()
+            })
+            .collect();
+        self.evaluate_corners(&candidates.concat());
+        candidates
+            .into_iter()
+            .map(|cubes| {
+                cubes.into_iter().find(|&k| {
+                    let case = case_of(&self.cube_values(k));
+                    case != 0 && case != 255
+                })
+            })
+            .collect()
+    }
+
+    /// The evaluation pass: walks the surfaces from all these cubes at once, in waves,
+    /// evaluating each wave's corners in one parallel batch, so that the propagation of the
+    /// components that follows finds every corner it needs known.
+    ///
+    /// It reaches exactly the cubes the components' propagation will visit (those joined to
+    /// a starting cube across faces the surface crosses), so no corner is evaluated that a
+    /// run without it would not evaluate; only when the cell budget stops it can the two
+    /// differ, by the corners of cubes at the edge of what each reached. It is not run with
+    /// a propagation limit, which is measured from each component's own start.
+    fn discover(&mut self, starts: impl Iterator<Item = [u32; 3]>) -> Result<(), Error> {
+        let limits = Limits {
+            max_cells: self.opts.max_cells,
+            limit: None,
+            origin: [0; 3],
+            max_memory: self.opts.lattice.max_memory,
+            method: self.method(),
+        };
+        let (lattice, control) = (self.cubes, &self.opts.lattice.control);
+        let mut pass = Discover { run: self, found: 0 };
+        propagate(&mut pass, &lattice, starts, &limits, Order::Lattice, control, "evaluating")?;
+        Ok(())
     }
 
     /// Evaluates the corners of these cubes that are not known yet, in parallel batches.
+    ///
+    /// The batches' size depends on the number of points only, never on the thread count:
+    /// a value is its point's alone (the [`Field`] contract), and even a field whose batch
+    /// values depended on the batch would then still give the same mesh on any thread count.
+    /// Batches are small enough (a 64th of the points, at least 32) that a single wave is
+    /// shared among the threads.
     fn evaluate_corners(&mut self, cubes: &[[u32; 3]]) {
         let mut todo: Vec<[u32; 3]> = Vec::new();
         for &b in cubes {
@@ -323,8 +377,9 @@ impl<'a> Run<'a> {
         }
         let points: Vec<DVec3> = todo.iter().map(|&p| self.cubes.point(p)).collect();
         let mut out = vec![0.0; points.len()];
-        out.par_chunks_mut(1024)
-            .zip(points.par_chunks(1024))
+        let chunk = (points.len() / 64).clamp(32, 1024);
+        out.par_chunks_mut(chunk)
+            .zip(points.par_chunks(chunk))
             .for_each(|(o, p)| self.field.eval_many(p, o));
         self.stats.corner_evaluations += points.len() as u64;
         for (&p, v) in todo.iter().zip(out) {
@@ -482,14 +537,7 @@ impl Cubes for Walk<'_, '_> {
             return 0;
         }
         self.run.polygonize(base, &v);
-        let mut faces = 0;
-        for (f, q) in FACES.iter().enumerate() {
-            let inside = q.iter().filter(|&&c| v[c] < 0.0).count();
-            if inside != 0 && inside != 4 {
-                faces |= 1 << f;
-            }
-        }
-        faces
+        crossed_faces(&v)
     }
 
     fn is_visited(&mut self, cube: [u32; 3]) -> bool {
@@ -502,6 +550,54 @@ impl Cubes for Walk<'_, '_> {
 
     fn visited(&self) -> u64 {
         self.run.lattice.visited()
+    }
+
+    fn held(&self) -> u64 {
+        self.run.held()
+    }
+}
+
+/// The faces of a cube with corner values `v` that the surface crosses (corners of both
+/// signs), bit `f` for face `f`.
+fn crossed_faces(v: &[f32; 8]) -> u8 {
+    let mut faces = 0;
+    for (f, q) in FACES.iter().enumerate() {
+        let inside = q.iter().filter(|&&c| v[c] < 0.0).count();
+        if inside != 0 && inside != 4 {
+            faces |= 1 << f;
+        }
+    }
+    faces
+}
+
+/// The evaluation pass ([`Run::discover`]): the walk of [`Walk`] without polygonizing, over
+/// every component at once; what it visits is marked apart from the components' visits.
+struct Discover<'r, 'a> {
+    run: &'r mut Run<'a>,
+    /// Cubes reached (what the cell budget counts here).
+    found: u64,
+}
+
+impl Cubes for Discover<'_, '_> {
+    fn prepare(&mut self, wave: &[[u32; 3]]) {
+        self.run.evaluate_corners(wave);
+    }
+
+    fn process(&mut self, base: [u32; 3]) -> u8 {
+        crossed_faces(&self.run.cube_values(base))
+    }
+
+    fn is_visited(&mut self, cube: [u32; 3]) -> bool {
+        self.run.lattice.seen(cube)
+    }
+
+    fn visit(&mut self, cube: [u32; 3]) {
+        self.run.lattice.see(cube);
+        self.found += 1;
+    }
+
+    fn visited(&self) -> u64 {
+        self.found
     }
 
     fn held(&self) -> u64 {
@@ -560,20 +656,33 @@ impl TetraSink for RunSink<'_, '_> {
 
 /// Where propagation starts: for each seed, a point where the surface is; with no seeds, the
 /// crossings a coarse search of the domain finds.
+///
+/// The seeds are searched from in parallel, each on its own; the answers are read in the
+/// seeds' order, so the first bad seed is the one reported, as on one thread.
 fn find_starts(run: &mut Run) -> Result<Vec<(usize, DVec3, DVec3)>, Error> {
     let opts = run.opts;
     if opts.seeds.is_empty() {
         return search_domain(run);
     }
+    let (field, grid) = (run.field, run.grid);
+    let found: Vec<Result<(Option<DVec3>, u64), Error>> = opts
+        .seeds
+        .par_iter()
+        .map(|&seed| {
+            if !grid.bounds().contains(seed) {
+                return Err(Error::BadSeed {
+                    seed: seed.to_array(),
+                    why: "it is outside the domain".into(),
+                });
+            }
+            search_from(field, &grid, seed)
+        })
+        .collect();
     let mut starts = Vec::new();
-    for (i, &seed) in opts.seeds.iter().enumerate() {
-        if !run.grid.bounds().contains(seed) {
-            return Err(Error::BadSeed {
-                seed: seed.to_array(),
-                why: "it is outside the domain".into(),
-            });
-        }
-        match search_from(run, seed)? {
+    for (i, (&seed, found)) in opts.seeds.iter().zip(found).enumerate() {
+        let (start, evals) = found?;
+        run.stats.search_evaluations += evals;
+        match start {
             Some(p) => starts.push((i, seed, p)),
             None => run.stats.seed_notes.push(SeedNote::NoSurface { seed }),
         }
@@ -605,11 +714,11 @@ fn directions() -> Vec<DVec3> {
 }
 
 /// Marches out from `seed` in 26 directions, a cell at a time, to the first sign change
-/// within the domain, and bisects it to the surface.
-fn search_from(run: &mut Run, seed: DVec3) -> Result<Option<DVec3>, Error> {
-    let field = run.field;
+/// within the domain, and bisects it to the surface. Returns the point (if any) and the
+/// evaluations made.
+fn search_from(field: &dyn Field, grid: &Grid, seed: DVec3) -> Result<(Option<DVec3>, u64), Error> {
     let f0 = field.eval(seed);
-    run.stats.search_evaluations += 1;
+    let mut evals = 1;
     if !f0.is_finite() {
         return Err(Error::BadSeed {
             seed: seed.to_array(),
@@ -617,14 +726,17 @@ fn search_from(run: &mut Run, seed: DVec3) -> Result<Option<DVec3>, Error> {
         });
     }
     if f0 == 0.0 {
-        return Ok(Some(seed));
+        return Ok((Some(seed), evals));
     }
-    let bounds = run.grid.bounds();
-    let h = run.grid.cell;
+    let bounds = grid.bounds();
+    let h = grid.cell;
     let longest = bounds.size().max_element();
     let steps = (longest / h).ceil() as usize + 1;
     // Nearest crossing first: walk all directions outward together, a batch of steps at a time.
     let dirs = directions();
+    // The value one step back along each direction (the seed's at first): where the sign
+    // changes, the bisection starts from it without evaluating it again.
+    let mut back = vec![f0; dirs.len()];
     let mut reach = 1usize;
     while reach <= steps {
         let upto = (reach * 2).min(steps);
@@ -644,58 +756,79 @@ fn search_from(run: &mut Run, seed: DVec3) -> Result<Option<DVec3>, Error> {
         }
         let mut vals = vec![0.0; pts.len()];
         field.eval_many(&pts, &mut vals);
-        run.stats.search_evaluations += pts.len() as u64;
+        evals += pts.len() as u64;
         if let Some(n) =
             (0..pts.len()).find(|&n| vals[n].is_finite() && (vals[n] < 0.0) != (f0 < 0.0))
         {
             let (s, d) = which[n];
             let prev = seed + dirs[d] * (h * (s - 1) as f64);
-            let fp = if s == 1 { f0 } else { field.eval(prev) };
-            return Ok(Some(bisect(run, prev, fp, pts[n])));
+            // A domain box is convex, so the step before a point in it is in it too, and was
+            // evaluated: in this batch, or last in the one before.
+            let fp = if s > reach {
+                match (0..n).rev().find(|&m| which[m] == (s - 1, d)) {
+                    Some(m) => vals[m],
+                    None => {
+                        // Only if rounding put the step just outside the box.
+                        evals += 1;
+                        field.eval(prev)
+                    }
+                }
+            } else {
+                back[d]
+            };
+            let (p, e) = bisect(field, prev, fp, pts[n]);
+            return Ok((Some(p), evals + e));
+        }
+        for (&(s, d), &v) in which.iter().zip(&vals) {
+            if s == upto {
+                back[d] = v;
+            }
         }
         reach = upto + 1;
     }
-    Ok(None)
+    Ok((None, evals))
 }
 
 /// A point on the surface between `a` (value `fa`) and `b` (opposite sign), to a small
-/// fraction of a cell.
-fn bisect(run: &mut Run, mut a: DVec3, fa: f64, mut b: DVec3) -> DVec3 {
+/// fraction of a cell, and the evaluations made.
+fn bisect(field: &dyn Field, mut a: DVec3, fa: f64, mut b: DVec3) -> (DVec3, u64) {
     let inside_a = fa < 0.0;
-    for _ in 0..20 {
+    const STEPS: u64 = 20;
+    for _ in 0..STEPS {
         let m = (a + b) * 0.5;
-        let fm = run.field.eval(m);
-        run.stats.search_evaluations += 1;
+        let fm = field.eval(m);
         if (fm < 0.0) == inside_a {
             a = m;
         } else {
             b = m;
         }
     }
-    (a + b) * 0.5
+    ((a + b) * 0.5, STEPS)
 }
 
 /// With no seeds: sample a coarse lattice and start from every coarse edge with a sign
-/// change (each component at least `search_stride` cells across is found).
+/// change (each component at least `search_stride` cells across is found). The crossings
+/// are bisected in parallel and kept in the coarse edges' order.
 fn search_domain(run: &mut Run) -> Result<Vec<(usize, DVec3, DVec3)>, Error> {
     let search = CoarseSearch::new(&run.grid, run.opts.search_stride);
     let pts = &search.points;
+    let field = run.field;
     let mut vals = vec![0.0; pts.len()];
-    vals.par_chunks_mut(1024)
-        .zip(pts.par_chunks(1024))
-        .for_each(|(o, p)| run.field.eval_many(p, o));
+    vals.par_chunks_mut(1024).zip(pts.par_chunks(1024)).for_each(|(o, p)| field.eval_many(p, o));
     run.stats.search_evaluations += pts.len() as u64;
-    let mut starts = Vec::new();
+    let mut crossed = Vec::new();
     search.edges(|a, b| {
         if vals[a].is_finite() && vals[b].is_finite() && (vals[a] < 0.0) != (vals[b] < 0.0) {
-            let p = bisect(run, pts[a], vals[a], pts[b]);
-            starts.push((starts.len(), pts[a], p));
+            crossed.push((a, b));
         }
     });
-    if starts.is_empty() {
+    if crossed.is_empty() {
         return Err(Error::NoSurfaceFound { samples: pts.len() as u64, stride: search.stride });
     }
-    Ok(starts)
+    let found: Vec<(DVec3, u64)> =
+        crossed.par_iter().map(|&(a, b)| bisect(field, pts[a], vals[a], pts[b])).collect();
+    run.stats.search_evaluations += found.iter().map(|f| f.1).sum::<u64>();
+    Ok(crossed.iter().zip(found).enumerate().map(|(i, (&(a, _), (p, _)))| (i, pts[a], p)).collect())
 }
 
 #[cfg(test)]
