@@ -301,6 +301,81 @@ fn same_mesh_on_any_thread_count() {
     assert!(go(2) == one && go(4) == one);
 }
 
+/// Blobs (the sum of `e^(-|p - c|² / r²)` over some centres, a level below one) that melt
+/// into each other in some places and stand apart in others: several components, some
+/// reached from many seeds, of different sizes, so that the evaluation pass walks several
+/// surfaces at once and the waves differ in size from one another.
+fn blobs() -> (impl Field, Vec<DVec3>) {
+    let mut state = 7u64;
+    let mut next = || {
+        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    };
+    let centres: Vec<(DVec3, f64)> = (0..24)
+        .map(|_| (DVec3::new(next(), next(), next()) * 0.75, 0.08 + 0.07 * (next() + 1.0)))
+        .collect();
+    let seeds = centres.iter().map(|c| c.0).collect();
+    let field = FnField(move |p: DVec3| {
+        0.5 - centres.iter().map(|(c, r)| (-(p - *c).length_squared() / (r * r)).exp()).sum::<f64>()
+    });
+    (field, seeds)
+}
+
+/// The requirement: the same mesh, byte for byte (vertex and triangle order, positions
+/// and normals), and the same counts, on 1, 2 and 4 threads, from seeds and from the domain
+/// search, with cubes and with tetrahedra.
+#[test]
+fn several_components_give_the_same_mesh_on_1_2_and_4_threads() {
+    let (field, seeds) = blobs();
+    for (seeds, cells) in [
+        (seeds.clone(), Cells::Cubes),
+        (Vec::new(), Cells::Cubes),
+        (seeds.clone(), Cells::Tetrahedra),
+    ] {
+        let go = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| run(&field, Aabb::cube(1.0), 0.02, &seeds, cells))
+        };
+        let (one, s1) = go(1);
+        assert!(s1.components.len() > 3, "{:?}", s1.components);
+        assert!(one.triangle_count() > 10_000 && !one.normals.is_empty());
+        for threads in [2, 4] {
+            let (m, s) = go(threads);
+            let what = format!("{cells:?}, {} seeds, {threads} threads", seeds.len());
+            assert_eq!(m.positions, one.positions, "{what}");
+            assert_eq!(m.triangles, one.triangles, "{what}");
+            assert_eq!(m.normals, one.normals, "{what}");
+            assert_eq!(s.components, s1.components, "{what}");
+            assert_eq!(s.seed_notes, s1.seed_notes, "{what}");
+            assert_eq!(s.evaluations(), s1.evaluations(), "{what}");
+            assert_eq!(s.corner_evaluations, s1.corner_evaluations, "{what}");
+        }
+    }
+}
+
+/// The evaluation pass that runs ahead of the components (evaluating all their corners in
+/// parallel waves) changes nothing but the time: a run without it (it is not run with a
+/// propagation limit, here one that never binds) makes the same mesh with the same number
+/// of evaluations, each corner of each visited cube evaluated once either way.
+#[test]
+fn the_evaluation_pass_changes_neither_the_mesh_nor_the_evaluations() {
+    let (field, seeds) = blobs();
+    let lattice = LatticeOptions {
+        domain: Aabb::cube(1.0),
+        resolution: Resolution::Cell(0.02),
+        ..Default::default()
+    };
+    let with = Options { lattice, seeds, ..Options::default() };
+    let without = Options { limit: Some(u32::MAX), ..with.clone() };
+    let (a, sa) = polygonize(&field, &with).unwrap();
+    let (b, sb) = polygonize(&field, &without).unwrap();
+    assert!(sa.components.len() > 3);
+    assert_eq!(a, b);
+    assert_eq!(sa.corner_evaluations, sb.corner_evaluations);
+    assert_eq!(sa.evaluations(), sb.evaluations());
+    assert_eq!(sa.cells_visited, sb.cells_visited);
+}
+
 #[test]
 fn cancellation_stops_the_run() {
     use skelform_field::control::Control;
