@@ -360,8 +360,9 @@ impl<'a> Run<'a> {
     /// The batches' size depends on the number of points only, never on the thread count:
     /// a value is its point's alone (the [`Field`] contract), and even a field whose batch
     /// values depended on the batch would then still give the same mesh on any thread count.
-    /// Batches are small enough (a 64th of the points, at least 32) that a single wave is
-    /// shared among the threads.
+    /// Batches are small enough (a 16th of the points, at least 128) that a large wave is
+    /// shared among the threads, and large enough that a field which sorts a batch by region
+    /// (the skeletons cull elements by cell) keeps its advantage.
     fn evaluate_corners(&mut self, cubes: &[[u32; 3]]) {
         let mut todo: Vec<[u32; 3]> = Vec::new();
         for &b in cubes {
@@ -377,7 +378,7 @@ impl<'a> Run<'a> {
         }
         let points: Vec<DVec3> = todo.iter().map(|&p| self.cubes.point(p)).collect();
         let mut out = vec![0.0; points.len()];
-        let chunk = (points.len() / 64).clamp(32, 1024);
+        let chunk = (points.len() / 16).clamp(128, 1024);
         out.par_chunks_mut(chunk)
             .zip(points.par_chunks(chunk))
             .for_each(|(o, p)| self.field.eval_many(p, o));
