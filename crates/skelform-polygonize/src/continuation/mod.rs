@@ -251,10 +251,12 @@ fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats)
     run.stats.search = t.elapsed();
 
     let t = Instant::now();
-    let near = run.surface_cubes_near(starts.iter().map(|s| s.2));
+    let near = run.surface_cubes_near(starts.iter().map(|s| s.2.point()));
     if options.limit.is_none() {
         run.discover(near.iter().flatten().copied())?;
     }
+    // The bisections that started a component, finished afterwards (see `Bisection`).
+    let mut unfinished = Vec::new();
     for ((seed_index, seed, start), near) in starts.into_iter().zip(near) {
         let Some(cube) = near else {
             run.stats.seed_notes.push(SeedNote::NoSurface { seed });
@@ -266,14 +268,23 @@ fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats)
         }
         let before = (run.lattice.visited(), run.triangles.len());
         run.propagate(cube, seed_index)?;
+        unfinished.push(start);
         run.stats.components.push(Component {
             seed,
-            start,
+            start: start.point(),
             cells: run.lattice.visited() - before.0,
             triangles: run.triangles.len() - before.1,
         });
     }
     run.stats.propagation = t.elapsed();
+    let t = Instant::now();
+    let field = run.field;
+    let finished: Vec<(DVec3, u64)> = unfinished.par_iter().map(|b| b.finish(field)).collect();
+    for (c, (p, evals)) in run.stats.components.iter_mut().zip(finished) {
+        c.start = p;
+        run.stats.search_evaluations += evals;
+    }
+    run.stats.search += t.elapsed();
     run.stats.cells_visited = run.lattice.visited();
     run.finish()
 }
@@ -660,13 +671,13 @@ impl TetraSink for RunSink<'_, '_> {
 ///
 /// The seeds are searched from in parallel, each on its own; the answers are read in the
 /// seeds' order, so the first bad seed is the one reported, as on one thread.
-fn find_starts(run: &mut Run) -> Result<Vec<(usize, DVec3, DVec3)>, Error> {
+fn find_starts(run: &mut Run) -> Result<Vec<(usize, DVec3, Bisection)>, Error> {
     let opts = run.opts;
     if opts.seeds.is_empty() {
         return search_domain(run);
     }
-    let (field, grid) = (run.field, run.grid);
-    let found: Vec<Result<(Option<DVec3>, u64), Error>> = opts
+    let (field, grid, cubes) = (run.field, run.grid, run.cubes);
+    let found: Vec<Result<(Option<Bisection>, u64), Error>> = opts
         .seeds
         .par_iter()
         .map(|&seed| {
@@ -676,7 +687,7 @@ fn find_starts(run: &mut Run) -> Result<Vec<(usize, DVec3, DVec3)>, Error> {
                     why: "it is outside the domain".into(),
                 });
             }
-            search_from(field, &grid, seed)
+            search_from(field, &grid, &cubes, seed)
         })
         .collect();
     let mut starts = Vec::new();
@@ -717,7 +728,12 @@ fn directions() -> Vec<DVec3> {
 /// Marches out from `seed` in 26 directions, a cell at a time, to the first sign change
 /// within the domain, and bisects it to the surface. Returns the point (if any) and the
 /// evaluations made.
-fn search_from(field: &dyn Field, grid: &Grid, seed: DVec3) -> Result<(Option<DVec3>, u64), Error> {
+fn search_from(
+    field: &dyn Field,
+    grid: &Grid,
+    cubes: &CubeLattice,
+    seed: DVec3,
+) -> Result<(Option<Bisection>, u64), Error> {
     let f0 = field.eval(seed);
     let mut evals = 1;
     if !f0.is_finite() {
@@ -727,7 +743,7 @@ fn search_from(field: &dyn Field, grid: &Grid, seed: DVec3) -> Result<(Option<DV
         });
     }
     if f0 == 0.0 {
-        return Ok((Some(seed), evals));
+        return Ok((Some(Bisection::at(seed)), evals));
     }
     let bounds = grid.bounds();
     let h = grid.cell;
@@ -777,7 +793,7 @@ fn search_from(field: &dyn Field, grid: &Grid, seed: DVec3) -> Result<(Option<DV
             } else {
                 back[d]
             };
-            let (p, e) = bisect(field, prev, fp, pts[n]);
+            let (p, e) = Bisection::new(prev, fp, pts[n]).to_cube(field, cubes);
             return Ok((Some(p), evals + e));
         }
         for (&(s, d), &v) in which.iter().zip(&vals) {
@@ -790,27 +806,80 @@ fn search_from(field: &dyn Field, grid: &Grid, seed: DVec3) -> Result<(Option<DV
     Ok((None, evals))
 }
 
-/// A point on the surface between `a` (value `fa`) and `b` (opposite sign), to a small
-/// fraction of a cell, and the evaluations made.
-fn bisect(field: &dyn Field, mut a: DVec3, fa: f64, mut b: DVec3) -> (DVec3, u64) {
-    let inside_a = fa < 0.0;
+/// The bisection of a segment from `a` (value `fa`) to `b` (opposite sign) towards a point
+/// on the surface, [`Bisection::STEPS`] halvings in all (a small fraction of a cell).
+///
+/// Propagation needs only the cube that point is in, and most seeds lead to a component
+/// found already: so the halving stops as soon as both ends lie in one cube
+/// ([`Bisection::to_cube`]), and only the seeds that start a component finish it
+/// ([`Bisection::finish`]) for the point their statistics report. The cube is the finished
+/// point's (a cube holds every point between two of its points, and halving never leaves
+/// that range), and finishing takes the very halvings an uninterrupted bisection takes, so
+/// the mesh and the statistics' points are what bisecting at once to the end gives, with
+/// fewer evaluations.
+#[derive(Clone, Copy, Debug)]
+struct Bisection {
+    a: DVec3,
+    b: DVec3,
+    /// Whether `a` is inside (`f < 0`).
+    inside_a: bool,
+    /// Halvings done.
+    done: u64,
+}
+
+impl Bisection {
+    /// Halvings in all.
     const STEPS: u64 = 20;
-    for _ in 0..STEPS {
-        let m = (a + b) * 0.5;
-        let fm = field.eval(m);
-        if (fm < 0.0) == inside_a {
-            a = m;
-        } else {
-            b = m;
-        }
+
+    fn new(a: DVec3, fa: f64, b: DVec3) -> Self {
+        Bisection { a, b, inside_a: fa < 0.0, done: 0 }
     }
-    ((a + b) * 0.5, STEPS)
+
+    /// A point on the surface itself: nothing to halve.
+    fn at(p: DVec3) -> Self {
+        Bisection { a: p, b: p, inside_a: true, done: Self::STEPS }
+    }
+
+    /// The midpoint: the answer once finished, and before that a point of the finished
+    /// answer's cube (after [`Bisection::to_cube`]).
+    fn point(&self) -> DVec3 {
+        (self.a + self.b) * 0.5
+    }
+
+    fn halve(&mut self, field: &dyn Field) {
+        let m = self.point();
+        if (field.eval(m) < 0.0) == self.inside_a {
+            self.a = m;
+        } else {
+            self.b = m;
+        }
+        self.done += 1;
+    }
+
+    /// Halves until both ends are in one cube of `cubes` (or all halvings are done); returns
+    /// itself and the evaluations made.
+    fn to_cube(mut self, field: &dyn Field, cubes: &CubeLattice) -> (Self, u64) {
+        let start = self.done;
+        while self.done < Self::STEPS && cubes.cube_of(self.a) != cubes.cube_of(self.b) {
+            self.halve(field);
+        }
+        (self, self.done - start)
+    }
+
+    /// The remaining halvings: the point and the evaluations made.
+    fn finish(&self, field: &dyn Field) -> (DVec3, u64) {
+        let mut b = *self;
+        while b.done < Self::STEPS {
+            b.halve(field);
+        }
+        (b.point(), Self::STEPS - self.done)
+    }
 }
 
 /// With no seeds: sample a coarse lattice and start from every coarse edge with a sign
 /// change (each component at least `search_stride` cells across is found). The crossings
 /// are bisected in parallel and kept in the coarse edges' order.
-fn search_domain(run: &mut Run) -> Result<Vec<(usize, DVec3, DVec3)>, Error> {
+fn search_domain(run: &mut Run) -> Result<Vec<(usize, DVec3, Bisection)>, Error> {
     let search = CoarseSearch::new(&run.grid, run.opts.search_stride);
     let pts = &search.points;
     let field = run.field;
@@ -826,8 +895,11 @@ fn search_domain(run: &mut Run) -> Result<Vec<(usize, DVec3, DVec3)>, Error> {
     if crossed.is_empty() {
         return Err(Error::NoSurfaceFound { samples: pts.len() as u64, stride: search.stride });
     }
-    let found: Vec<(DVec3, u64)> =
-        crossed.par_iter().map(|&(a, b)| bisect(field, pts[a], vals[a], pts[b])).collect();
+    let cubes = run.cubes;
+    let found: Vec<(Bisection, u64)> = crossed
+        .par_iter()
+        .map(|&(a, b)| Bisection::new(pts[a], vals[a], pts[b]).to_cube(field, &cubes))
+        .collect();
     run.stats.search_evaluations += found.iter().map(|f| f.1).sum::<u64>();
     Ok(crossed.iter().zip(found).enumerate().map(|(i, (&(a, _), (p, _)))| (i, pts[a], p)).collect())
 }
@@ -841,5 +913,24 @@ mod tests {
         let d = directions();
         assert_eq!(d.len(), 26);
         assert!(d[..6].iter().all(|v| v.length() == 1.0));
+    }
+
+    /// Stopping at the cube and finishing later gives the uninterrupted bisection's point,
+    /// in that point's cube, with the halvings split between the two.
+    #[test]
+    fn a_bisection_stopped_at_its_cube_finishes_where_an_uninterrupted_one_ends() {
+        let sphere = skelform_field::FnField(|p: DVec3| p.length() - 0.4321);
+        let grid = Grid::with_cell(&skelform_field::Aabb::cube(1.0), 0.05).unwrap();
+        let cubes = CubeLattice::new(grid);
+        for dir in directions() {
+            let (a, b) = (dir * 0.41, dir * 0.41 + dir * 0.05);
+            let whole = Bisection::new(a, sphere.eval(a), b).finish(&sphere);
+            let (part, first) = Bisection::new(a, sphere.eval(a), b).to_cube(&sphere, &cubes);
+            let (p, rest) = part.finish(&sphere);
+            assert_eq!(p, whole.0);
+            assert_eq!(first + rest, Bisection::STEPS);
+            assert!(first < Bisection::STEPS);
+            assert_eq!(cubes.cube_of(part.point()), cubes.cube_of(p));
+        }
     }
 }
