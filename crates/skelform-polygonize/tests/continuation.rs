@@ -303,8 +303,8 @@ fn same_mesh_on_any_thread_count() {
 
 /// Blobs (the sum of `e^(-|p - c|² / r²)` over some centres, a level below one) that melt
 /// into each other in some places and stand apart in others: several components, some
-/// reached from many seeds, of different sizes, so that the evaluation pass walks several
-/// surfaces at once and the waves differ in size from one another.
+/// reached from many seeds, of different sizes, so that the waves differ in size from one
+/// another.
 fn blobs() -> (impl Field, Vec<DVec3>) {
     let mut state = 7u64;
     let mut next = || {
@@ -351,29 +351,6 @@ fn several_components_give_the_same_mesh_on_1_2_and_4_threads() {
             assert_eq!(s.corner_evaluations, s1.corner_evaluations, "{what}");
         }
     }
-}
-
-/// The evaluation pass that runs ahead of the components (evaluating all their corners in
-/// parallel waves) changes nothing but the time: a run without it (it is not run with a
-/// propagation limit, here one that never binds) makes the same mesh with the same number
-/// of evaluations, each corner of each visited cube evaluated once either way.
-#[test]
-fn the_evaluation_pass_changes_neither_the_mesh_nor_the_evaluations() {
-    let (field, seeds) = blobs();
-    let lattice = LatticeOptions {
-        domain: Aabb::cube(1.0),
-        resolution: Resolution::Cell(0.02),
-        ..Default::default()
-    };
-    let with = Options { lattice, seeds, ..Options::default() };
-    let without = Options { limit: Some(u32::MAX), ..with.clone() };
-    let (a, sa) = polygonize(&field, &with).unwrap();
-    let (b, sb) = polygonize(&field, &without).unwrap();
-    assert!(sa.components.len() > 3);
-    assert_eq!(a, b);
-    assert_eq!(sa.corner_evaluations, sb.corner_evaluations);
-    assert_eq!(sa.evaluations(), sb.evaluations());
-    assert_eq!(sa.cells_visited, sb.cells_visited);
 }
 
 #[test]

@@ -24,10 +24,6 @@ struct Brick {
     /// 0: not visited; otherwise 1 + the index of the seed whose component reached the cube
     /// whose lowest corner is this point.
     owner: [u32; CELLS],
-    /// One bit per cube: reached by the evaluation pass that runs ahead of the components'
-    /// propagation (see `Run::discover`), kept apart from `owner` because that pass does not
-    /// know which component a cube belongs to.
-    seen: [u64; CELLS / 64],
     /// Vertex on the segment from each point in each direction (`u32::MAX`: none yet),
     /// allocated when the brick first holds a vertex.
     edges: Vec<u32>,
@@ -93,12 +89,7 @@ impl Lattice {
         }
         let key = self.brick_key(p);
         let i = self.bricks.len() as u32;
-        self.bricks.push(Brick {
-            values: [UNKNOWN; CELLS],
-            owner: [0; CELLS],
-            seen: [0; CELLS / 64],
-            edges: Vec::new(),
-        });
+        self.bricks.push(Brick { values: [UNKNOWN; CELLS], owner: [0; CELLS], edges: Vec::new() });
         self.index.insert(key, i);
         self.last = Some((key, i));
         i
@@ -151,22 +142,6 @@ impl Lattice {
             self.visited += 1;
         }
         *o = seed as u32 + 1;
-    }
-
-    /// Whether the evaluation pass reached the cube at `p`.
-    #[inline]
-    pub fn seen(&mut self, p: [u32; 3]) -> bool {
-        let Some(i) = self.find(p) else { return false };
-        let s = slot(p);
-        self.bricks[i as usize].seen[s / 64] & (1 << (s % 64)) != 0
-    }
-
-    /// Marks the cube at `p` reached by the evaluation pass.
-    #[inline]
-    pub fn see(&mut self, p: [u32; 3]) {
-        let i = self.find_or_add(p) as usize;
-        let s = slot(p);
-        self.bricks[i].seen[s / 64] |= 1 << (s % 64);
     }
 
     /// The vertex on the segment from `p` in direction `dir` (a bit mask; 1, 2, 4 for the
@@ -223,11 +198,6 @@ mod tests {
         l.visit([8, 0, 0], 4);
         l.visit([8, 0, 0], 4);
         assert_eq!(l.owner([8, 0, 0]), Some(4));
-        assert_eq!(l.visited(), 1);
-        assert!(!l.seen([8, 0, 0]) && !l.seen([90, 40, 10]));
-        l.see([8, 0, 0]);
-        l.see([15, 7, 7]);
-        assert!(l.seen([8, 0, 0]) && l.seen([15, 7, 7]) && !l.seen([9, 0, 0]));
         assert_eq!(l.visited(), 1);
         assert_eq!(l.edge_vertex([9, 1, 2], 5, || 42), 42);
         assert_eq!(l.edge_vertex([9, 1, 2], 5, || 43), 42);

@@ -11,15 +11,12 @@
 //! each edge root is found once and shared; a surface closed inside the domain comes out closed,
 //! manifold and consistently oriented; the output does not depend on the thread count.
 //!
-//! Threads: the field evaluations are split from the bookkeeping. An evaluation pass first
-//! walks the surfaces from every component's starting cube at once, wave by wave, and
-//! evaluates each wave's new corners in one parallel batch (the waves of all components
-//! together are large enough to share out even when each component is small). The
-//! components are then propagated one after another, each in waves processed in lattice
-//! order, on one thread, from the values already known: the cubes, vertices and triangles
-//! come in the order a run on one thread makes them. Every corner is still evaluated once,
-//! and a value depends on its point alone, so the mesh is the same, byte for byte, on any
-//! thread count. Seeds are searched from in parallel too, each on its own.
+//! Threads: each wave's new corners are evaluated in one parallel batch, and the wave is
+//! then processed in lattice order on one thread, so cubes, vertices and triangles come in
+//! the same order on any thread count; a value depends on its point alone, so the mesh is
+//! the same, byte for byte. Seeds are searched from in parallel, each on its own. (An
+//! evaluation pass walking every component at once, for larger batches where components
+//! are small, was tried: it made the same mesh but cost more in lookups than it saved.)
 //!
 //! Not guaranteed: components without
 //! a seed are found (give seeds, or let the domain search look for them; it can miss
@@ -252,9 +249,6 @@ fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats)
 
     let t = Instant::now();
     let near = run.surface_cubes_near(starts.iter().map(|s| s.2.point()));
-    if options.limit.is_none() {
-        run.discover(near.iter().flatten().copied())?;
-    }
     // The bisections that started a component, finished afterwards (see `Bisection`).
     let mut unfinished = Vec::new();
     for ((seed_index, seed, start), near) in starts.into_iter().zip(near) {
@@ -341,29 +335,6 @@ impl<'a> Run<'a> {
                 })
             })
             .collect()
-    }
-
-    /// The evaluation pass: walks the surfaces from all these cubes at once, in waves,
-    /// evaluating each wave's corners in one parallel batch, so that the propagation of the
-    /// components that follows finds every corner it needs known.
-    ///
-    /// It reaches exactly the cubes the components' propagation will visit (those joined to
-    /// a starting cube across faces the surface crosses), so no corner is evaluated that a
-    /// run without it would not evaluate; only when the cell budget stops it can the two
-    /// differ, by the corners of cubes at the edge of what each reached. It is not run with
-    /// a propagation limit, which is measured from each component's own start.
-    fn discover(&mut self, starts: impl Iterator<Item = [u32; 3]>) -> Result<(), Error> {
-        let limits = Limits {
-            max_cells: self.opts.max_cells,
-            limit: None,
-            origin: [0; 3],
-            max_memory: self.opts.lattice.max_memory,
-            method: self.method(),
-        };
-        let (lattice, control) = (self.cubes, &self.opts.lattice.control);
-        let mut pass = Discover { run: self, found: 0 };
-        propagate(&mut pass, &lattice, starts, &limits, Order::Lattice, control, "evaluating")?;
-        Ok(())
     }
 
     /// Evaluates the corners of these cubes that are not known yet, in parallel batches.
@@ -580,41 +551,6 @@ fn crossed_faces(v: &[f32; 8]) -> u8 {
         }
     }
     faces
-}
-
-/// The evaluation pass ([`Run::discover`]): the walk of [`Walk`] without polygonizing, over
-/// every component at once; what it visits is marked apart from the components' visits.
-struct Discover<'r, 'a> {
-    run: &'r mut Run<'a>,
-    /// Cubes reached (what the cell budget counts here).
-    found: u64,
-}
-
-impl Cubes for Discover<'_, '_> {
-    fn prepare(&mut self, wave: &[[u32; 3]]) {
-        self.run.evaluate_corners(wave);
-    }
-
-    fn process(&mut self, base: [u32; 3]) -> u8 {
-        crossed_faces(&self.run.cube_values(base))
-    }
-
-    fn is_visited(&mut self, cube: [u32; 3]) -> bool {
-        self.run.lattice.seen(cube)
-    }
-
-    fn visit(&mut self, cube: [u32; 3]) {
-        self.run.lattice.see(cube);
-        self.found += 1;
-    }
-
-    fn visited(&self) -> u64 {
-        self.found
-    }
-
-    fn held(&self) -> u64 {
-        self.run.held()
-    }
 }
 
 /// The run's side of the cube and tetrahedron sinks: vertices keyed by lattice segment.
