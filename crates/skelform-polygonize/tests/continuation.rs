@@ -301,6 +301,58 @@ fn same_mesh_on_any_thread_count() {
     assert!(go(2) == one && go(4) == one);
 }
 
+/// Blobs (the sum of `e^(-|p - c|² / r²)` over some centres, a level below one) that melt
+/// into each other in some places and stand apart in others: several components, some
+/// reached from many seeds, of different sizes, so that the waves differ in size from one
+/// another.
+fn blobs() -> (impl Field, Vec<DVec3>) {
+    let mut state = 7u64;
+    let mut next = || {
+        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    };
+    let centres: Vec<(DVec3, f64)> = (0..24)
+        .map(|_| (DVec3::new(next(), next(), next()) * 0.75, 0.08 + 0.07 * (next() + 1.0)))
+        .collect();
+    let seeds = centres.iter().map(|c| c.0).collect();
+    let field = FnField(move |p: DVec3| {
+        0.5 - centres.iter().map(|(c, r)| (-(p - *c).length_squared() / (r * r)).exp()).sum::<f64>()
+    });
+    (field, seeds)
+}
+
+/// The requirement: the same mesh, byte for byte (vertex and triangle order, positions
+/// and normals), and the same counts, on 1, 2 and 4 threads, from seeds and from the domain
+/// search, with cubes and with tetrahedra.
+#[test]
+fn several_components_give_the_same_mesh_on_1_2_and_4_threads() {
+    let (field, seeds) = blobs();
+    for (seeds, cells) in [
+        (seeds.clone(), Cells::Cubes),
+        (Vec::new(), Cells::Cubes),
+        (seeds.clone(), Cells::Tetrahedra),
+    ] {
+        let go = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| run(&field, Aabb::cube(1.0), 0.02, &seeds, cells))
+        };
+        let (one, s1) = go(1);
+        assert!(s1.components.len() > 3, "{:?}", s1.components);
+        assert!(one.triangle_count() > 10_000 && !one.normals.is_empty());
+        for threads in [2, 4] {
+            let (m, s) = go(threads);
+            let what = format!("{cells:?}, {} seeds, {threads} threads", seeds.len());
+            assert_eq!(m.positions, one.positions, "{what}");
+            assert_eq!(m.triangles, one.triangles, "{what}");
+            assert_eq!(m.normals, one.normals, "{what}");
+            assert_eq!(s.components, s1.components, "{what}");
+            assert_eq!(s.seed_notes, s1.seed_notes, "{what}");
+            assert_eq!(s.evaluations(), s1.evaluations(), "{what}");
+            assert_eq!(s.corner_evaluations, s1.corner_evaluations, "{what}");
+        }
+    }
+}
+
 #[test]
 fn cancellation_stops_the_run() {
     use skelform_field::control::Control;

@@ -48,6 +48,30 @@ fn the_mesh_is_the_same_on_any_number_of_threads() {
     assert_eq!(one.mesh.triangles, two.mesh.triangles);
 }
 
+/// The hand (85 skeletal elements, a seed each, one component) with the continuation
+/// method, on 1, 2 and 4 threads of the caller's pool: the same mesh, byte for byte.
+#[test]
+fn the_hand_by_continuation_is_the_same_on_1_2_and_4_threads() {
+    let scene = Scene::load(example("skeleton/hand.toml")).unwrap();
+    let overrides = Overrides {
+        method: Some(Method::Continuation),
+        resolution: Some(Resolution::Samples(64)),
+        ..Overrides::default()
+    };
+    let go = |threads| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| scene.mesh(&overrides).unwrap().mesh)
+    };
+    let one = go(1);
+    assert!(one.triangle_count() > 1000);
+    for threads in [2, 4] {
+        let m = go(threads);
+        assert_eq!(m.positions, one.positions, "{threads} threads");
+        assert_eq!(m.triangles, one.triangles, "{threads} threads");
+        assert_eq!(m.normals, one.normals, "{threads} threads");
+    }
+}
+
 #[test]
 fn a_pose_override_rebuilds_the_skeleton() {
     let scene = Scene::load(example("skeleton/hand.toml")).unwrap();

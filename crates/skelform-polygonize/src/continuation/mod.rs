@@ -9,8 +9,16 @@
 //!
 //! Guarantees: each lattice corner is evaluated once (values are kept in sparse bricks) and
 //! each edge root is found once and shared; a surface closed inside the domain comes out closed,
-//! manifold and consistently oriented; the output does not depend on the thread count
-//! (cubes are processed in waves, each in lattice order). Not guaranteed: components without
+//! manifold and consistently oriented; the output does not depend on the thread count.
+//!
+//! Threads: each wave's new corners are evaluated in one parallel batch, and the wave is
+//! then processed in lattice order on one thread, so cubes, vertices and triangles come in
+//! the same order on any thread count; a value depends on its point alone, so the mesh is
+//! the same, byte for byte. Seeds are searched from in parallel, each on its own. (An
+//! evaluation pass walking every component at once, for larger batches where components
+//! are small, was tried: it made the same mesh but cost more in lookups than it saved.)
+//!
+//! Not guaranteed: components without
 //! a seed are found (give seeds, or let the domain search look for them; it can miss
 //! components smaller than its stride).
 
@@ -240,8 +248,11 @@ fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats)
     run.stats.search = t.elapsed();
 
     let t = Instant::now();
-    for (seed_index, seed, start) in starts {
-        let Some(cube) = run.surface_cube_near(start) else {
+    let near = run.surface_cubes_near(starts.iter().map(|s| s.2.point()));
+    // The bisections that started a component, finished afterwards (see `Bisection`).
+    let mut unfinished = Vec::new();
+    for ((seed_index, seed, start), near) in starts.into_iter().zip(near) {
+        let Some(cube) = near else {
             run.stats.seed_notes.push(SeedNote::NoSurface { seed });
             continue;
         };
@@ -251,14 +262,23 @@ fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats)
         }
         let before = (run.lattice.visited(), run.triangles.len());
         run.propagate(cube, seed_index)?;
+        unfinished.push(start);
         run.stats.components.push(Component {
             seed,
-            start,
+            start: start.point(),
             cells: run.lattice.visited() - before.0,
             triangles: run.triangles.len() - before.1,
         });
     }
     run.stats.propagation = t.elapsed();
+    let t = Instant::now();
+    let field = run.field;
+    let finished: Vec<(DVec3, u64)> = unfinished.par_iter().map(|b| b.finish(field)).collect();
+    for (c, (p, evals)) in run.stats.components.iter_mut().zip(finished) {
+        c.start = p;
+        run.stats.search_evaluations += evals;
+    }
+    run.stats.search += t.elapsed();
     run.stats.cells_visited = run.lattice.visited();
     run.finish()
 }
@@ -295,19 +315,36 @@ impl<'a> Run<'a> {
         }
     }
 
-    /// A cube the surface crosses: the one holding `p` or, when the surface slips between its
-    /// corners there, one of its 26 neighbours (the first in lattice order).
-    fn surface_cube_near(&mut self, p: DVec3) -> Option<[u32; 3]> {
-        let c = self.cubes.cube_of_u32(p);
-        let candidates: Vec<[u32; 3]> = std::iter::once(c).chain(self.cubes.around(c)).collect();
-        self.evaluate_corners(&candidates);
-        candidates.into_iter().find(|&k| {
-            let case = case_of(&self.cube_values(k));
-            case != 0 && case != 255
-        })
+    /// For each point, a cube the surface crosses: the one holding the point or, when the
+    /// surface slips between its corners there, one of its 26 neighbours (the first in
+    /// lattice order). The corners of all the points' cubes are evaluated in one batch.
+    fn surface_cubes_near(&mut self, points: impl Iterator<Item = DVec3>) -> Vec<Option<[u32; 3]>> {
+        let candidates: Vec<Vec<[u32; 3]>> = points
+            .map(|p| {
+                let c = self.cubes.cube_of_u32(p);
+                std::iter::once(c).chain(self.cubes.around(c)).collect()
+            })
+            .collect();
+        self.evaluate_corners(&candidates.concat());
+        candidates
+            .into_iter()
+            .map(|cubes| {
+                cubes.into_iter().find(|&k| {
+                    let case = case_of(&self.cube_values(k));
+                    case != 0 && case != 255
+                })
+            })
+            .collect()
     }
 
     /// Evaluates the corners of these cubes that are not known yet, in parallel batches.
+    ///
+    /// The batches' size depends on the number of points only, never on the thread count:
+    /// a value is its point's alone (the [`Field`] contract), and even a field whose batch
+    /// values depended on the batch would then still give the same mesh on any thread count.
+    /// Batches are small enough (a 16th of the points, at least 128) that a large wave is
+    /// shared among the threads, and large enough that a field which sorts a batch by region
+    /// (the skeletons cull elements by cell) keeps its advantage.
     fn evaluate_corners(&mut self, cubes: &[[u32; 3]]) {
         let mut todo: Vec<[u32; 3]> = Vec::new();
         for &b in cubes {
@@ -323,8 +360,9 @@ impl<'a> Run<'a> {
         }
         let points: Vec<DVec3> = todo.iter().map(|&p| self.cubes.point(p)).collect();
         let mut out = vec![0.0; points.len()];
-        out.par_chunks_mut(1024)
-            .zip(points.par_chunks(1024))
+        let chunk = (points.len() / 16).clamp(128, 1024);
+        out.par_chunks_mut(chunk)
+            .zip(points.par_chunks(chunk))
             .for_each(|(o, p)| self.field.eval_many(p, o));
         self.stats.corner_evaluations += points.len() as u64;
         for (&p, v) in todo.iter().zip(out) {
@@ -482,14 +520,7 @@ impl Cubes for Walk<'_, '_> {
             return 0;
         }
         self.run.polygonize(base, &v);
-        let mut faces = 0;
-        for (f, q) in FACES.iter().enumerate() {
-            let inside = q.iter().filter(|&&c| v[c] < 0.0).count();
-            if inside != 0 && inside != 4 {
-                faces |= 1 << f;
-            }
-        }
-        faces
+        crossed_faces(&v)
     }
 
     fn is_visited(&mut self, cube: [u32; 3]) -> bool {
@@ -507,6 +538,19 @@ impl Cubes for Walk<'_, '_> {
     fn held(&self) -> u64 {
         self.run.held()
     }
+}
+
+/// The faces of a cube with corner values `v` that the surface crosses (corners of both
+/// signs), bit `f` for face `f`.
+fn crossed_faces(v: &[f32; 8]) -> u8 {
+    let mut faces = 0;
+    for (f, q) in FACES.iter().enumerate() {
+        let inside = q.iter().filter(|&&c| v[c] < 0.0).count();
+        if inside != 0 && inside != 4 {
+            faces |= 1 << f;
+        }
+    }
+    faces
 }
 
 /// The run's side of the cube and tetrahedron sinks: vertices keyed by lattice segment.
@@ -560,20 +604,33 @@ impl TetraSink for RunSink<'_, '_> {
 
 /// Where propagation starts: for each seed, a point where the surface is; with no seeds, the
 /// crossings a coarse search of the domain finds.
-fn find_starts(run: &mut Run) -> Result<Vec<(usize, DVec3, DVec3)>, Error> {
+///
+/// The seeds are searched from in parallel, each on its own; the answers are read in the
+/// seeds' order, so the first bad seed is the one reported, as on one thread.
+fn find_starts(run: &mut Run) -> Result<Vec<(usize, DVec3, Bisection)>, Error> {
     let opts = run.opts;
     if opts.seeds.is_empty() {
         return search_domain(run);
     }
+    let (field, grid, cubes) = (run.field, run.grid, run.cubes);
+    let found: Vec<Result<(Option<Bisection>, u64), Error>> = opts
+        .seeds
+        .par_iter()
+        .map(|&seed| {
+            if !grid.bounds().contains(seed) {
+                return Err(Error::BadSeed {
+                    seed: seed.to_array(),
+                    why: "it is outside the domain".into(),
+                });
+            }
+            search_from(field, &grid, &cubes, seed)
+        })
+        .collect();
     let mut starts = Vec::new();
-    for (i, &seed) in opts.seeds.iter().enumerate() {
-        if !run.grid.bounds().contains(seed) {
-            return Err(Error::BadSeed {
-                seed: seed.to_array(),
-                why: "it is outside the domain".into(),
-            });
-        }
-        match search_from(run, seed)? {
+    for (i, (&seed, found)) in opts.seeds.iter().zip(found).enumerate() {
+        let (start, evals) = found?;
+        run.stats.search_evaluations += evals;
+        match start {
             Some(p) => starts.push((i, seed, p)),
             None => run.stats.seed_notes.push(SeedNote::NoSurface { seed }),
         }
@@ -605,11 +662,16 @@ fn directions() -> Vec<DVec3> {
 }
 
 /// Marches out from `seed` in 26 directions, a cell at a time, to the first sign change
-/// within the domain, and bisects it to the surface.
-fn search_from(run: &mut Run, seed: DVec3) -> Result<Option<DVec3>, Error> {
-    let field = run.field;
+/// within the domain, and bisects it to the surface. Returns the point (if any) and the
+/// evaluations made.
+fn search_from(
+    field: &dyn Field,
+    grid: &Grid,
+    cubes: &CubeLattice,
+    seed: DVec3,
+) -> Result<(Option<Bisection>, u64), Error> {
     let f0 = field.eval(seed);
-    run.stats.search_evaluations += 1;
+    let mut evals = 1;
     if !f0.is_finite() {
         return Err(Error::BadSeed {
             seed: seed.to_array(),
@@ -617,14 +679,17 @@ fn search_from(run: &mut Run, seed: DVec3) -> Result<Option<DVec3>, Error> {
         });
     }
     if f0 == 0.0 {
-        return Ok(Some(seed));
+        return Ok((Some(Bisection::at(seed)), evals));
     }
-    let bounds = run.grid.bounds();
-    let h = run.grid.cell;
+    let bounds = grid.bounds();
+    let h = grid.cell;
     let longest = bounds.size().max_element();
     let steps = (longest / h).ceil() as usize + 1;
     // Nearest crossing first: walk all directions outward together, a batch of steps at a time.
     let dirs = directions();
+    // The value one step back along each direction (the seed's at first): where the sign
+    // changes, the bisection starts from it without evaluating it again.
+    let mut back = vec![f0; dirs.len()];
     let mut reach = 1usize;
     while reach <= steps {
         let upto = (reach * 2).min(steps);
@@ -644,58 +709,135 @@ fn search_from(run: &mut Run, seed: DVec3) -> Result<Option<DVec3>, Error> {
         }
         let mut vals = vec![0.0; pts.len()];
         field.eval_many(&pts, &mut vals);
-        run.stats.search_evaluations += pts.len() as u64;
+        evals += pts.len() as u64;
         if let Some(n) =
             (0..pts.len()).find(|&n| vals[n].is_finite() && (vals[n] < 0.0) != (f0 < 0.0))
         {
             let (s, d) = which[n];
             let prev = seed + dirs[d] * (h * (s - 1) as f64);
-            let fp = if s == 1 { f0 } else { field.eval(prev) };
-            return Ok(Some(bisect(run, prev, fp, pts[n])));
+            // A domain box is convex, so the step before a point in it is in it too, and was
+            // evaluated: in this batch, or last in the one before.
+            let fp = if s > reach {
+                match (0..n).rev().find(|&m| which[m] == (s - 1, d)) {
+                    Some(m) => vals[m],
+                    None => {
+                        // Only if rounding put the step just outside the box.
+                        evals += 1;
+                        field.eval(prev)
+                    }
+                }
+            } else {
+                back[d]
+            };
+            let (p, e) = Bisection::new(prev, fp, pts[n]).to_cube(field, cubes);
+            return Ok((Some(p), evals + e));
+        }
+        for (&(s, d), &v) in which.iter().zip(&vals) {
+            if s == upto {
+                back[d] = v;
+            }
         }
         reach = upto + 1;
     }
-    Ok(None)
+    Ok((None, evals))
 }
 
-/// A point on the surface between `a` (value `fa`) and `b` (opposite sign), to a small
-/// fraction of a cell.
-fn bisect(run: &mut Run, mut a: DVec3, fa: f64, mut b: DVec3) -> DVec3 {
-    let inside_a = fa < 0.0;
-    for _ in 0..20 {
-        let m = (a + b) * 0.5;
-        let fm = run.field.eval(m);
-        run.stats.search_evaluations += 1;
-        if (fm < 0.0) == inside_a {
-            a = m;
-        } else {
-            b = m;
-        }
+/// The bisection of a segment from `a` (value `fa`) to `b` (opposite sign) towards a point
+/// on the surface, [`Bisection::STEPS`] halvings in all (a small fraction of a cell).
+///
+/// Propagation needs only the cube that point is in, and most seeds lead to a component
+/// found already: so the halving stops as soon as both ends lie in one cube
+/// ([`Bisection::to_cube`]), and only the seeds that start a component finish it
+/// ([`Bisection::finish`]) for the point their statistics report. The cube is the finished
+/// point's (a cube holds every point between two of its points, and halving never leaves
+/// that range), and finishing takes the very halvings an uninterrupted bisection takes, so
+/// the mesh and the statistics' points are what bisecting at once to the end gives, with
+/// fewer evaluations.
+#[derive(Clone, Copy, Debug)]
+struct Bisection {
+    a: DVec3,
+    b: DVec3,
+    /// Whether `a` is inside (`f < 0`).
+    inside_a: bool,
+    /// Halvings done.
+    done: u64,
+}
+
+impl Bisection {
+    /// Halvings in all.
+    const STEPS: u64 = 20;
+
+    fn new(a: DVec3, fa: f64, b: DVec3) -> Self {
+        Bisection { a, b, inside_a: fa < 0.0, done: 0 }
     }
-    (a + b) * 0.5
+
+    /// A point on the surface itself: nothing to halve.
+    fn at(p: DVec3) -> Self {
+        Bisection { a: p, b: p, inside_a: true, done: Self::STEPS }
+    }
+
+    /// The midpoint: the answer once finished, and before that a point of the finished
+    /// answer's cube (after [`Bisection::to_cube`]).
+    fn point(&self) -> DVec3 {
+        (self.a + self.b) * 0.5
+    }
+
+    fn halve(&mut self, field: &dyn Field) {
+        let m = self.point();
+        if (field.eval(m) < 0.0) == self.inside_a {
+            self.a = m;
+        } else {
+            self.b = m;
+        }
+        self.done += 1;
+    }
+
+    /// Halves until both ends are in one cube of `cubes` (or all halvings are done); returns
+    /// itself and the evaluations made.
+    fn to_cube(mut self, field: &dyn Field, cubes: &CubeLattice) -> (Self, u64) {
+        let start = self.done;
+        while self.done < Self::STEPS && cubes.cube_of(self.a) != cubes.cube_of(self.b) {
+            self.halve(field);
+        }
+        (self, self.done - start)
+    }
+
+    /// The remaining halvings: the point and the evaluations made.
+    fn finish(&self, field: &dyn Field) -> (DVec3, u64) {
+        let mut b = *self;
+        while b.done < Self::STEPS {
+            b.halve(field);
+        }
+        (b.point(), Self::STEPS - self.done)
+    }
 }
 
 /// With no seeds: sample a coarse lattice and start from every coarse edge with a sign
-/// change (each component at least `search_stride` cells across is found).
-fn search_domain(run: &mut Run) -> Result<Vec<(usize, DVec3, DVec3)>, Error> {
+/// change (each component at least `search_stride` cells across is found). The crossings
+/// are bisected in parallel and kept in the coarse edges' order.
+fn search_domain(run: &mut Run) -> Result<Vec<(usize, DVec3, Bisection)>, Error> {
     let search = CoarseSearch::new(&run.grid, run.opts.search_stride);
     let pts = &search.points;
+    let field = run.field;
     let mut vals = vec![0.0; pts.len()];
-    vals.par_chunks_mut(1024)
-        .zip(pts.par_chunks(1024))
-        .for_each(|(o, p)| run.field.eval_many(p, o));
+    vals.par_chunks_mut(1024).zip(pts.par_chunks(1024)).for_each(|(o, p)| field.eval_many(p, o));
     run.stats.search_evaluations += pts.len() as u64;
-    let mut starts = Vec::new();
+    let mut crossed = Vec::new();
     search.edges(|a, b| {
         if vals[a].is_finite() && vals[b].is_finite() && (vals[a] < 0.0) != (vals[b] < 0.0) {
-            let p = bisect(run, pts[a], vals[a], pts[b]);
-            starts.push((starts.len(), pts[a], p));
+            crossed.push((a, b));
         }
     });
-    if starts.is_empty() {
+    if crossed.is_empty() {
         return Err(Error::NoSurfaceFound { samples: pts.len() as u64, stride: search.stride });
     }
-    Ok(starts)
+    let cubes = run.cubes;
+    let found: Vec<(Bisection, u64)> = crossed
+        .par_iter()
+        .map(|&(a, b)| Bisection::new(pts[a], vals[a], pts[b]).to_cube(field, &cubes))
+        .collect();
+    run.stats.search_evaluations += found.iter().map(|f| f.1).sum::<u64>();
+    Ok(crossed.iter().zip(found).enumerate().map(|(i, (&(a, _), (p, _)))| (i, pts[a], p)).collect())
 }
 
 #[cfg(test)]
@@ -707,5 +849,24 @@ mod tests {
         let d = directions();
         assert_eq!(d.len(), 26);
         assert!(d[..6].iter().all(|v| v.length() == 1.0));
+    }
+
+    /// Stopping at the cube and finishing later gives the uninterrupted bisection's point,
+    /// in that point's cube, with the halvings split between the two.
+    #[test]
+    fn a_bisection_stopped_at_its_cube_finishes_where_an_uninterrupted_one_ends() {
+        let sphere = skelform_field::FnField(|p: DVec3| p.length() - 0.4321);
+        let grid = Grid::with_cell(&skelform_field::Aabb::cube(1.0), 0.05).unwrap();
+        let cubes = CubeLattice::new(grid);
+        for dir in directions() {
+            let (a, b) = (dir * 0.41, dir * 0.41 + dir * 0.05);
+            let whole = Bisection::new(a, sphere.eval(a), b).finish(&sphere);
+            let (part, first) = Bisection::new(a, sphere.eval(a), b).to_cube(&sphere, &cubes);
+            let (p, rest) = part.finish(&sphere);
+            assert_eq!(p, whole.0);
+            assert_eq!(first + rest, Bisection::STEPS);
+            assert!(first < Bisection::STEPS);
+            assert_eq!(cubes.cube_of(part.point()), cubes.cube_of(p));
+        }
     }
 }
