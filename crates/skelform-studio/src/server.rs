@@ -2,6 +2,7 @@
 //! loop that keeps the document, its undo history and the meshing worker in step.
 
 use std::net::SocketAddr;
+use std::path::Path;
 use std::sync::mpsc::Sender;
 use std::sync::{Arc, Mutex, MutexGuard};
 
@@ -126,7 +127,7 @@ impl Studio {
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_else(|| shown.clone());
-        let (scene, error) = match check(&text, &origin_name, None) {
+        let (scene, error) = match check(&text, &origin_name, None, &place.dir) {
             Ok(s) => (Some(s), None),
             Err(e) => (None, Some(e.to_string())),
         };
@@ -228,11 +229,51 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 
 /// Checks scene text as the library does, in the pose shown, and the lattice it would
 /// mesh on (so that a cell too fine for memory is refused as an edit).
-fn check(text: &str, origin: &str, pose: Option<&str>) -> Result<skelform::Scene, skelform::Error> {
-    let scene = skelform::Scene::parse(text, origin)?;
+/// Relative paths in the text are taken from the scene's folder `dir`, and only files in it
+/// may be read: a path that leads out of it is refused before anything is opened.
+fn check(
+    text: &str,
+    origin: &str,
+    pose: Option<&str>,
+    dir: &Path,
+) -> Result<skelform::Scene, skelform::Error> {
+    confine(text, dir)
+        .map_err(|message| skelform::Error::Invalid { origin: origin.to_string(), message })?;
+    let scene = skelform::Scene::parse_in(text, origin, dir)?;
     let overrides = Overrides { pose: pose.map(str::to_string), ..Overrides::default() };
     scene.lattice(&overrides)?;
     Ok(scene)
+}
+
+/// Refuses a file the scene names (a sweep's `section_image`) unless it lies in `dir`: a
+/// plain relative path without `..`, and, when it exists, not a link to elsewhere. Text that
+/// is not TOML passes here and is refused by the parse with its position.
+fn confine(text: &str, dir: &Path) -> Result<(), String> {
+    let Ok(doc) = text.parse::<DocumentMut>() else { return Ok(()) };
+    let sweeps = doc
+        .get("skeleton")
+        .and_then(|s| s.get("sweep"))
+        .and_then(|s| s.as_array_of_tables())
+        .into_iter()
+        .flat_map(|a| a.iter());
+    for sweep in sweeps {
+        let Some(name) = sweep.get("section_image").and_then(|v| v.as_str()) else { continue };
+        let path = Path::new(name);
+        let plain = path
+            .components()
+            .all(|c| matches!(c, std::path::Component::Normal(_) | std::path::Component::CurDir));
+        let inside = plain
+            && match dir.join(path).canonicalize() {
+                Ok(real) => real.starts_with(dir),
+                Err(_) => true, // missing: the parse says so
+            };
+        if !inside {
+            return Err(format!(
+                "section_image '{name}': the studio reads only files in the scene's folder"
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Constant-time comparison, so that the token cannot be guessed a byte at a time.
@@ -606,7 +647,7 @@ impl State {
             // undo step.
             return Ok(None);
         }
-        let scene = match check(&text, &self.origin_name, g.pose.as_deref()) {
+        let scene = match check(&text, &self.origin_name, g.pose.as_deref(), &self.place.dir) {
             Ok(s) => Some(s),
             // A document that did not check when opened takes edits that do not fix it yet.
             Err(err) if g.scene.is_none() => {
@@ -692,7 +733,7 @@ impl State {
         };
         let doc: DocumentMut =
             text.parse().map_err(|e: toml_edit::TomlError| StudioError::Edit(e.to_string()))?;
-        let scene = check(&text, &self.origin_name, g.pose.as_deref());
+        let scene = check(&text, &self.origin_name, g.pose.as_deref(), &self.place.dir);
         let old = std::mem::replace(&mut g.text, text);
         if undo {
             g.redo.push(old)

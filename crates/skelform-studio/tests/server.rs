@@ -496,3 +496,48 @@ async fn a_scene_with_an_error_opens_with_it_shown_and_takes_the_edit_that_fixes
     let (_, frames) = until_full(&mut ws, fixed["revision"].as_u64().unwrap()).await;
     assert!(frames.last().unwrap().2 > 100);
 }
+
+/// A sweep's section image is read from the scene's folder (wherever the studio was started
+/// from), and an image outside that folder is not read at all.
+#[tokio::test]
+async fn section_images_come_from_the_scenes_folder_only() {
+    let examples = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/skeleton");
+    let text = std::fs::read_to_string(examples.join("star-sweep.toml"))
+        .unwrap()
+        .replace("resolution = 128", "resolution = 32");
+    let image = examples.join("star-section.png");
+    let root = tempfile::tempdir().unwrap();
+    let dir = root.path().join("scene");
+    std::fs::create_dir(&dir).unwrap();
+    std::fs::copy(&image, dir.join("star-section.png")).unwrap();
+    std::fs::copy(&image, root.path().join("outside.png")).unwrap();
+
+    let open = |text: String| {
+        let file = dir.join("star.toml");
+        std::fs::write(&file, text).unwrap();
+        async move {
+            let studio = Studio::bind(&file, Settings::default()).await.unwrap();
+            let r = Running {
+                addr: studio.addr(),
+                token: studio.token().to_string(),
+                file,
+                _dir: tempfile::tempdir().unwrap(),
+            };
+            tokio::spawn(studio.serve());
+            let mut ws = connect(&r).await;
+            let first = next_state(&mut ws).await;
+            (ws, first)
+        }
+    };
+    let (mut ws, first) = open(text.clone()).await;
+    assert!(first["error"].is_null(), "{first}");
+    let (_, frames) = until_full(&mut ws, first["revision"].as_u64().unwrap()).await;
+    assert!(frames.last().unwrap().2 > 100, "the star sweep was meshed");
+
+    for outside in ["../outside.png", "/etc/passwd"] {
+        let moved = text.replace("\"star-section.png\"", &format!("\"{outside}\""));
+        let (_, first) = open(moved).await;
+        let error = first["error"].as_str().unwrap_or_default();
+        assert!(error.contains("only files in the scene's folder"), "{outside}: {first}");
+    }
+}

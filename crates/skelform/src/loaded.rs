@@ -48,6 +48,12 @@ impl Scene {
         Scene::build(text.into(), origin, None, LoadOptions::default())
     }
 
+    /// Checks scene text whose relative paths (a sweep's `section_image`) are taken from the
+    /// folder `base`: an editor's scene, held as text but belonging to a file there.
+    pub fn parse_in(text: &str, origin: &str, base: &Path) -> Result<Scene, Error> {
+        Scene::build(text.into(), origin, Some(base.to_path_buf()), LoadOptions::default())
+    }
+
     /// A scene of one field over `domain`, with every other setting at its default (the
     /// grid method, 128 samples along the longest side): for front ends whose field is not
     /// written in the scene language (a Python function, a field built in Rust). `origin`
