@@ -417,14 +417,11 @@ mod tests {
         let _ = std::fs::remove_dir_all(big.parent().unwrap());
     }
 
-    /// The star example's mesh has the image's shape: vertices in the middle of the sweep,
-    /// in the section's normalised coordinates, lie where the mask changes from inside to
-    /// outside (inside and outside pixels both within a cell and a pixel), and reach the
-    /// star's tips and notches.
-    #[test]
-    fn an_image_section_meshes_to_the_image_shape() {
+    /// An example scene, meshed by the grid at its own resolution.
+    fn example(name: &str) -> (Scene, skelform_mesh::Mesh) {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../examples/skeleton/star-sweep.toml");
+            .join("../../examples/skeleton")
+            .join(name);
         let scene = Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
         let lattice = LatticeOptions {
             domain: scene.domain,
@@ -433,6 +430,16 @@ mod tests {
         };
         let (mesh, _) =
             polygonize(&*scene.field, &Options { lattice, ..Default::default() }).unwrap();
+        (scene, mesh)
+    }
+
+    /// The star example's mesh has the image's shape: vertices in the middle of the sweep,
+    /// in the section's normalised coordinates, lie where the mask changes from inside to
+    /// outside (inside and outside pixels both within a cell and a pixel), and reach the
+    /// star's tips and notches.
+    #[test]
+    fn an_image_section_meshes_to_the_image_shape() {
+        let (scene, mesh) = example("star-sweep.toml");
         let r = check(&mesh);
         assert_eq!(r.components.len(), 1);
         let c = &r.components[0];
@@ -498,16 +505,7 @@ mod tests {
     /// ball lie on the swept ellipse (`ρ = 1`) within a fraction of a cell.
     #[test]
     fn the_horn_example_is_one_closed_genus_0_piece() {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../examples/skeleton/horn.toml");
-        let scene = Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
-        let lattice = LatticeOptions {
-            domain: scene.domain,
-            resolution: scene.resolution,
-            ..Default::default()
-        };
-        let (mesh, _) =
-            polygonize(&*scene.field, &Options { lattice, ..Default::default() }).unwrap();
+        let (scene, mesh) = example("horn.toml");
         let r = check(&mesh);
         assert_eq!(r.components.len(), 1);
         let c = &r.components[0];

@@ -711,22 +711,16 @@ impl<'a> Reader<'a> {
     }
 
     fn vec3(&self, i: usize) -> Result<Vec<[f32; 3]>, IoError> {
-        let (data, count, stride, component) = self.accessor(i, "VEC3")?;
-        if component != FLOAT {
-            return Err(json_err(format!("accessor {i}: only float vectors are supported")));
-        }
-        Ok((0..count)
-            .map(|k| {
-                std::array::from_fn(|c| {
-                    let at = k * stride + 4 * c;
-                    f32::from_le_bytes([data[at], data[at + 1], data[at + 2], data[at + 3]])
-                })
-            })
-            .collect())
+        self.floats(i, "VEC3")
     }
 
     fn vec2(&self, i: usize) -> Result<Vec<[f32; 2]>, IoError> {
-        let (data, count, stride, component) = self.accessor(i, "VEC2")?;
+        self.floats(i, "VEC2")
+    }
+
+    /// A float accessor of `N` components per element (`kind` names it: VEC2, VEC3).
+    fn floats<const N: usize>(&self, i: usize, kind: &str) -> Result<Vec<[f32; N]>, IoError> {
+        let (data, count, stride, component) = self.accessor(i, kind)?;
         if component != FLOAT {
             return Err(json_err(format!("accessor {i}: only float vectors are supported")));
         }
