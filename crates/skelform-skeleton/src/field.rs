@@ -684,6 +684,13 @@ impl SkeletonField {
         Some(points.iter().map(|&p| self.color_at(colors, p, &mut selected)).collect())
     }
 
+    /// Each element's colour, in element order, when any element has one: what
+    /// [`SkeletonField::colors`] blends. Two fields with the same elements and the same
+    /// colours colour a point the same where no changed element reaches.
+    pub fn element_colors(&self) -> Option<&[[f32; 3]]> {
+        self.colors.as_deref()
+    }
+
     fn color_at(&self, colors: &[[f32; 3]], p: DVec3, selected: &mut Vec<usize>) -> [f32; 3] {
         let cell = self.cull.cell_of(p);
         let candidates = self.cull.elements(cell);

@@ -1,9 +1,11 @@
 //! [`Live`]: meshing a scene again and again as it is edited, redoing only what an edit
 //! changed.
 
+use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::Instant;
 
+use skelform_field::DVec3;
 use skelform_polygonize::Resolution;
 use skelform_polygonize::incremental::{self, GridState, Reuse};
 use skelform_skeleton::SkeletonField;
@@ -55,6 +57,13 @@ pub struct Live {
 struct Last {
     skeleton: Arc<SkeletonField>,
     state: GridState,
+    /// The vertex colours it painted, by position (empty without colours).
+    colors: HashMap<[u32; 3], [f32; 3]>,
+}
+
+/// A vertex position as a key: its bits.
+fn key(p: &[f32; 3]) -> [u32; 3] {
+    p.map(f32::to_bits)
 }
 
 /// How [`Live`]'s last run went.
@@ -134,6 +143,8 @@ impl Live {
             }
             Some(l) => skeleton.changes_since(&l.skeleton).map_err(|g| g.to_string()),
         };
+        // The colours of the last run, and where an edit may have changed them.
+        let mut kept_colors = (HashMap::new(), Vec::new());
         let (mut mesh, stats, state, run) = match (changes, last) {
             (Ok(boxes), Some(mut l)) => {
                 let (mesh, stats, reuse) =
@@ -149,6 +160,11 @@ impl Live {
                         }
                     };
                 let run = LiveRun { incremental: !reuse.full, full_because: None, reuse };
+                // Colours are per element and not among the changes: an edit that
+                // recoloured, added or removed an element paints every vertex again.
+                if !reuse.full && l.skeleton.element_colors() == skeleton.element_colors() {
+                    kept_colors = (std::mem::take(&mut l.colors), boxes);
+                }
                 (mesh, stats, l.state, run)
             }
             (why, _) => {
@@ -173,9 +189,23 @@ impl Live {
                 }
             }
         };
-        self.last = Some(Last { skeleton, state });
+        // A vertex at the same place as one of the last run and outside every changed
+        // element's old and new box has the same colour, bit for bit: those elements are
+        // skipped there, before as after (the same reason its position is unchanged). The
+        // boxes are widened by a hair, as a guard on the comparison.
+        let (old_colors, boxes) = kept_colors;
+        let boxes: Vec<_> =
+            boxes.iter().map(|b| b.inflate(1e-9 * (1.0 + b.size().max_element()))).collect();
+        scene.paint_with(&mut mesh, method, o, |p| {
+            let at = DVec3::from_array(p.map(f64::from));
+            if boxes.iter().any(|b| b.contains(at)) {
+                return None;
+            }
+            old_colors.get(&key(p)).copied()
+        });
+        let colors = mesh.positions.iter().map(key).zip(mesh.colors.iter().copied()).collect();
+        self.last = Some(Last { skeleton, state, colors });
         self.run = Some(run);
-        scene.paint(&mut mesh, method, o);
         Ok(Meshed { mesh, stats: Stats::Grid(stats), method, elapsed: started.elapsed() })
     }
 

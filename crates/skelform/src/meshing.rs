@@ -270,17 +270,38 @@ impl Scene {
     /// non-manifold method's surfaces are labelled by region instead. Every path that makes
     /// a mesh of the scene ([`Scene::mesh`], [`crate::Live`]) calls this, so they agree.
     pub(crate) fn paint(&self, mesh: &mut Mesh, method: Method, overrides: &Overrides) {
+        self.paint_with(mesh, method, overrides, |_| None);
+    }
+
+    /// [`Scene::paint`], taking the colour of each vertex for which `known` has one
+    /// instead of computing it ([`crate::Live`]: vertices an edit did not reach).
+    pub(crate) fn paint_with(
+        &self,
+        mesh: &mut Mesh,
+        method: Method,
+        overrides: &Overrides,
+        known: impl Fn(&[f32; 3]) -> Option<[f32; 3]> + Sync,
+    ) {
         if method != Method::NonManifold
             && overrides.colors != Some(false)
             && let Some(skeleton) = &self.skeleton
+            && skeleton.colors(&[]).is_some()
         {
-            let points: Vec<DVec3> =
-                mesh.positions.iter().map(|p| DVec3::from_array(p.map(f64::from))).collect();
+            let known: Vec<Option<[f32; 3]>> = mesh.positions.par_iter().map(&known).collect();
+            let points: Vec<DVec3> = mesh
+                .positions
+                .iter()
+                .zip(&known)
+                .filter(|(_, k)| k.is_none())
+                .map(|(p, _)| DVec3::from_array(p.map(f64::from)))
+                .collect();
             // Each vertex's colour is its own sum (the triangle integrals make it costly:
             // about 17 µs a vertex on the hand), so chunks in parallel give the same colours.
             let chunks: Option<Vec<Vec<[f32; 3]>>> =
                 points.par_chunks(1024).map(|chunk| skeleton.colors(chunk)).collect();
-            mesh.colors = chunks.map(|c| c.concat()).unwrap_or_default();
+            let mut fresh = chunks.unwrap_or_default().into_iter().flatten();
+            mesh.colors =
+                known.iter().map(|k| k.or_else(|| fresh.next()).unwrap_or_default()).collect();
         }
         if method != Method::NonManifold
             && let Some(swept) = &self.sweeps

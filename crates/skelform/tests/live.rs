@@ -33,9 +33,12 @@ impl Sketch {
             self.angles[0],
             self.angles[1]
         );
-        for (c, r, s) in &self.points {
+        for (i, (c, r, s)) in self.points.iter().enumerate() {
+            // Colours that differ from element to element, so that an incremental run's
+            // colours are compared with a fresh run's too.
+            let colour = [0.1 + 0.2 * (i % 4) as f64, 0.9 - 0.3 * (i % 3) as f64, 0.5];
             t += &format!(
-                "[[skeleton.point]]\nat = {c:?}\nradius = {r:?}\nstrength = {s:?}\ngroup = \"free\"\n"
+                "[[skeleton.point]]\nat = {c:?}\nradius = {r:?}\nstrength = {s:?}\ngroup = \"free\"\ncolor = {colour:?}\n"
             );
         }
         for (a, b, r) in &self.segments {
@@ -144,7 +147,8 @@ proptest! {
     #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
 
     /// Every step of a random edit sequence: the incremental mesh is the fresh one, bit for
-    /// bit (same vertices in the same order, same normals, same triangles).
+    /// bit (same vertices in the same order, same normals, same triangles, same colours,
+    /// most of which an incremental run takes over from the last).
     #[test]
     fn random_edits_give_the_fresh_mesh(blend in blend(), edits in prop::collection::vec(edit(), 1..6)) {
         let mut s = sketch(blend);
@@ -160,6 +164,7 @@ proptest! {
             prop_assert!(run.incremental, "{:?} ran from scratch: {:?}", e, run.full_because);
             let fresh = scene.mesh(&o).unwrap();
             prop_assert!(!fresh.mesh.is_empty());
+            prop_assert_eq!(fresh.mesh.colors.len(), fresh.mesh.vertex_count(), "painted");
             prop_assert_eq!(&meshed.mesh, &fresh.mesh, "after {:?}", e);
         }
     }
