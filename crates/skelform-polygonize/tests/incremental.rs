@@ -68,20 +68,25 @@ fn moving_a_blob_gives_the_fresh_mesh() {
     }
 }
 
+/// An update cancelled before it replaced any vertex leaves a state the next update can
+/// take on: that update names only its own change since the last finished run, and the
+/// cancelled update's samples (of a field never shown) are taken again too.
 #[test]
-fn a_cancelled_update_is_not_trusted() {
+fn a_cancelled_update_leaves_its_boxes_to_the_next() {
     let control = Control::default();
     let o = options(control.clone());
     let (_, _, mut state) = incremental::polygonize(&blobs(centres(0.0)), &o).unwrap();
     control.cancel();
     let field = blobs(centres(0.1));
     let changed = [boxed(centres(0.0)[3]), boxed(centres(0.1)[3])];
-    assert!(state.update(&field, &o, &changed).is_err());
+    let err = state.update(&field, &o, &changed).unwrap_err();
+    assert!(matches!(err, skelform_polygonize::Error::Cancelled), "{err}");
     let o = options(Control::default());
-    assert!(!state.matches(&o));
-    // The next update runs from scratch, and is right.
-    let field = blobs(centres(0.2));
-    let (mesh, _, reuse) = state.update(&field, &o, &[]).unwrap();
-    assert!(reuse.full);
+    assert!(state.matches(&o), "cancelled before any vertex was replaced: still trusted");
+    // The blob goes the other way: the cancelled update's box is not within the new ones.
+    let field = blobs(centres(-0.1));
+    let changed = [boxed(centres(0.0)[3]), boxed(centres(-0.1)[3])];
+    let (mesh, _, reuse) = state.update(&field, &o, &changed).unwrap();
+    assert!(!reuse.full, "{reuse:?}");
     assert_eq!(mesh, grid::polygonize(&field, &o).unwrap().0);
 }
