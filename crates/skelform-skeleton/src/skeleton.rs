@@ -701,10 +701,17 @@ impl Skeleton {
         &self.junctions
     }
 
-    /// One point on each element (a point, a segment's midpoint, a point inside a polygon):
-    /// where the continuation polygonizer starts looking for the surface.
+    /// One point on each element that adds to the field (a point, a segment's midpoint, a
+    /// point inside a polygon): where the continuation polygonizer starts looking for the
+    /// surface.
     pub fn seed_points(&self) -> Vec<DVec3> {
-        self.elements.iter().map(|e| e.shape.seed_point()).collect()
+        // An element that carves everywhere (negative strength at both ends) has no
+        // surface of its own to start from: its point lies outside (the hand's creases).
+        self.elements
+            .iter()
+            .filter(|e| e.strength > 0.0 || e.end_strength > 0.0)
+            .map(|e| e.shape.seed_point())
+            .collect()
     }
 
     /// The groups that blend together, as the maximal cliques of the blend relation (each
