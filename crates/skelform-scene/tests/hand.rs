@@ -2,7 +2,7 @@
 //! its elements, the chapter-2 finger parameters as joint angles, and, in every pose, one
 //! closed, manifold, outward surface whose fingers stay apart; human proportions (fingers
 //! about four times as long as wide, side by side as wide as the palm), the thumb closing
-//! over the index finger in the grip, and nail-coloured nails.
+//! over the index and middle fingers in the grip, and nail-coloured nails.
 
 use std::path::{Path, PathBuf};
 
@@ -346,35 +346,49 @@ fn the_fingers_span_the_palm_without_gaps() {
     assert!(widths > 0.9 * palm && widths < 1.1 * palm, "fingers {widths:.3}, palm {palm:.3}");
 }
 
-/// In the grip the thumb closes in opposition over the index finger: its tip within one
-/// finger width of the index finger's surface, in front of the fist and not beyond the
-/// palm's edge (the dissertation's hooked 0.7 in outward).
+/// In the grip the thumb closes in opposition over the index and middle fingers: its tip
+/// within one finger width of both fingers' surfaces, between them rather than beside the
+/// index, in front of the fist and not beyond the palm's edge (the dissertation's hooked 0.7
+/// in outward). It does not touch them: that would close a loop (genus 1), which
+/// `the_grip_is_one_closed_outward_surface_with_separate_fingers` forbids.
 #[test]
-fn in_the_grip_the_thumb_closes_over_the_index_finger() {
+fn in_the_grip_the_thumb_closes_over_the_index_and_middle_fingers() {
     let (grip, open) = (hand("grip"), hand("open"));
     let width = width_and_length(&open, 1).0;
     let tip = frame(&grip, "thumb3").transform_point3(DVec3::new(SPEC[0][6], 0.0, 0.0));
-    // The nearest point of the index finger's bones.
-    let bones: Vec<DVec3> = (1..=3)
-        .map(|j| frame(&grip, &format!("index{j}")).translation)
-        .chain([frame(&grip, "index3").transform_point3(DVec3::new(SPEC[1][6], 0.0, 0.0))])
-        .collect();
-    let nearest = bones
-        .windows(2)
-        .map(|w| {
-            let (a, b) = (w[0], w[1]);
-            let t = ((tip - a).dot(b - a) / (b - a).length_squared()).clamp(0.0, 1.0);
-            a + (b - a) * t
-        })
-        .min_by(|p, q| (*p - tip).length().total_cmp(&(*q - tip).length()))
-        .unwrap();
-    let between = gap(&*grip.field, tip, nearest);
-    println!(
-        "thumb tip {tip}: {:.3} from the index finger's bones, {between:.3} of open space \
-         between the surfaces; a finger width is {width:.3}",
-        (tip - nearest).length()
+    for f in [1, 2] {
+        let name = FINGERS[f];
+        // The nearest point of the finger's bones.
+        let bones: Vec<DVec3> = (1..=3)
+            .map(|j| frame(&grip, &format!("{name}{j}")).translation)
+            .chain([frame(&grip, &format!("{name}3"))
+                .transform_point3(DVec3::new(SPEC[f][6], 0.0, 0.0))])
+            .collect();
+        let nearest = bones
+            .windows(2)
+            .map(|w| {
+                let (a, b) = (w[0], w[1]);
+                let t = ((tip - a).dot(b - a) / (b - a).length_squared()).clamp(0.0, 1.0);
+                a + (b - a) * t
+            })
+            .min_by(|p, q| (*p - tip).length().total_cmp(&(*q - tip).length()))
+            .unwrap();
+        let between = gap(&*grip.field, tip, nearest);
+        println!(
+            "thumb tip {tip}: {:.3} from the {name} finger's bones, {between:.3} of open space \
+             between the surfaces; a finger width is {width:.3}",
+            (tip - nearest).length()
+        );
+        assert!(between > 0.0, "the thumb's tip touches the {name} finger");
+        assert!(between < width, "the thumb's tip is {between:.3} from the {name} finger");
+    }
+    // Across the index finger, towards the middle finger: between the two fingers' first
+    // knuckles in x.
+    let (index, middle) = (frame(&grip, "index1").translation, frame(&grip, "middle1").translation);
+    assert!(
+        tip.x > index.x && tip.x < middle.x,
+        "the thumb's tip {tip} is not between the index ({index}) and middle ({middle}) fingers"
     );
-    assert!(between < width, "the thumb's tip is {between:.3} from the index finger");
     // The palm's radial edge (the thumb's side) below the knuckles.
     let edge =
         DVec3::new(0.0, 1.55, 0.0).x - reach(&*open.field, DVec3::new(0.0, 1.55, 0.0), -DVec3::X);
