@@ -138,10 +138,12 @@ fn the_leaf_carries_its_tertiary_venation_in_vertex_colours_and_the_glb() {
         let c = m.colors[v as usize];
         if close(c, p.blade, 1e-6) {
             blade += 1;
-        } else if close(c, p.tertiary, 1e-6) {
-            tertiary += 1;
         } else if close(c, p.vein, 1e-6) {
             vein += 1;
+        } else {
+            // Near a tertiary line: between blade green and the line's lighter colour.
+            assert!((0..3).all(|k| c[k] > p.blade[k] && c[k] <= p.vein[k] + 1e-6), "{c:?}");
+            tertiary += 1;
         }
     }
     let n = on_blade.len();
@@ -149,7 +151,7 @@ fn the_leaf_carries_its_tertiary_venation_in_vertex_colours_and_the_glb() {
         "{n} blade vertices: {blade} blade green, {tertiary} on tertiary lines, {vein} on veins"
     );
     assert!(blade * 3 > n, "{blade} of {n} plain blade");
-    assert!(tertiary * 50 > n && tertiary < blade, "{tertiary} of {n} on tertiary lines");
+    assert!(tertiary * 20 > n && tertiary < blade, "{tertiary} of {n} near tertiary lines");
     // The same colours on another run (the texture is seeded, colouring is per vertex).
     let again = scene.mesh(&o).unwrap().mesh;
     assert_eq!(again.colors, m.colors);
