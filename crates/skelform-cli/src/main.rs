@@ -368,7 +368,7 @@ fn mesh(a: MeshArgs) -> Result<(), Failure> {
     if a.json {
         outln!("{}", report::json(&scene, &out, &meshed, writing, total));
     } else if a.stats {
-        report::print(&meshed, writing, total)?;
+        report::print(&scene, &meshed, writing, total)?;
     }
     if !a.run.quiet && !a.json {
         errln!(

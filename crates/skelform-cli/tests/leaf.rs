@@ -19,6 +19,16 @@ fn the_leaf_meshes_into_blade_and_vein_surfaces() {
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let j: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
     assert_eq!(j["method"], "nonmanifold");
+    // The blade's web: about the dissertation's 475 triangles (fig. 7.8); the texture's
+    // areoles are the refined polygons, one more per tertiary line than the web had.
+    let leaf = &j["leaf"];
+    let triangles = leaf["triangles"].as_u64().unwrap();
+    assert!((450..=500).contains(&triangles), "{leaf}");
+    assert_eq!(leaf["areoles"], leaf["polygons"], "{leaf}");
+    assert_eq!(
+        leaf["areoles"].as_u64().unwrap(),
+        leaf["web_polygons"].as_u64().unwrap() + leaf["tertiary_lines"].as_u64().unwrap()
+    );
     let pairs: Vec<serde_json::Value> =
         j["surfaces"].as_array().unwrap().iter().map(|s| s["pair"].clone()).collect();
     let want: Vec<serde_json::Value> =

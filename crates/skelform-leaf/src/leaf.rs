@@ -8,6 +8,7 @@ use skelform_skeleton::Kernel;
 use crate::LeafError;
 use crate::blade::Blade;
 use crate::regions::{BladeRegions, Fillet, VeinRule};
+use crate::texture::{LeafTexture, TertiaryVenation, TextureParams};
 use crate::veins::{VeinSegment, Veins};
 use crate::venation::{LeafParams, VeinKind, Venation, wrap};
 use crate::web::{Web, WebStats};
@@ -35,6 +36,11 @@ pub struct Leaf {
     /// Veins to be convolved: for generated leaves, the petiole, the primaries and (with a
     /// positive secondary radius) the secondaries.
     pub veins: Vec<VeinCurve>,
+    /// The refined web the blade was triangulated from, with its cuts (the tertiary
+    /// venation's lines, [`Leaf::texture`]).
+    pub web: Web,
+    /// Per blade vertex, its point in the leaf's plane (before wrapping).
+    pub plane: Vec<DVec2>,
 }
 
 impl Leaf {
@@ -52,7 +58,7 @@ impl Leaf {
         let mut stats = WebStats { web_polygons: web.polygons.len(), ..WebStats::default() };
         stats.unsplit = web.refine(p.max_area * p.size * p.size, p.max_ratio / p.size);
         stats.polygons = web.polygons.len();
-        let blade = blade_of(&web)?;
+        let (blade, plane) = blade_of(&web)?;
         stats.triangles = blade.triangles.len();
         let mut veins = Vec::new();
         for vein in &v.veins {
@@ -76,7 +82,7 @@ impl Leaf {
             let radii = along.iter().map(|s| r0 * (1.0 - (1.0 - taper) * s / total)).collect();
             veins.push(VeinCurve { points, radii });
         }
-        Ok(Leaf { venation: Some(v), stats, blade, veins })
+        Ok(Leaf { venation: Some(v), stats, blade, veins, web, plane })
     }
 
     /// A flat blade in the plane z = 0 bounded by `outline` (refined so that polygons have
@@ -91,7 +97,7 @@ impl Leaf {
         let mut stats = WebStats { web_polygons: 1, ..WebStats::default() };
         stats.unsplit = web.refine(max_area, max_ratio);
         stats.polygons = web.polygons.len();
-        let blade = blade_of(&web)?;
+        let (blade, plane) = blade_of(&web)?;
         stats.triangles = blade.triangles.len();
         for (i, v) in veins.iter().enumerate() {
             if v.points.len() < 2 || v.points.len() != v.radii.len() {
@@ -113,7 +119,7 @@ impl Leaf {
                 });
             }
         }
-        Ok(Leaf { venation: None, stats, blade, veins })
+        Ok(Leaf { venation: None, stats, blade, veins, web, plane })
     }
 
     /// The region function of blade and veins.
@@ -129,6 +135,23 @@ impl Leaf {
         })
     }
 
+    /// The tertiary venation texture of §7.4 ([`crate::texture`]): the web's cuts grown into
+    /// perturbed lines, drawn with the veins (carried into the plane through the blade).
+    pub fn texture(&self, p: &TextureParams) -> Result<LeafTexture, LeafError> {
+        let tertiary = TertiaryVenation::new(&self.web, p)?;
+        let mut tex = LeafTexture::new(tertiary.clone(), self.plane.clone(), &[], p)?;
+        let veins: Vec<(Vec<DVec2>, Vec<f64>)> = self
+            .veins
+            .iter()
+            .map(|v| {
+                let pts = v.points.iter().map(|q| tex.plane_point(&self.blade, *q)).collect();
+                (pts, v.radii.clone())
+            })
+            .collect();
+        tex = LeafTexture::new(tertiary, self.plane.clone(), &veins, p)?;
+        Ok(tex)
+    }
+
     /// Bounding box of blade and veins (with the veins' full reach under `kernel`).
     pub fn bounds(&self, kernel: Kernel) -> (DVec3, DVec3) {
         let (mut lo, mut hi) = self.blade.bounds();
@@ -142,20 +165,23 @@ impl Leaf {
     }
 }
 
-/// Triangulates the web and wraps its points into space.
-fn blade_of(web: &Web) -> Result<Blade, LeafError> {
+/// Triangulates the web and wraps its points into space; also each blade vertex's point in
+/// the plane.
+fn blade_of(web: &Web) -> Result<(Blade, Vec<DVec2>), LeafError> {
     let tris = web.triangulate()?;
     let mut index = vec![u32::MAX; web.points.len()];
     let mut vertices = Vec::new();
+    let mut plane = Vec::new();
     let mut triangles = Vec::with_capacity(tris.len());
     for t in tris {
         triangles.push(t.map(|k| {
             if index[k] == u32::MAX {
                 index[k] = vertices.len() as u32;
                 vertices.push(wrap(web.points[k], web.curvature[k]));
+                plane.push(web.points[k]);
             }
             index[k]
         }));
     }
-    Ok(Blade::new(vertices, triangles))
+    Ok((Blade::new(vertices, triangles), plane))
 }

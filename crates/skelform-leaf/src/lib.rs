@@ -14,18 +14,28 @@
 //!    per-point curvature;
 //! 2. [`Web`]: the polygonal web (adjacent margin points joined through their vein paths,
 //!    the margin smoothed by natural splines), refined by cuts and triangulated by
-//!    shortest-diagonal ear cutting; each point wrapped
-//!    onto a sphere by its curvature ([`wrap`]) gives the bent [`Blade`];
+//!    shortest-diagonal ear cutting (with the default limits, 474 triangles for 113 venation
+//!    points, as the dissertation's 475 for 117, fig. 7.8); each point wrapped onto a sphere
+//!    by its curvature ([`wrap`]) gives the bent [`Blade`];
 //! 3. [`Blade::distance`]: the exact signed distance to the blade, with above, below and
 //!    beyond, through a bounding-volume hierarchy;
-//! 4. [`Veins`]: tapered vein segments summed as a convolution surface;
+//! 4. [`Veins`]: tapered vein segments (primaries, and secondaries with a positive
+//!    `secondary_radius`) summed as a convolution surface;
 //! 5. [`BladeRegions`]: the regions beyond (0), vein (1), above (2), below (3), with the
-//!    surfaces and curves of interest.
+//!    surfaces and curves of interest, the dissertation's vein rule `Σ > |d|/r` (or the
+//!    capped one that keeps petioles, [`VeinRule`]), and gradients for smooth normals (the
+//!    blade's plane, `Σ − |d|/r` for the veins);
+//! 6. [`texture`]: the tertiary venation texture of §7.4 (fig. 7.14), the web's cuts
+//!    subdivided again with perturbed midpoints (seeded), as colours at points of the leaf.
 //!
-//! Not done (yet): the tertiary venation texture of §7.4 (perturbed subdivision of the cut
-//! lines); region gradients for smooth per-pair normals (the polygonizer takes none, so the
-//! leaf's normals are area-weighted facet normals); taper along a segment (each segment has
-//! one radius, stepping down along a vein, until skeletal tapering lands).
+//! Guarantees: the web tiles the blade (areas add up, no T-junctions, veins on blade
+//! edges); blade distances equal a brute-force search bit for bit; a leaf, its mesh and its
+//! texture are the same for the same parameters on any run and thread count; tertiary lines
+//! lie inside the blade and stray from their cut by at most `roughness·L / (1 − q)`.
+//!
+//! Not done: taper along a segment (each segment has one radius, stepping down along a vein);
+//! the texture is drawn in vertex colours, so its lines are as sharp as the mesh's vertex
+//! spacing (no texture image).
 //!
 //! ```
 //! use skelform_leaf::{Fillet, Leaf, LeafParams, regions};
@@ -49,6 +59,7 @@ pub mod leaf;
 pub mod patch;
 pub mod regions;
 mod rng;
+pub mod texture;
 pub mod veins;
 pub mod venation;
 pub mod web;
@@ -58,6 +69,7 @@ pub use error::LeafError;
 pub use leaf::{Leaf, VeinCurve};
 pub use patch::{BicubicPatch, PatchBlend};
 pub use regions::{BladeRegions, Fillet, VeinRule};
+pub use texture::{LeafTexture, TertiaryVenation, TextureParams};
 pub use veins::{VeinSegment, Veins};
 pub use venation::{LeafParams, Vein, VeinKind, Venation, wrap};
 pub use web::{Web, WebStats};

@@ -134,8 +134,10 @@ impl Default for LeafParams {
             tip_radius: 0.35,
             secondary_radius: 0.0,
             smooth_margin: true,
-            max_area: 0.006,
-            max_ratio: 60.0,
+            // About the dissertation's 475 blade triangles (§7.2, fig. 7.8) for a venation of
+            // about its 117 points.
+            max_area: 0.012,
+            max_ratio: 45.0,
         }
     }
 }

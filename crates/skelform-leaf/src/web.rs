@@ -37,6 +37,13 @@ pub struct Web {
     pub polygons: Vec<Vec<usize>>,
     /// Sides split by a cut: (lo, hi) → the point inserted between them.
     splits: HashMap<(usize, usize), usize>,
+    /// The refinement's cuts, in the order made: the two point ids at a cut's ends. Later
+    /// cuts may end on an earlier one, splitting it ([`Web::refined_chain`] gives its
+    /// pieces). The tertiary venation texture (§7.4) grows from these lines.
+    pub cuts: Vec<(usize, usize)>,
+    /// The blade's margin, a closed loop of points in the plane (before refinement; cuts do
+    /// not move it).
+    pub outline: Vec<DVec2>,
 }
 
 /// Statistics of a web's construction.
@@ -85,6 +92,8 @@ impl Web {
             curvature: v.curvature.clone(),
             polygons: Vec::new(),
             splits: HashMap::new(),
+            cuts: Vec::new(),
+            outline: Vec::new(),
         };
         let samples: Vec<Vec<DVec2>> = match smooth {
             Some(step) if step > 0.0 => {
@@ -137,6 +146,7 @@ impl Web {
             return Err(LeafError::BadWeb("the margin crosses itself".into()));
         }
         web.check_tiling(&outline)?;
+        web.outline = outline;
         Ok(web)
     }
 
@@ -158,6 +168,8 @@ impl Web {
             curvature: vec![0.0; outline.len()],
             polygons: vec![poly],
             splits: HashMap::new(),
+            cuts: Vec::new(),
+            outline: outline.to_vec(),
         })
     }
 
@@ -415,6 +427,7 @@ impl Web {
                 }
             });
         }
+        self.cuts.push((resolved[pos[0]], resolved[pos[1]]));
         let a: Vec<usize> = resolved[i0..=i1].to_vec();
         let mut b: Vec<usize> = resolved[i1..].to_vec();
         b.extend_from_slice(&resolved[..=i0]);
@@ -556,7 +569,7 @@ fn extents(pts: &[DVec2]) -> (f64, f64) {
 }
 
 /// Whether `q` is inside a closed polygon (crossing number).
-fn contains(pts: &[DVec2], q: DVec2) -> bool {
+pub(crate) fn contains(pts: &[DVec2], q: DVec2) -> bool {
     let mut inside = false;
     for i in 0..pts.len() {
         let (a, b) = (pts[i], pts[(i + 1) % pts.len()]);

@@ -7,7 +7,9 @@ use glam::{DVec2, DVec3};
 use skelform_field::{Aabb, RegionField};
 use skelform_leaf::regions::{ABOVE, BELOW, BEYOND, VEIN};
 use skelform_leaf::web::signed_area2;
-use skelform_leaf::{Fillet, Leaf, LeafParams, Side, VeinCurve, VeinKind, VeinRule, Venation, Web};
+use skelform_leaf::{
+    Fillet, Leaf, LeafParams, Side, TextureParams, VeinCurve, VeinKind, VeinRule, Venation, Web,
+};
 use skelform_mesh::{Mesh, RegionPair, RegionTriple};
 use skelform_polygonize::nonmanifold::{Options, Stats, polygonize};
 use skelform_polygonize::{LatticeOptions, Resolution};
@@ -623,4 +625,118 @@ fn veins_and_blade_take_their_normals_from_gradients() {
         let limit: f64 = if rule == VeinRule::Capped { 40.0 } else { 25.0 };
         assert!(worst > limit.to_radians().cos(), "{rule:?}: worst corner agreement {worst}");
     }
+}
+
+#[test]
+fn the_default_blade_has_about_the_dissertations_475_triangles() {
+    // The dissertation's maple: 117 digitized venation points, refined and triangulated into
+    // 475 triangles (§7.2, fig. 7.8). Ours: 113 points, and the default refinement makes
+    // about as many triangles.
+    let l = Leaf::maple(&LeafParams::default()).unwrap();
+    let v = l.venation.as_ref().unwrap();
+    eprintln!("{} venation points; {:?}", v.points.len(), l.stats);
+    assert!((100..=130).contains(&v.points.len()), "{} points", v.points.len());
+    assert_eq!(l.stats.unsplit, 0);
+    let t = l.stats.triangles as f64;
+    assert!((t / 475.0 - 1.0).abs() < 0.05, "{} triangles, not within 5% of 475", t);
+}
+
+#[test]
+fn the_tertiary_venation_lies_in_the_blade_and_is_deterministic() {
+    let p = LeafParams::default();
+    let leaf = Leaf::maple(&p).unwrap();
+    let tp = TextureParams::default();
+    let tex = leaf.texture(&tp).unwrap();
+    let t = &tex.tertiary;
+    // One line per cut; the areoles are the refined polygons, so each cut added one.
+    assert_eq!(t.lines.len(), leaf.web.cuts.len());
+    assert_eq!(t.areoles, leaf.stats.polygons);
+    assert_eq!(t.areoles, leaf.stats.web_polygons + t.lines.len());
+    eprintln!("{} tertiary lines, {} areoles", t.lines.len(), t.areoles);
+    assert!((100..=200).contains(&t.areoles), "{} areoles", t.areoles);
+    // Every point of every line is inside the blade (the margin polygon, or on it at a cut's
+    // end on the margin).
+    let outline = &leaf.web.outline;
+    let inside = |q: DVec2| {
+        let mut c = false;
+        for i in 0..outline.len() {
+            let (a, b) = (outline[i], outline[(i + 1) % outline.len()]);
+            if (a.y > q.y) != (b.y > q.y) && q.x < a.x + (q.y - a.y) / (b.y - a.y) * (b.x - a.x) {
+                c = !c;
+            }
+        }
+        c
+    };
+    let on_margin = |q: DVec2| {
+        (0..outline.len()).any(|i| {
+            let (a, b) = (outline[i], outline[(i + 1) % outline.len()]);
+            let ab = b - a;
+            let s = ((q - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0);
+            q.distance(a + ab * s) < 1e-9
+        })
+    };
+    let mut points = 0;
+    for line in &t.lines {
+        assert!(line.len() > 1 << tp.levels);
+        for &q in line {
+            assert!(inside(q) || on_margin(q), "{q} outside the blade");
+            points += 1;
+        }
+    }
+    // Perturbed, but slightly: no point strays from its cut by more than the roughness allows.
+    // A piece of length L has halves of at most q·L, q = √(¼ + roughness²), and each midpoint
+    // moves at most roughness × its piece: the moves add up to at most roughness·L / (1 − q).
+    let q = (0.25 + tp.roughness * tp.roughness).sqrt();
+    for (line, &(a, b)) in t.lines.iter().zip(&leaf.web.cuts) {
+        let (pa, pb) = (leaf.web.points[a], leaf.web.points[b]);
+        let dir = (pb - pa).normalize();
+        let len = pa.distance(pb);
+        let worst = line.iter().map(|q| (*q - pa).perp_dot(dir).abs()).fold(0.0, f64::max);
+        assert!(worst <= tp.roughness * len / (1.0 - q), "{worst} from a cut of length {len}");
+    }
+    eprintln!("{points} points on tertiary lines");
+    // The same on every run and on any thread.
+    let again =
+        std::thread::spawn(move || Leaf::maple(&p).unwrap().texture(&tp).unwrap()).join().unwrap();
+    assert_eq!(again.tertiary, tex.tertiary);
+    // Another seed, another pattern, the same areoles.
+    let other = leaf.texture(&TextureParams { seed: 2, ..TextureParams::default() }).unwrap();
+    assert_ne!(other.tertiary.lines, tex.tertiary.lines);
+    assert_eq!(other.tertiary.areoles, tex.tertiary.areoles);
+}
+
+#[test]
+fn the_texture_colours_the_blade_between_veins_and_lightens_on_them() {
+    let leaf = Leaf::maple(&LeafParams::default()).unwrap();
+    let tp = TextureParams::default();
+    let tex = leaf.texture(&tp).unwrap();
+    // Blade vertices map back to their own plane points.
+    for (k, q) in leaf.blade.vertices.iter().enumerate().step_by(5) {
+        assert!(tex.plane_point(&leaf.blade, *q).distance(leaf.plane[k]) < 1e-9);
+    }
+    // On a tertiary line's middle: the tertiary colour (unless a vein is there too); at an
+    // areole's centroid far from every line: the blade colour.
+    let mid_line: Vec<DVec2> = tex.tertiary.lines.iter().map(|l| l[l.len() / 2]).collect();
+    let lit = mid_line.iter().filter(|q| tex.colour(**q) == tp.tertiary).count();
+    assert!(lit * 2 > mid_line.len(), "{lit} of {} line middles lit", mid_line.len());
+    let plain = leaf
+        .web
+        .polygons
+        .iter()
+        .map(|p| p.iter().map(|&k| leaf.web.points[k]).sum::<DVec2>() / p.len() as f64)
+        .filter(|c| tex.colour(*c) == tp.blade)
+        .count();
+    assert!(
+        plain * 3 > leaf.web.polygons.len(),
+        "{plain} of {} areole centres",
+        leaf.web.polygons.len()
+    );
+    // On a primary vein near the base: the vein colour.
+    let v = leaf.venation.as_ref().unwrap();
+    let primary = &v.veins[v.primaries[v.primaries.len() / 2]];
+    let q = v.points[primary.points[1]];
+    assert_eq!(tex.colour(q), tp.vein);
+    // Bad parameters are named.
+    let e = leaf.texture(&TextureParams { roughness: 0.7, ..tp }).unwrap_err();
+    assert!(e.to_string().contains("tertiary_roughness"), "{e}");
 }

@@ -191,9 +191,9 @@ pub struct Settings {
     /// outward winding, the inside). Labelled meshes ignore both: the back of a labelled
     /// sheet is its region colour darkened.
     pub back: Rgb,
-    /// Shade an unlabelled mesh with its vertex colours ([`Mesh::colors`], interpolated
-    /// across each triangle; the back in the same colour, darker) instead of `surface` and
-    /// `back`, when it has them.
+    /// Shade a mesh with its vertex colours ([`Mesh::colors`], interpolated across each
+    /// triangle; the back in the same colour, darker) instead of `surface` and `back` (or,
+    /// for a labelled mesh, its region colours), when it has them.
     pub vertex_colours: bool,
     /// Colours for particular region pairs; others take the shared palette
     /// ([`skelform_mesh::palette::region_colour`]) in the order of the sorted labels.
@@ -365,12 +365,10 @@ impl<'m> Renderer<'m> {
                 .collect();
             (pairs, colour_of)
         };
-        // Linear light, as the shading mixes it; labelled meshes keep their region colours.
-        let vertex_colours = if mesh.labels.is_empty() {
-            mesh.colors.iter().map(|c| c.map(image::to_linear_unit)).collect()
-        } else {
-            Vec::new()
-        };
+        // Linear light, as the shading mixes it. A labelled mesh with vertex colours (the
+        // leaf's tertiary venation texture) is drawn in them too: they were given on purpose,
+        // the region colours are only a default.
+        let vertex_colours = mesh.colors.iter().map(|c| c.map(image::to_linear_unit)).collect();
         Ok(Renderer {
             prepared: Prepared {
                 mesh,
@@ -451,7 +449,9 @@ impl<'m> Renderer<'m> {
         }
         let mut entries = Vec::new();
         let colours = self.region_colours(s);
-        if colours.len() > 1 {
+        // Drawn in its vertex colours, a labelled mesh shows no region colours to explain.
+        let painted = s.vertex_colours && !self.prepared.vertex_colours.is_empty();
+        if colours.len() > 1 && !painted {
             entries.push((Swatch::None, "regions".to_string()));
             for (p, c) in colours {
                 entries.push((Swatch::Fill(c), format!("{}-{}", p.0, p.1)));

@@ -505,4 +505,24 @@ fn vertex_colours_shade_the_picture() {
     let plain = render(&sphere, &Settings { vertex_colours: false, ..s.clone() }).unwrap();
     assert_eq!(count(&plain, [255, 0, 0]) + count(&plain, [0, 0, 255]), 0);
     assert!(count(&plain, s.surface) > 6000);
+    // Labelled (the leaf's regions, painted with its texture): still its colours, not the
+    // region colours, and the legend has no region swatches to show.
+    let mut labelled = sphere.clone();
+    labelled.labels = labelled
+        .triangles
+        .iter()
+        .map(|t| {
+            if sphere.positions[t[0] as usize][1] < 0.0 {
+                RegionPair(0, 1)
+            } else {
+                RegionPair(1, 2)
+            }
+        })
+        .collect();
+    let img = render(&labelled, &s).unwrap();
+    assert_eq!((count(&img, [255, 0, 0]), count(&img, [0, 0, 255])), (red, blue));
+    let with_legend = Settings { legend: true, ..s.clone() };
+    assert_eq!(render(&labelled, &with_legend).unwrap(), img);
+    labelled.colors.clear();
+    assert_ne!(render(&labelled, &with_legend).unwrap(), render(&labelled, &s).unwrap());
 }

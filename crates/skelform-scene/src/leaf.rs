@@ -10,6 +10,10 @@
 //! fillet = "both"        # or "below": veins fillet into the blade's lower side only
 //! vein_rule = "capped"   # or "dissertation" (the default): see skelform_leaf::VeinRule
 //! kernel = "wyvill"      # the veins' convolution kernel
+//! texture = true         # tertiary venation (§7.4) as vertex colours; default false
+//! tertiary_levels = 4    # midpoint subdivisions of each cut (1 to 8)
+//! tertiary_roughness = 0.2   # midpoint perturbation, a fraction of the piece (0 to 0.5)
+//! tertiary_width = 0.008 # half-width of a drawn tertiary vein, scene units
 //! ```
 //!
 //! or a flat blade from an outline, with veins given explicitly:
@@ -28,7 +32,8 @@ use std::sync::Arc;
 use serde::Deserialize;
 use skelform_field::{Aabb, DVec3, RegionField};
 use skelform_leaf::{
-    BladeRegions, Fillet, Leaf, LeafError, LeafParams, VeinCurve, VeinRule, WebStats,
+    BladeRegions, Fillet, Leaf, LeafError, LeafParams, LeafTexture, TextureParams, VeinCurve,
+    VeinRule, WebStats,
 };
 use skelform_mesh::RegionPair;
 use skelform_skeleton::Kernel;
@@ -63,6 +68,11 @@ pub(crate) struct LeafSection {
     /// "dissertation" (default, `Σ > |d|/r`) or "capped" (`Σ > min(|d|/r, ½)`).
     vein_rule: Option<Spanned<String>>,
     full_grid: Option<bool>,
+    /// Colour the blade with the tertiary venation texture of §7.4.
+    texture: Option<Spanned<bool>>,
+    tertiary_levels: Option<Spanned<i64>>,
+    tertiary_roughness: Option<Spanned<f64>>,
+    tertiary_width: Option<Spanned<f64>>,
     /// A flat blade instead of the generated leaf.
     outline: Option<Spanned<Vec<[f64; 2]>>>,
     vein: Option<Vec<VeinSpec>>,
@@ -91,6 +101,9 @@ pub struct LeafRegions {
     pub seeds: Vec<DVec3>,
     /// Everything blade and veins reach.
     pub bounds: Aabb,
+    /// `[leaf] texture = true`: the tertiary venation texture (§7.4) that colours the mesh's
+    /// vertices ([`LeafRegions::colour`]).
+    pub texture: Option<Arc<LeafTexture>>,
 }
 
 impl std::fmt::Debug for LeafRegions {
@@ -107,6 +120,12 @@ impl LeafRegions {
     /// and their hierarchy are not copied).
     pub fn region_field(&self) -> Arc<dyn RegionField> {
         self.field.clone()
+    }
+
+    /// The texture's colour (sRGB, 0 to 1) at a point on the leaf; `None` without
+    /// `texture = true`.
+    pub fn colour(&self, p: DVec3) -> Option<[f32; 3]> {
+        self.texture.as_ref().map(|t| t.colour_at(&self.field.blade, p))
     }
 }
 
@@ -322,8 +341,10 @@ pub(crate) fn build(
             ),
         ));
     }
+    let texture = texture_of(s, &leaf, at)?;
     let seeds = field.seeds();
     Ok(LeafRegions {
+        texture,
         interest: field.interest(),
         field: Arc::new(field),
         full_grid: s.full_grid.unwrap_or(false),
@@ -331,4 +352,52 @@ pub(crate) fn build(
         seeds,
         bounds: Aabb::new(lo, hi),
     })
+}
+
+/// The `texture` and `tertiary_*` keys: the leaf's tertiary venation texture, if asked for.
+fn texture_of(
+    s: &LeafSection,
+    leaf: &Leaf,
+    at: At,
+) -> Result<Option<Arc<LeafTexture>>, SceneError> {
+    let keys = [
+        ("tertiary_levels", s.tertiary_levels.as_ref().map(|x| x.span().start)),
+        ("tertiary_roughness", s.tertiary_roughness.as_ref().map(|x| x.span().start)),
+        ("tertiary_width", s.tertiary_width.as_ref().map(|x| x.span().start)),
+    ];
+    let on = s.texture.as_ref().is_some_and(|t| *t.get_ref());
+    if !on {
+        if let Some((name, Some(o))) = keys.iter().find(|(_, o)| o.is_some()) {
+            return Err(at(*o, format!("'{name}' draws the texture; add texture = true")));
+        }
+        return Ok(None);
+    }
+    let d = TextureParams::default();
+    let levels = match &s.tertiary_levels {
+        Some(x) => u32::try_from(*x.get_ref()).map_err(|_| {
+            at(
+                x.span().start,
+                format!("tertiary_levels must be a whole number from 1 to 8 (got {})", x.get_ref()),
+            )
+        })?,
+        None => d.levels,
+    };
+    let p = TextureParams {
+        levels,
+        roughness: s.tertiary_roughness.as_ref().map_or(d.roughness, |x| *x.get_ref()),
+        width: s.tertiary_width.as_ref().map_or(d.width, |x| *x.get_ref()),
+        // The leaf's seed (already checked) perturbs its tertiary veins too.
+        seed: s.seed.as_ref().and_then(|x| u64::try_from(*x.get_ref()).ok()).unwrap_or(d.seed),
+        ..d
+    };
+    let texture = leaf.texture(&p).map_err(|e| {
+        let o = match &e {
+            LeafError::BadParameter { name, .. } => {
+                keys.iter().find(|(k, _)| k == name).and_then(|(_, o)| *o)
+            }
+            _ => None,
+        };
+        at(o.or(s.texture.as_ref().map(|t| t.span().start)).unwrap_or(0), e.to_string())
+    })?;
+    Ok(Some(Arc::new(texture)))
 }

@@ -42,6 +42,9 @@ fn the_leaf_examples_load_and_polygonize() {
         assert_eq!(leaf.interest, all);
         assert!(!s.continuation.seeds.is_empty());
         assert_eq!(mesh(&s, 0.05), all, "{name}");
+        // Both examples draw the tertiary venation texture (§7.4).
+        let t = leaf.texture.as_ref().expect("texture = true");
+        assert_eq!(t.tertiary.areoles, leaf.stats.polygons, "{name}");
     }
     for name in ["tee-in-square.toml", "tee-in-square-fillet.toml"] {
         let s = example(name);
@@ -114,6 +117,16 @@ fn bad_leaves_are_errors_with_their_line() {
         "{HEAD}[leaf]\n{sq}[[leaf.vein]]\npoints = [[0, 0, 0], [1, 0, 0]]\nradius = -0.1\n"
     ));
     assert!(m.contains("positive"), "{m}");
+    // The texture's keys: a bad value at its line, a texture key without the texture.
+    let (l, c, m) = parse_err(&format!("{HEAD}[leaf]\ntexture = true\ntertiary_roughness = 0.9\n"));
+    assert_eq!((l, c), (8, 22), "{m}");
+    assert!(m.contains("tertiary_roughness must be"), "{m}");
+    let (l, _, m) = parse_err(&format!("{HEAD}[leaf]\ntexture = true\ntertiary_levels = -1\n"));
+    assert_eq!(l, 8, "{m}");
+    assert!(m.contains("tertiary_levels"), "{m}");
+    let (l, _, m) = parse_err(&format!("{HEAD}[leaf]\ntertiary_width = 0.01\n"));
+    assert_eq!(l, 7, "{m}");
+    assert!(m.contains("texture = true"), "{m}");
     // A leaf larger than the domain, and [leaf] beside [regions].
     let small = "[domain]\nmin = [-0.5, -0.5, -0.5]\nmax = [0.5, 0.5, 0.5]\n[leaf]\n";
     let (l, _, m) = parse_err(small);

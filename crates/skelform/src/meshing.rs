@@ -303,6 +303,23 @@ impl Scene {
             mesh.colors =
                 known.iter().map(|k| k.or_else(|| fresh.next()).unwrap_or_default()).collect();
         }
+        // The leaf's tertiary venation texture (§7.4, `[leaf] texture = true`): each vertex
+        // takes the colour under it in the leaf's plane, a pure function of its position.
+        if method == Method::NonManifold
+            && overrides.colors != Some(false)
+            && let Some(leaf) = &self.leaf
+            && leaf.texture.is_some()
+        {
+            mesh.colors = mesh
+                .positions
+                .par_iter()
+                .map(|p| {
+                    known(p)
+                        .or_else(|| leaf.colour(DVec3::from_array(p.map(f64::from))))
+                        .unwrap_or_default()
+                })
+                .collect();
+        }
         if method != Method::NonManifold
             && let Some(swept) = &self.sweeps
         {

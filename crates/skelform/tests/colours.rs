@@ -114,3 +114,54 @@ fn the_hand_is_skin_with_bluish_veins_and_nails() {
         }
     }
 }
+
+#[test]
+fn the_leaf_carries_its_tertiary_venation_in_vertex_colours_and_the_glb() {
+    // examples/nonmanifold/leaf.toml has `texture = true`: every vertex of the labelled
+    // non-manifold mesh has a colour of the texture, the blade mostly blade green with
+    // lighter tertiary lines, the veins pale; the colours survive the glb (COLOR_0).
+    let scene = Scene::load(example("nonmanifold/leaf.toml")).unwrap();
+    let o = Overrides { resolution: Some(Resolution::Cell(0.04)), ..Overrides::default() };
+    let m = scene.mesh(&o).unwrap().mesh;
+    assert_eq!(m.colors.len(), m.positions.len());
+    assert_eq!(m.labels.len(), m.triangles.len());
+    let p = skelform::leaf::TextureParams::default();
+    let (mut blade, mut tertiary, mut vein) = (0, 0, 0);
+    let on_blade: std::collections::BTreeSet<u32> = m
+        .triangles
+        .iter()
+        .zip(&m.labels)
+        .filter(|(_, l)| (l.0, l.1) == (2, 3))
+        .flat_map(|(t, _)| *t)
+        .collect();
+    for &v in &on_blade {
+        let c = m.colors[v as usize];
+        if close(c, p.blade, 1e-6) {
+            blade += 1;
+        } else if close(c, p.vein, 1e-6) {
+            vein += 1;
+        } else {
+            // Near a tertiary line: between blade green and the line's lighter colour.
+            assert!((0..3).all(|k| c[k] > p.blade[k] && c[k] <= p.vein[k] + 1e-6), "{c:?}");
+            tertiary += 1;
+        }
+    }
+    let n = on_blade.len();
+    eprintln!(
+        "{n} blade vertices: {blade} blade green, {tertiary} on tertiary lines, {vein} on veins"
+    );
+    assert!(blade * 3 > n, "{blade} of {n} plain blade");
+    assert!(tertiary * 20 > n && tertiary < blade, "{tertiary} of {n} near tertiary lines");
+    // The same colours on another run (the texture is seeded, colouring is per vertex).
+    let again = scene.mesh(&o).unwrap().mesh;
+    assert_eq!(again.colors, m.colors);
+    let mut glb = Vec::new();
+    write_mesh_to(&mut glb, &m, Format::Glb, &WriteOptions::default()).unwrap();
+    let back = read_glb(&glb).unwrap();
+    assert_eq!(back.colors.len(), back.positions.len());
+    let at: std::collections::HashMap<[u32; 3], usize> =
+        m.positions.iter().enumerate().map(|(i, p)| (p.map(f32::to_bits), i)).collect();
+    for (q, a) in back.positions.iter().zip(&back.colors) {
+        assert!(close(*a, m.colors[at[&q.map(f32::to_bits)]], 1e-5));
+    }
+}
