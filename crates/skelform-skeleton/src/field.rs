@@ -61,11 +61,11 @@
 //! `{palm, finger2}`, …, so each finger blends into the palm and no two fingers blend. Where
 //! the surfaces of two cliques do meet, the union leaves a crease, as it should.
 
-use glam::{DMat3, DVec3};
+use glam::{DMat3, DVec2, DVec3};
 use skelform_field::{Aabb, Field};
 
 use crate::SkeletonError;
-use crate::convolution::{PreparedPolygon, PreparedSegment};
+use crate::convolution::{PreparedPolygon, PreparedSegment, PreparedWeighted};
 use crate::geometry::{Nearest, Shape};
 use crate::image::{ImagePolygon, PolygonMethod};
 use crate::junction::PreparedJunction;
@@ -185,6 +185,7 @@ enum Prepared {
     Point { c: DVec3, inv_r: f64, strength: f64 },
     Segment(PreparedSegment),
     Polygon(PreparedPolygon),
+    Weighted(PreparedWeighted),
     Image(ImagePolygon),
 }
 
@@ -400,6 +401,20 @@ impl SkeletonField {
         if !skeleton.junctions().is_empty() && !matches!(blend, Blend::Convolution(_)) {
             return Err(SkeletonError::JunctionNeedsConvolution(blend.name()));
         }
+        for e in skeleton.elements() {
+            if !e.is_weighted() {
+                continue;
+            }
+            if !matches!(blend, Blend::Convolution(_)) {
+                return Err(SkeletonError::WeightsNeedConvolution(blend.name()));
+            }
+            // A pose or caller may have replaced the shape since the weights were checked.
+            match (&e.shape, e.vertex_weights()) {
+                (Shape::Polygon(p), Some(w)) => crate::weights::check_vertex_weights(p, w)?,
+                (Shape::Polygon(_), None) => {}
+                _ => return Err(SkeletonError::WeightsNeedPolygon),
+            }
+        }
         if let Blend::Convolution(k) = blend
             && !k.convolves_extended()
             && let Some((element, e)) = skeleton
@@ -592,12 +607,30 @@ impl SkeletonField {
                 ra,
                 if taper.is_some() { 1.0 } else { wa },
             )),
-            Shape::Polygon(p) => match e.polygon_method() {
-                PolygonMethod::Exact => {
+            Shape::Polygon(p) => match (e.polygon_method(), e.vertex_weights()) {
+                (PolygonMethod::Exact, None) => {
                     Prepared::Polygon(PreparedPolygon::new(kernel, p, ra, e.strength()))
                 }
-                PolygonMethod::Image { resolution } => {
-                    Prepared::Image(ImagePolygon::new(kernel, p, ra, e.strength(), resolution))
+                (PolygonMethod::Exact, Some(w)) => {
+                    Prepared::Weighted(PreparedWeighted::new(kernel, p, w, ra, e.strength()))
+                }
+                (PolygonMethod::Image { resolution }, w) => {
+                    let pieces = w.map(|w| crate::weights::fan_pieces(p, w));
+                    let weight = e.is_weighted().then(|| {
+                        crate::weights::raster_weight(
+                            p,
+                            pieces.as_deref(),
+                            e.weight_image().map(|i| &**i),
+                        )
+                    });
+                    Prepared::Image(ImagePolygon::new(
+                        kernel,
+                        p,
+                        ra,
+                        e.strength(),
+                        resolution,
+                        weight.as_ref().map(|f| f as &dyn Fn(DVec2) -> f64),
+                    ))
                 }
             },
         };
@@ -836,6 +869,7 @@ impl SkeletonField {
                 }
             },
             Prepared::Polygon(poly) => poly.eval(k, p, want_grad),
+            Prepared::Weighted(poly) => poly.eval(k, p, want_grad),
             Prepared::Image(img) => img.eval(k, p, want_grad),
         }
     }

@@ -106,6 +106,7 @@ mod quad;
 pub mod ramiform;
 pub mod skeleton;
 pub mod sweep;
+pub mod weights;
 
 pub use curve::{CubicCurve, Frame};
 pub use error::SkeletonError;
@@ -119,3 +120,4 @@ pub use pose::{Articulated, Joint, JointId, Pose};
 pub use ramiform::{Limb, Ramiform, RamiformField, RamiformOptions};
 pub use skeleton::{Element, Group, GroupId, Junction, JunctionJoint, Skeleton, check_color};
 pub use sweep::{Sweep, SweepSettings, SweptField};
+pub use weights::WeightImage;
