@@ -17,9 +17,12 @@
 //! over each triangle in closed form up to one line integral per edge (see
 //! [`crate::convolution`]); the image method rasterizes the weight into the polygon image.
 //!
-//! A **weight image** spans the polygon's bounding rectangle in its plane frame
-//! ([`Polygon::frame`]): the image's columns run along `e1` (from the vertex average towards
-//! the first vertex), its rows down `e2`, row 0 at the top (largest `e2`). Its values scale
+//! A **weight image** spans the polygon's bounding rectangle in the frame of its first
+//! edge ([`image_frame`]): the image's columns run along the edge from vertex 0 to vertex
+//! 1, its rows across it, row 0 at the top, on the polygon's side of the edge — the image
+//! as it looks when the polygon is seen from its normal's side with its first edge at the
+//! bottom (a rectangle given counter-clockwise from its lower left corner shows it upright).
+//! Its values scale
 //! the polygon image pixel by pixel, as in the dissertation, so it needs the image method
 //! ([`crate::PolygonMethod::Image`]); an element given one is switched to it.
 
@@ -162,11 +165,7 @@ pub(crate) fn raster_weight(
     image: Option<&WeightImage>,
 ) -> impl Fn(DVec2) -> f64 {
     let flat = poly.flat_vertices().to_vec();
-    let (lo, hi) = flat
-        .iter()
-        .fold((DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)), |(l, h), v| {
-            (l.min(*v), h.max(*v))
-        });
+    let (u, lo, hi) = image_frame(poly);
     let vertex = vertex.map(<[LinearPiece]>::to_vec);
     let image = image.cloned();
     move |q| {
@@ -175,12 +174,28 @@ pub(crate) fn raster_weight(
             w *= fan_weight(&flat, p, q);
         }
         if let Some(img) = &image {
-            let s = (q.x - lo.x) / (hi.x - lo.x);
-            let t = (hi.y - q.y) / (hi.y - lo.y);
-            w *= img.sample(s, t);
+            let (x, y) = (q.dot(u), u.perp_dot(q));
+            w *= img.sample((x - lo.x) / (hi.x - lo.x), (hi.y - y) / (hi.y - lo.y));
         }
         w
     }
+}
+
+/// Where a weight image lies on `poly`, in its plane frame ([`Polygon::flat_vertices`]):
+/// the unit direction `u` of the first edge (the image's columns run along it, its rows along
+/// `u` turned a quarter counter-clockwise, towards the polygon), and the corners `lo`, `hi`
+/// of the vertices' bounding rectangle in those coordinates (`(q·u, u × q)`); image row 0
+/// is at `hi.y`.
+pub fn image_frame(poly: &Polygon) -> (DVec2, DVec2, DVec2) {
+    let flat = poly.flat_vertices();
+    let u = (flat[1] - flat[0]).normalize();
+    flat.iter().fold(
+        (u, DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
+        |(u, l, h), v| {
+            let c = DVec2::new(v.dot(u), u.perp_dot(*v));
+            (u, l.min(c), h.max(c))
+        },
+    )
 }
 
 #[cfg(test)]

@@ -239,11 +239,10 @@ fn weight_image_scales_the_polygon_image() {
         let p = p + DVec3::Z * 0.05;
         assert!((weighted.eval(p) - halved.eval(p)).abs() < 1e-12);
     }
-    // An image with a ramp across it (columns along e1): the image method with the ramp
+    // An image with a ramp across it (columns along the first edge): the image method with the ramp
     // against per-vertex weights of the same ramp, exact.
-    // e1 points from the centre to vertex 0, so the image's columns run along that
-    // diagonal, across the polygon's bounding rectangle in its own frame.
-    let xs: Vec<f64> = poly.flat_vertices().iter().map(|q| q.x).collect();
+    // The image's columns run along the first edge, here +x: a ramp in x.
+    let xs: Vec<f64> = poly.vertices().iter().map(|q| q.x).collect();
     let (lo, hi) =
         xs.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), x| (l.min(*x), h.max(*x)));
     let ramp: Vec<f64> = (0..64).map(|i| 0.2 + 0.8 * (i as f64 + 0.5) / 64.0).collect();
