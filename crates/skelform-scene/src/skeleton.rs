@@ -51,6 +51,11 @@ pub(crate) struct SkeletonSection {
     /// Default polygon method: "exact" or "image" (DIS appendix A.3).
     polygon_method: Option<Spanned<String>>,
     image_resolution: Option<Spanned<i64>>,
+    /// Junction normals blended as in DIS appendix A.2 (no crease in the shading).
+    blended_normals: Option<Spanned<bool>>,
+    /// Segments convolved "exact" (default) or by the "separable" approximation (DIS
+    /// §5.6.10, figs. 5.52/5.53).
+    segment_method: Option<Spanned<String>>,
     /// How the skeleton combines with a `[field]` formula in the same scene.
     combine: Option<Spanned<String>>,
     groups: Option<BTreeMap<String, Spanned<Vec<Spanned<String>>>>>,
@@ -611,10 +616,41 @@ pub(crate) fn build(
         };
         err(offset.unwrap_or(blend_at), e)
     };
+    if let Some(b) = &s.blended_normals
+        && skeleton.junctions().is_empty()
+    {
+        return Err(at(
+            b.span().start,
+            "blended_normals applies to junctions (DIS appendix A.2); this skeleton has none"
+                .to_string(),
+        ));
+    }
+    let blended = s.blended_normals.as_ref().is_some_and(|b| *b.get_ref());
+    let separable = match &s.segment_method {
+        None => false,
+        Some(m) => {
+            conv_only("segment_method", m.span().start)?;
+            match m.get_ref().as_str() {
+                "exact" => false,
+                "separable" => true,
+                other => {
+                    return Err(at(
+                        m.span().start,
+                        format!("unknown segment_method '{other}'; expected exact or separable"),
+                    ));
+                }
+            }
+        }
+    };
     let skeleton_field = if skeleton.is_empty() {
         None
     } else {
-        Some(SkeletonField::new(&skeleton, blend).map_err(bad_blend)?)
+        Some(
+            SkeletonField::new(&skeleton, blend)
+                .map_err(bad_blend)?
+                .with_blended_normals(blended)
+                .with_separable_segments(separable),
+        )
     };
     let mut field = SweptField::new(skeleton_field, sweeps, blend).map_err(bad_blend)?;
     if let Some(i) = &s.iso {
@@ -1303,6 +1339,9 @@ mod example_meshes {
                 ("crossing-cylinders-scaled.toml", 1),
                 ("tapered.toml", 3),
                 ("image-polygons.toml", 1),
+                ("muscle-weights.toml", 2),
+                ("separable-bspline.toml", 2),
+                ("separable-wyvill.toml", 2),
                 ("elliptic-segments.toml", 1),
                 ("acute-combination.toml", 1),
                 ("acute-combination-unclamped.toml", 1),

@@ -344,6 +344,11 @@ pub struct SkeletonField {
     /// Each element's colour (its own, or the skeleton's default, or [`NEUTRAL_COLOR`]);
     /// `None` when the skeleton has no colour at all.
     colors: Option<Vec<[f32; 3]>>,
+    /// Junction gradients along the appendix's blended normals
+    /// ([`SkeletonField::with_blended_normals`]).
+    blended_normals: bool,
+    /// Segments by the separable approximation ([`SkeletonField::with_separable_segments`]).
+    separable: bool,
 }
 
 /// The parts of the skeleton a field depends on, kept to compare two fields.
@@ -520,6 +525,8 @@ impl SkeletonField {
                 junctions: skeleton.junctions().len(),
             },
             colors,
+            blended_normals: false,
+            separable: false,
         })
     }
 
@@ -655,6 +662,50 @@ impl SkeletonField {
         check_iso(iso)?;
         self.iso = iso;
         Ok(self)
+    }
+
+    /// The same field with the junctions' gradients turned along the blended normals of DIS
+    /// appendix A.2 (see [`crate::junction`]): the joint combination surface's own gradient
+    /// creases where two limbs' union terms meet out of the joint's plane (the starfish's
+    /// webbing); the blended normal is smooth there, so the shading shows no crease. The
+    /// gradient keeps its length (the values are unchanged), only its direction near a
+    /// junction changes, so it is no longer exactly the field's derivative there; without
+    /// junctions this changes nothing.
+    pub fn with_blended_normals(mut self, on: bool) -> SkeletonField {
+        self.blended_normals = on;
+        self
+    }
+
+    /// The same field with every segment convolved by the dissertation's separable
+    /// approximation (DIS §5.6.10, figs. 5.52 and 5.53) instead of the exact line integral:
+    /// the kernel of the distance to the segment's line times the kernel integrated along
+    /// it, as the dissertation convolved the B-spline and Wyvill kernels. The same for the
+    /// Gaussian, which is separable; for the others it shows how little the approximation
+    /// changes (`tests/separable.rs` measures it). Convolution only; `false` restores the
+    /// exact integral.
+    pub fn with_separable_segments(mut self, on: bool) -> SkeletonField {
+        let Blend::Convolution(kernel) = self.blend else {
+            return self;
+        };
+        self.separable = on;
+        for it in &mut self.items {
+            if let Prepared::Segment(s) = &mut it.conv {
+                s.set_separable(kernel, on);
+            }
+        }
+        self
+    }
+
+    /// Whether segments use the separable approximation
+    /// ([`SkeletonField::with_separable_segments`]).
+    pub fn separable_segments(&self) -> bool {
+        self.separable
+    }
+
+    /// Whether junction gradients follow the blended normals
+    /// ([`SkeletonField::with_blended_normals`]).
+    pub fn blended_normals(&self) -> bool {
+        self.blended_normals
     }
 
     /// The blend the field was built with; its parameters as given, already validated.
@@ -1004,21 +1055,30 @@ impl SkeletonField {
                     - self.junction_density(junction, k, p - dp))
                     / (2.0 * h);
             }
+            if self.blended_normals
+                && let Some(n) = junction.blended_normal(k, p, |e, p| self.limb_at(e, k, p))
+            {
+                // The density falls outward: its gradient points along −n.
+                g = -g.length() * n;
+            }
         }
         (v, g)
     }
 
+    /// One junction limb's convolution (value, gradient), radius and strength at `p`.
+    fn limb_at(&self, e: usize, k: Kernel, p: DVec3) -> (f64, DVec3, f64, f64) {
+        let it = &self.items[e];
+        if !it.contains(p) {
+            return (0.0, DVec3::ZERO, it.radius, 0.0);
+        }
+        let (v, g) = self.convolve(k, it, p, true);
+        let (r, _, w, _) = it.radius_strength(p);
+        (v, g, r, w)
+    }
+
     /// A junction's combined density at `p` (see [`crate::junction`]).
     fn junction_density(&self, j: &PreparedJunction, k: Kernel, p: DVec3) -> f64 {
-        j.density(k, p, |e, p| {
-            let it = &self.items[e];
-            if !it.contains(p) {
-                return (0.0, DVec3::ZERO, it.radius, 0.0);
-            }
-            let (v, g) = self.convolve(k, it, p, true);
-            let (r, _, w, _) = it.radius_strength(p);
-            (v, g, r, w)
-        })
+        j.density(k, p, |e, p| self.limb_at(e, k, p))
     }
 
     /// The clique's field value (inside negative) and gradient from its accumulator.
