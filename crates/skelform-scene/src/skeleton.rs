@@ -1238,6 +1238,43 @@ radius = 0.05
     }
 
     #[test]
+    fn segment_method_and_blended_normals_parse_and_are_checked() {
+        let tee = "[[skeleton.segment]]\na = [-0.5, 0, 0]\nb = [0.5, 0, 0]\n\
+                   [[skeleton.segment]]\na = [0, 0, 0]\nb = [0, 0.5, 0]\n";
+        let exact =
+            parse(&format!("[skeleton]\nradius = 0.1\nkernel = \"wyvill\"\n{tee}")).unwrap();
+        let sep = parse(&format!(
+            "[skeleton]\nradius = 0.1\nkernel = \"wyvill\"\nsegment_method = \"separable\"\n{tee}"
+        ))
+        .unwrap();
+        // Beyond the bar's end the exact Wyvill convolution still reaches the surface; the
+        // separable one ends at the segment's end.
+        let p = DVec3::new(0.505, 0.0, 0.0);
+        assert!(exact.field.eval(p) < 0.0 && sep.field.eval(p) > 0.0);
+        let (l, _, m) =
+            error(&format!("[skeleton]\nradius = 0.1\nsegment_method = \"points\"\n{tee}"));
+        assert_eq!(l, 6, "{m}");
+        assert!(m.contains("unknown segment_method 'points'"), "{m}");
+        let (l, _, m) = error(&format!(
+            "[skeleton]\nblend = \"union\"\nradius = 0.1\nsegment_method = \"separable\"\n{tee}"
+        ));
+        assert_eq!(l, 7, "{m}");
+        assert!(m.contains("does not apply to the union blend"), "{m}");
+        // Blended normals: the same values, other gradients near the junction.
+        let junction = "[[skeleton.junction]]\nat = [0, 0, 0]\n";
+        let plain = parse(&format!("[skeleton]\nradius = 0.1\n{tee}{junction}")).unwrap();
+        let blended =
+            parse(&format!("[skeleton]\nradius = 0.1\nblended_normals = true\n{tee}{junction}"))
+                .unwrap();
+        let q = DVec3::new(0.08, 0.05, 0.07);
+        assert_eq!(plain.field.eval(q), blended.field.eval(q));
+        assert!((plain.field.gradient(q) - blended.field.gradient(q)).length() > 1e-6);
+        let (l, _, m) = error(&format!("[skeleton]\nradius = 0.1\nblended_normals = true\n{tee}"));
+        assert_eq!(l, 6, "{m}");
+        assert!(m.contains("blended_normals applies to junctions"), "{m}");
+    }
+
+    #[test]
     fn bad_polygon_weights_are_reported_with_their_position() {
         let quad = "vertices = [[-0.5, -0.2, 0], [0.5, -0.2, 0], [0.5, 0.2, 0], [-0.5, 0.2, 0]]\n";
         let (l, c, m) = error(&format!(
