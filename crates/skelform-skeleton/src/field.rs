@@ -363,7 +363,7 @@ struct Source {
 /// point's value depends on changed ([`SkeletonField::changes_since`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum GlobalChange {
-    /// The blend, its parameters or the iso value.
+    /// The blend, its parameters (the segment method included) or the iso value.
     Blend,
     /// The blend groups, their links, or which groups have elements (the cliques).
     Groups,
@@ -545,7 +545,10 @@ impl SkeletonField {
     /// the common beginning and end of the two lists are kept and everything between them
     /// counts as changed (one element added or removed anywhere is found exactly).
     pub fn changes_since(&self, old: &SkeletonField) -> Result<Vec<Aabb>, GlobalChange> {
-        if self.blend != old.blend || self.iso.to_bits() != old.iso.to_bits() {
+        if self.blend != old.blend
+            || self.iso.to_bits() != old.iso.to_bits()
+            || self.separable != old.separable
+        {
             return Err(GlobalChange::Blend);
         }
         if self.source.junctions > 0 || old.source.junctions > 0 {

@@ -78,6 +78,17 @@ fn separable_and_exact_segments_differ_little_and_not_at_all_for_the_gaussian() 
 }
 
 #[test]
+fn switching_the_segment_method_is_a_global_change() {
+    let (exact, sep) = (tee(Kernel::Wyvill, false), tee(Kernel::Wyvill, true));
+    assert_eq!(sep.changes_since(&exact), Err(skelform_skeleton::GlobalChange::Blend));
+    assert_eq!(sep.changes_since(&tee(Kernel::Wyvill, true)), Ok(vec![]));
+    // Switching back gives the exact field again.
+    let back = tee(Kernel::Wyvill, true).with_separable_segments(false);
+    let p = DVec3::new(0.52, 0.01, 0.02);
+    assert_eq!(back.eval(p), exact.eval(p));
+}
+
+#[test]
 fn separable_gradients_match_finite_differences() {
     for kernel in [Kernel::BSpline, Kernel::Wyvill] {
         let f = tee(kernel, true);

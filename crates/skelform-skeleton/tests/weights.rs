@@ -275,6 +275,25 @@ fn weight_image_scales_the_polygon_image() {
 }
 
 #[test]
+fn changed_weights_are_an_incremental_change_of_their_polygon() {
+    let (poly, w) = muscle();
+    let make = |w: Vec<f64>| {
+        field(
+            Element::new(Shape::Polygon(poly.clone()), 0.1)
+                .unwrap()
+                .with_vertex_weights(w)
+                .unwrap(),
+            Kernel::Gaussian,
+        )
+    };
+    let old = make(w.clone());
+    assert_eq!(make(w.clone()).changes_since(&old), Ok(vec![]));
+    let mut w2 = w;
+    w2[0] = 0.9;
+    assert_eq!(make(w2).changes_since(&old).map(|b| b.len()), Ok(2));
+}
+
+#[test]
 fn weights_need_a_polygon_and_convolution() {
     let seg = Element::new(
         Shape::Segment(skelform_skeleton::Segment::new(DVec3::ZERO, DVec3::X).unwrap()),
