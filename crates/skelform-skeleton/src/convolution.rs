@@ -308,8 +308,9 @@ struct WeightedTriangle {
 /// unweighted closed form) and `J = ∫ (u − q)·k(√(z² + |u − q|²)) du`. Since
 /// `(u − q)·k = −∇_u T(σ)` (`T` the kernel's [tail](Kernel::tail)), the divergence theorem
 /// gives `J = −Σ_edges n_out ∫_edge T ds`: one line integral of the tail per edge, closed
-/// form for the Gaussian (`T = k/2ω`) and by adaptive Gauss–Kronrod quadrature (split at
-/// the kernel's breakpoints, to 10⁻¹² of the integrand's peak) for the others. The
+/// form for the Gaussian (`T = k/2ω`), the Wyvill and the triweight kernels (a polynomial
+/// in `t²`), and by adaptive Gauss–Kronrod quadrature (split at the kernel's breakpoints,
+/// to 10⁻¹² of the integrand's peak) for the B-spline. The
 /// gradient is closed form: in the plane `∇F = g·A₀ − Σ n_out ∫_edge w·k ds`, where along an
 /// edge `∫ t·k dt` is a difference of tails; normal to it `∂F/∂z = w(q)·∂A₀/∂z +
 /// z·g·Σ n_out ∫_edge k ds`.
@@ -407,12 +408,53 @@ impl PreparedWeighted {
     }
 }
 
+/// The tail's line integral in closed form for a kernel whose tail is a polynomial
+/// `Σ cₙ wⁿ` in `w = 1 − α σ²` on its support (Wyvill, triweight): with `σ² = d² + t²`,
+/// `w = w₀ − α t²` (`w₀ = 1 − α d²`), so the integrand is a polynomial in `t²`, integrated
+/// term by term between the ends clipped to the support (`α t² ≤ w₀`, so no term is large).
+fn tail_line_closed(alpha: f64, tail: &[f64; 5], d2: f64, ta: f64, tb: f64) -> f64 {
+    let w0 = 1.0 - alpha * d2;
+    if w0 <= 0.0 {
+        return 0.0;
+    }
+    let half = (w0 / alpha).sqrt();
+    let (t0, t1) = (ta.max(-half), tb.min(half));
+    if t1 <= t0 {
+        return 0.0;
+    }
+    // g_j: coefficients of Σ cₙ (w₀ − α t²)ⁿ in powers of t².
+    let mut g = [0.0f64; 5];
+    for (n, &cn) in tail.iter().enumerate() {
+        if cn == 0.0 {
+            continue;
+        }
+        let mut binom = 1.0;
+        for (j, gj) in g.iter_mut().enumerate().take(n + 1) {
+            *gj += cn * binom * w0.powi((n - j) as i32) * (-alpha).powi(j as i32);
+            binom = binom * (n - j) as f64 / (j + 1) as f64;
+        }
+    }
+    let (s0, s1) = (t0 * t0, t1 * t1);
+    let (mut p0, mut p1) = (t0, t1);
+    let mut total = 0.0;
+    for (j, gj) in g.iter().enumerate() {
+        total += gj * (p1 - p0) / (2 * j + 1) as f64;
+        p0 *= s0;
+        p1 *= s1;
+    }
+    total
+}
+
 /// `∫_{ta}^{tb} T(√(d² + t²)) dt`, the line integral of the kernel's tail: for the Gaussian
-/// `T = k/2ω`, so the kernel's own closed form; for the others adaptive quadrature, split
-/// where `σ` crosses a kernel breakpoint and cut at the support.
+/// `T = k/2ω`, so the kernel's own closed form; for the Wyvill and triweight kernels a
+/// polynomial ([`tail_line_closed`]); for the B-spline adaptive quadrature, split where `σ`
+/// crosses a kernel breakpoint and cut at the support.
 fn tail_line_integral(kernel: Kernel, d2: f64, ta: f64, tb: f64) -> f64 {
     if kernel == Kernel::Gaussian {
         return kernel.line_integral(d2, ta, tb).0 / (2.0 * OMEGA);
+    }
+    if let Some((alpha, tail, _)) = kernel.w_polynomial() {
+        return tail_line_closed(alpha, &tail, d2, ta, tb);
     }
     let peak = kernel.tail(d2.sqrt());
     if peak == 0.0 || tb <= ta {
