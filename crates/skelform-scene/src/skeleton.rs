@@ -24,10 +24,11 @@ use std::sync::Arc;
 use serde::Deserialize;
 use skelform_field::DVec3;
 use skelform_field::combine::Combine;
+use skelform_skeleton::sweep::MAX_SECTION_PIXELS;
 use skelform_skeleton::{
     Blend, CubicCurve, DEFAULT_IMAGE_RESOLUTION, Element, Falloff, GroupId, Kernel,
     MAX_IMAGE_RESOLUTION, Polygon, PolygonMethod, Segment, Shape, Skeleton, SkeletonError,
-    SkeletonField, SweptField,
+    SkeletonField, SweptField, WeightImage,
 };
 use toml::Spanned;
 
@@ -50,6 +51,11 @@ pub(crate) struct SkeletonSection {
     /// Default polygon method: "exact" or "image" (DIS appendix A.3).
     polygon_method: Option<Spanned<String>>,
     image_resolution: Option<Spanned<i64>>,
+    /// Junction normals blended as in DIS appendix A.2 (no crease in the shading).
+    blended_normals: Option<Spanned<bool>>,
+    /// Segments convolved "exact" (default) or by the "separable" approximation (DIS
+    /// §5.6.10, figs. 5.52/5.53).
+    segment_method: Option<Spanned<String>>,
     /// How the skeleton combines with a `[field]` formula in the same scene.
     combine: Option<Spanned<String>>,
     groups: Option<BTreeMap<String, Spanned<Vec<Spanned<String>>>>>,
@@ -178,6 +184,11 @@ struct PolygonSpec {
     group: Option<Spanned<String>>,
     polygon_method: Option<Spanned<String>>,
     image_resolution: Option<Spanned<i64>>,
+    /// Per-vertex weights multiplying the strength (DIS §6.4), one per vertex.
+    weights: Option<Spanned<Vec<f64>>>,
+    /// A grey PNG (relative to the scene's folder) scaling the strength over the polygon's
+    /// bounding rectangle (DIS §6.4); implies the image method.
+    weight_image: Option<Spanned<String>>,
     /// The joint whose frame the element is written in.
     joint: Option<Spanned<String>>,
     /// The element's colour, `[r, g, b]` with each component from 0 to 1.
@@ -515,13 +526,40 @@ pub(crate) fn build(
             if let Some(m) = &pg.polygon_method {
                 conv_only("polygon_method", m.span().start)?;
             }
+            for (key, offset) in [
+                ("weights", pg.weights.as_ref().map(|w| w.span().start)),
+                ("weight_image", pg.weight_image.as_ref().map(|w| w.span().start)),
+            ] {
+                if let Some(o) = offset {
+                    conv_only(key, o)?;
+                }
+            }
+            // A weight image scales the polygon's raster image (DIS §6.4): without a method
+            // of its own the polygon takes the image method, at the resolution given.
+            let own_method = match (&pg.weight_image, &pg.polygon_method) {
+                (Some(wi), None) => Some(Spanned::new(wi.span(), "image".to_string())),
+                (Some(wi), Some(m)) if m.get_ref() == "exact" => {
+                    return Err(err(wi.span().start, SkeletonError::WeightImageNeedsImageMethod));
+                }
+                (_, m) => m.clone(),
+            };
             let method =
-                polygon_method(&pg.polygon_method, &pg.image_resolution, Some(default_method), at)?;
+                polygon_method(&own_method, &pg.image_resolution, Some(default_method), at)?;
             let poly = Polygon::new(vs).map_err(|e| err(vat, e))?;
-            let e = Element::new(Shape::Polygon(poly), r[0])
+            let mut e = Element::new(Shape::Polygon(poly), r[0])
                 .and_then(|e| e.with_strength(w[0]))
-                .and_then(|e| e.with_polygon_method(method));
-            add(&mut skeleton, e, g, vat)?;
+                .and_then(|e| e.with_polygon_method(method))
+                .map_err(|e| err(vat, e))?;
+            if let Some(ws) = &pg.weights {
+                e = e
+                    .with_vertex_weights(ws.get_ref().clone())
+                    .map_err(|e| err(ws.span().start, e))?;
+            }
+            if let Some(wi) = &pg.weight_image {
+                let image = weight_image(wi.get_ref(), base, at, wi.span().start)?;
+                e = e.with_weight_image(Arc::new(image)).map_err(|e| err(wi.span().start, e))?;
+            }
+            add(&mut skeleton, Ok(e), g, vat)?;
             paint(&mut skeleton, first, &pg.color, at)?;
             marks.push((first..skeleton.len(), pg.joint.as_ref()));
         }
@@ -578,10 +616,41 @@ pub(crate) fn build(
         };
         err(offset.unwrap_or(blend_at), e)
     };
+    if let Some(b) = &s.blended_normals
+        && skeleton.junctions().is_empty()
+    {
+        return Err(at(
+            b.span().start,
+            "blended_normals applies to junctions (DIS appendix A.2); this skeleton has none"
+                .to_string(),
+        ));
+    }
+    let blended = s.blended_normals.as_ref().is_some_and(|b| *b.get_ref());
+    let separable = match &s.segment_method {
+        None => false,
+        Some(m) => {
+            conv_only("segment_method", m.span().start)?;
+            match m.get_ref().as_str() {
+                "exact" => false,
+                "separable" => true,
+                other => {
+                    return Err(at(
+                        m.span().start,
+                        format!("unknown segment_method '{other}'; expected exact or separable"),
+                    ));
+                }
+            }
+        }
+    };
     let skeleton_field = if skeleton.is_empty() {
         None
     } else {
-        Some(SkeletonField::new(&skeleton, blend).map_err(bad_blend)?)
+        Some(
+            SkeletonField::new(&skeleton, blend)
+                .map_err(bad_blend)?
+                .with_blended_normals(blended)
+                .with_separable_segments(separable),
+        )
     };
     let mut field = SweptField::new(skeleton_field, sweeps, blend).map_err(bad_blend)?;
     if let Some(i) = &s.iso {
@@ -608,6 +677,20 @@ pub(crate) fn build(
     };
     let skeleton = field.skeleton().cloned().map(Arc::new);
     Ok(Built { field: Arc::new(field), skeleton, combine, section_at, articulation })
+}
+
+/// Reads a polygon's weight image: each pixel's lightness times its opacity, from 0 (black
+/// or transparent) to 1 (white).
+fn weight_image(
+    name: &str,
+    base: Option<&std::path::Path>,
+    at: At,
+    offset: usize,
+) -> Result<WeightImage, SceneError> {
+    let png = crate::sweep::read_png(name, base, at, offset, "weight_image", MAX_SECTION_PIXELS)?;
+    let values = png.pixels.iter().map(|&(light, alpha)| light / 255.0 * (alpha / 255.0)).collect();
+    WeightImage::new(png.width, png.height, values)
+        .map_err(|e| at(offset, format!("weight_image '{name}': {e}")))
 }
 
 /// The polygon method from `polygon_method` and `image_resolution` keys (a polygon's own,
@@ -1083,6 +1166,146 @@ radius = 0.05
         }
         assert!(n >= 8, "found {n} scenes");
     }
+
+    /// A grayscale PNG of `w × h` pixels at a fresh path in the temporary folder.
+    fn weight_png(
+        name: &str,
+        w: u32,
+        h: u32,
+        value: impl Fn(u32, u32) -> u8,
+    ) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("skelform-weights-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join(name);
+        let file = std::io::BufWriter::new(std::fs::File::create(&path).unwrap());
+        let mut e = png::Encoder::new(file, w, h);
+        e.set_color(png::ColorType::Grayscale);
+        e.set_depth(png::BitDepth::Eight);
+        let mut wr = e.write_header().unwrap();
+        let data: Vec<u8> =
+            (0..h).flat_map(|r| (0..w).map(move |c| (c, r))).map(|(c, r)| value(c, r)).collect();
+        wr.write_image_data(&data).unwrap();
+        wr.finish().unwrap();
+        path
+    }
+
+    #[test]
+    fn polygon_weights_and_weight_images_parse_and_apply() {
+        use skelform_skeleton::convolution::convolve_weighted;
+        use skelform_skeleton::{Kernel, Polygon};
+        let quad = "vertices = [[-0.5, -0.2, 0], [0.5, -0.2, 0], [0.5, 0.2, 0], [-0.5, 0.2, 0]]\n";
+        let s = parse(&format!(
+            "[skeleton]\nradius = 0.1\nkernel = \"wyvill\"\n[[skeleton.polygon]]\n{quad}\
+             weights = [1, 0.4, 0.4, 1]\n"
+        ))
+        .unwrap();
+        let poly = Polygon::new(vec![
+            DVec3::new(-0.5, -0.2, 0.0),
+            DVec3::new(0.5, -0.2, 0.0),
+            DVec3::new(0.5, 0.2, 0.0),
+            DVec3::new(-0.5, 0.2, 0.0),
+        ])
+        .unwrap();
+        for p in
+            [DVec3::new(-0.3, 0.0, 0.05), DVec3::new(0.3, 0.1, 0.02), DVec3::new(0.0, 0.0, 0.0)]
+        {
+            let (want, _) =
+                convolve_weighted(Kernel::Wyvill, &poly, &[1.0, 0.4, 0.4, 1.0], 0.1, p).unwrap();
+            assert!((s.field.eval(p) - (0.5 - want)).abs() < 1e-12);
+        }
+        // A weight image: white on the left half, black on the right (columns run along e1,
+        // from the centre towards vertex 0, i.e. towards -x here): the -x half remains.
+        let img = weight_png("half.png", 16, 4, |c, _| if c < 8 { 255 } else { 0 });
+        let s = parse(&format!(
+            "[skeleton]\nradius = 0.1\n[[skeleton.polygon]]\n{quad}weight_image = {:?}\n\
+             image_resolution = 60\n",
+            img.display().to_string()
+        ))
+        .unwrap();
+        assert!(s.field.eval(DVec3::new(-0.3, 0.0, 0.0)) < 0.0, "inside where the image is white");
+        assert!(s.field.eval(DVec3::new(0.3, 0.0, 0.0)) > 0.0, "outside where it is black");
+        // Relative to the scene's folder.
+        let dir = img.parent().unwrap();
+        let scene = dir.join("weighted.toml");
+        std::fs::write(
+            &scene,
+            format!(
+                "{HEAD}[skeleton]\nradius = 0.1\n[[skeleton.polygon]]\n{quad}weight_image = \"half.png\"\n"
+            ),
+        )
+        .unwrap();
+        assert!(Scene::load(&scene).is_ok());
+    }
+
+    #[test]
+    fn segment_method_and_blended_normals_parse_and_are_checked() {
+        let tee = "[[skeleton.segment]]\na = [-0.5, 0, 0]\nb = [0.5, 0, 0]\n\
+                   [[skeleton.segment]]\na = [0, 0, 0]\nb = [0, 0.5, 0]\n";
+        let exact =
+            parse(&format!("[skeleton]\nradius = 0.1\nkernel = \"wyvill\"\n{tee}")).unwrap();
+        let sep = parse(&format!(
+            "[skeleton]\nradius = 0.1\nkernel = \"wyvill\"\nsegment_method = \"separable\"\n{tee}"
+        ))
+        .unwrap();
+        // Beyond the bar's end the exact Wyvill convolution still reaches the surface; the
+        // separable one ends at the segment's end.
+        let p = DVec3::new(0.505, 0.0, 0.0);
+        assert!(exact.field.eval(p) < 0.0 && sep.field.eval(p) > 0.0);
+        let (l, _, m) =
+            error(&format!("[skeleton]\nradius = 0.1\nsegment_method = \"points\"\n{tee}"));
+        assert_eq!(l, 6, "{m}");
+        assert!(m.contains("unknown segment_method 'points'"), "{m}");
+        let (l, _, m) = error(&format!(
+            "[skeleton]\nblend = \"union\"\nradius = 0.1\nsegment_method = \"separable\"\n{tee}"
+        ));
+        assert_eq!(l, 7, "{m}");
+        assert!(m.contains("does not apply to the union blend"), "{m}");
+        // Blended normals: the same values, other gradients near the junction.
+        let junction = "[[skeleton.junction]]\nat = [0, 0, 0]\n";
+        let plain = parse(&format!("[skeleton]\nradius = 0.1\n{tee}{junction}")).unwrap();
+        let blended =
+            parse(&format!("[skeleton]\nradius = 0.1\nblended_normals = true\n{tee}{junction}"))
+                .unwrap();
+        let q = DVec3::new(0.08, 0.05, 0.07);
+        assert_eq!(plain.field.eval(q), blended.field.eval(q));
+        assert!((plain.field.gradient(q) - blended.field.gradient(q)).length() > 1e-6);
+        let (l, _, m) = error(&format!("[skeleton]\nradius = 0.1\nblended_normals = true\n{tee}"));
+        assert_eq!(l, 6, "{m}");
+        assert!(m.contains("blended_normals applies to junctions"), "{m}");
+    }
+
+    #[test]
+    fn bad_polygon_weights_are_reported_with_their_position() {
+        let quad = "vertices = [[-0.5, -0.2, 0], [0.5, -0.2, 0], [0.5, 0.2, 0], [-0.5, 0.2, 0]]\n";
+        let (l, c, m) = error(&format!(
+            "[skeleton]\nradius = 0.1\n[[skeleton.polygon]]\n{quad}weights = [1, 2]\n"
+        ));
+        assert_eq!((l, c), (8, 11), "{m}");
+        assert!(m.contains("2 per-vertex weights for a polygon of 4 vertices"), "{m}");
+        let (l, _, m) = error(&format!(
+            "[skeleton]\nblend = \"sum\"\nradius = 0.1\n[[skeleton.polygon]]\n{quad}weights = [1, 1, 1, 1]\n"
+        ));
+        assert_eq!(l, 9, "{m}");
+        assert!(m.contains("'weights' does not apply to the sum blend"), "{m}");
+        let (l, _, m) = error(&format!(
+            "[skeleton]\nradius = 0.1\n[[skeleton.polygon]]\n{quad}polygon_method = \"exact\"\n\
+             weight_image = \"w.png\"\n"
+        ));
+        assert_eq!(l, 9, "{m}");
+        assert!(m.contains("cannot use polygon_method = \"exact\""), "{m}");
+        let (l, _, m) = error(&format!(
+            "[skeleton]\nradius = 0.1\n[[skeleton.polygon]]\n{quad}weight_image = \"no-such.png\"\n"
+        ));
+        assert_eq!(l, 8, "{m}");
+        assert!(m.contains("weight_image") && m.contains("cannot open"), "{m}");
+        // An L whose vertex average lies outside it.
+        let (l, _, m) = error(
+            "[skeleton]\nradius = 0.1\n[[skeleton.polygon]]\nvertices = [[0, 0, 0], [0.9, 0, 0], \
+             [0.9, 0.05, 0], [0.05, 0.05, 0], [0.05, 0.9, 0], [0, 0.9, 0]]\nweights = [1, 1, 1, 1, 1, 1]\n",
+        );
+        assert_eq!(l, 8, "{m}");
+        assert!(m.contains("star-shaped"), "{m}");
+    }
 }
 
 #[cfg(test)]
@@ -1153,6 +1376,9 @@ mod example_meshes {
                 ("crossing-cylinders-scaled.toml", 1),
                 ("tapered.toml", 3),
                 ("image-polygons.toml", 1),
+                ("muscle-weights.toml", 2),
+                ("separable-bspline.toml", 2),
+                ("separable-wyvill.toml", 2),
                 ("elliptic-segments.toml", 1),
                 ("acute-combination.toml", 1),
                 ("acute-combination-unclamped.toml", 1),

@@ -78,20 +78,31 @@ enum Kind {
     Image,
 }
 
-/// Reads the section image `name` (relative to `base`), checking its file size and
-/// dimensions before decoding; errors at `offset`.
-fn load_section(
+/// A PNG read for a scene: width, height, and per pixel its lightness (Rec. 709 luma for
+/// colour images) and opacity, both from 0 to 255, row 0 at the top.
+pub(crate) struct Png {
+    pub(crate) width: usize,
+    pub(crate) height: usize,
+    pub(crate) pixels: Vec<(f64, f64)>,
+}
+
+/// Reads the PNG `name` (relative to `base`, the scene's folder) for the key `key`,
+/// checking its file size and dimensions (2 ..= `max_side` on a side) before decoding;
+/// errors at `offset`, naming the key and the file.
+pub(crate) fn read_png(
     name: &str,
     base: Option<&Path>,
     at: At,
     offset: usize,
-) -> Result<SectionImage, SceneError> {
+    key: &str,
+    max_side: usize,
+) -> Result<Png, SceneError> {
     let path = match base {
         Some(dir) if Path::new(name).is_relative() => dir.join(name),
         _ => Path::new(name).to_path_buf(),
     };
     let shown = path.display();
-    let fail = |m: String| at(offset, format!("section_image '{shown}': {m}"));
+    let fail = |m: String| at(offset, format!("{key} '{shown}': {m}"));
     let file = std::fs::File::open(&path).map_err(|e| fail(format!("cannot open it: {e}")))?;
     let bytes = file.metadata().map_err(|e| fail(format!("cannot read it: {e}")))?.len();
     if bytes > MAX_SECTION_FILE_BYTES {
@@ -103,9 +114,9 @@ fn load_section(
     let info =
         decoder.read_header_info().map_err(|e| fail(format!("not a readable PNG image: {e}")))?;
     let (w, h) = (info.width as usize, info.height as usize);
-    if w.max(h) > MAX_SECTION_PIXELS || w.min(h) < 2 {
+    if w.max(h) > max_side || w.min(h) < 2 {
         return Err(fail(format!(
-            "the image is {w}x{h} pixels; a section image is 2 to {MAX_SECTION_PIXELS} on a side"
+            "the image is {w}x{h} pixels; a {key} is 2 to {max_side} on a side"
         )));
     }
     decoder.set_transformations(png::Transformations::EXPAND | png::Transformations::STRIP_16);
@@ -119,12 +130,11 @@ fn load_section(
         reader.next_frame(&mut buf).map_err(|e| fail(format!("cannot decode the image: {e}")))?;
     let channels = frame.color_type.samples();
     let (fw, fh) = (frame.width as usize, frame.height as usize);
-    // A pixel is inside when it is at least half light (and at least half opaque).
-    let mut inside = Vec::with_capacity(fw * fh);
+    let mut pixels = Vec::with_capacity(fw * fh);
     for r in 0..fh {
         let row = &buf[r * frame.line_size..][..fw * channels];
         for px in row.chunks_exact(channels) {
-            let (light, alpha) = match px {
+            pixels.push(match px {
                 [g] => (f64::from(*g), 255.0),
                 [g, a] => (f64::from(*g), f64::from(*a)),
                 [r, g, b] => (
@@ -136,11 +146,25 @@ fn load_section(
                     f64::from(*a),
                 ),
                 [] => (0.0, 0.0),
-            };
-            inside.push(light >= 127.5 && alpha >= 127.5);
+            });
         }
     }
-    SectionImage::from_mask(fw, fh, &inside).map_err(|e| fail(e.to_string()))
+    Ok(Png { width: fw, height: fh, pixels })
+}
+
+/// Reads the section image `name` (relative to `base`); errors at `offset`.
+fn load_section(
+    name: &str,
+    base: Option<&Path>,
+    at: At,
+    offset: usize,
+) -> Result<SectionImage, SceneError> {
+    let png = read_png(name, base, at, offset, "section_image", MAX_SECTION_PIXELS)?;
+    // A pixel is inside when it is at least half light (and at least half opaque).
+    let inside: Vec<bool> =
+        png.pixels.iter().map(|&(light, alpha)| light >= 127.5 && alpha >= 127.5).collect();
+    SectionImage::from_mask(png.width, png.height, &inside)
+        .map_err(|e| at(offset, format!("section_image '{name}': {e}")))
 }
 
 /// The sweeps of a skeleton section; section images are read relative to `base` (the

@@ -48,11 +48,30 @@ pub(crate) struct PreparedSegment {
     /// Length in world units.
     length: f64,
     inv_r: f64,
-    /// `strength / line_norm`.
+    /// `strength / line_norm`, or `strength / ∫ k` when separable.
     scale: f64,
+    /// The dissertation's separable approximation instead of the exact line integral.
+    separable: bool,
+    strength: f64,
 }
 
 impl PreparedSegment {
+    /// Switches to the dissertation's separable approximation of the segment's convolution
+    /// (DIS §5.6.10, figs. 5.52 and 5.53): the "product of filters" `k(d)·∫_{−τ}^{L−τ} k(t) dt /
+    /// ∫_ℝ k`, the kernel of the distance to the segment's line times the kernel integrated
+    /// along it. Exact for the Gaussian (`e^{−ω(d² + t²)} = e^{−ωd²}e^{−ωt²}`), an
+    /// approximation for the others; its normalisation keeps a long segment's surface at
+    /// one radius, as the exact one does.
+    pub(crate) fn set_separable(&mut self, kernel: Kernel, on: bool) {
+        self.separable = on;
+        self.scale = self.strength
+            / if on {
+                kernel.line_integral(0.0, f64::NEG_INFINITY, f64::INFINITY).0
+            } else {
+                kernel.line_norm()
+            };
+    }
+
     pub(crate) fn new(kernel: Kernel, s: &Segment, radius: f64, strength: f64) -> Self {
         PreparedSegment {
             a: s.a(),
@@ -60,6 +79,8 @@ impl PreparedSegment {
             length: s.length(),
             inv_r: 1.0 / radius,
             scale: strength / kernel.line_norm(),
+            separable: false,
+            strength,
         }
     }
 
@@ -85,6 +106,18 @@ impl PreparedSegment {
         let tau = w.dot(self.u);
         let perp = w - tau * self.u;
         let d2 = perp.length_squared();
+        if self.separable {
+            let (kd, dkd) = kernel.value_d(d2);
+            let along = kernel.line_integral(0.0, -tau, len - tau).0;
+            if !want_grad {
+                return (self.scale * kd * along, DVec3::ZERO, 0.0);
+            }
+            let ka = kernel.value(tau * tau);
+            let kb = kernel.value((len - tau) * (len - tau));
+            let gw = kd * (ka - kb) * self.u + 2.0 * dkd * along * perp;
+            let dv_dr = -self.scale * inv_r * (gw.dot(w) + kd * kb * len);
+            return (self.scale * kd * along, gw * (self.scale * inv_r), dv_dr);
+        }
         let (v, dv) = kernel.line_integral(d2, -tau, len - tau);
         if !want_grad {
             return (self.scale * v, DVec3::ZERO, 0.0);
@@ -253,6 +286,207 @@ impl PreparedPolygon {
         let g = grad_q.x * self.e1 + grad_q.y * self.e2 + gz * self.n;
         (self.scale * v, g * (self.scale * self.inv_r))
     }
+}
+
+/// One triangle of a weighted polygon's fan: its unweighted integral, its edges in the
+/// parent polygon's frame (radii, counter-clockwise) and its linear weight there.
+#[derive(Clone, Debug)]
+struct WeightedTriangle {
+    /// `∫ k` over the triangle, unnormalised (prepared with `strength = area_norm`).
+    plain: PreparedPolygon,
+    edges: [Edge; 3],
+    /// The weight `c + g·q` at `q` (radii, plane frame): `g` per radius.
+    c: f64,
+    g: DVec2,
+}
+
+/// A polygon whose strength varies linearly over each triangle of a fan (per-vertex weights,
+/// DIS §6.4; see [`crate::weights`]), integrated exactly.
+///
+/// Over one triangle with weight `w(u) = w(q) + g·(u − q)` (`q` the query point's
+/// projection, `z` its height) the density is `F = w(q)·A₀ + g·J` with `A₀ = ∫ k` (the
+/// unweighted closed form) and `J = ∫ (u − q)·k(√(z² + |u − q|²)) du`. Since
+/// `(u − q)·k = −∇_u T(σ)` (`T` the kernel's [tail](Kernel::tail)), the divergence theorem
+/// gives `J = −Σ_edges n_out ∫_edge T ds`: one line integral of the tail per edge, closed
+/// form for the Gaussian (`T = k/2ω`), the Wyvill and the triweight kernels (a polynomial
+/// in `t²`), and by adaptive Gauss–Kronrod quadrature (split at the kernel's breakpoints,
+/// to 10⁻¹² of the integrand's peak) for the B-spline. The
+/// gradient is closed form: in the plane `∇F = g·A₀ − Σ n_out ∫_edge w·k ds`, where along an
+/// edge `∫ t·k dt` is a difference of tails; normal to it `∂F/∂z = w(q)·∂A₀/∂z +
+/// z·g·Σ n_out ∫_edge k ds`.
+#[derive(Clone, Debug)]
+pub(crate) struct PreparedWeighted {
+    origin: DVec3,
+    e1: DVec3,
+    e2: DVec3,
+    n: DVec3,
+    tris: Vec<WeightedTriangle>,
+    radius: f64,
+    /// `strength / area_norm`.
+    scale: f64,
+}
+
+impl PreparedWeighted {
+    /// `weights` already checked against `poly` ([`crate::weights`]).
+    pub(crate) fn new(
+        kernel: Kernel,
+        poly: &Polygon,
+        weights: &[f64],
+        radius: f64,
+        strength: f64,
+    ) -> Self {
+        let (e1, e2, n) = poly.frame();
+        let origin = poly.origin();
+        let flat = poly.flat_vertices();
+        let pieces = crate::weights::fan_pieces(poly, weights);
+        let verts = poly.vertices();
+        let k = flat.len();
+        let mut tris = Vec::with_capacity(k);
+        for (i, piece) in pieces.iter().enumerate() {
+            let j = (i + 1) % k;
+            // Checked star-shaped, so the fan triangle has area; skip it otherwise rather
+            // than fail (a caller may have moved the shape after the check).
+            let Ok(t) = Polygon::triangle(origin, verts[i], verts[j]) else {
+                continue;
+            };
+            let corners = [DVec2::ZERO, flat[i] / radius, flat[j] / radius];
+            let edges = std::array::from_fn(|m| {
+                let (a, b) = (corners[m], corners[(m + 1) % 3]);
+                let len = (b - a).length();
+                Edge { start: a, dir: (b - a) / len, len }
+            });
+            tris.push(WeightedTriangle {
+                plain: PreparedPolygon::new(kernel, &t, radius, kernel.area_norm()),
+                edges,
+                c: piece.c,
+                g: piece.g * radius,
+            });
+        }
+        PreparedWeighted { origin, e1, e2, n, tris, radius, scale: strength / kernel.area_norm() }
+    }
+
+    pub(crate) fn eval(&self, kernel: Kernel, p: DVec3, want_grad: bool) -> (f64, DVec3) {
+        let inv_r = 1.0 / self.radius;
+        let w = (p - self.origin) * inv_r;
+        let q = DVec2::new(w.dot(self.e1), w.dot(self.e2));
+        let z = w.dot(self.n);
+        let z2 = z * z;
+        let (mut v, mut grad_q, mut gz) = (0.0, DVec2::ZERO, 0.0);
+        for t in &self.tris {
+            let (a0, ga0) = t.plain.eval(kernel, p, want_grad);
+            let wq = t.c + t.g.dot(q);
+            let (mut tail_n, mut wk_n, mut k_n) = (DVec2::ZERO, DVec2::ZERO, DVec2::ZERO);
+            for e in &t.edges {
+                let rel = e.start - q;
+                let ta = rel.dot(e.dir);
+                let tb = ta + e.len;
+                let h = rel.perp_dot(e.dir);
+                let d2 = z2 + h * h;
+                let n_out = DVec2::new(e.dir.y, -e.dir.x);
+                tail_n += n_out * tail_line_integral(kernel, d2, ta, tb);
+                if want_grad {
+                    let l0 = kernel.line_integral(d2, ta, tb).0;
+                    let l1 =
+                        kernel.tail((d2 + ta * ta).sqrt()) - kernel.tail((d2 + tb * tb).sqrt());
+                    // The weight along the edge: at its foot (t = 0) plus g·dir per unit t.
+                    let foot = wq + t.g.dot(rel - ta * e.dir);
+                    wk_n += n_out * (foot * l0 + t.g.dot(e.dir) * l1);
+                    k_n += n_out * l0;
+                }
+            }
+            v += wq * a0 - t.g.dot(tail_n);
+            if want_grad {
+                grad_q += t.g * a0 - wk_n;
+                gz += wq * ga0.dot(self.n) * self.radius + z * t.g.dot(k_n);
+            }
+        }
+        if !want_grad {
+            return (self.scale * v, DVec3::ZERO);
+        }
+        let g = grad_q.x * self.e1 + grad_q.y * self.e2 + gz * self.n;
+        (self.scale * v, g * (self.scale * inv_r))
+    }
+}
+
+/// The tail's line integral in closed form for a kernel whose tail is a polynomial
+/// `Σ cₙ wⁿ` in `w = 1 − α σ²` on its support (Wyvill, triweight): with `σ² = d² + t²`,
+/// `w = w₀ − α t²` (`w₀ = 1 − α d²`), so the integrand is a polynomial in `t²`, integrated
+/// term by term between the ends clipped to the support (`α t² ≤ w₀`, so no term is large).
+fn tail_line_closed(alpha: f64, tail: &[f64; 5], d2: f64, ta: f64, tb: f64) -> f64 {
+    let w0 = 1.0 - alpha * d2;
+    if w0 <= 0.0 {
+        return 0.0;
+    }
+    let half = (w0 / alpha).sqrt();
+    let (t0, t1) = (ta.max(-half), tb.min(half));
+    if t1 <= t0 {
+        return 0.0;
+    }
+    // g_j: coefficients of Σ cₙ (w₀ − α t²)ⁿ in powers of t².
+    let mut g = [0.0f64; 5];
+    for (n, &cn) in tail.iter().enumerate() {
+        if cn == 0.0 {
+            continue;
+        }
+        let mut binom = 1.0;
+        for (j, gj) in g.iter_mut().enumerate().take(n + 1) {
+            *gj += cn * binom * w0.powi((n - j) as i32) * (-alpha).powi(j as i32);
+            binom = binom * (n - j) as f64 / (j + 1) as f64;
+        }
+    }
+    let (s0, s1) = (t0 * t0, t1 * t1);
+    let (mut p0, mut p1) = (t0, t1);
+    let mut total = 0.0;
+    for (j, gj) in g.iter().enumerate() {
+        total += gj * (p1 - p0) / (2 * j + 1) as f64;
+        p0 *= s0;
+        p1 *= s1;
+    }
+    total
+}
+
+/// `∫_{ta}^{tb} T(√(d² + t²)) dt`, the line integral of the kernel's tail: for the Gaussian
+/// `T = k/2ω`, so the kernel's own closed form; for the Wyvill and triweight kernels a
+/// polynomial ([`tail_line_closed`]); for the B-spline adaptive quadrature, split where `σ`
+/// crosses a kernel breakpoint and cut at the support.
+fn tail_line_integral(kernel: Kernel, d2: f64, ta: f64, tb: f64) -> f64 {
+    if kernel == Kernel::Gaussian {
+        return kernel.line_integral(d2, ta, tb).0 / (2.0 * OMEGA);
+    }
+    if let Some((alpha, tail, _)) = kernel.w_polynomial() {
+        return tail_line_closed(alpha, &tail, d2, ta, tb);
+    }
+    let peak = kernel.tail(d2.sqrt());
+    if peak == 0.0 || tb <= ta {
+        return 0.0;
+    }
+    let mut cuts: Vec<f64> = Vec::with_capacity(8);
+    let mut limit = f64::INFINITY;
+    for b in kernel.breakpoints() {
+        let r2 = b * b - d2;
+        if r2 <= 0.0 {
+            continue;
+        }
+        let c = r2.sqrt();
+        cuts.push(-c);
+        cuts.push(c);
+        limit = c; // the last breakpoint is the support
+    }
+    let (lo, hi) = (ta.max(-limit), tb.min(limit));
+    if hi <= lo {
+        return 0.0;
+    }
+    cuts.retain(|c| *c > lo && *c < hi);
+    cuts.sort_by(f64::total_cmp);
+    let f = |t: f64| [kernel.tail((d2 + t * t).sqrt())];
+    let tol = [(hi - lo) * (EDGE_RTOL * peak).max(1e-16)];
+    let mut total = 0.0;
+    let mut x0 = lo;
+    for x1 in cuts.into_iter().chain(std::iter::once(hi)) {
+        total += integrate(f, x0, x1, tol)[0];
+        x0 = x1;
+    }
+    total
 }
 
 /// `∫_{φa}^{φb} F(√(z² + h² sec² φ)) dφ` with `F` the kernel's tail `T` (or the kernel `k`
@@ -424,4 +658,30 @@ pub fn convolve_adaptive(kernel: Kernel, shape: &Shape, radius: f64, p: DVec3) -
         }
         other => convolve(kernel, other, radius, p),
     }
+}
+
+/// The normalised convolution at `p` of a polygon whose strength varies over it:
+/// `weights[i]` at vertex `i`, interpolated over the fan from the vertex average (DIS §6.4;
+/// see [`crate::weights`]), and its gradient. With every weight 1 it is [`convolve`]'s
+/// value.
+///
+/// ```
+/// use skelform_skeleton::{Kernel, Polygon, convolution::{convolve, convolve_weighted}};
+/// use skelform_skeleton::Shape;
+/// use glam::DVec3;
+/// let tri = Polygon::triangle(DVec3::ZERO, DVec3::X, DVec3::Y).unwrap();
+/// let p = DVec3::new(0.3, 0.3, 0.1);
+/// let (w, _) = convolve_weighted(Kernel::Wyvill, &tri, &[2.0; 3], 0.2, p).unwrap();
+/// let (v, _) = convolve(Kernel::Wyvill, &Shape::Polygon(tri), 0.2, p);
+/// assert!((w - 2.0 * v).abs() < 1e-12);
+/// ```
+pub fn convolve_weighted(
+    kernel: Kernel,
+    poly: &Polygon,
+    weights: &[f64],
+    radius: f64,
+    p: DVec3,
+) -> Result<(f64, DVec3), crate::SkeletonError> {
+    crate::weights::check_vertex_weights(poly, weights)?;
+    Ok(PreparedWeighted::new(kernel, poly, weights, radius, 1.0).eval(kernel, p, true))
 }

@@ -217,4 +217,43 @@ pub enum SkeletonError {
     /// An iso value given to a distance blend (union, super-elliptic), whose surface is
     /// where its value is 0; the value is the blend's scene-file name.
     IsoNotApplicable(&'static str),
+    #[error(
+        "{weights} per-vertex weights for a polygon of {vertices} vertices: give one per vertex"
+    )]
+    /// Per-vertex weights (DIS §6.4) whose count is not the polygon's vertex count.
+    WeightCount {
+        /// How many weights were given.
+        weights: usize,
+        /// How many vertices the polygon has.
+        vertices: usize,
+    },
+    #[error(
+        "per-vertex weights need a polygon that is star-shaped about the average of its vertices: \
+         the triangle from that point to edge {edge} folds back or has no area (split the polygon)"
+    )]
+    /// Per-vertex weights on a polygon that the fan from its vertex average does not cover,
+    /// so the weights could not be interpolated over it (see [`crate::weights`]).
+    WeightsNotStarShaped {
+        /// The first edge whose fan triangle turns the wrong way (0 runs from vertex 0 to 1).
+        edge: usize,
+    },
+    #[error("weight image: {0}")]
+    /// A weight image that cannot be used (its size, or a value that is not finite).
+    BadWeightImage(String),
+    #[error(
+        "only polygons take per-vertex weights or a weight image (segments take end strengths)"
+    )]
+    /// Per-vertex weights or a weight image on a point or segment.
+    WeightsNeedPolygon,
+    #[error(
+        "a polygon with a weight image is convolved by the image method; it cannot use polygon_method = \"exact\""
+    )]
+    /// The exact polygon method asked of a polygon with a weight image: the dissertation
+    /// scales the polygon's raster image by the weight image, so only the image method
+    /// applies it.
+    WeightImageNeedsImageMethod,
+    #[error("per-vertex weights and weight images apply to the convolution blend only, not to {0}")]
+    /// A skeleton with weighted polygons built into a field with a blend other than
+    /// convolution; the value is the blend's scene-file name.
+    WeightsNeedConvolution(&'static str),
 }

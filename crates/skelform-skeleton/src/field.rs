@@ -61,11 +61,11 @@
 //! `{palm, finger2}`, …, so each finger blends into the palm and no two fingers blend. Where
 //! the surfaces of two cliques do meet, the union leaves a crease, as it should.
 
-use glam::{DMat3, DVec3};
+use glam::{DMat3, DVec2, DVec3};
 use skelform_field::{Aabb, Field};
 
 use crate::SkeletonError;
-use crate::convolution::{PreparedPolygon, PreparedSegment};
+use crate::convolution::{PreparedPolygon, PreparedSegment, PreparedWeighted};
 use crate::geometry::{Nearest, Shape};
 use crate::image::{ImagePolygon, PolygonMethod};
 use crate::junction::PreparedJunction;
@@ -185,6 +185,7 @@ enum Prepared {
     Point { c: DVec3, inv_r: f64, strength: f64 },
     Segment(PreparedSegment),
     Polygon(PreparedPolygon),
+    Weighted(PreparedWeighted),
     Image(ImagePolygon),
 }
 
@@ -343,6 +344,11 @@ pub struct SkeletonField {
     /// Each element's colour (its own, or the skeleton's default, or [`NEUTRAL_COLOR`]);
     /// `None` when the skeleton has no colour at all.
     colors: Option<Vec<[f32; 3]>>,
+    /// Junction gradients along the appendix's blended normals
+    /// ([`SkeletonField::with_blended_normals`]).
+    blended_normals: bool,
+    /// Segments by the separable approximation ([`SkeletonField::with_separable_segments`]).
+    separable: bool,
 }
 
 /// The parts of the skeleton a field depends on, kept to compare two fields.
@@ -357,7 +363,7 @@ struct Source {
 /// point's value depends on changed ([`SkeletonField::changes_since`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum GlobalChange {
-    /// The blend, its parameters or the iso value.
+    /// The blend, its parameters (the segment method included) or the iso value.
     Blend,
     /// The blend groups, their links, or which groups have elements (the cliques).
     Groups,
@@ -399,6 +405,20 @@ impl SkeletonField {
         }
         if !skeleton.junctions().is_empty() && !matches!(blend, Blend::Convolution(_)) {
             return Err(SkeletonError::JunctionNeedsConvolution(blend.name()));
+        }
+        for e in skeleton.elements() {
+            if !e.is_weighted() {
+                continue;
+            }
+            if !matches!(blend, Blend::Convolution(_)) {
+                return Err(SkeletonError::WeightsNeedConvolution(blend.name()));
+            }
+            // A pose or caller may have replaced the shape since the weights were checked.
+            match (&e.shape, e.vertex_weights()) {
+                (Shape::Polygon(p), Some(w)) => crate::weights::check_vertex_weights(p, w)?,
+                (Shape::Polygon(_), None) => {}
+                _ => return Err(SkeletonError::WeightsNeedPolygon),
+            }
         }
         if let Blend::Convolution(k) = blend
             && !k.convolves_extended()
@@ -505,6 +525,8 @@ impl SkeletonField {
                 junctions: skeleton.junctions().len(),
             },
             colors,
+            blended_normals: false,
+            separable: false,
         })
     }
 
@@ -523,7 +545,10 @@ impl SkeletonField {
     /// the common beginning and end of the two lists are kept and everything between them
     /// counts as changed (one element added or removed anywhere is found exactly).
     pub fn changes_since(&self, old: &SkeletonField) -> Result<Vec<Aabb>, GlobalChange> {
-        if self.blend != old.blend || self.iso.to_bits() != old.iso.to_bits() {
+        if self.blend != old.blend
+            || self.iso.to_bits() != old.iso.to_bits()
+            || self.separable != old.separable
+        {
             return Err(GlobalChange::Blend);
         }
         if self.source.junctions > 0 || old.source.junctions > 0 {
@@ -592,12 +617,30 @@ impl SkeletonField {
                 ra,
                 if taper.is_some() { 1.0 } else { wa },
             )),
-            Shape::Polygon(p) => match e.polygon_method() {
-                PolygonMethod::Exact => {
+            Shape::Polygon(p) => match (e.polygon_method(), e.vertex_weights()) {
+                (PolygonMethod::Exact, None) => {
                     Prepared::Polygon(PreparedPolygon::new(kernel, p, ra, e.strength()))
                 }
-                PolygonMethod::Image { resolution } => {
-                    Prepared::Image(ImagePolygon::new(kernel, p, ra, e.strength(), resolution))
+                (PolygonMethod::Exact, Some(w)) => {
+                    Prepared::Weighted(PreparedWeighted::new(kernel, p, w, ra, e.strength()))
+                }
+                (PolygonMethod::Image { resolution }, w) => {
+                    let pieces = w.map(|w| crate::weights::fan_pieces(p, w));
+                    let weight = e.is_weighted().then(|| {
+                        crate::weights::raster_weight(
+                            p,
+                            pieces.as_deref(),
+                            e.weight_image().map(|i| &**i),
+                        )
+                    });
+                    Prepared::Image(ImagePolygon::new(
+                        kernel,
+                        p,
+                        ra,
+                        e.strength(),
+                        resolution,
+                        weight.as_ref().map(|f| f as &dyn Fn(DVec2) -> f64),
+                    ))
                 }
             },
         };
@@ -622,6 +665,50 @@ impl SkeletonField {
         check_iso(iso)?;
         self.iso = iso;
         Ok(self)
+    }
+
+    /// The same field with the junctions' gradients turned along the blended normals of DIS
+    /// appendix A.2 (see [`crate::junction`]): the joint combination surface's own gradient
+    /// creases where two limbs' union terms meet out of the joint's plane (the starfish's
+    /// webbing); the blended normal is smooth there, so the shading shows no crease. The
+    /// gradient keeps its length (the values are unchanged), only its direction near a
+    /// junction changes, so it is no longer exactly the field's derivative there; without
+    /// junctions this changes nothing.
+    pub fn with_blended_normals(mut self, on: bool) -> SkeletonField {
+        self.blended_normals = on;
+        self
+    }
+
+    /// The same field with every segment convolved by the dissertation's separable
+    /// approximation (DIS §5.6.10, figs. 5.52 and 5.53) instead of the exact line integral:
+    /// the kernel of the distance to the segment's line times the kernel integrated along
+    /// it, as the dissertation convolved the B-spline and Wyvill kernels. The same for the
+    /// Gaussian, which is separable; for the others it shows how little the approximation
+    /// changes (`tests/separable.rs` measures it). Convolution only; `false` restores the
+    /// exact integral.
+    pub fn with_separable_segments(mut self, on: bool) -> SkeletonField {
+        let Blend::Convolution(kernel) = self.blend else {
+            return self;
+        };
+        self.separable = on;
+        for it in &mut self.items {
+            if let Prepared::Segment(s) = &mut it.conv {
+                s.set_separable(kernel, on);
+            }
+        }
+        self
+    }
+
+    /// Whether segments use the separable approximation
+    /// ([`SkeletonField::with_separable_segments`]).
+    pub fn separable_segments(&self) -> bool {
+        self.separable
+    }
+
+    /// Whether junction gradients follow the blended normals
+    /// ([`SkeletonField::with_blended_normals`]).
+    pub fn blended_normals(&self) -> bool {
+        self.blended_normals
     }
 
     /// The blend the field was built with; its parameters as given, already validated.
@@ -836,6 +923,7 @@ impl SkeletonField {
                 }
             },
             Prepared::Polygon(poly) => poly.eval(k, p, want_grad),
+            Prepared::Weighted(poly) => poly.eval(k, p, want_grad),
             Prepared::Image(img) => img.eval(k, p, want_grad),
         }
     }
@@ -970,21 +1058,30 @@ impl SkeletonField {
                     - self.junction_density(junction, k, p - dp))
                     / (2.0 * h);
             }
+            if self.blended_normals
+                && let Some(n) = junction.blended_normal(k, p, |e, p| self.limb_at(e, k, p))
+            {
+                // The density falls outward: its gradient points along −n.
+                g = -g.length() * n;
+            }
         }
         (v, g)
     }
 
+    /// One junction limb's convolution (value, gradient), radius and strength at `p`.
+    fn limb_at(&self, e: usize, k: Kernel, p: DVec3) -> (f64, DVec3, f64, f64) {
+        let it = &self.items[e];
+        if !it.contains(p) {
+            return (0.0, DVec3::ZERO, it.radius, 0.0);
+        }
+        let (v, g) = self.convolve(k, it, p, true);
+        let (r, _, w, _) = it.radius_strength(p);
+        (v, g, r, w)
+    }
+
     /// A junction's combined density at `p` (see [`crate::junction`]).
     fn junction_density(&self, j: &PreparedJunction, k: Kernel, p: DVec3) -> f64 {
-        j.density(k, p, |e, p| {
-            let it = &self.items[e];
-            if !it.contains(p) {
-                return (0.0, DVec3::ZERO, it.radius, 0.0);
-            }
-            let (v, g) = self.convolve(k, it, p, true);
-            let (r, _, w, _) = it.radius_strength(p);
-            (v, g, r, w)
-        })
+        j.density(k, p, |e, p| self.limb_at(e, k, p))
     }
 
     /// The clique's field value (inside negative) and gradient from its accumulator.

@@ -177,6 +177,7 @@ impl ImagePolygon {
         radius: f64,
         strength: f64,
         resolution: usize,
+        weight: Option<&dyn Fn(DVec2) -> f64>,
     ) -> Self {
         let (e1, e2, n) = poly.frame();
         let Raster { flat, lo, px, nx, ny, reach } = Raster::new(kernel, poly, radius, resolution);
@@ -188,14 +189,18 @@ impl ImagePolygon {
         for j in 0..ny {
             for i in 0..nx {
                 let corner = lo + DVec2::new(i as f64 - 0.5, j as f64 - 0.5) * px;
-                let mut inside = 0;
+                // Each sample inside counts its weight (DIS §6.4: the polygon is rendered
+                // with its weights before it is filtered), 1 without weights.
+                let mut inside = 0.0;
                 for sj in 0..SUBSAMPLES {
                     for si in 0..SUBSAMPLES {
                         let q = corner + DVec2::new(si as f64 + 0.5, sj as f64 + 0.5) * step;
-                        inside += usize::from(even_odd(&flat, q));
+                        if even_odd(&flat, q) {
+                            inside += weight.map_or(1.0, |w| w(q * radius));
+                        }
                     }
                 }
-                cover[j * nx + i] = inside as f64 * inv_samples;
+                cover[j * nx + i] = inside * inv_samples;
             }
         }
 

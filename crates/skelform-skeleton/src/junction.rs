@@ -28,7 +28,10 @@
 //!
 //! Where two limbs' union terms are equal the union has a crease, and out of the plane so
 //! does `D` (the dissertation saw it in the starfish's webbing and hid it in shading with
-//! blended normals; we keep the field's own gradient).
+//! blended normals). By default the field keeps its own gradient, crease and all;
+//! [`SkeletonField::with_blended_normals`](crate::SkeletonField::with_blended_normals)
+//! turns the junction's gradient towards the appendix's blended normal instead
+//! ([`PreparedJunction::blended_normal`]), which is smooth across the crease.
 //!
 //! The gradient of `D` involves the Hessian of the convolution (through `Convexity`), so it
 //! is taken by central differences of `D` with a step of 10⁻⁴ of the smallest limb radius,
@@ -155,7 +158,14 @@ impl PreparedJunction {
             let d2 = (p - nearest_on(l.ua, l.ub, p)).length_squared();
             union = union.max(w * kernel.value(d2 / (r * r)));
         }
-        let c = match self.joints.as_slice() {
+        let c = self.convexity_at(p, grad);
+        conv + c * (union - conv)
+    }
+
+    /// The Convexity at `p` given the convolution's gradient there: the joint's, or the
+    /// joints' averaged with weights `1/(|p − jointⱼ|² + r²)²`.
+    fn convexity_at(&self, p: DVec3, grad: DVec3) -> f64 {
+        match self.joints.as_slice() {
             [(_, n)] => convexity(*n, grad),
             joints => {
                 let (mut sum, mut weights) = (0.0, 0.0);
@@ -166,8 +176,56 @@ impl PreparedJunction {
                 }
                 sum / weights
             }
-        };
-        conv + c * (union - conv)
+        }
+    }
+
+    /// The appendix's vertex normal for the combination surface (DIS appendix A.2,
+    /// `Normal`; §5.6.14.5): the outward unit normal `Unit((1 − c)·N_conv + c·N_union)`,
+    /// with `c` the Convexity, `N_conv` the convolution's outward unit normal and `N_union`
+    /// a smooth stand-in for the union's normal. The union's own normal jumps where the
+    /// nearest limb changes, and "even a minor contribution from [it] can exaggerate the
+    /// appearance of a crease", so each limb's normal `unit(p − nearest point of its union
+    /// segment)` is weighted: with `wᵢ = 2·sᵢ·k(dᵢ/rᵢ)` (1 on the limb's union surface, more
+    /// inside), by `wᵢ` among the limbs with `wᵢ > 0.9999` if `p` is on or inside some limb's
+    /// union surface, else by `Πⱼ≠ᵢ Ease(1 − wⱼ)`, which fades a limb's normal out as `p`
+    /// comes near another limb. `None` where the convolution has no gradient.
+    pub(crate) fn blended_normal(
+        &self,
+        kernel: Kernel,
+        p: DVec3,
+        mut limb: impl FnMut(usize, DVec3) -> (f64, DVec3, f64, f64),
+    ) -> Option<DVec3> {
+        let mut grad = DVec3::ZERO;
+        let mut normals = Vec::with_capacity(self.limbs.len());
+        for l in &self.limbs {
+            let (_, g, r, w) = limb(l.element, p);
+            grad += g;
+            let off = p - nearest_on(l.ua, l.ub, p);
+            let d2 = off.length_squared();
+            normals.push((off.normalize_or_zero(), 2.0 * w * kernel.value(d2 / (r * r))));
+        }
+        let conv_normal = (-grad).try_normalize()?;
+        let mut union = DVec3::ZERO;
+        if normals.iter().any(|(_, w)| *w > 0.9999) {
+            for (n, w) in &normals {
+                if *w > 0.9999 {
+                    union += *n * *w;
+                }
+            }
+        } else {
+            for (i, (n, _)) in normals.iter().enumerate() {
+                let scale: f64 = normals
+                    .iter()
+                    .enumerate()
+                    .filter(|(j, _)| *j != i)
+                    .map(|(_, (_, w))| ease(1.0 - w))
+                    .product();
+                union += *n * scale;
+            }
+        }
+        let c = self.convexity_at(p, grad);
+        let union = union.try_normalize().unwrap_or(conv_normal);
+        (conv_normal * (1.0 - c) + union * c).try_normalize().or(Some(conv_normal))
     }
 }
 

@@ -42,6 +42,12 @@
 //! continuing from the limbs belong to the junction, and the branch points of one tree make
 //! one junction with several joints; `Blend::SuperElliptic { angle_scaled }`
 //! is eq. 5.14, which removes the super-elliptic blend's bulge where primitives cross.
+//! Chapter 6's controls: a polygon's strength may vary over it by per-vertex weights
+//! ([`Element::with_vertex_weights`], integrated exactly: [`weights`],
+//! [`convolution::convolve_weighted`]) or a weight image ([`Element::with_weight_image`],
+//! through the image method), DIS §6.4; segments may be convolved by the dissertation's
+//! separable approximation for comparison ([`SkeletonField::with_separable_segments`],
+//! figs. 5.52/5.53).
 //! Polygons may use the dissertation's raster-image method instead of the exact integral
 //! ([`PolygonMethod::Image`], appendix A.3), for comparison.
 //!
@@ -63,10 +69,10 @@
 //! not converge; [`convolution::convolve`] answers for them by quadrature of the truncated
 //! kernel); per-vertex radii on polygons (segments, polylines and curves taper);
 //! several convexity directions per joint (the `max_i(v·d_i)` of §5.6.14.5: one direction,
-//! user-set or the joint's plane normal); the appendix's special blended normals near
-//! junctions (we use the gradient of the combined field, so the crease that the union
-//! leaves between limbs out of the joint's plane shows in shading, as the dissertation
-//! reports). The angle-scaled super-elliptic
+//! user-set or the joint's plane normal). The appendix's blended normals near junctions
+//! are an option ([`SkeletonField::with_blended_normals`]); by default the gradient of the
+//! combined field is used, so the crease that the union leaves between limbs out of the
+//! joint's plane shows in shading, as the dissertation reports. The angle-scaled super-elliptic
 //! blend takes its angle from the two elements nearest the point, so with three or more
 //! elements in range it can jump where the second and third nearest swap. The image method
 //! is exact only for the separable Gaussian (for the other kernels it is the dissertation's
@@ -106,6 +112,7 @@ mod quad;
 pub mod ramiform;
 pub mod skeleton;
 pub mod sweep;
+pub mod weights;
 
 pub use curve::{CubicCurve, Frame};
 pub use error::SkeletonError;
@@ -119,3 +126,4 @@ pub use pose::{Articulated, Joint, JointId, Pose};
 pub use ramiform::{Limb, Ramiform, RamiformField, RamiformOptions};
 pub use skeleton::{Element, Group, GroupId, Junction, JunctionJoint, Skeleton, check_color};
 pub use sweep::{Sweep, SweepSettings, SweptField};
+pub use weights::WeightImage;

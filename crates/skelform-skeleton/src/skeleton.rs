@@ -2,6 +2,7 @@
 
 use std::collections::BTreeSet;
 use std::ops::Range;
+use std::sync::Arc;
 
 use glam::DVec3;
 
@@ -9,6 +10,7 @@ use crate::SkeletonError;
 use crate::curve::CubicCurve;
 use crate::geometry::{Polygon, Segment, Shape};
 use crate::image::PolygonMethod;
+use crate::weights::{WeightImage, check_vertex_weights};
 
 /// A blend group, by index into [`Skeleton::groups`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -64,6 +66,10 @@ pub struct Element {
     group: GroupId,
     polygon_method: PolygonMethod,
     color: Option<[f32; 3]>,
+    /// A polygon's per-vertex weights (DIS §6.4), multiplying the strength.
+    vertex_weights: Option<Arc<[f64]>>,
+    /// A polygon's weight image (DIS §6.4), multiplying the strength.
+    weight_image: Option<Arc<WeightImage>>,
 }
 
 /// A colour checked for [`Element::with_color`]: three components in `[0, 1]`.
@@ -91,6 +97,8 @@ impl Element {
             group: GroupId::DEFAULT,
             polygon_method: PolygonMethod::Exact,
             color: None,
+            vertex_weights: None,
+            weight_image: None,
         })
     }
 
@@ -130,11 +138,60 @@ impl Element {
         Ok(self)
     }
 
-    /// How a polygon's convolution is computed (ignored for other shapes).
+    /// How a polygon's convolution is computed (ignored for other shapes). A polygon with a
+    /// weight image must keep the image method.
     pub fn with_polygon_method(mut self, method: PolygonMethod) -> Result<Element, SkeletonError> {
         method.check()?;
+        if self.weight_image.is_some() && method == PolygonMethod::Exact {
+            return Err(SkeletonError::WeightImageNeedsImageMethod);
+        }
         self.polygon_method = method;
         Ok(self)
+    }
+
+    /// A polygon whose strength varies over it: `weights[i]` at vertex `i`, interpolated over
+    /// the fan of triangles from the vertex average (DIS §6.4; see [`crate::weights`]), times
+    /// the strength. One finite weight per vertex; the polygon must be star-shaped about
+    /// its vertex average. Convolution only.
+    pub fn with_vertex_weights(mut self, weights: Vec<f64>) -> Result<Element, SkeletonError> {
+        let Shape::Polygon(p) = &self.shape else {
+            return Err(SkeletonError::WeightsNeedPolygon);
+        };
+        check_vertex_weights(p, &weights)?;
+        self.vertex_weights = Some(weights.into());
+        Ok(self)
+    }
+
+    /// A polygon whose strength is scaled by `image`, stretched over the polygon's bounding
+    /// rectangle in its plane (DIS §6.4; see [`crate::weights`]). The dissertation scales the
+    /// polygon's raster image by it, so the element is switched to the image method (at the
+    /// default resolution) if it used the exact one. Convolution only.
+    pub fn with_weight_image(mut self, image: Arc<WeightImage>) -> Result<Element, SkeletonError> {
+        if !matches!(self.shape, Shape::Polygon(_)) {
+            return Err(SkeletonError::WeightsNeedPolygon);
+        }
+        if self.polygon_method == PolygonMethod::Exact {
+            self.polygon_method =
+                PolygonMethod::Image { resolution: crate::image::DEFAULT_IMAGE_RESOLUTION };
+        }
+        self.weight_image = Some(image);
+        Ok(self)
+    }
+
+    /// A polygon's per-vertex weights, if it has them.
+    pub fn vertex_weights(&self) -> Option<&[f64]> {
+        self.vertex_weights.as_deref()
+    }
+
+    /// A polygon's weight image, if it has one.
+    pub fn weight_image(&self) -> Option<&Arc<WeightImage>> {
+        self.weight_image.as_ref()
+    }
+
+    /// Whether the element's strength varies over a polygon (per-vertex weights or a weight
+    /// image).
+    pub fn is_weighted(&self) -> bool {
+        self.vertex_weights.is_some() || self.weight_image.is_some()
     }
 
     /// The same element with a colour (sRGB, each component in `[0, 1]`): the colour its
