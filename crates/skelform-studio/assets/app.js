@@ -116,9 +116,13 @@ function onText(m) {
     else if (m.type === 'saved') message(`saved ${m.file}`, true);
     else if (m.type === 'exported') message(`wrote ${m.file}`, true);
     else if (m.type === 'meshed') {
-        studio.meshed.push({ revision: m.revision, level: m.level, ms: m.ms });
+        studio.meshed.push({
+            revision: m.revision, level: m.level, ms: m.ms, waited: m.waited_ms,
+            incremental: m.incremental, because: m.full_because,
+        });
         $('status').textContent = `revision ${m.revision} ${m.level ? 'full' : 'coarse'}: ` +
-            `${m.vertices} vertices, ${m.triangles} triangles, meshed in ${m.ms.toFixed(0)} ms`;
+            `${m.vertices} vertices, ${m.triangles} triangles, meshed in ${m.ms.toFixed(0)} ms` +
+            (m.incremental ? ' (incremental)' : m.full_because ? ` (from scratch: ${m.full_because})` : '');
     }
 }
 
@@ -242,6 +246,7 @@ function onState(m) {
     fillSelect($('toward'), m.poses.length ? m.poses : ['rest'], m.toward ? m.toward.pose : null);
     if (!playing && document.activeElement !== $('t')) $('t').value = m.toward ? m.toward.t : 0;
     if (document.activeElement !== $('cell') && m.cell != null) $('cell').value = +m.cell.toPrecision(4);
+    if (document.activeElement !== $('samples') && m.samples != null) $('samples').value = m.samples;
     if (document.activeElement !== $('iso') && m.iso != null) $('iso').value = m.iso;
     if (m.domain && !framed) { frameDomain(m.domain); framed = true; }
     if (!gizmo.dragging) drawSkeleton(m.skeleton);
@@ -465,6 +470,7 @@ $('play').onclick = async () => {
     $('play').textContent = 'Play';
 };
 $('cell').onchange = (e) => send({ op: 'cell', value: Number(e.target.value) });
+$('samples').onchange = (e) => send({ op: 'resolution', value: Math.round(Number(e.target.value)) });
 $('iso').onchange = (e) => send({ op: 'iso', value: Number(e.target.value) });
 $('add').onchange = (e) => {
     const kind = e.target.value;
@@ -473,8 +479,18 @@ $('add').onchange = (e) => {
     if (!kind || !d) return;
     const c = d.min.map((lo, k) => +((lo + d.max[k]) / 2).toFixed(4));
     const r = +(Math.min(...d.max.map((hi, k) => hi - d.min[k])) / 10).toFixed(4);
-    const value = kind === 'point' ? { at: c, radius: r } : { a: c, b: [c[0] + 3 * r, c[1], c[2]], radius: r };
-    send({ op: 'add', kind, value });
+    // A small element at the domain's centre, in the xy plane: drag its handles from there.
+    const at = (dx, dy) => [+(c[0] + dx * r).toFixed(4), +(c[1] + dy * r).toFixed(4), c[2]];
+    const shapes = {
+        point: { at: c },
+        segment: { a: c, b: at(3, 0) },
+        polyline: { points: [c, at(2, 1), at(4, 0)] },
+        curve: { bezier: [c, at(1, 2), at(3, 2), at(4, 0)] },
+        triangle: { vertices: [c, at(3, 0), at(1.5, 2)] },
+        polygon: { vertices: [c, at(3, 0), at(3, 2), at(1.5, 3), at(0, 2)] },
+    };
+    if (!shapes[kind]) return;
+    send({ op: 'add', kind, value: { ...shapes[kind], radius: r } });
 };
 window.addEventListener('keydown', (e) => {
     if (!(e.ctrlKey || e.metaKey) || e.target.tagName === 'INPUT') return;

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use std::sync::mpsc::{Receiver, Sender, channel};
 use std::time::Instant;
 
-use skelform::{Control, Mesh, Overrides, Resolution};
+use skelform::{Control, LiveRun, Mesh, Overrides, Resolution};
 
 /// Which surface of an edit a frame carries.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -24,7 +24,9 @@ pub enum Level {
 /// ([`skelform::Live`]: the same mesh as a fresh run, bit for bit); other edits, and other
 /// methods than the grid, run in full. Vertex colours are left out: the page shades by
 /// region. A cancelled run returns an error for which [`skelform::Error::is_cancelled`]
-/// holds (and `live` forgets its state, so the next run is a full one).
+/// holds; a cancelled incremental run leaves its changed boxes to the next (which stays
+/// incremental), a cancelled run from scratch leaves nothing. [`skelform::Live::last_run`]
+/// says how the run went; the studio reports it with every surface.
 pub fn mesh_scene(
     live: &mut skelform::Live,
     scene: &skelform::Scene,
@@ -106,6 +108,9 @@ pub struct Job {
     pub pose: Option<String>,
     /// Cancelled when a newer job arrives.
     pub control: Control,
+    /// When the edit was handed to the worker: the coarse level's wait is measured from here
+    /// (a new edit must not wait behind the last one's full level).
+    pub queued: Instant,
 }
 
 /// What the worker hands back for publication.
@@ -120,6 +125,10 @@ pub enum Outcome {
         mesh: Arc<Mesh>,
         /// Milliseconds the call took.
         ms: f64,
+        /// Milliseconds from the job's hand-over to the start of this level's run.
+        waited_ms: f64,
+        /// How [`skelform::Live`] ran it: incrementally, or from scratch and why.
+        run: Option<LiveRun>,
     },
     /// The run failed (cancellation is not reported).
     Failed {
@@ -156,6 +165,7 @@ fn worker(rx: Receiver<Job>, coarse_factor: f64, publish: impl Fn(Outcome)) {
                 break;
             }
             let start = Instant::now();
+            let waited_ms = start.duration_since(job.queued).as_secs_f64() * 1e3;
             let result = mesh_scene(
                 &mut live[level as usize],
                 &job.scene,
@@ -171,6 +181,8 @@ fn worker(rx: Receiver<Job>, coarse_factor: f64, publish: impl Fn(Outcome)) {
                     level,
                     mesh: Arc::new(mesh),
                     ms,
+                    waited_ms,
+                    run: live[level as usize].last_run().cloned(),
                 }),
                 Err(e) if e.is_cancelled() => break,
                 Err(e) => {
