@@ -34,7 +34,7 @@ pub fn mesh_scene(
     level: Level,
     coarse_factor: f64,
     control: &Control,
-) -> Result<Mesh, skelform::Error> {
+) -> Result<skelform::Meshed, skelform::Error> {
     let mut overrides = Overrides {
         pose: pose.map(str::to_string),
         colors: Some(false),
@@ -47,7 +47,14 @@ pub fn mesh_scene(
         // Linear interpolation along lattice edges: the coarse surface is a preview.
         overrides.refine = Some(false);
     }
-    Ok(live.mesh(scene, &overrides)?.mesh)
+    live.mesh(scene, &overrides)
+}
+
+/// The grid run's phases in milliseconds (sampling, extraction, root finding and
+/// projection, normals), for the report: where an edit's time went.
+fn phases(stats: &skelform::Stats) -> Option<[f64; 4]> {
+    let skelform::Stats::Grid(s) = stats else { return None };
+    Some([s.sampling, s.extraction, s.refinement, s.normals].map(|d| d.as_secs_f64() * 1e3))
 }
 
 /// The magic that opens every mesh frame.
@@ -129,6 +136,8 @@ pub enum Outcome {
         waited_ms: f64,
         /// How [`skelform::Live`] ran it: incrementally, or from scratch and why.
         run: Option<LiveRun>,
+        /// The grid run's phases: sampling, extraction, root finding, normals (ms).
+        phases_ms: Option<[f64; 4]>,
     },
     /// The run failed (cancellation is not reported).
     Failed {
@@ -176,10 +185,11 @@ fn worker(rx: Receiver<Job>, coarse_factor: f64, publish: impl Fn(Outcome)) {
             );
             let ms = start.elapsed().as_secs_f64() * 1e3;
             match result {
-                Ok(mesh) => publish(Outcome::Mesh {
+                Ok(meshed) => publish(Outcome::Mesh {
                     revision: job.revision,
                     level,
-                    mesh: Arc::new(mesh),
+                    phases_ms: phases(&meshed.stats),
+                    mesh: Arc::new(meshed.mesh),
                     ms,
                     waited_ms,
                     run: live[level as usize].last_run().cloned(),

@@ -514,7 +514,7 @@ impl State {
     fn publish(&self, outcome: Outcome) {
         let mut g = lock(&self.doc);
         match outcome {
-            Outcome::Mesh { revision, level, mesh, ms, waited_ms, run } => {
+            Outcome::Mesh { revision, level, mesh, ms, waited_ms, run, phases_ms } => {
                 if revision != g.revision {
                     return;
                 }
@@ -532,7 +532,9 @@ impl State {
                            "incremental": run.incremental, "full_because": run.full_because,
                            "resampled": run.reuse.resampled,
                            "reused_vertices": run.reuse.reused_vertices,
-                           "placed_vertices": run.reuse.placed_vertices})
+                           "placed_vertices": run.reuse.placed_vertices,
+                           "phases_ms": phases_ms.map(|[s, e, r, n]| json!({"sampling": s,
+                               "extraction": e, "refinement": r, "normals": n}))})
                     .to_string(),
                 ));
             }

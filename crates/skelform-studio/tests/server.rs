@@ -42,9 +42,13 @@ struct Running {
 }
 
 async fn start(resolution: u32) -> Running {
+    start_with(&SCENE.replace("RES", &resolution.to_string())).await
+}
+
+async fn start_with(scene: &str) -> Running {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("tee.toml");
-    std::fs::write(&file, SCENE.replace("RES", &resolution.to_string())).unwrap();
+    std::fs::write(&file, scene).unwrap();
     let studio = Studio::bind(&file, Settings::default()).await.unwrap();
     let (addr, token) = (studio.addr(), studio.token().to_string());
     assert!(studio.url().contains(&token) && token.len() == 32);
@@ -562,7 +566,11 @@ async fn until_meshed(ws: &mut Ws, revision: u64) -> Vec<Value> {
 
 #[tokio::test]
 async fn a_drag_is_meshed_incrementally_at_both_levels_and_the_report_says_why_not_otherwise() {
-    let r = start(96).await;
+    // The tee, and a ball far from it that no move reaches.
+    let scene =
+        SCENE.replace("RES", "96").replace("max = [0.75, 0.75, 0.25]", "max = [2.25, 0.75, 0.25]")
+            + "\n[[skeleton.point]]\nat = [1.8, 0.2, 0]\nradius = 0.2\n";
+    let r = start_with(&scene).await;
     let mut ws = connect(&r).await;
     let opened = until_meshed(&mut ws, 1).await;
     let first = opened.last().unwrap();
@@ -591,11 +599,12 @@ async fn a_drag_is_meshed_incrementally_at_both_levels_and_the_report_says_why_n
         assert_eq!(m["incremental"], true, "a move re-meshed from scratch: {m}");
         assert_eq!(m["full_because"], Value::Null, "{m}");
     }
-    // The full level of the last move re-sampled only near the stem and reused the bar.
+    // The full level of the last move re-sampled only what the stem's reach (and the
+    // cancelled moves' pending boxes) covers, and reused the ball's vertices.
     let full = last.last().unwrap();
     assert_eq!(full["level"], 1);
     let resampled = full["resampled"].as_u64().unwrap();
-    assert!(resampled > 0 && 2 * resampled < total, "{resampled} of {total} samples again");
+    assert!(resampled > 0 && resampled < total, "{resampled} of {total} samples again");
     assert!(full["reused_vertices"].as_u64().unwrap() > 0, "{full}");
 
     // A new lattice (the samples box) is a run from scratch, and the report says why.
@@ -620,7 +629,14 @@ async fn a_drag_is_meshed_incrementally_at_both_levels_and_the_report_says_why_n
     assert!(saved.contains("resolution = 64"), "{saved}");
     // Not a whole number of samples: refused.
     send(&mut ws, json!({"seq": 102, "op": "resolution", "value": 1.5})).await;
-    assert_eq!(next_state(&mut ws).await["type"], "error");
+    let refused = loop {
+        let v = next_state(&mut ws).await;
+        if v["type"] == "error" || v["seq"] == 102 {
+            break v;
+        }
+    };
+    assert_eq!(refused["type"], "error", "{refused}");
+    assert!(refused["message"].as_str().unwrap().contains("whole number"), "{refused}");
 }
 
 #[tokio::test]
