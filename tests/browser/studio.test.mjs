@@ -181,6 +181,11 @@ test('the hand in the studio: drag a handle, bend a joint, undo, save', async ()
     console.log(`studio, hand at 128 samples (cell ${state.cell.toFixed(4)}): ` +
         `edit → first surface median ${ms(median(firsts))} ms (${firsts.length} edits), ` +
         `edit → full surface median ${ms(median(fulls))} ms (${fulls.length} edits)`);
+    const states = (await page.evaluate(() => window.studio.stateTimings)).filter(timed).map((t) => t.ms);
+    const handling = await page.evaluate(() => window.studio.handling);
+    const handled = (kind) => ms(median(handling.filter((h) => h.kind === kind).map((h) => h.ms)));
+    console.log(`studio, hand: edit → state median ${ms(median(states))} ms; the page's handling of a state ` +
+        `median ${handled('state')} ms, of a surface ${handled('frame')} ms`);
     const meshed = (await page.evaluate(() => window.studio.meshed)).filter(timed);
     for (const level of [0, 1]) {
         const runs = meshed.filter((m) => m.level === level);

@@ -12,6 +12,9 @@ const $ = (id) => document.getElementById(id);
 const studio = (window.studio = {
     revision: 0, frameRevision: 0, level: -1, vertices: 0, triangles: 0,
     timings: [], meshed: [], errors: [], state: null, handles: [], ready: false,
+    // Where an edit's time goes on this side: edit → state arrival, and the page's own
+    // handling of each state and frame (ms).
+    stateTimings: [], handling: [],
 });
 
 // --- three.js -------------------------------------------------------------------------
@@ -52,6 +55,11 @@ const selectedMaterial = new THREE.MeshBasicMaterial({ color: 0xe03010, depthTes
 const jointMaterial = new THREE.MeshBasicMaterial({ color: 0x20a040, depthTest: false, transparent: true });
 const lineMaterial = new THREE.LineBasicMaterial({ color: 0x1040a0, depthTest: false, transparent: true, opacity: 0.7 });
 
+// Drawn only when something changed: the view, the gizmo, a message from the server, a
+// pointer or key on the page. A picture drawn every frame kept a core busy (with a software
+// renderer, all of it) that the server's meshing and this page's messages were waiting for.
+let stale = true;
+const redraw = () => { stale = true; };
 function resize() {
     const w = view.clientWidth, h = view.clientHeight;
     renderer.setSize(w, h, false);
@@ -59,10 +67,21 @@ function resize() {
     renderer.domElement.style.height = h + 'px';
     camera.aspect = w / Math.max(h, 1);
     camera.updateProjectionMatrix();
+    redraw();
 }
 window.addEventListener('resize', resize);
 resize();
-renderer.setAnimationLoop(() => { orbit.update(); renderer.render(scene, camera); });
+orbit.addEventListener('change', redraw);
+gizmo.addEventListener('change', redraw);
+for (const e of ['pointerdown', 'pointermove', 'pointerup', 'wheel', 'keydown']) {
+    window.addEventListener(e, redraw, { passive: true });
+}
+renderer.setAnimationLoop(() => {
+    orbit.update();
+    if (!stale) return;
+    stale = false;
+    renderer.render(scene, camera);
+});
 
 let framed = false;
 function frameDomain(domain) {
@@ -104,14 +123,26 @@ function connect() {
     socket.onopen = () => { $('status').textContent = 'connected'; };
     socket.onclose = () => { $('status').textContent = 'disconnected: restart the studio and reload'; };
     socket.onmessage = (e) => {
+        redraw();
         if (typeof e.data === 'string') onText(JSON.parse(e.data));
         else if (new TextDecoder().decode(new Uint8Array(e.data, 0, 4)) === 'SKSL') onSlice(e.data);
-        else onFrame(e.data);
+        else {
+            const start = performance.now();
+            onFrame(e.data);
+            studio.handling.push({ kind: 'frame', ms: performance.now() - start });
+        }
     };
 }
 
 function onText(m) {
-    if (m.type === 'state') onState(m);
+    if (m.type === 'state') {
+        const start = performance.now();
+        if (m.revision > studio.revision && sentAt.has(m.seq)) {
+            studio.stateTimings.push({ seq: m.seq, revision: m.revision, ms: start - sentAt.get(m.seq) });
+        }
+        onState(m);
+        studio.handling.push({ kind: 'state', revision: m.revision, ms: performance.now() - start });
+    }
     else if (m.type === 'error') message(m.message);
     else if (m.type === 'saved') message(`saved ${m.file}`, true);
     else if (m.type === 'exported') message(`wrote ${m.file}`, true);
