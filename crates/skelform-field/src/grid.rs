@@ -475,12 +475,26 @@ impl<'a> LayerSampling<'a> {
 /// [`Field::eval_many`] must equal its sampler, as [`Field::sampler`] requires). For
 /// incremental re-meshing, where an edit changes the field near some points only. Returns
 /// how many of the new values were NaN.
-pub fn resample_points(field: &dyn Field, volume: &mut Volume, indices: &[usize]) -> u64 {
+///
+/// `control` is asked between chunks of 4096 points: once it is cancelled the chunks not yet
+/// sampled are skipped and the call returns [`GridError::Cancelled`], the chunks already done
+/// written (the volume then holds the new field at some of `indices`, the old elsewhere;
+/// the caller samples them again). Why: an incremental update of a large element is a
+/// sizeable part of a run, and a newer edit must not wait for it.
+pub fn resample_points(
+    field: &dyn Field,
+    volume: &mut Volume,
+    indices: &[usize],
+    control: &Control,
+) -> Result<u64, GridError> {
     let grid = volume.grid;
     let [nx, ny, _] = grid.dims;
-    let values: Vec<(Vec<f32>, u64)> = indices
+    let values: Vec<Option<(Vec<f32>, u64)>> = indices
         .par_chunks(4096)
         .map(|chunk| {
+            if control.is_cancelled() {
+                return None;
+            }
             let points: Vec<DVec3> =
                 chunk.iter().map(|&n| grid.point(n % nx, (n / nx) % ny, n / (nx * ny))).collect();
             let mut values = vec![0.0; points.len()];
@@ -494,17 +508,22 @@ pub fn resample_points(field: &dyn Field, volume: &mut Volume, indices: &[usize]
                     sample
                 })
                 .collect();
-            (out, bad)
+            Some((out, bad))
         })
         .collect();
     let mut bad = 0;
-    for (chunk, (out, b)) in indices.chunks(4096).zip(values) {
+    let mut cancelled = false;
+    for (chunk, done) in indices.chunks(4096).zip(values) {
+        let Some((out, b)) = done else {
+            cancelled = true;
+            continue;
+        };
         bad += b;
         for (&n, v) in chunk.iter().zip(out) {
             volume.values[n] = v;
         }
     }
-    bad
+    if cancelled { Err(GridError::Cancelled) } else { Ok(bad) }
 }
 
 /// Layers sampled together by [`sample`]: a block shares the sampler's cached rows.

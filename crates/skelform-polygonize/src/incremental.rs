@@ -37,7 +37,8 @@ use crate::Error;
 use crate::grid::extract::{SLAB, SlabCounts, extract_slabs, slab_count};
 use crate::grid::{self, GridVertex, Options, Place, Stats};
 use crate::refine::{
-    Bracket, RootOptions, fill_from_faces, project_to_surface, refine_roots, unit_gradients,
+    Bracket, RootOptions, fill_from_faces, project_to_surface, refine_roots, refine_roots_until,
+    unit_gradients,
 };
 
 /// Cells of margin around a changed box: one so that every lattice edge that meets the box
@@ -183,7 +184,10 @@ impl GridState {
             let t = Instant::now();
             let dirty = Dirty::new(&grid, &self.pending);
             let points = dirty.points();
-            stats.non_finite_samples = resample_points(field, &mut self.volume, &points);
+            // Cancellable: the points are within the pending boxes, which the next update
+            // samples again.
+            stats.non_finite_samples =
+                resample_points(field, &mut self.volume, &points, &options.lattice.control)?;
             stats.samples = points.len() as u64;
             let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
             for &n in &points {
@@ -383,7 +387,14 @@ impl GridState {
                     Bracket { p0: at(v.base), p1: at(tip), f0: value(v.base), f1: value(tip), t }
                 })
                 .collect();
-            stats.refine_evaluations = refine_roots(field, &mut brackets, &roots);
+            stats.refine_evaluations = if dirty.is_none() {
+                // A run from scratch may stop here: its state is dropped anyway.
+                refine_roots_until(field, &mut brackets, &roots, &lattice.control)
+                    .ok_or(Error::Cancelled)?
+            } else {
+                // An update goes on: it has begun to replace the vertex lists.
+                refine_roots(field, &mut brackets, &roots)
+            };
             for (&i, b) in edges.iter().zip(&brackets) {
                 positions[i] = b.p0.lerp(b.p1, b.t);
             }

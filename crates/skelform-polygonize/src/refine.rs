@@ -73,6 +73,22 @@ pub fn refine_roots(field: &dyn Field, brackets: &mut [Bracket], opts: &RootOpti
     brackets.par_chunks_mut(CHUNK).map(|chunk| refine_chunk(field, chunk, opts)).sum()
 }
 
+/// [`refine_roots`], asking `control` between chunks: once it is cancelled the chunks not yet
+/// refined are left as they are and `None` is returned (the caller drops the run). Why: in a
+/// run from scratch, root finding is the last long step before the mesh, and a newer edit
+/// (the studio's drag) must not wait for it.
+pub fn refine_roots_until(
+    field: &dyn Field,
+    brackets: &mut [Bracket],
+    opts: &RootOptions,
+    control: &skelform_field::control::Control,
+) -> Option<u64> {
+    brackets
+        .par_chunks_mut(CHUNK)
+        .map(|chunk| (!control.is_cancelled()).then(|| refine_chunk(field, chunk, opts)))
+        .sum()
+}
+
 struct State {
     a: f64,
     fa: f64,

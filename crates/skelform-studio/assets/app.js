@@ -12,6 +12,9 @@ const $ = (id) => document.getElementById(id);
 const studio = (window.studio = {
     revision: 0, frameRevision: 0, level: -1, vertices: 0, triangles: 0,
     timings: [], meshed: [], errors: [], state: null, handles: [], ready: false,
+    // Where an edit's time goes on this side: edit → state arrival, and the page's own
+    // handling of each state and frame (ms).
+    stateTimings: [], handling: [],
 });
 
 // --- three.js -------------------------------------------------------------------------
@@ -52,6 +55,11 @@ const selectedMaterial = new THREE.MeshBasicMaterial({ color: 0xe03010, depthTes
 const jointMaterial = new THREE.MeshBasicMaterial({ color: 0x20a040, depthTest: false, transparent: true });
 const lineMaterial = new THREE.LineBasicMaterial({ color: 0x1040a0, depthTest: false, transparent: true, opacity: 0.7 });
 
+// Drawn only when something changed: the view, the gizmo, a message from the server, a
+// pointer or key on the page. A picture drawn every frame kept a core busy (with a software
+// renderer, all of it) that the server's meshing and this page's messages were waiting for.
+let stale = true;
+const redraw = () => { stale = true; };
 function resize() {
     const w = view.clientWidth, h = view.clientHeight;
     renderer.setSize(w, h, false);
@@ -59,10 +67,21 @@ function resize() {
     renderer.domElement.style.height = h + 'px';
     camera.aspect = w / Math.max(h, 1);
     camera.updateProjectionMatrix();
+    redraw();
 }
 window.addEventListener('resize', resize);
 resize();
-renderer.setAnimationLoop(() => { orbit.update(); renderer.render(scene, camera); });
+orbit.addEventListener('change', redraw);
+gizmo.addEventListener('change', redraw);
+for (const e of ['pointerdown', 'pointermove', 'pointerup', 'wheel', 'keydown']) {
+    window.addEventListener(e, redraw, { passive: true });
+}
+renderer.setAnimationLoop(() => {
+    orbit.update();
+    if (!stale) return;
+    stale = false;
+    renderer.render(scene, camera);
+});
 
 let framed = false;
 function frameDomain(domain) {
@@ -104,21 +123,37 @@ function connect() {
     socket.onopen = () => { $('status').textContent = 'connected'; };
     socket.onclose = () => { $('status').textContent = 'disconnected: restart the studio and reload'; };
     socket.onmessage = (e) => {
+        redraw();
         if (typeof e.data === 'string') onText(JSON.parse(e.data));
         else if (new TextDecoder().decode(new Uint8Array(e.data, 0, 4)) === 'SKSL') onSlice(e.data);
-        else onFrame(e.data);
+        else {
+            const start = performance.now();
+            onFrame(e.data);
+            studio.handling.push({ kind: 'frame', ms: performance.now() - start });
+        }
     };
 }
 
 function onText(m) {
-    if (m.type === 'state') onState(m);
+    if (m.type === 'state') {
+        const start = performance.now();
+        if (m.revision > studio.revision && sentAt.has(m.seq)) {
+            studio.stateTimings.push({ seq: m.seq, revision: m.revision, ms: start - sentAt.get(m.seq) });
+        }
+        onState(m);
+        studio.handling.push({ kind: 'state', revision: m.revision, ms: performance.now() - start });
+    }
     else if (m.type === 'error') message(m.message);
     else if (m.type === 'saved') message(`saved ${m.file}`, true);
     else if (m.type === 'exported') message(`wrote ${m.file}`, true);
     else if (m.type === 'meshed') {
-        studio.meshed.push({ revision: m.revision, level: m.level, ms: m.ms });
+        studio.meshed.push({
+            revision: m.revision, level: m.level, ms: m.ms, waited: m.waited_ms,
+            incremental: m.incremental, because: m.full_because,
+        });
         $('status').textContent = `revision ${m.revision} ${m.level ? 'full' : 'coarse'}: ` +
-            `${m.vertices} vertices, ${m.triangles} triangles, meshed in ${m.ms.toFixed(0)} ms`;
+            `${m.vertices} vertices, ${m.triangles} triangles, meshed in ${m.ms.toFixed(0)} ms` +
+            (m.incremental ? ' (incremental)' : m.full_because ? ` (from scratch: ${m.full_because})` : '');
     }
 }
 
@@ -242,6 +277,7 @@ function onState(m) {
     fillSelect($('toward'), m.poses.length ? m.poses : ['rest'], m.toward ? m.toward.pose : null);
     if (!playing && document.activeElement !== $('t')) $('t').value = m.toward ? m.toward.t : 0;
     if (document.activeElement !== $('cell') && m.cell != null) $('cell').value = +m.cell.toPrecision(4);
+    if (document.activeElement !== $('samples') && m.samples != null) $('samples').value = m.samples;
     if (document.activeElement !== $('iso') && m.iso != null) $('iso').value = m.iso;
     if (m.domain && !framed) { frameDomain(m.domain); framed = true; }
     if (!gizmo.dragging) drawSkeleton(m.skeleton);
@@ -465,6 +501,7 @@ $('play').onclick = async () => {
     $('play').textContent = 'Play';
 };
 $('cell').onchange = (e) => send({ op: 'cell', value: Number(e.target.value) });
+$('samples').onchange = (e) => send({ op: 'resolution', value: Math.round(Number(e.target.value)) });
 $('iso').onchange = (e) => send({ op: 'iso', value: Number(e.target.value) });
 $('add').onchange = (e) => {
     const kind = e.target.value;
@@ -473,8 +510,18 @@ $('add').onchange = (e) => {
     if (!kind || !d) return;
     const c = d.min.map((lo, k) => +((lo + d.max[k]) / 2).toFixed(4));
     const r = +(Math.min(...d.max.map((hi, k) => hi - d.min[k])) / 10).toFixed(4);
-    const value = kind === 'point' ? { at: c, radius: r } : { a: c, b: [c[0] + 3 * r, c[1], c[2]], radius: r };
-    send({ op: 'add', kind, value });
+    // A small element at the domain's centre, in the xy plane: drag its handles from there.
+    const at = (dx, dy) => [+(c[0] + dx * r).toFixed(4), +(c[1] + dy * r).toFixed(4), c[2]];
+    const shapes = {
+        point: { at: c },
+        segment: { a: c, b: at(3, 0) },
+        polyline: { points: [c, at(2, 1), at(4, 0)] },
+        curve: { bezier: [c, at(1, 2), at(3, 2), at(4, 0)] },
+        triangle: { vertices: [c, at(3, 0), at(1.5, 2)] },
+        polygon: { vertices: [c, at(3, 0), at(3, 2), at(1.5, 3), at(0, 2)] },
+    };
+    if (!shapes[kind]) return;
+    send({ op: 'add', kind, value: { ...shapes[kind], radius: r } });
 };
 window.addEventListener('keydown', (e) => {
     if (!(e.ctrlKey || e.metaKey) || e.target.tagName === 'INPUT') return;

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use std::sync::mpsc::{Receiver, Sender, channel};
 use std::time::Instant;
 
-use skelform::{Control, Mesh, Overrides, Resolution};
+use skelform::{Control, LiveRun, Mesh, Overrides, Resolution};
 
 /// Which surface of an edit a frame carries.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -24,7 +24,9 @@ pub enum Level {
 /// ([`skelform::Live`]: the same mesh as a fresh run, bit for bit); other edits, and other
 /// methods than the grid, run in full. Vertex colours are left out: the page shades by
 /// region. A cancelled run returns an error for which [`skelform::Error::is_cancelled`]
-/// holds (and `live` forgets its state, so the next run is a full one).
+/// holds; a cancelled incremental run leaves its changed boxes to the next (which stays
+/// incremental), a cancelled run from scratch leaves nothing. [`skelform::Live::last_run`]
+/// says how the run went; the studio reports it with every surface.
 pub fn mesh_scene(
     live: &mut skelform::Live,
     scene: &skelform::Scene,
@@ -32,7 +34,7 @@ pub fn mesh_scene(
     level: Level,
     coarse_factor: f64,
     control: &Control,
-) -> Result<Mesh, skelform::Error> {
+) -> Result<skelform::Meshed, skelform::Error> {
     let mut overrides = Overrides {
         pose: pose.map(str::to_string),
         colors: Some(false),
@@ -45,7 +47,14 @@ pub fn mesh_scene(
         // Linear interpolation along lattice edges: the coarse surface is a preview.
         overrides.refine = Some(false);
     }
-    Ok(live.mesh(scene, &overrides)?.mesh)
+    live.mesh(scene, &overrides)
+}
+
+/// The grid run's phases in milliseconds (sampling, extraction, root finding and
+/// projection, normals), for the report: where an edit's time went.
+fn phases(stats: &skelform::Stats) -> Option<[f64; 4]> {
+    let skelform::Stats::Grid(s) = stats else { return None };
+    Some([s.sampling, s.extraction, s.refinement, s.normals].map(|d| d.as_secs_f64() * 1e3))
 }
 
 /// The magic that opens every mesh frame.
@@ -106,6 +115,9 @@ pub struct Job {
     pub pose: Option<String>,
     /// Cancelled when a newer job arrives.
     pub control: Control,
+    /// When the edit was handed to the worker: the coarse level's wait is measured from here
+    /// (a new edit must not wait behind the last one's full level).
+    pub queued: Instant,
 }
 
 /// What the worker hands back for publication.
@@ -120,6 +132,12 @@ pub enum Outcome {
         mesh: Arc<Mesh>,
         /// Milliseconds the call took.
         ms: f64,
+        /// Milliseconds from the job's hand-over to the start of this level's run.
+        waited_ms: f64,
+        /// How [`skelform::Live`] ran it: incrementally, or from scratch and why.
+        run: Option<LiveRun>,
+        /// The grid run's phases: sampling, extraction, root finding, normals (ms).
+        phases_ms: Option<[f64; 4]>,
     },
     /// The run failed (cancellation is not reported).
     Failed {
@@ -156,6 +174,7 @@ fn worker(rx: Receiver<Job>, coarse_factor: f64, publish: impl Fn(Outcome)) {
                 break;
             }
             let start = Instant::now();
+            let waited_ms = start.duration_since(job.queued).as_secs_f64() * 1e3;
             let result = mesh_scene(
                 &mut live[level as usize],
                 &job.scene,
@@ -166,11 +185,14 @@ fn worker(rx: Receiver<Job>, coarse_factor: f64, publish: impl Fn(Outcome)) {
             );
             let ms = start.elapsed().as_secs_f64() * 1e3;
             match result {
-                Ok(mesh) => publish(Outcome::Mesh {
+                Ok(meshed) => publish(Outcome::Mesh {
                     revision: job.revision,
                     level,
-                    mesh: Arc::new(mesh),
+                    phases_ms: phases(&meshed.stats),
+                    mesh: Arc::new(meshed.mesh),
                     ms,
+                    waited_ms,
+                    run: live[level as usize].last_run().cloned(),
                 }),
                 Err(e) if e.is_cancelled() => break,
                 Err(e) => {

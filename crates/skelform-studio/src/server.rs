@@ -14,6 +14,7 @@ use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
 use axum::routing::get;
+use axum::serve::ListenerExt;
 use serde::Deserialize;
 use serde_json::{Value as Json, json};
 use skelform::{Control, Mesh, Overrides};
@@ -209,7 +210,14 @@ impl Studio {
             .layer(middleware::from_fn_with_state(self.state.clone(), guard))
             .layer(DefaultBodyLimit::max(limit))
             .with_state(self.state);
-        axum::serve(self.listener, app).await?;
+        // No Nagle: a mesh frame written right after a state message would otherwise wait
+        // for the page's delayed acknowledgement of it (about 40 ms on Linux) before its last
+        // segment leaves, which doubled the edit → first surface time.
+        let listener = self.listener.tap_io(|tcp| {
+            // Only latency is at stake: a socket that refuses still works.
+            let _ = tcp.set_nodelay(true);
+        });
+        axum::serve(listener, app).await?;
         Ok(())
     }
 }
@@ -451,7 +459,10 @@ impl State {
             .as_ref()
             .map(|s| edit::skeleton_json(&g.doc, s, g.pose.as_deref()))
             .unwrap_or(json!({"elements": [], "joints": []}));
-        let cell = scene.and_then(|s| s.lattice(&Overrides::default()).ok()).map(|l| l.cell);
+        let lattice = scene.and_then(|s| s.lattice(&Overrides::default()).ok());
+        let cell = lattice.as_ref().map(|l| l.cell);
+        // Samples along the longest side: what `resolution` sets.
+        let samples = lattice.as_ref().and_then(|l| l.dims.iter().max().copied());
         json!({
             "type": "state",
             "revision": g.revision,
@@ -468,6 +479,7 @@ impl State {
             "methods": skelform::Method::ALL.iter().map(|(n, _)| *n).collect::<Vec<_>>(),
             "iso": scene.map(|s| s.iso),
             "cell": cell,
+            "samples": samples,
             "domain": scene.map(|s| json!({"min": s.domain.min.to_array(), "max": s.domain.max.to_array()})),
             "skeleton": skeleton,
         })
@@ -485,7 +497,13 @@ impl State {
         g.control = Control::default();
         // The scene in the pose shown (or between two poses), so the mesher needs no pose.
         let Ok(scene) = shown_scene(g) else { return };
-        let job = Job { revision: g.revision, scene, pose: None, control: g.control.clone() };
+        let job = Job {
+            revision: g.revision,
+            scene,
+            pose: None,
+            control: g.control.clone(),
+            queued: std::time::Instant::now(),
+        };
         if let Some(tx) = lock(&self.jobs).as_ref() {
             let _ = tx.send(job);
         }
@@ -496,7 +514,7 @@ impl State {
     fn publish(&self, outcome: Outcome) {
         let mut g = lock(&self.doc);
         match outcome {
-            Outcome::Mesh { revision, level, mesh, ms } => {
+            Outcome::Mesh { revision, level, mesh, ms, waited_ms, run, phases_ms } => {
                 if revision != g.revision {
                     return;
                 }
@@ -506,9 +524,17 @@ impl State {
                 }
                 g.frame = Some(frame.clone());
                 self.broadcast(Out::Binary(frame));
+                let run = run.unwrap_or_default();
                 self.broadcast(Out::Text(
                     json!({"type": "meshed", "revision": revision, "level": level as u32, "ms": ms,
-                           "vertices": mesh.positions.len(), "triangles": mesh.triangles.len()})
+                           "waited_ms": waited_ms,
+                           "vertices": mesh.positions.len(), "triangles": mesh.triangles.len(),
+                           "incremental": run.incremental, "full_because": run.full_because,
+                           "resampled": run.reuse.resampled,
+                           "reused_vertices": run.reuse.reused_vertices,
+                           "placed_vertices": run.reuse.placed_vertices,
+                           "phases_ms": phases_ms.map(|[s, e, r, n]| json!({"sampling": s,
+                               "extraction": e, "refinement": r, "normals": n}))})
                     .to_string(),
                 ));
             }
@@ -586,6 +612,28 @@ impl State {
                     &mut doc,
                     &[Step::Key("mesh".into()), Step::Key("cell".into())],
                     edit::to_toml(value()?)?,
+                )?;
+            }
+            "resolution" => {
+                // Samples along the domain's longest side (the "128-samples cell"),
+                // replacing `cell`.
+                let n = value()?.as_u64().filter(|n| *n >= 2).ok_or_else(|| {
+                    StudioError::Edit(
+                        "'resolution' needs a whole number of samples, at least 2".into(),
+                    )
+                })?;
+                if !doc.contains_key("mesh") {
+                    doc.insert("mesh", toml_edit::Item::Table(toml_edit::Table::new()));
+                }
+                if let Some(t) = doc.get_mut("mesh").and_then(toml_edit::Item::as_table_mut) {
+                    t.remove("cell");
+                }
+                let n = i64::try_from(n)
+                    .map_err(|_| StudioError::Edit(format!("resolution {n} is too large")))?;
+                edit::set(
+                    &mut doc,
+                    &[Step::Key("mesh".into()), Step::Key("resolution".into())],
+                    toml_edit::Value::from(n),
                 )?;
             }
             "method" => {

@@ -42,9 +42,13 @@ struct Running {
 }
 
 async fn start(resolution: u32) -> Running {
+    start_with(&SCENE.replace("RES", &resolution.to_string())).await
+}
+
+async fn start_with(scene: &str) -> Running {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("tee.toml");
-    std::fs::write(&file, SCENE.replace("RES", &resolution.to_string())).unwrap();
+    std::fs::write(&file, scene).unwrap();
     let studio = Studio::bind(&file, Settings::default()).await.unwrap();
     let (addr, token) = (studio.addr(), studio.token().to_string());
     assert!(studio.url().contains(&token) && token.len() == 32);
@@ -540,4 +544,131 @@ async fn section_images_come_from_the_scenes_folder_only() {
         let error = first["error"].as_str().unwrap_or_default();
         assert!(error.contains("only files in the scene's folder"), "{outside}: {first}");
     }
+}
+
+/// Reads messages until the `meshed` report of the full level of `revision` (or newer);
+/// returns every `meshed` report seen on the way.
+async fn until_meshed(ws: &mut Ws, revision: u64) -> Vec<Value> {
+    let mut reports = Vec::new();
+    loop {
+        if let Message::Text(t) = next(ws).await {
+            let v: Value = serde_json::from_str(&t).unwrap();
+            if v["type"] == "meshed" {
+                let done = v["level"] == 1 && v["revision"].as_u64().unwrap() >= revision;
+                reports.push(v);
+                if done {
+                    return reports;
+                }
+            }
+        }
+    }
+}
+
+#[tokio::test]
+async fn a_drag_is_meshed_incrementally_at_both_levels_and_the_report_says_why_not_otherwise() {
+    // The tee, and a ball far from it that no move reaches.
+    let scene =
+        SCENE.replace("RES", "96").replace("max = [0.75, 0.75, 0.25]", "max = [2.25, 0.75, 0.25]")
+            + "\n[[skeleton.point]]\nat = [1.8, 0.2, 0]\nradius = 0.2\n";
+    let r = start_with(&scene).await;
+    let mut ws = connect(&r).await;
+    let opened = until_meshed(&mut ws, 1).await;
+    let first = opened.last().unwrap();
+    assert_eq!(first["incremental"], false, "{first}");
+    assert_eq!(first["full_because"], "nothing kept from a last run", "{first}");
+    let total = first["resampled"].as_u64().unwrap();
+
+    // A drag: moves in a burst (each cancels the work of the one before), then one more.
+    let drag = 8;
+    for i in 0..drag {
+        let y = 0.6 - 0.01 * f64::from(i + 1);
+        let to = json!([0.05 * f64::from(i), y, 0.0]);
+        send(
+            &mut ws,
+            json!({"seq": i + 1, "op": "move", "path": ["skeleton", "segment", 1, "b"], "to": to}),
+        )
+        .await;
+    }
+    let reports = until_meshed(&mut ws, 1 + drag as u64).await;
+    send(&mut ws, json!({"seq": 99, "op": "move", "path": ["skeleton", "segment", 1, "b"], "to": [0.3, 0.5, 0.0]})).await;
+    let last = until_meshed(&mut ws, 2 + drag as u64).await;
+    let moves: Vec<&Value> =
+        reports.iter().chain(&last).filter(|m| m["revision"].as_u64().unwrap() > 1).collect();
+    assert!(moves.iter().any(|m| m["level"] == 0) && moves.iter().any(|m| m["level"] == 1));
+    for m in &moves {
+        assert_eq!(m["incremental"], true, "a move re-meshed from scratch: {m}");
+        assert_eq!(m["full_because"], Value::Null, "{m}");
+    }
+    // The full level of the last move re-sampled only what the stem's reach (and the
+    // cancelled moves' pending boxes) covers, and reused the ball's vertices.
+    let full = last.last().unwrap();
+    assert_eq!(full["level"], 1);
+    let resampled = full["resampled"].as_u64().unwrap();
+    assert!(resampled > 0 && resampled < total, "{resampled} of {total} samples again");
+    assert!(full["reused_vertices"].as_u64().unwrap() > 0, "{full}");
+
+    // A new lattice (the samples box) is a run from scratch, and the report says why.
+    send(&mut ws, json!({"seq": 100, "op": "resolution", "value": 64})).await;
+    let state = next_state(&mut ws).await;
+    assert_eq!(state["samples"], 64, "{state}");
+    let rev = state["revision"].as_u64().unwrap();
+    let reports = until_meshed(&mut ws, rev).await;
+    let full = reports.last().unwrap();
+    assert_eq!(full["incremental"], false, "{full}");
+    assert_eq!(full["full_because"], "the lattice, root finding or normals changed", "{full}");
+    let saved = {
+        send(&mut ws, json!({"seq": 101, "op": "save"})).await;
+        loop {
+            if let Message::Text(t) = next(&mut ws).await
+                && t.contains("\"saved\"")
+            {
+                break std::fs::read_to_string(&r.file).unwrap();
+            }
+        }
+    };
+    assert!(saved.contains("resolution = 64"), "{saved}");
+    // Not a whole number of samples: refused.
+    send(&mut ws, json!({"seq": 102, "op": "resolution", "value": 1.5})).await;
+    let refused = loop {
+        let v = next_state(&mut ws).await;
+        if v["type"] == "error" || v["seq"] == 102 {
+            break v;
+        }
+    };
+    assert_eq!(refused["type"], "error", "{refused}");
+    assert!(refused["message"].as_str().unwrap().contains("whole number"), "{refused}");
+}
+
+#[tokio::test]
+async fn a_new_edit_does_not_wait_behind_the_last_ones_full_level() {
+    // A fine lattice, so that a full level from scratch takes a while.
+    let r = start(320).await;
+    let mut ws = connect(&r).await;
+    let opened = until_meshed(&mut ws, 1).await;
+    let scratch_ms = opened.last().unwrap()["ms"].as_f64().unwrap();
+
+    // Edit A changes the lattice (its full level runs from scratch); edit B follows as soon
+    // as A's coarse surface is out, while A's full level is at work.
+    send(&mut ws, json!({"seq": 1, "op": "resolution", "value": 321})).await;
+    let a = next_state(&mut ws).await["revision"].as_u64().unwrap();
+    loop {
+        if let Message::Text(t) = next(&mut ws).await {
+            let v: Value = serde_json::from_str(&t).unwrap();
+            if v["type"] == "meshed" && v["revision"] == a && v["level"] == 0 {
+                break;
+            }
+        }
+    }
+    send(&mut ws, json!({"seq": 2, "op": "move", "path": ["skeleton", "segment", 1, "b"], "to": [0.0, 0.55, 0.0]})).await;
+    let reports = until_meshed(&mut ws, a + 1).await;
+    assert!(
+        !reports.iter().any(|m| m["revision"] == a && m["level"] == 1),
+        "A's full level was not cancelled: {reports:?}"
+    );
+    let coarse = reports.iter().find(|m| m["revision"] == a + 1 && m["level"] == 0).unwrap();
+    let waited = coarse["waited_ms"].as_f64().unwrap();
+    assert!(
+        waited < 0.5 * scratch_ms,
+        "B's coarse level waited {waited:.0} ms behind A's full level (a full run takes {scratch_ms:.0} ms)"
+    );
 }
