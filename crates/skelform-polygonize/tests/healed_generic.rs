@@ -12,11 +12,8 @@
 //! failures the sweeps found run as they are.
 //!
 //! Still failing (issue 18), about 2% of sphere × torus draws (the sphere near the tube's
-//! inner side): in the two cases examined, a thin tunnel of marching cubes 33 next to the
-//! crossing whose ring vertices are projected onto the surface and clamped to one corner of
-//! their cell, so two of them coincide and two triangles collapse (edges "with more than two
-//! triangles" once welded). That is plain marching cubes (`refine::project_to_surface`),
-//! outside the zones.
+//! inner side), and not in healing: plain marching cubes on the same lattice has the same
+//! defects (see `known_failure_plain_mc33_tunnel_ring_collapses`).
 
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -389,4 +386,39 @@ fn torus_bottom_in_a_lattice_plane_heals_both_loops() {
     assert!(v.is_empty(), "{v:?}");
     assert_eq!(s.curves.len(), 2, "two loops");
     assert!(s.curves.iter().all(|c| c.closed && c.healed));
+}
+
+/// Still failing, and not in healing: the sphere × torus draws the survey still fails (7 of
+/// 300, fixed seed 7 and a random seed alike) fail the same way in plain marching cubes on
+/// the same lattice (the same counts of duplicate faces and edges of three or more triangles
+/// once welded): marching-cubes-33 tunnel ring vertices projected onto the surface and
+/// clamped to one corner of their cell coincide, and their triangles collapse.
+#[test]
+#[ignore = "issue 18: plain marching cubes 33 tunnel ring vertices collapse (refine::project_to_surface clamps to the cell)"]
+fn known_failure_plain_mc33_tunnel_ring_collapses() {
+    let case = Case::SphereTorus {
+        margin: 0.31345430729437646,
+        cx: 0.5138865977829211,
+        cz: -0.07410269307158217,
+        samples: 44,
+        off: DVec3::new(0.886671823023391, 0.11998854472270927, 0.25339820708802396),
+    };
+    let f = case.field();
+    let Case::SphereTorus { samples, off, .. } = case else { unreachable!() };
+    let h = 3.2 / (samples - 1) as f64;
+    let domain = Aabb::new(DVec3::splat(-1.6) + off * h, DVec3::splat(1.6) + off * h);
+    let lattice =
+        LatticeOptions { domain, resolution: Resolution::Samples(samples), ..Default::default() };
+    let o = skelform_polygonize::grid::Options { lattice, ..Default::default() };
+    let (m, _) = skelform_polygonize::grid::polygonize(&f, &o).expect("grid");
+    let w = &weld(&m, 0.0).0;
+    let mut degree: BTreeMap<(u32, u32), usize> = BTreeMap::new();
+    for t in &w.triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            *degree.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+        }
+    }
+    let stray = degree.values().filter(|d| **d > 2).count();
+    assert_eq!((duplicate_faces(w), stray), (0, 0));
 }
