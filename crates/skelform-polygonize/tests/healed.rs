@@ -783,3 +783,24 @@ fn guarantees_hold_on_many_lattices() {
     println!("fully healed: {healed} of {runs}; unresolved regions in {unresolved:?}");
     assert!(unresolved.iter().all(|u| u.1 < 20), "{unresolved:?}");
 }
+
+/// The plane-and-ball at 32 samples (the case): with the sheets split, the plane and
+/// the sphere are two separate manifolds (the sphere closed, of genus 0; the plane a disk
+/// ending on the domain box), with no edge of three triangles and no non-manifold vertex.
+/// Telling the bands apart by their gradient normals split a vertex three ways there (a
+/// sphere band's gradient 50° off radial), and the copies changed sheets along the circle.
+#[test]
+fn split_sheets_separate_the_plane_and_the_ball_at_32_samples() {
+    let field = f("z*(x^2 + y^2 + z^2 - 1)");
+    let domain = Aabb::new(DVec3::splat(-2.0), DVec3::splat(1.9));
+    let (m, s) = heal_with(&field, domain, Resolution::Samples(32), Options::default());
+    assert!(s.curves.len() == 1 && s.curves[0].healed);
+    let r = check(&m);
+    assert_eq!((r.non_manifold_edges, r.non_manifold_vertices), (0, 0));
+    assert_eq!(r.components.len(), 2, "{:?}", r.components);
+    assert!(r.components.iter().any(|c| c.closed && c.euler == 2), "the sphere");
+    let welded = check(&weld(&m, 0.0).0);
+    assert_eq!(welded.non_manifold_edges, s.curve_edges, "the circle's edges have four");
+    // The split mesh's open edges are the welded mesh's: the plane's edge on the box.
+    assert_eq!(r.boundary_edges, welded.boundary_edges);
+}

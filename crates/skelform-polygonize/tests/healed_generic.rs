@@ -4,9 +4,16 @@
 //! cubes made it), no duplicate faces, and the sheets meet along the curve as the healed
 //! method promises (every curve edge has four triangles, no other edge more than two).
 //!
-//! The sweeps run 12 cases each; `SKELFORM_HEAL_SWEEP_CASES=500 cargo test --release -p
-//! skelform-polygonize --test healed_generic` searches harder. The issue's reproducers (two
-//! spheres at 40-100 samples, the cross-cap at 41-81) run as they are.
+//! The sweeps run 12 cases each from a fixed seed; `SKELFORM_HEAL_SWEEP_CASES=300
+//! SKELFORM_HEAL_SWEEP_SEED=random cargo test --release -p skelform-polygonize --test
+//! healed_generic -- --ignored --nocapture sweep_failure_rates` counts the failures of each
+//! sweep over a fresh draw and prints every failing case (as a `Case` to paste into a test).
+//! The issue's reproducers (two spheres at 40-100 samples, the cross-cap at 41-81) and the
+//! failures the sweeps found run as they are.
+//!
+//! Still failing (issue 18), about 2% of sphere × torus draws (the sphere near the tube's
+//! inner side), and not in healing: plain marching cubes on the same lattice has the same
+//! defects (see `known_failure_plain_mc33_tunnel_ring_collapses`).
 
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -92,9 +99,8 @@ fn sweep_cases() -> u32 {
 }
 
 /// The sweeps' seed: fixed in the normal test run, so that the test command gives the same
-/// verdict on every run (random seeds meet the generic crossings healing still misses, about
-/// one run in six: issue 18, and the known failures below); `SKELFORM_HEAL_SWEEP_SEED=N`
-/// for another fixed seed, `=random` for a search.
+/// verdict on every run (random draws still meet the marching-cubes-33 tunnels named at the
+/// top); `SKELFORM_HEAL_SWEEP_SEED=N` for another fixed seed, `=random` for a search.
 fn sweep_seed() -> RngSeed {
     match std::env::var("SKELFORM_HEAL_SWEEP_SEED").ok().as_deref() {
         Some("random") => RngSeed::Random,
@@ -145,6 +151,112 @@ fn issue_reproducers_equal_spheres_off_axis() {
     assert!(failures.is_empty(), "{failures:#?}");
 }
 
+/// One generated case of the sweeps: a field with a transversal self-intersection, and the
+/// lattice it is polygonized on.
+#[derive(Clone, Debug)]
+enum Case {
+    /// Two spheres of radii `r1`, `r2` whose centres are `gap` apart along `dir`, centred
+    /// at `shift`.
+    SpherePair { r1: f64, r2: f64, t: f64, dir: DVec3, shift: DVec3, samples: usize, off: DVec3 },
+    /// A torus (R = 0.8, r = 0.3) and a sphere round its tube: the sphere's centre is in the
+    /// plane `y = 0` at `(cx, 0, cz)`, its radius `0.3 + d + margin` with `d` the distance
+    /// to the tube's centre circle, so that it holds that cross-section of the tube and
+    /// crosses the tube in two loops. (At `margin = 0` the sphere touches the torus: the two
+    /// loops meet in a tangential point, which is not a transversal crossing.)
+    SphereTorus { margin: f64, cx: f64, cz: f64, samples: usize, off: DVec3 },
+    /// A plane with unit normal `n` at distance `d` from the origin through a sphere of
+    /// radius `r` at the origin.
+    PlaneSphere { n: DVec3, d: f64, r: f64, samples: usize, off: DVec3 },
+}
+
+impl Case {
+    fn run(&self) -> Vec<String> {
+        let (samples, off) = match *self {
+            Case::SpherePair { samples, off, .. }
+            | Case::SphereTorus { samples, off, .. }
+            | Case::PlaneSphere { samples, off, .. } => (samples, off),
+        };
+        let f = self.field();
+        let (m, s) = heal(&f, samples, off);
+        violations(&m, &s)
+    }
+
+    fn field(&self) -> FnField<Box<dyn Fn(DVec3) -> f64 + Send + Sync>> {
+        match *self {
+            Case::SpherePair { r1, r2, t, dir, shift, .. } => {
+                let d = dir.normalize_or(DVec3::X);
+                let gap = (r1 - r2).abs() + t * (r1 + r2 - (r1 - r2).abs());
+                let c1 = shift - d * (0.5 * gap);
+                let (a, b) = (sphere(c1, r1), sphere(c1 + d * gap, r2));
+                FnField(Box::new(move |p: DVec3| a(p) * b(p)))
+            }
+            Case::SphereTorus { margin, cx, cz, .. } => {
+                let (big, small) = (0.8f64, 0.3f64);
+                let rs = small + (cx - big).hypot(cz) + margin;
+                let s = sphere(DVec3::new(cx, 0.0, cz), rs);
+                FnField(Box::new(move |p: DVec3| torus(p) * s(p)))
+            }
+            Case::PlaneSphere { n, d, r, .. } => {
+                let n = n.normalize();
+                let s = sphere(DVec3::ZERO, r);
+                FnField(Box::new(move |p: DVec3| (n.dot(p) - d) * s(p)))
+            }
+        }
+    }
+}
+
+/// The torus of the sphere × torus sweep: R = 0.8, r = 0.3 round the z axis.
+fn torus(p: DVec3) -> f64 {
+    let (big, small) = (0.8f64, 0.3f64);
+    let q = p.length_squared() + big * big - small * small;
+    q * q - 4.0 * big * big * (p.x * p.x + p.y * p.y)
+}
+
+fn vec3(lo: f64, hi: f64) -> impl Strategy<Value = DVec3> {
+    (lo..hi, lo..hi, lo..hi).prop_map(|(x, y, z)| DVec3::new(x, y, z))
+}
+
+/// Two spheres of radius 0.6–1 whose centres are 0.45–0.85 of the way from touching inside
+/// to touching outside (so they cross at an angle the lattice resolves), anywhere on the
+/// lattice.
+fn sphere_pairs() -> impl Strategy<Value = Case> {
+    (0.6..1.0f64, 0.6..1.0f64, 0.45..0.85f64, vec3(-1.0, 1.0), vec3(-0.1, 0.1), 36usize..72)
+        .prop_flat_map(|(r1, r2, t, dir, shift, samples)| {
+            offset().prop_map(move |off| Case::SpherePair { r1, r2, t, dir, shift, samples, off })
+        })
+}
+
+/// Sphere × torus, the sphere's margin 0.05–0.35 but at least 1.5 cells: between its two
+/// loops the sphere is a sleeve round the tube at most `margin` from it, and two sheets
+/// closer than the lattice resolves are not resolved there even without the crossing
+/// (margins under a cell fail: the zone takes in the gap, and the sheet pieces between the
+/// two loops, bounded by both, are not bands along one curve).
+fn sphere_tori() -> impl Strategy<Value = Case> {
+    (0.05..0.35f64, 0.5..0.9f64, -0.15..0.15f64, 40usize..72, offset())
+        .prop_filter("the sleeve's gap is resolved (1.5 cells)", |(margin, _, _, samples, _)| {
+            *margin >= 1.5 * 3.2 / (*samples - 1) as f64
+        })
+        .prop_map(|(margin, cx, cz, samples, off)| Case::SphereTorus {
+            margin,
+            cx,
+            cz,
+            samples,
+            off,
+        })
+}
+
+/// A plane tilted off every lattice axis through a sphere of radius 0.7–1.1.
+fn plane_spheres() -> impl Strategy<Value = Case> {
+    ((-1.0..1.0f64, -1.0..1.0f64, 0.2..1.0f64), -0.5..0.5f64, 0.7..1.1f64, 36usize..72, offset())
+        .prop_map(|(n, d, r, samples, off)| Case::PlaneSphere {
+            n: DVec3::new(n.0, n.1, n.2),
+            d,
+            r,
+            samples,
+            off,
+        })
+}
+
 proptest! {
     #![proptest_config(ProptestConfig {
         cases: sweep_cases(),
@@ -152,62 +264,57 @@ proptest! {
         ..ProptestConfig::default()
     })]
 
-    /// Two spheres of radius 0.6–1 whose centres are 0.4–0.9 of the sum of the radii apart
-    /// (so they cross at an angle the lattice resolves).
     #[test]
-    fn sphere_pairs_heal(
-        r1 in 0.6..1.0f64, r2 in 0.6..1.0f64, t in 0.45..0.85f64,
-        dir in (-1.0..1.0f64, -1.0..1.0f64, -1.0..1.0f64),
-        shift in (-0.1..0.1f64, -0.1..0.1f64, -0.1..0.1f64),
-        samples in 36usize..72, off in offset(),
-    ) {
-        let d = DVec3::new(dir.0, dir.1, dir.2).normalize_or(DVec3::X);
-        let gap = (r1 - r2).abs() + t * (r1 + r2 - (r1 - r2).abs());
-        let c1 = DVec3::new(shift.0, shift.1, shift.2) - d * (0.5 * gap);
-        let c2 = c1 + d * gap;
-        let (a, b) = (sphere(c1, r1), sphere(c2, r2));
-        let f = FnField(move |p: DVec3| a(p) * b(p));
-        let (m, s) = heal(&f, samples, off);
-        let v = violations(&m, &s);
+    fn sphere_pairs_heal(case in sphere_pairs()) {
+        let v = case.run();
         prop_assert!(v.is_empty(), "{v:?}");
     }
 
-    /// A torus (R = 0.8, r = 0.3) and a sphere round its tube: the sphere's centre is
-    /// `d` from the tube's centre circle in the plane `y = 0`, and its radius `0.3 + d +
-    /// margin`, so that it holds that cross-section of the tube and crosses the tube in two
-    /// loops. (At `margin = 0` the sphere touches the torus: the two loops meet in a
-    /// tangential point, which is not a transversal crossing.)
     #[test]
-    fn sphere_torus_heal(
-        margin in 0.2..0.35f64, cx in 0.5..0.9f64, cz in -0.15..0.15f64,
-        samples in 40usize..72, off in offset(),
-    ) {
-        let (big, small) = (0.8f64, 0.3f64);
-        let rs = small + (cx - big).hypot(cz) + margin;
-        let torus = move |p: DVec3| {
-            let q = p.length_squared() + big * big - small * small;
-            q * q - 4.0 * big * big * (p.x * p.x + p.y * p.y)
-        };
-        let s = sphere(DVec3::new(cx, 0.0, cz), rs);
-        let f = FnField(move |p: DVec3| torus(p) * s(p));
-        let (m, st) = heal(&f, samples, off);
-        let v = violations(&m, &st);
+    fn sphere_torus_heal(case in sphere_tori()) {
+        let v = case.run();
         prop_assert!(v.is_empty(), "{v:?}");
     }
 
-    /// A plane tilted off every lattice axis through a sphere of radius 0.7–1.1.
     #[test]
-    fn tilted_plane_sphere_heal(
-        n in (-1.0..1.0f64, -1.0..1.0f64, 0.2..1.0f64), d in -0.5..0.5f64, r in 0.7..1.1f64,
-        samples in 36usize..72, off in offset(),
-    ) {
-        let n = DVec3::new(n.0, n.1, n.2).normalize();
-        let s = sphere(DVec3::ZERO, r);
-        let f = FnField(move |p: DVec3| (n.dot(p) - d) * s(p));
-        let (m, st) = heal(&f, samples, off);
-        let v = violations(&m, &st);
+    fn tilted_plane_sphere_heal(case in plane_spheres()) {
+        let v = case.run();
         prop_assert!(v.is_empty(), "{v:?}");
     }
+}
+
+/// The failure rate of each sweep over `SKELFORM_HEAL_SWEEP_CASES` cases (default 12) from
+/// `SKELFORM_HEAL_SWEEP_SEED` (default fixed, `random` for a new draw), every failing case
+/// printed: the proptests stop at the first failure, this counts them all. Run with
+/// `--ignored --nocapture`.
+#[test]
+#[ignore = "a survey: run by hand with SKELFORM_HEAL_SWEEP_CASES"]
+fn sweep_failure_rates() {
+    use proptest::strategy::ValueTree;
+    use proptest::test_runner::{Config, TestRunner};
+    let n = sweep_cases();
+    let config = Config { rng_seed: sweep_seed(), ..Config::default() };
+    let mut runner = TestRunner::new(config);
+    let sweeps: [(&str, BoxedStrategy<Case>); 3] = [
+        ("sphere pairs", sphere_pairs().boxed()),
+        ("sphere x torus", sphere_tori().boxed()),
+        ("tilted plane x sphere", plane_spheres().boxed()),
+    ];
+    let mut total = 0;
+    for (name, strategy) in sweeps {
+        let mut failed = 0;
+        for _ in 0..n {
+            let case = strategy.new_tree(&mut runner).expect("a case").current();
+            let v = case.run();
+            if !v.is_empty() {
+                failed += 1;
+                println!("FAIL {name}: {case:?}: {v:?}");
+            }
+        }
+        println!("RATE {name}: {failed} of {n} failed");
+        total += failed;
+    }
+    assert_eq!(total, 0, "failures (above)");
 }
 
 /// The issue's cross-cap, `4x²(x²+y²+z²+z)+y²(y²+z²-1)` on `[-1, 1]³`: its crossing segment
@@ -234,41 +341,84 @@ fn issue_reproducers_cross_cap() {
     assert!(failures.is_empty(), "{failures:#?}");
 }
 
-/// Still failing (found by the sweep at 300 cases): two spheres at 38 samples, where two
-/// sheet pieces' traces join into one loop somewhere along the circle ("2 sheet pieces (not
-/// 4)"), the class of the original 50-sample failure with a cause not yet found.
+/// Found by the sweep at 300 cases: two spheres at 38 samples, where a lattice point lies
+/// 2e-6 inside one sphere and a tenth of a cell outside the other, next to their circle.
+/// The zone's boundary face there has four crossings and no saddle (the two sheets cross
+/// just beyond it), so the contour decides the pairing; it left the face within 3e-5 cells
+/// of that corner, and the side it was taken to leave through was the wrong one of the two
+/// meeting there, so the face was passed as agreeing with the decider, the boundary's trace
+/// joined two sheet pieces through the thin wedge, and the circle got two bands, not four.
+/// The exit side is now the side whose crossing is nearest the contour's last step.
 #[test]
-#[ignore = "issue 18 defect 6: still fails (two traces join; cause not yet found)"]
-fn known_failure_sphere_pair_at_38_samples() {
-    let (r1, r2, t) = (0.9059414330515698f64, 0.8136454845823808f64, 0.49633522776121347f64);
-    let d = DVec3::new(-0.03839578597141715, -0.8533840908944873, -0.506249347884339).normalize();
-    let gap = (r1 - r2).abs() + t * (r1 + r2 - (r1 - r2).abs());
-    let shift = DVec3::new(-0.022423169265741675, -0.04722052726647596, -0.0736758812994316);
-    let c1 = shift - d * (0.5 * gap);
-    let (a, b) = (sphere(c1, r1), sphere(c1 + d * gap, r2));
-    let f = FnField(move |p: DVec3| a(p) * b(p));
-    let off = DVec3::new(0.3976219454842843, 0.7244441322160805, 0.9757165298123658);
-    let (m, s) = heal(&f, 38, off);
-    let v = violations(&m, &s);
+fn sphere_pair_whose_wedge_tip_holds_a_lattice_point() {
+    let case = Case::SpherePair {
+        r1: 0.9059414330515698,
+        r2: 0.8136454845823808,
+        t: 0.49633522776121347,
+        dir: DVec3::new(-0.03839578597141715, -0.8533840908944873, -0.506249347884339),
+        shift: DVec3::new(-0.022423169265741675, -0.04722052726647596, -0.0736758812994316),
+        samples: 38,
+        off: DVec3::new(0.3976219454842843, 0.7244441322160805, 0.9757165298123658),
+    };
+    let v = case.run();
     assert!(v.is_empty(), "{v:?}");
 }
 
-/// Still failing: a torus whose bottom circle lies in a lattice plane (to 3e-5), crossed by a
-/// sphere in two loops 0.6 apart (9 cells). Along the tangency the plane's edges hide pairs
-/// of crossings, the zone grows along it (within six cells of either loop covers it all),
-/// joins the two loops' zones, and a trace then runs from one loop to the other, which no
-/// walk along one curve explains. (The sweep keeps the sphere's margin at 0.2 or more.)
+/// A torus whose bottom circle lies in a lattice plane (to 3e-5 cells), crossed by a sphere
+/// in two loops 0.6 apart (9 cells). The tangency is not a transversal crossing: marching
+/// cubes misses the pairs of crossings the plane's edges hide along it, in and out of the
+/// zones alike, and it is left so. It must not break the loops' healing: those hidden pairs
+/// have nearly the same normal at both crossings (one sheet grazing the edge), so the zones
+/// do not grow along the tangency (they used to, joining the two loops' zones, and a trace
+/// then ran from one loop to the other).
 #[test]
-#[ignore = "issue 18 defect 6: still fails (zones joined along a tangency with a lattice plane)"]
-fn known_failure_torus_bottom_in_a_lattice_plane() {
-    let (big, small, cx, margin) = (0.8f64, 0.3f64, 0.7570491779597691f64, 0.08f64);
-    let torus = move |p: DVec3| {
-        let q = p.length_squared() + big * big - small * small;
-        q * q - 4.0 * big * big * (p.x * p.x + p.y * p.y)
+fn torus_bottom_in_a_lattice_plane_heals_both_loops() {
+    let case = Case::SphereTorus {
+        margin: 0.08,
+        cx: 0.7570491779597691,
+        cz: 0.0,
+        samples: 48,
+        off: DVec3::new(0.40952043848373465, 0.0, 0.09395872037464897),
     };
-    let s = sphere(DVec3::new(cx, 0.0, 0.0), small + (cx - big).abs() + margin);
-    let f = FnField(move |p: DVec3| torus(p) * s(p));
-    let (m, st) = heal(&f, 48, DVec3::new(0.40952043848373465, 0.0, 0.09395872037464897));
-    let v = violations(&m, &st);
+    let Case::SphereTorus { samples, off, .. } = case else { unreachable!() };
+    let (m, s) = heal(&case.field(), samples, off);
+    let v = violations(&m, &s);
     assert!(v.is_empty(), "{v:?}");
+    assert_eq!(s.curves.len(), 2, "two loops");
+    assert!(s.curves.iter().all(|c| c.closed && c.healed));
+}
+
+/// Still failing, and not in healing: the sphere × torus draws the survey still fails (7 of
+/// 300, fixed seed 7 and a random seed alike) fail the same way in plain marching cubes on
+/// the same lattice (the same counts of duplicate faces and edges of three or more triangles
+/// once welded): marching-cubes-33 tunnel ring vertices projected onto the surface and
+/// clamped to one corner of their cell coincide, and their triangles collapse.
+#[test]
+#[ignore = "issue 18: plain marching cubes 33 tunnel ring vertices collapse (refine::project_to_surface clamps to the cell)"]
+fn known_failure_plain_mc33_tunnel_ring_collapses() {
+    let case = Case::SphereTorus {
+        margin: 0.31345430729437646,
+        cx: 0.5138865977829211,
+        cz: -0.07410269307158217,
+        samples: 44,
+        off: DVec3::new(0.886671823023391, 0.11998854472270927, 0.25339820708802396),
+    };
+    let f = case.field();
+    let Case::SphereTorus { samples, off, .. } = case else { unreachable!() };
+    let h = 3.2 / (samples - 1) as f64;
+    let domain = Aabb::new(DVec3::splat(-1.6) + off * h, DVec3::splat(1.6) + off * h);
+    let lattice =
+        LatticeOptions { domain, resolution: Resolution::Samples(samples), ..Default::default() };
+    let o = skelform_polygonize::grid::Options { lattice, ..Default::default() };
+    let (m, _) = skelform_polygonize::grid::polygonize(&f, &o).expect("grid");
+    let w = &weld(&m, 0.0).0;
+    let mut degree: BTreeMap<(u32, u32), usize> = BTreeMap::new();
+    for t in &w.triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            *degree.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+        }
+    }
+    let stray = degree.values().filter(|d| **d > 2).count();
+    assert_eq!((duplicate_faces(w), stray), (0, 0));
 }

@@ -84,8 +84,8 @@ def test_nonmanifold_labels_and_curves(examples, tmp_path):
 
 
 def test_healed_self_intersection(examples):
-    # At 40 samples (at 32 one edge keeps three triangles unwelded: a split that is not yet
-    # clean everywhere, noted on issue 18).
+    # At 40 samples (32 is checked in Rust: tests/healed.rs,
+    # split_sheets_separate_the_plane_and_the_ball_at_32_samples).
     mesh = skelform.load_scene(examples / "healed" / "plane-and-ball.toml").mesh(resolution=40)
     assert mesh.method == "healed"
     assert len(mesh.curves) > 0 and mesh.curves.max() < len(mesh.vertices)

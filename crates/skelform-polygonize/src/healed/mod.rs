@@ -558,6 +558,18 @@ fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats)
             band_normal.insert((v, band), n);
         }
     }
+    // Per band, the plane of its triangles at each curve vertex (which bands are one sheet).
+    let mut band_plane: FxHashMap<(u32, u32), DVec3> = FxHashMap::default();
+    for (k, tri) in healing.triangles.iter().enumerate() {
+        let q = tri.map(|v| positions_all[v as usize]);
+        let n = (q[1] - q[0]).cross(q[2] - q[0]);
+        for &v in tri.iter().filter(|&&v| v >= n_mc) {
+            *band_plane.entry((v, healing.band_of[k])).or_insert(DVec3::ZERO) += n;
+        }
+    }
+    for n in band_plane.values_mut() {
+        *n = n.normalize_or_zero();
+    }
     let mut node_bands: Vec<(u32, u32)> = band_normal.keys().copied().collect();
     node_bands.sort_unstable();
     for &(v, band) in &node_bands {
@@ -571,6 +583,7 @@ fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats)
             &healing.band_of,
             &node_bands,
             &band_normal,
+            &band_plane,
             &mut positions_all,
             &mut normals_all,
         );
@@ -849,13 +862,24 @@ fn scan_seeds(volume: &Volume) -> Vec<DVec3> {
     out.into_iter().map(|x| x.1).collect()
 }
 
-/// Gives each sheet at each curve vertex its own copy of the vertex: bands whose normals at
-/// the vertex are parallel or opposite are one sheet (its two halves across the curve).
+/// Gives each sheet at each curve vertex its own copy of the vertex: bands whose planes at
+/// the vertex are parallel are one sheet (its two halves across the curve).
+///
+/// The bands are told apart by `band_plane`, the (area-weighted) normal of each band's
+/// triangles at the vertex, not by the gradient normals (`band_normal`, what the copies get
+/// for shading): the gradient is taken a thousandth of a cell off the curve towards the
+/// band's triangle, and where that direction leaves the sheet by a few degrees (a chord of a
+/// curved sheet) the gradient of `f = a·b`, first-order small in both factors there, tilts
+/// by tens of degrees (the plane-and-ball at 32 samples: a sphere band's normal 50° off
+/// radial). Four bands (two sheets crossing) are paired as the one of the three pairings
+/// whose pairs are most nearly parallel; a threshold alone split such a vertex three ways,
+/// and the copies then changed sheets along the curve (edges with three triangles, holes).
 fn split_sheets(
     triangles: &mut [[u32; 3]],
     band_of: &[u32],
     node_bands: &[(u32, u32)],
     band_normal: &FxHashMap<(u32, u32), DVec3>,
+    band_plane: &FxHashMap<(u32, u32), DVec3>,
     positions: &mut Vec<DVec3>,
     normals: &mut Vec<DVec3>,
 ) {
@@ -868,27 +892,52 @@ fn split_sheets(
         while j < node_bands.len() && node_bands[j].0 == v {
             j += 1;
         }
-        let mut sheets: Vec<(DVec3, u32)> = Vec::new();
-        for &(_, band) in &node_bands[i..j] {
-            let n = band_normal[&(v, band)];
-            let id = match sheets.iter().find(|s| s.0.dot(n).abs() > 0.8) {
-                Some(s) => s.1,
-                None => {
-                    let id = if sheets.is_empty() {
-                        v
-                    } else {
-                        positions.push(positions[v as usize]);
-                        normals.push(n);
-                        positions.len() as u32 - 1
-                    };
-                    if sheets.is_empty() {
-                        normals[v as usize] = n;
-                    }
-                    sheets.push((n, id));
-                    id
-                }
+        let bands: Vec<u32> = node_bands[i..j].iter().map(|x| x.1).collect();
+        let plane = |b: u32| band_plane.get(&(v, b)).copied().unwrap_or(DVec3::ZERO);
+        let parallel = |a: u32, b: u32| plane(a).dot(plane(b)).abs();
+        // The sheet of each band, numbered in order of first band.
+        let sheet_of: Vec<usize> = if bands.len() == 4 {
+            let pairings = [[0, 1, 2, 3], [0, 2, 1, 3], [0, 3, 1, 2]];
+            let score = |p: &[usize; 4]| {
+                parallel(bands[p[0]], bands[p[1]]) + parallel(bands[p[2]], bands[p[3]])
             };
-            use_id.insert((v, band), id);
+            let best = pairings
+                .iter()
+                .max_by(|x, y| score(x).total_cmp(&score(y)))
+                .copied()
+                .unwrap_or([0, 1, 2, 3]);
+            let mut out = vec![1; 4];
+            out[best[0]] = 0;
+            out[best[1]] = 0;
+            out
+        } else {
+            let mut firsts: Vec<u32> = Vec::new();
+            bands
+                .iter()
+                .map(|&b| match firsts.iter().position(|&f| parallel(f, b) > 0.8) {
+                    Some(k) => k,
+                    None => {
+                        firsts.push(b);
+                        firsts.len() - 1
+                    }
+                })
+                .collect()
+        };
+        let mut ids: Vec<u32> = Vec::new();
+        for (&band, &sheet) in bands.iter().zip(&sheet_of) {
+            if sheet == ids.len() {
+                let n = band_normal[&(v, band)];
+                let id = if sheet == 0 {
+                    normals[v as usize] = n;
+                    v
+                } else {
+                    positions.push(positions[v as usize]);
+                    normals.push(n);
+                    positions.len() as u32 - 1
+                };
+                ids.push(id);
+            }
+            use_id.insert((v, band), ids[sheet]);
         }
         i = j;
     }

@@ -8,8 +8,10 @@
 //!
 //! 1. The zone starts as every cube within a twentieth of a cell of the network, and grows
 //!    until marching cubes is right on its boundary: no boundary lattice edge crosses the
-//!    surface twice between its samples (found from the field: the sign of `f` at the
-//!    extremum along the edge), and every boundary face with four crossings pairs them as
+//!    surface twice between its samples where two sheets meet (found from the field: the
+//!    sign of `f` at the extremum along the edge; a pair of crossings with nearly the same
+//!    normal is one sheet grazing the edge, missed the same way outside, and does not make
+//!    the zone grow), and every boundary face with four crossings pairs them as
 //!    the field does (the sign of `f` at the face's saddle, where the decider uses the
 //!    bilinear interpolant; where `f` has no saddle on the face, the contour `f = 0`
 //!    followed across it). A saddle with `f = 0` on a boundary face is a curve point the
@@ -235,7 +237,7 @@ fn heal_with(inp: &Input, probe: &mut Probe, accept_seeds: bool) -> Outcome {
 
     // 2. Grow until marching cubes is right on the boundary, near the network.
     let near = NearNetwork::new(inp.net, &lat);
-    let mut edge_memo: FxHashMap<u64, bool> = FxHashMap::default();
+    let mut edge_memo: FxHashMap<u64, Hidden> = FxHashMap::default();
     let mut face_memo: FxHashMap<u64, FaceVerdict> = FxHashMap::default();
     let t = table();
     let mut overflow = false;
@@ -272,7 +274,8 @@ fn heal_with(inp: &Input, probe: &mut Probe, accept_seeds: bool) -> Outcome {
                     out.edges_checked += 1;
                     edge_hides_crossings(probe, inp.volume, &lat, p, axis)
                 });
-                if hidden {
+                // A sheet's own graze is missed the same way outside (see `Hidden`).
+                if hidden == Hidden::Sheets {
                     add.extend(around.iter().flatten().filter(|&&x| near.holds(&lat, x)));
                 }
             }
@@ -390,12 +393,12 @@ const GROWTH_REACH: f64 = 6.0;
 
 /// Which cubes lie within [`GROWTH_REACH`] of the network's curves and nodes.
 ///
-/// Beyond that, what marching cubes gets wrong on a zone's boundary is one sheet's own
-/// (a sheet tangent to a lattice plane hides pairs of crossings in the plane's edges all
-/// along the tangency), which the cubes outside share, so the boundary's trace is still
-/// consistent; growing there only joins zones round different curves along the tangency,
-/// and a sheet piece between two curves is not a band along one (the torus whose bottom
-/// lies in a lattice plane, crossed by a sphere in two loops).
+/// Beyond that, what marching cubes gets wrong on a zone's boundary is one sheet's own,
+/// which the cubes outside share, so the boundary's trace is still consistent; growing there
+/// only joins zones round different curves, and a sheet piece between two curves is not a
+/// band along one. (A sheet tangent to a lattice plane, which hides pairs of crossings in the
+/// plane's edges all along the tangency, is told apart by its normals at any distance:
+/// [`Hidden::OneSheet`].)
 struct NearNetwork {
     /// Network points by coarse bucket (`GROWTH_REACH` cells a side).
     buckets: FxHashMap<[i64; 3], Vec<DVec3>>,
@@ -526,15 +529,47 @@ fn enclosed_patch(
     None
 }
 
+/// What the field does between the samples of a lattice edge that their signs do not show.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Hidden {
+    /// Nothing: the samples' signs show every crossing.
+    No,
+    /// More crossings, all of one smooth sheet grazing the edge: the unit normals at
+    /// consecutive crossings are within 25° of each other (a sheet tangent to the edge, or
+    /// to a lattice plane the edge lies in).
+    OneSheet,
+    /// More crossings, of sheets meeting at an angle: the thin wedge between two crossing
+    /// sheets (its two faces' normals are the wedge's opening short of opposite), a thin
+    /// tube or slab.
+    Sheets,
+}
+
+/// Below this cosine (25°) between the normals at two consecutive crossings along an edge,
+/// they are not of one sheet grazing it. A sheet whose radius of curvature is `R` cells turns
+/// by at most `1/R` radians between crossings within one cell (14° at four cells); a wedge
+/// is taken for one sheet only if its opening is over 155°, when the crossing's other wedge
+/// is under 25°, thinner than the sweeps' crossings.
+const ONE_SHEET_COS: f64 = 0.9;
+
 /// Whether the field crosses zero between the samples of a lattice edge more often than
-/// their signs show (a sheet pair passing between them).
+/// their signs show, and if so whether those crossings are of one sheet grazing the edge.
+///
+/// Why tell them apart: the crossings a wedge between two sheets hides (near a
+/// self-intersection) are what a zone must grow over, as marching cubes would join the two
+/// sheets through them on its boundary; a single sheet tangent to a lattice plane hides
+/// pairs of crossings all along the tangency, which marching cubes misses the same way in
+/// the cubes outside, so a boundary there is consistent, and growing along it joins the
+/// zones of different curves (the torus whose bottom lies in a lattice plane, crossed by a
+/// sphere in two loops). The crossings are told apart by the normals: a sheet grazing an
+/// edge has nearly the same normal at its two crossings; the two faces of a wedge of opening
+/// `θ` have normals `180° - θ` apart.
 fn edge_hides_crossings(
     probe: &mut Probe,
     volume: &Volume,
     lat: &Lattice,
     p: [usize; 3],
     axis: usize,
-) -> bool {
+) -> Hidden {
     let grid = &lat.grid;
     let mut q = p;
     q[axis] += 1;
@@ -544,21 +579,26 @@ fn edge_hides_crossings(
     let s1 = volume.get(q[0], q[1], q[2]) < 0.0;
     let us = [0.0, 0.25, 0.5, 0.75, 1.0];
     let pts: Vec<DVec3> = us.iter().map(|&u| p0.lerp(p1, u)).collect();
-    let Some((vals, grads)) = probe.grads(&pts) else { return false };
-    let mut signs = [s0, vals[1] < 0.0, vals[2] < 0.0, vals[3] < 0.0, s1];
-    signs[0] = s0;
+    let Some((vals, grads)) = probe.grads(&pts) else { return Hidden::No };
+    let signs = [s0, vals[1] < 0.0, vals[2] < 0.0, vals[3] < 0.0, s1];
     let d: Vec<f64> = grads.iter().map(|g| g[axis]).collect();
-    let mut roots = (0..4).filter(|&k| signs[k] != signs[k + 1]).count();
+    // Brackets of single crossings along the edge, in order.
+    let mut brackets: Vec<(f64, f64, bool)> = Vec::new();
     for k in 0..4 {
-        if signs[k] != signs[k + 1] || d[k] * d[k + 1] >= 0.0 {
+        if signs[k] != signs[k + 1] {
+            brackets.push((us[k], us[k + 1], signs[k]));
+            continue;
+        }
+        if d[k] * d[k + 1] >= 0.0 {
             continue;
         }
         // An extremum inside: bisect on the derivative.
         let (mut a, mut b, da) = (us[k], us[k + 1], d[k]);
         let mut value = 0.0;
+        let mut m = 0.5 * (a + b);
         for _ in 0..24 {
-            let m = 0.5 * (a + b);
-            let Some((f, g)) = probe.grad(p0.lerp(p1, m)) else { return false };
+            m = 0.5 * (a + b);
+            let Some((f, g)) = probe.grad(p0.lerp(p1, m)) else { return Hidden::No };
             value = f;
             if (g[axis] < 0.0) == (da < 0.0) {
                 a = m;
@@ -567,10 +607,30 @@ fn edge_hides_crossings(
             }
         }
         if (value < 0.0) != signs[k] {
-            roots += 2;
+            brackets.push((us[k], m, signs[k]));
+            brackets.push((m, us[k + 1], !signs[k]));
         }
     }
-    roots != usize::from(s0 != s1)
+    if brackets.len() == usize::from(s0 != s1) {
+        return Hidden::No;
+    }
+    // The normal at each crossing, by bisection on the sign.
+    let mut normals: Vec<DVec3> = Vec::with_capacity(brackets.len());
+    for &(mut a, mut b, neg_a) in &brackets {
+        for _ in 0..30 {
+            let m = 0.5 * (a + b);
+            let Some((f, _)) = probe.grad(p0.lerp(p1, m)) else { return Hidden::Sheets };
+            if (f < 0.0) == neg_a {
+                a = m;
+            } else {
+                b = m;
+            }
+        }
+        let Some((_, g)) = probe.grad(p0.lerp(p1, 0.5 * (a + b))) else { return Hidden::Sheets };
+        normals.push(g.normalize_or_zero());
+    }
+    let one_sheet = normals.windows(2).all(|w| w[0].dot(w[1]) > ONE_SHEET_COS);
+    if one_sheet { Hidden::OneSheet } else { Hidden::Sheets }
 }
 
 /// Whether an edge of face `f` of cube `c` crosses the surface between its samples.
@@ -578,7 +638,7 @@ fn box_face_hides(
     probe: &mut Probe,
     volume: &Volume,
     lat: &Lattice,
-    memo: &mut FxHashMap<u64, bool>,
+    memo: &mut FxHashMap<u64, Hidden>,
     c: [usize; 3],
     f: usize,
 ) -> bool {
@@ -591,6 +651,7 @@ fn box_face_hides(
         *memo
             .entry(lat.edge_key(p, axis))
             .or_insert_with(|| edge_hides_crossings(probe, volume, lat, p, axis))
+            != Hidden::No
     })
 }
 
@@ -737,21 +798,25 @@ fn contour_joins_inside(
         probe.grad(at(u)).map(|(val, g)| (val, glam::DVec2::new(g[b], g[cax]) * h))
     };
     let corners: [glam::DVec2; 4] = std::array::from_fn(|k| to_uv(corner(k)));
-    // The crossing on side 0 (corner 0 to corner 1), by bisection on the field between the
-    // samples' signs.
-    let (a0, a1) = (corners[0], corners[1]);
-    let inside0 = v[q[0]] < 0.0;
-    let (mut lo, mut hi) = (0.0f64, 1.0f64);
-    for _ in 0..40 {
-        let m = 0.5 * (lo + hi);
-        let (val, _) = eval(probe, a0.lerp(a1, m))?;
-        if (val < 0.0) == inside0 {
-            lo = m;
-        } else {
-            hi = m;
+    // The crossing on each side (corner k to corner k + 1), by bisection on the field between
+    // the samples' signs (the face has four crossings, one a side).
+    let mut crossings = [glam::DVec2::ZERO; 4];
+    for (k, x) in crossings.iter_mut().enumerate() {
+        let (a0, a1) = (corners[k], corners[(k + 1) % 4]);
+        let inside0 = v[q[k]] < 0.0;
+        let (mut lo, mut hi) = (0.0f64, 1.0f64);
+        for _ in 0..40 {
+            let m = 0.5 * (lo + hi);
+            let (val, _) = eval(probe, a0.lerp(a1, m))?;
+            if (val < 0.0) == inside0 {
+                lo = m;
+            } else {
+                hi = m;
+            }
         }
+        *x = a0.lerp(a1, 0.5 * (lo + hi));
     }
-    let mut p = a0.lerp(a1, 0.5 * (lo + hi));
+    let mut p = crossings[0];
     // Into the face from side 0: towards corners 2 and 3.
     let inward = (corners[3] - corners[0]).normalize_or_zero();
     let tiny = 1e-6 * scale * h;
@@ -794,9 +859,11 @@ fn contour_joins_inside(
             continue;
         }
         if !inside(u) {
-            // Left the face: through which side (from p, which is inside or on side 0).
-            // Cutting off one corner separates the corners of its sign.
-            return match exit_side(&corners, p, u)? {
+            // Left the face between p and u, so through the side whose crossing is nearest
+            // that step (where the contour leaves close to a corner, which side the step's
+            // segment cuts first is a coin toss; the crossings are exact). Cutting off one
+            // corner separates the corners of its sign.
+            return match exit_side(&crossings, p, u)? {
                 1 => Some(v[q[1]] >= 0.0),
                 3 => Some(v[q[0]] >= 0.0),
                 _ => None,
@@ -808,25 +875,24 @@ fn contour_joins_inside(
     }
 }
 
-/// Which side `k` (from corner `k` to corner `k + 1`) of the unit square the segment from
-/// `p` to `u` leaves it through, by the first crossing along the segment after `p`.
-fn exit_side(corners: &[glam::DVec2; 4], p: glam::DVec2, u: glam::DVec2) -> Option<usize> {
+/// Which side `k` (from corner `k` to corner `k + 1`) of the face a contour step from `p`
+/// (inside) to `u` (outside) leaves through: the side other than side 0 (where the contour
+/// started) whose crossing is nearest the step, if within a tenth of a cell of it.
+fn exit_side(crossings: &[glam::DVec2; 4], p: glam::DVec2, u: glam::DVec2) -> Option<usize> {
     let d = u - p;
-    let mut best: Option<(f64, usize)> = None;
-    for k in 0..4 {
-        let (a, e) = (corners[k], corners[(k + 1) % 4] - corners[k]);
-        let den = d.perp_dot(e);
-        if den.abs() < 1e-300 {
-            continue;
-        }
-        // p + d·s = a + e·r
-        let s = (a - p).perp_dot(e) / den;
-        let r = (a - p).perp_dot(d) / den;
-        if s > 1e-12 && (-1e-9..=1.0 + 1e-9).contains(&r) && best.is_none_or(|x| s < x.0) {
-            best = Some((s, k));
-        }
-    }
-    best.map(|x| x.1)
+    let dist = |x: glam::DVec2| {
+        let s = if d.length_squared() > 0.0 {
+            ((x - p).dot(d) / d.length_squared()).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        (p + d * s - x).length()
+    };
+    (1..4)
+        .map(|k| (dist(crossings[k]), k))
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .filter(|x| x.0 <= 0.1)
+        .map(|x| x.1)
 }
 
 /// The bands of one zone.
@@ -909,7 +975,7 @@ fn heal_component(
     comp: &[usize],
     edge_vertex: &FxHashMap<u64, u32>,
     probe: &mut Probe,
-    edge_memo: &mut FxHashMap<u64, bool>,
+    edge_memo: &mut FxHashMap<u64, Hidden>,
 ) -> Result<Bands, String> {
     let net = inp.net;
     let h = inp.grid.cell;
@@ -1020,7 +1086,7 @@ fn boundary_trace(
     lat: &Lattice,
     zone: &Boundary,
     probe: &mut Probe,
-    edge_memo: &mut FxHashMap<u64, bool>,
+    edge_memo: &mut FxHashMap<u64, Hidden>,
 ) -> Result<Trace, String> {
     let t = table();
     let mut next: FxHashMap<u32, u32> = FxHashMap::default();
@@ -1530,7 +1596,22 @@ mod tests {
         let vol = sample(&f, &grid, &Control::default()).unwrap();
         let lat = Lattice::new(grid);
         let mut probe = Probe::new(&f, 0.25);
-        assert!(edge_hides_crossings(&mut probe, &vol, &lat, [0, 0, 0], 0));
-        assert!(!edge_hides_crossings(&mut probe, &vol, &lat, [0, 0, 0], 1));
+        assert_eq!(edge_hides_crossings(&mut probe, &vol, &lat, [0, 0, 0], 0), Hidden::Sheets);
+        assert_eq!(edge_hides_crossings(&mut probe, &vol, &lat, [0, 0, 0], 1), Hidden::No);
+        // Two planes crossing at 60° a fiftieth of a cell off the edge (along y at x = z =
+        // -0.125): the edge runs through the thin wedge between them.
+        let (n1, n2) = (DVec3::new(0.0, 1.0, 0.0), DVec3::new(0.0, 0.5, 0.75f64.sqrt()));
+        let f = FnField(move |p: DVec3| {
+            let q = p - DVec3::new(0.0, 0.01, -0.12);
+            n1.dot(q) * n2.dot(q)
+        });
+        let vol = sample(&f, &grid, &Control::default()).unwrap();
+        let mut probe = Probe::new(&f, 0.25);
+        assert_eq!(edge_hides_crossings(&mut probe, &vol, &lat, [0, 0, 0], 1), Hidden::Sheets);
+        // A sphere of radius 1 dipping 0.001 across the edge: one sheet grazing it.
+        let f = FnField(|p: DVec3| (p - DVec3::new(-1.124, 0.0, -0.125)).length() - 1.0);
+        let vol = sample(&f, &grid, &Control::default()).unwrap();
+        let mut probe = Probe::new(&f, 0.25);
+        assert_eq!(edge_hides_crossings(&mut probe, &vol, &lat, [0, 0, 0], 1), Hidden::OneSheet);
     }
 }
