@@ -40,7 +40,10 @@ use crate::lattice::cubes::CubeLattice;
 use crate::lattice::memory::vec_bytes;
 use crate::lattice::propagate::{Cubes, Limits, Order, propagate};
 use crate::lattice::search::CoarseSearch;
-use crate::refine::{RootMethod, RootOptions, gradient_normals};
+use crate::refine::{
+    GradBracket, RootMethod, RootOptions, fill_from_faces, gradient_normals, project_to_surface,
+    refine_roots_with_gradients, unit_gradients,
+};
 use crate::{Error, LatticeOptions, Resolution};
 use lattice::Lattice;
 use tetra::{TetraSink, polygonize_tetrahedra};
@@ -297,6 +300,11 @@ struct Run<'a> {
     stats: Stats,
     /// Bytes of the list of starts, held while the components are propagated.
     starts_bytes: u64,
+    /// Whether corners are evaluated with their gradients, for root finding from the
+    /// segment ends' values and slopes ([`refine_roots_with_gradients`]) and normals from
+    /// its gradients: for fields with an exact gradient (about as cheap as the value), with
+    /// regula falsi and refinement on.
+    gradients: bool,
 }
 
 impl<'a> Run<'a> {
@@ -312,6 +320,9 @@ impl<'a> Run<'a> {
             triangles: Vec::new(),
             stats: Stats { cell: grid.cell, ..Stats::default() },
             starts_bytes: 0,
+            gradients: field.has_exact_gradient()
+                && opts.lattice.refine
+                && opts.root == RootMethod::RegulaFalsi,
         }
     }
 
@@ -360,19 +371,30 @@ impl<'a> Run<'a> {
         }
         let points: Vec<DVec3> = todo.iter().map(|&p| self.cubes.point(p)).collect();
         let mut out = vec![0.0; points.len()];
+        let mut grads = vec![DVec3::ZERO; if self.gradients { points.len() } else { 0 }];
         let chunk = (points.len() / 16).clamp(128, 1024);
-        out.par_chunks_mut(chunk)
-            .zip(points.par_chunks(chunk))
-            .for_each(|(o, p)| self.field.eval_many(p, o));
+        if self.gradients {
+            out.par_chunks_mut(chunk)
+                .zip(grads.par_chunks_mut(chunk))
+                .zip(points.par_chunks(chunk))
+                .for_each(|((o, g), p)| self.field.eval_grad_many(p, o, g));
+        } else {
+            out.par_chunks_mut(chunk)
+                .zip(points.par_chunks(chunk))
+                .for_each(|(o, p)| self.field.eval_many(p, o));
+        }
         self.stats.corner_evaluations += points.len() as u64;
-        for (&p, v) in todo.iter().zip(out) {
+        for (k, (&p, v)) in todo.iter().zip(out).enumerate() {
             let v = if v.is_finite() {
                 v.clamp(-f32::MAX as f64, f32::MAX as f64) as f32
             } else {
                 self.stats.non_finite += 1;
                 if v == f64::NEG_INFINITY { -f32::MAX } else { f32::MAX }
             };
-            self.lattice.set_value(p, v);
+            match grads.get(k) {
+                Some(g) => self.lattice.set_value_grad(p, v, g.as_vec3().to_array()),
+                None => self.lattice.set_value(p, v),
+            }
         }
     }
 
@@ -460,6 +482,9 @@ impl<'a> Run<'a> {
     }
 
     fn finish(mut self) -> Result<(Mesh, Stats), Error> {
+        if self.gradients {
+            return self.finish_with_gradients();
+        }
         let t = Instant::now();
         let how = Placement {
             refine: self.opts.lattice.refine,
@@ -489,6 +514,95 @@ impl<'a> Run<'a> {
         } else {
             Vec::new()
         };
+        self.stats.normals = t.elapsed();
+        let mesh = Mesh {
+            positions: positions.iter().map(|p| p.as_vec3().to_array()).collect(),
+            normals,
+            triangles: self.triangles,
+            ..Mesh::default()
+        };
+        self.stats.vertices = mesh.vertex_count();
+        self.stats.triangles = mesh.triangle_count();
+        Ok((mesh, self.stats))
+    }
+}
+
+impl Run<'_> {
+    /// [`Run::finish`] where the corners' gradients are known: edge vertices are placed by
+    /// [`refine_roots_with_gradients`] and take their normals from its gradients; the few
+    /// cell vertices are projected and take a gradient each, as in the other path.
+    fn finish_with_gradients(mut self) -> Result<(Mesh, Stats), Error> {
+        let t = Instant::now();
+        let grid = self.grid;
+        let at = |p: [u32; 3]| grid.point(p[0] as usize, p[1] as usize, p[2] as usize);
+        let as_d = |g: [f32; 3]| DVec3::from_array(g.map(f64::from));
+        let mut positions: Vec<DVec3> = self.vertices.iter().map(|v| v.position(&grid)).collect();
+        let (mut edge, mut brackets, mut cell) = (Vec::new(), Vec::new(), Vec::new());
+        for (i, v) in self.vertices.iter().enumerate() {
+            match (v.place, v.tip()) {
+                (Place::Edge { t, .. }, Some(tip)) => {
+                    let [f0, f1] = self.ends[i].map(f64::from);
+                    edge.push(i);
+                    brackets.push(GradBracket {
+                        p0: at(v.base),
+                        p1: at(tip),
+                        f0,
+                        f1,
+                        g0: as_d(self.lattice.grad(v.base)),
+                        g1: as_d(self.lattice.grad(tip)),
+                        t,
+                        grad: DVec3::ZERO,
+                    });
+                }
+                _ => cell.push(i),
+            }
+        }
+        let roots = RootOptions {
+            method: self.opts.root,
+            tolerance: self.opts.lattice.tolerance,
+            t_min: crate::grid::cell::T_MIN,
+            ..RootOptions::default()
+        };
+        let mut evals = refine_roots_with_gradients(self.field, &mut brackets, &roots);
+        let want_normals = self.opts.lattice.normals && !self.triangles.is_empty();
+        let mut normals = vec![[0f32; 3]; if want_normals { positions.len() } else { 0 }];
+        for (&i, b) in edge.iter().zip(&brackets) {
+            positions[i] = b.p0.lerp(b.p1, b.t);
+            if want_normals {
+                let n = b.grad.normalize_or_zero();
+                if n.is_finite() {
+                    normals[i] = n.as_vec3().to_array();
+                }
+            }
+        }
+        if !cell.is_empty() {
+            let mut pts: Vec<DVec3> = cell.iter().map(|&i| positions[i]).collect();
+            let boxes: Vec<(DVec3, DVec3)> = cell
+                .iter()
+                .map(|&i| {
+                    let lo = at(self.vertices[i].base);
+                    (lo, lo + DVec3::splat(grid.cell))
+                })
+                .collect();
+            let tolerance = self.opts.lattice.tolerance * grid.cell;
+            evals += project_to_surface(self.field, &mut pts, &boxes, tolerance);
+            for (&i, p) in cell.iter().zip(&pts) {
+                positions[i] = *p;
+            }
+            if want_normals {
+                let n = unit_gradients(self.field, &pts);
+                self.stats.normal_evaluations = pts.len() as u64;
+                for (&i, n) in cell.iter().zip(n) {
+                    normals[i] = n;
+                }
+            }
+        }
+        self.stats.refine_evaluations = evals;
+        self.stats.refinement = t.elapsed();
+        let t = Instant::now();
+        if want_normals {
+            fill_from_faces(&mut normals, &positions, &self.triangles);
+        }
         self.stats.normals = t.elapsed();
         let mesh = Mesh {
             positions: positions.iter().map(|p| p.as_vec3().to_array()).collect(),
