@@ -519,6 +519,45 @@ mod tests {
         }
     }
 
+    /// From the ends' values and gradients, about one evaluation per vertex puts the
+    /// vertices within a hundredth of the tolerance of the surface (as the secant stop of
+    /// regula falsi does at two), and the gradient returned is the field's near the vertex.
+    #[test]
+    fn gradients_at_the_ends_need_about_one_evaluation() {
+        let f = skelform_field::formula::Formula::parse(
+            "sqrt(x^2 + 2*y^2 + z^2) - 0.7 + 0.05*sin(9*x)*cos(7*z)",
+        )
+        .unwrap();
+        assert!(f.has_exact_gradient());
+        let cell = 0.05;
+        // Lattice segments along x, each where the field changes sign.
+        let mut b: Vec<GradBracket> = Vec::new();
+        for i in 0..600 {
+            let (y, z) = ((i as f64 * 0.37).sin() * 0.45, (i as f64 * 0.11).cos() * 0.45);
+            let p0 = DVec3::new(0.0, y, z);
+            let p1 = (0..40).map(|k| p0 + DVec3::X * (cell * k as f64));
+            let pairs = p1.clone().zip(p1.skip(1));
+            if let Some((p0, p1)) =
+                pairs.into_iter().find(|(a, b)| (f.eval(*a) < 0.0) != (f.eval(*b) < 0.0))
+            {
+                let (f0, f1) = (f.eval(p0), f.eval(p1));
+                let (g0, g1) = (f.gradient(p0), f.gradient(p1));
+                b.push(GradBracket { p0, p1, f0, f1, g0, g1, t: 0.5, grad: DVec3::ZERO });
+            }
+        }
+        assert!(b.len() > 100);
+        let opts = RootOptions::default();
+        let evals = refine_roots_with_gradients(&f, &mut b, &opts);
+        assert!(evals as f64 / (b.len() as f64) < 1.2, "{evals} for {}", b.len());
+        for br in &b {
+            let p = br.p0.lerp(br.p1, br.t);
+            let distance = f.eval(p).abs() / f.gradient(p).length();
+            assert!(distance < 1e-2 * opts.tolerance * cell, "{distance}");
+            let angle = br.grad.angle_between(f.gradient(p));
+            assert!(angle < 1e-3, "{angle}");
+        }
+    }
+
     #[test]
     fn bisection_takes_one_bit_per_step() {
         let f = FnField(|p: DVec3| p.x - 0.3);
