@@ -4,8 +4,20 @@
 //!
 //! The lattice is the grid polygonizer's (cubes of side `cell` covering the domain), and the
 //! cube variant polygonizes each cube with the same case table, decider and interior rules,
-//! so for every component it reaches it makes the very mesh the grid polygonizer makes. The
+//! so for every component it reaches it makes the grid polygonizer's triangles. The
 //! tetrahedral variant splits each cube into six tetrahedra (no ambiguity; more triangles).
+//!
+//! Evaluations: for a field with an exact gradient (as cheap as the value, or nearly) the
+//! corners are evaluated with their gradients, and each edge vertex is placed by
+//! [`refine_roots_with_gradients`]: a Newton step from the root of the edge's cubic model,
+//! about one evaluation per vertex, whose gradient is the vertex's normal. Vertex positions
+//! then differ from the grid polygonizer's (regula falsi from the corner values) by root
+//! finding alone, both well within the tolerance. Other fields keep regula falsi and a
+//! gradient per vertex for normals. Seeds are walked from along the lattice's axes
+//! (`Run::propagate_seeds`), reading and keeping corner values, so a seed costs a few
+//! evaluations. On the hand at 128 samples: 7.02 evaluations per vertex before (corners
+//! 2.06, search 0.56, roots 3.40, normals 1.00), 3.21 after (corners 1.98, search 0.10,
+//! roots 1.13, normals 0).
 //!
 //! Guarantees: each lattice corner is evaluated once (values are kept in sparse bricks) and
 //! each edge root is found once and shared; a surface closed inside the domain comes out closed,
@@ -75,7 +87,9 @@ pub struct Options {
     /// Cubes as the grid polygonizer does them, or six tetrahedra per cube.
     pub cells: Cells,
     /// How edge roots are found (bisection is the dissertation's; regula falsi needs fewer
-    /// evaluations on smooth fields).
+    /// evaluations on smooth fields, and with a field that has an exact gradient it means
+    /// the Newton step from the corners' values and gradients instead, see the module's
+    /// documentation).
     pub root: RootMethod,
     /// Stop propagating after visiting this many cubes in all.
     pub max_cells: u64,
@@ -246,7 +260,7 @@ fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats)
     let mut run = Run::new(field, grid, options);
     crate::lattice::memory::refuse(memory_need(&grid, options), options.lattice.max_memory, &grid)?;
     if !options.seeds.is_empty() {
-        run.from_seeds()?;
+        run.propagate_seeds()?;
         run.stats.cells_visited = run.lattice.visited();
         return run.finish();
     }
@@ -417,7 +431,7 @@ impl<'a> Run<'a> {
     /// own points reads the values propagation keeps and keeps the ones it makes, so a seed
     /// costs a few evaluations, not a hundred (on the hand, search went from 0.56 to a few
     /// hundredths of an evaluation per vertex), and its crossing names its cube directly.
-    fn from_seeds(&mut self) -> Result<(), Error> {
+    fn propagate_seeds(&mut self) -> Result<(), Error> {
         let t = Instant::now();
         let (grid, field, seeds) = (self.grid, self.field, &self.opts.seeds);
         if let Some(&seed) = seeds.iter().find(|s| !grid.bounds().contains(**s)) {
@@ -867,7 +881,7 @@ impl TetraSink for RunSink<'_, '_> {
 }
 
 /// Where propagation starts without seeds: the crossings a coarse search of the domain
-/// finds (seeds are walked from by [`Run::from_seeds`]).
+/// finds (seeds are walked from by [`Run::propagate_seeds`]).
 fn find_starts(run: &mut Run) -> Result<Vec<(usize, DVec3, Bisection)>, Error> {
     search_domain(run)
 }
