@@ -165,13 +165,17 @@ pub enum SeedNote {
 pub struct Stats {
     /// Side of the cubes propagated, in the field's units (from the lattice options).
     pub cell: f64,
-    /// Field evaluations at lattice corners (each corner once).
+    /// Field evaluations at lattice corners (each corner once; with its gradient, counted as
+    /// one, for a field with an exact gradient).
     pub corner_evaluations: u64,
-    /// Field evaluations to find the surface from the seeds or by searching the domain.
+    /// Field evaluations to find the surface from the seeds (the seeds' values and the
+    /// lattice points walked, which corners then reuse) or by searching the domain.
     pub search_evaluations: u64,
-    /// Field evaluations for root finding along crossed edges.
+    /// Field evaluations for root finding along crossed edges (each with its gradient for
+    /// a field with an exact gradient, which then gives the normal too).
     pub refine_evaluations: u64,
-    /// Field gradients taken for vertex normals.
+    /// Field gradients taken for vertex normals alone (with corner gradients, only at the
+    /// rare vertices inside a cell).
     pub normal_evaluations: u64,
     /// Cubes visited by propagation (the cost that grows with the surface's area, not the
     /// volume).
