@@ -393,6 +393,42 @@ fn several_components_give_the_same_mesh_on_1_2_and_4_threads() {
     }
 }
 
+/// With a field that has an exact gradient (corner gradients, Newton roots, normals from
+/// the root's evaluation), several components from seeds, one of them reached from two, and
+/// from the domain search: the same mesh and counts on 1, 2 and 4 threads.
+#[test]
+fn gradient_roots_give_the_same_mesh_on_1_2_and_4_threads() {
+    let f = Formula::parse(
+        "a = sqrt((x - 0.5)^2 + y^2 + z^2) - 0.3\nb = sqrt((x + 0.45)^2 + y^2 + z^2) - 0.25\nc = sqrt(x^2 + (y - 0.6)^2 + z^2) - 0.2 + 0.02*sin(20*x)\nmin(a, min(b, c))",
+    )
+    .unwrap();
+    assert!(f.has_exact_gradient());
+    let seeds = [
+        DVec3::new(0.5, 0.0, 0.0),
+        DVec3::new(-0.45, 0.0, 0.0),
+        DVec3::new(0.55, 0.1, 0.0),
+        DVec3::new(0.0, 0.6, 0.0),
+    ];
+    for seeds in [&seeds[..], &[]] {
+        let go = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| run(&f, Aabb::cube(1.0), 0.03, seeds, Cells::Cubes))
+        };
+        let (one, s1) = go(1);
+        closed(&one, &[0, 0, 0], "three spheres");
+        assert_eq!(s1.components.len(), 3);
+        assert!(s1.refine_evaluations < s1.vertices as u64 * 5 / 4, "{s1:?}");
+        for threads in [2, 4] {
+            let (m, s) = go(threads);
+            assert_eq!(m.positions, one.positions, "{threads}");
+            assert_eq!(m.triangles, one.triangles, "{threads}");
+            assert_eq!(m.normals, one.normals, "{threads}");
+            assert_eq!(s.seed_notes, s1.seed_notes, "{threads}");
+            assert_eq!(s.evaluations(), s1.evaluations(), "{threads}");
+        }
+    }
+}
+
 #[test]
 fn cancellation_stops_the_run() {
     use skelform_field::control::Control;
