@@ -67,7 +67,7 @@ impl From<MethodArg> for Method {
 /// `--root`.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum RootArg {
-    /// Regula falsi: fewer evaluations on smooth fields.
+    /// Regula falsi: fewer evaluations on smooth fields (with a field that has an exact gradient, such as a skeleton or formula, a Newton step from the corners' values and gradients, about one evaluation per vertex, normals included).
     RegulaFalsi,
     /// Bisection: the dissertation's, a fixed number of halvings.
     Bisection,

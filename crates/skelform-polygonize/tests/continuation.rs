@@ -67,6 +67,11 @@ fn shapes_are_closed_with_the_right_genus_in_both_variants() {
     }
 }
 
+/// The same mesh as the grid polygonizer: the same triangles over the same lattice
+/// segments. Vertex positions differ by root finding alone (the grid's regula falsi from
+/// the segment's end values; continuation's Newton step from the ends' values and
+/// gradients, for a field with an exact gradient as this one), both within a hundredth of
+/// the tolerance of the surface, so each vertex is matched to the grid's nearest.
 #[test]
 fn cube_variant_makes_the_grid_polygonizers_mesh() {
     let f =
@@ -88,12 +93,47 @@ fn cube_variant_makes_the_grid_polygonizers_mesh() {
     let (m, s) = run(&f, domain, h, &seeds, Cells::Cubes);
     assert_eq!(s.components.len(), r.components.len());
     assert_eq!(m.triangle_count(), g.triangle_count());
-    let key = |p: &[f32; 3]| p.map(f32::to_bits);
-    let mut a: Vec<_> = g.positions.iter().map(key).collect();
-    let mut b: Vec<_> = m.positions.iter().map(key).collect();
+    assert_eq!(m.vertex_count(), g.vertex_count());
+    let at = |p: &[f32; 3]| DVec3::from_array(p.map(f64::from));
+    let bucket = |p: DVec3| (p / h).floor().as_i64vec3().to_array();
+    let mut buckets: std::collections::HashMap<[i64; 3], Vec<usize>> = Default::default();
+    for (i, p) in g.positions.iter().enumerate() {
+        buckets.entry(bucket(at(p))).or_default().push(i);
+    }
+    // Each continuation vertex to the grid's nearest, within 1e-3 cells, one to one.
+    let to_grid: Vec<u32> = m
+        .positions
+        .iter()
+        .map(|p| {
+            let (p, b) = (at(p), bucket(at(p)));
+            let mut best = (f64::INFINITY, usize::MAX);
+            for d in 0..27i64 {
+                let k = [b[0] + d % 3 - 1, b[1] + d / 3 % 3 - 1, b[2] + d / 9 - 1];
+                for &i in buckets.get(&k).into_iter().flatten() {
+                    let d = (at(&g.positions[i]) - p).length();
+                    if d < best.0 {
+                        best = (d, i);
+                    }
+                }
+            }
+            assert!(best.0 < 1e-3 * h, "vertex {p} is {} from the grid's", best.0);
+            best.1 as u32
+        })
+        .collect();
+    let mut distinct = to_grid.clone();
+    distinct.sort_unstable();
+    distinct.dedup();
+    assert_eq!(distinct.len(), to_grid.len(), "one to one");
+    let canonical = |t: [u32; 3]| {
+        let k = (0..3).min_by_key(|&k| t[k]).unwrap_or(0);
+        [t[k], t[(k + 1) % 3], t[(k + 2) % 3]]
+    };
+    let mut a: Vec<_> = g.triangles.iter().map(|&t| canonical(t)).collect();
+    let mut b: Vec<_> =
+        m.triangles.iter().map(|t| canonical(t.map(|v| to_grid[v as usize]))).collect();
     a.sort_unstable();
     b.sort_unstable();
-    assert_eq!(a, b, "the same vertices, bit for bit");
+    assert_eq!(a, b, "the same triangles, wound alike");
 }
 
 #[test]
@@ -349,6 +389,42 @@ fn several_components_give_the_same_mesh_on_1_2_and_4_threads() {
             assert_eq!(s.seed_notes, s1.seed_notes, "{what}");
             assert_eq!(s.evaluations(), s1.evaluations(), "{what}");
             assert_eq!(s.corner_evaluations, s1.corner_evaluations, "{what}");
+        }
+    }
+}
+
+/// With a field that has an exact gradient (corner gradients, Newton roots, normals from
+/// the root's evaluation), several components from seeds, one of them reached from two, and
+/// from the domain search: the same mesh and counts on 1, 2 and 4 threads.
+#[test]
+fn gradient_roots_give_the_same_mesh_on_1_2_and_4_threads() {
+    let f = Formula::parse(
+        "a = sqrt((x - 0.5)^2 + y^2 + z^2) - 0.3\nb = sqrt((x + 0.45)^2 + y^2 + z^2) - 0.25\nc = sqrt(x^2 + (y - 0.6)^2 + z^2) - 0.2 + 0.02*sin(20*x)\nmin(a, min(b, c))",
+    )
+    .unwrap();
+    assert!(f.has_exact_gradient());
+    let seeds = [
+        DVec3::new(0.5, 0.0, 0.0),
+        DVec3::new(-0.45, 0.0, 0.0),
+        DVec3::new(0.55, 0.1, 0.0),
+        DVec3::new(0.0, 0.6, 0.0),
+    ];
+    for seeds in [&seeds[..], &[]] {
+        let go = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| run(&f, Aabb::cube(1.0), 0.03, seeds, Cells::Cubes))
+        };
+        let (one, s1) = go(1);
+        closed(&one, &[0, 0, 0], "three spheres");
+        assert_eq!(s1.components.len(), 3);
+        assert!(s1.refine_evaluations < s1.vertices as u64 * 5 / 4, "{s1:?}");
+        for threads in [2, 4] {
+            let (m, s) = go(threads);
+            assert_eq!(m.positions, one.positions, "{threads}");
+            assert_eq!(m.triangles, one.triangles, "{threads}");
+            assert_eq!(m.normals, one.normals, "{threads}");
+            assert_eq!(s.seed_notes, s1.seed_notes, "{threads}");
+            assert_eq!(s.evaluations(), s1.evaluations(), "{threads}");
         }
     }
 }

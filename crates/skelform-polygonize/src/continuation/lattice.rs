@@ -27,6 +27,9 @@ struct Brick {
     /// Vertex on the segment from each point in each direction (`u32::MAX`: none yet),
     /// allocated when the brick first holds a vertex.
     edges: Vec<u32>,
+    /// Field gradient at each point (empty unless the run keeps gradients), allocated when
+    /// the brick first gets a gradient.
+    grads: Vec<[f32; 3]>,
 }
 
 pub struct Lattice {
@@ -41,6 +44,8 @@ pub struct Lattice {
     visited: u64,
     /// Bricks whose `edges` are allocated.
     edge_bricks: u64,
+    /// Bricks whose `grads` are allocated.
+    grad_bricks: u64,
 }
 
 #[inline]
@@ -60,6 +65,7 @@ impl Lattice {
             last: None,
             visited: 0,
             edge_bricks: 0,
+            grad_bricks: 0,
         }
     }
 
@@ -89,7 +95,12 @@ impl Lattice {
         }
         let key = self.brick_key(p);
         let i = self.bricks.len() as u32;
-        self.bricks.push(Brick { values: [UNKNOWN; CELLS], owner: [0; CELLS], edges: Vec::new() });
+        self.bricks.push(Brick {
+            values: [UNKNOWN; CELLS],
+            owner: [0; CELLS],
+            edges: Vec::new(),
+            grads: Vec::new(),
+        });
         self.index.insert(key, i);
         self.last = Some((key, i));
         i
@@ -108,6 +119,28 @@ impl Lattice {
     pub fn set_value(&mut self, p: [u32; 3], v: f32) {
         let i = self.find_or_add(p);
         self.bricks[i as usize].values[slot(p)] = v;
+    }
+
+    /// Sets the value and the gradient at a lattice point.
+    #[inline]
+    pub fn set_value_grad(&mut self, p: [u32; 3], v: f32, g: [f32; 3]) {
+        let i = self.find_or_add(p) as usize;
+        let brick = &mut self.bricks[i];
+        if brick.grads.is_empty() {
+            brick.grads = vec![[f32::NAN; 3]; CELLS];
+            self.grad_bricks += 1;
+        }
+        brick.values[slot(p)] = v;
+        brick.grads[slot(p)] = g;
+    }
+
+    /// The gradient at a lattice point set by [`Lattice::set_value_grad`] (NaN if none).
+    #[inline]
+    pub fn grad(&mut self, p: [u32; 3]) -> [f32; 3] {
+        match self.find(p) {
+            Some(i) => self.bricks[i as usize].grads.get(slot(p)).copied().unwrap_or([f32::NAN; 3]),
+            None => [f32::NAN; 3],
+        }
     }
 
     /// Marks a point for evaluation; true if it was not known nor queued before.
@@ -171,7 +204,8 @@ impl Lattice {
     /// Bytes held: the bricks, their edge tables and the index.
     pub fn bytes(&self) -> u64 {
         let edges = self.edge_bricks * (CELLS * self.directions * size_of::<u32>()) as u64;
-        vec_bytes(&self.bricks) + edges + map_bytes(&self.index)
+        let grads = self.grad_bricks * (CELLS * size_of::<[f32; 3]>()) as u64;
+        vec_bytes(&self.bricks) + edges + grads + map_bytes(&self.index)
     }
 }
 
@@ -202,5 +236,9 @@ mod tests {
         assert_eq!(l.edge_vertex([9, 1, 2], 5, || 42), 42);
         assert_eq!(l.edge_vertex([9, 1, 2], 5, || 43), 42);
         assert_eq!(l.edge_vertex([9, 1, 2], 4, || 44), 44);
+        assert!(l.grad([9, 1, 2])[0].is_nan());
+        l.set_value_grad([9, 1, 2], -0.5, [1.0, 2.0, 3.0]);
+        assert_eq!((l.value([9, 1, 2]), l.grad([9, 1, 2])), (-0.5, [1.0, 2.0, 3.0]));
+        assert!(l.grad([9, 1, 3])[0].is_nan());
     }
 }
