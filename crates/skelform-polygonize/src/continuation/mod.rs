@@ -282,19 +282,7 @@ fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats)
             run.stats.seed_notes.push(SeedNote::NoSurface { seed });
             continue;
         };
-        if let Some(owner) = run.lattice.owner(cube) {
-            run.stats.seed_notes.push(SeedNote::SameComponent { seed, as_seed: owner });
-            continue;
-        }
-        let before = (run.lattice.visited(), run.triangles.len());
-        run.propagate(cube, seed_index)?;
-        unfinished.push(start);
-        run.stats.components.push(Component {
-            seed,
-            start: start.point(),
-            cells: run.lattice.visited() - before.0,
-            triangles: run.triangles.len() - before.1,
-        });
+        run.start_component(seed, seed_index, cube, start, &mut unfinished)?;
     }
     run.stats.propagation = t.elapsed();
     let t = Instant::now();
@@ -474,19 +462,7 @@ impl<'a> Run<'a> {
                 continue;
             };
             found = true;
-            if let Some(owner) = self.lattice.owner(cube) {
-                self.stats.seed_notes.push(SeedNote::SameComponent { seed, as_seed: owner });
-                continue;
-            }
-            let before = (self.lattice.visited(), self.triangles.len());
-            self.propagate(cube, index)?;
-            unfinished.push(start);
-            self.stats.components.push(Component {
-                seed,
-                start: start.point(),
-                cells: self.lattice.visited() - before.0,
-                triangles: self.triangles.len() - before.1,
-            });
+            self.start_component(seed, index, cube, start, &mut unfinished)?;
         }
         if !found {
             return Err(Error::BadSeed {
@@ -502,6 +478,32 @@ impl<'a> Run<'a> {
         }
         self.stats.search += w.elapsed();
         self.stats.propagation = t.elapsed().saturating_sub(self.stats.search);
+        Ok(())
+    }
+    /// Propagates a component from `cube`, found from seed `seed_index`, unless an earlier
+    /// seed's component already holds it (then only noted), records it in the statistics,
+    /// and keeps its start's bisection to be finished afterwards (see `Bisection`).
+    fn start_component(
+        &mut self,
+        seed: DVec3,
+        seed_index: usize,
+        cube: [u32; 3],
+        start: Bisection,
+        unfinished: &mut Vec<Bisection>,
+    ) -> Result<(), Error> {
+        if let Some(owner) = self.lattice.owner(cube) {
+            self.stats.seed_notes.push(SeedNote::SameComponent { seed, as_seed: owner });
+            return Ok(());
+        }
+        let before = (self.lattice.visited(), self.triangles.len());
+        self.propagate(cube, seed_index)?;
+        unfinished.push(start);
+        self.stats.components.push(Component {
+            seed,
+            start: start.point(),
+            cells: self.lattice.visited() - before.0,
+            triangles: self.triangles.len() - before.1,
+        });
         Ok(())
     }
 
