@@ -39,4 +39,4 @@ pub mod io;
 pub mod mesh;
 pub mod palette;
 
-pub use mesh::{CurveEdge, Mesh, MeshError, RegionPair, RegionTriple};
+pub use mesh::{CurveEdge, Mesh, MeshError, RegionPair, RegionTriple, Texture};

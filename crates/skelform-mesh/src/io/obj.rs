@@ -316,6 +316,7 @@ impl Reader {
             curves: self.curves,
             colors: Vec::new(),
             uvs,
+            texture: None,
         })
     }
 }
