@@ -89,7 +89,8 @@ pub struct Mesh {
     /// Where a mesh has both a texture and texture coordinates, the texture is its colour
     /// (the glb writer embeds it as the base colour texture, the renderer samples it per
     /// pixel); [`Mesh::colors`] then serve only the formats that carry no image (PLY).
-    pub texture: Option<Texture>,
+    /// Shared, so that cloning a mesh does not copy the image.
+    pub texture: Option<std::sync::Arc<Texture>>,
 }
 
 /// An RGBA image (8 bits a channel, sRGB colour, straight alpha), rows from the top: texel
@@ -122,9 +123,8 @@ impl Texture {
 
     /// Checks the size: both sides from 1 to [`Texture::MAX_SIDE`] and four bytes a texel.
     pub fn validate(&self) -> Result<(), MeshError> {
-        let expected = (self.width as usize)
-            .checked_mul(self.height as usize)
-            .and_then(|n| n.checked_mul(4));
+        let expected =
+            (self.width as usize).checked_mul(self.height as usize).and_then(|n| n.checked_mul(4));
         let sides = (1..=Texture::MAX_SIDE).contains(&self.width)
             && (1..=Texture::MAX_SIDE).contains(&self.height);
         if !sides || expected != Some(self.rgba.len()) {
@@ -308,13 +308,13 @@ mod tests {
         m.uvs = vec![[0.0, 1.0]; 4];
         assert_eq!(m.validate(), Err(MeshError::UvCount { uvs: 4, vertices: 3 }));
         m.uvs.clear();
-        m.texture = Some(Texture { width: 2, height: 2, rgba: vec![0; 16] });
+        m.texture = Some(std::sync::Arc::new(Texture { width: 2, height: 2, rgba: vec![0; 16] }));
         assert_eq!(m.validate(), Ok(()));
         assert_eq!(m.texture.as_ref().unwrap().texel(1, 1), Some([0; 4]));
         assert_eq!(m.texture.as_ref().unwrap().texel(2, 0), None);
-        m.texture = Some(Texture { width: 2, height: 2, rgba: vec![0; 15] });
+        m.texture = Some(std::sync::Arc::new(Texture { width: 2, height: 2, rgba: vec![0; 15] }));
         assert!(matches!(m.validate(), Err(MeshError::TextureSize { bytes: 15, .. })));
-        m.texture = Some(Texture { width: 0, height: 2, rgba: Vec::new() });
+        m.texture = Some(std::sync::Arc::new(Texture { width: 0, height: 2, rgba: Vec::new() }));
         assert!(matches!(m.validate(), Err(MeshError::TextureSize { width: 0, .. })));
         m.texture = None;
         assert_eq!(RegionPair::new(2, 1), RegionPair(1, 2));

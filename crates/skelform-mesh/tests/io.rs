@@ -46,7 +46,16 @@ fn sample() -> Mesh {
         CurveEdge { v: [2, 1], label: RegionTriple([0, 1, 2]) },
         CurveEdge { v: [1, 3], label: RegionTriple([1, 2, 7]) },
     ];
-    Mesh { positions, normals, triangles, labels, curves, colors: Vec::new(), uvs: Vec::new(), texture: None }
+    Mesh {
+        positions,
+        normals,
+        triangles,
+        labels,
+        curves,
+        colors: Vec::new(),
+        uvs: Vec::new(),
+        texture: None,
+    }
 }
 
 fn bits(m: &Mesh) -> (Vec<[u32; 3]>, Vec<[u32; 3]>) {

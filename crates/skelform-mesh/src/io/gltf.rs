@@ -1067,7 +1067,7 @@ impl<'a> Reader<'a> {
             mesh.labels = labels.into_iter().flatten().collect();
         }
         if !mesh.uvs.is_empty() {
-            mesh.texture = self.texture();
+            mesh.texture = self.texture().map(std::sync::Arc::new);
         }
         Ok(mesh)
     }
@@ -1260,7 +1260,7 @@ mod tests {
         m.uvs = vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0], [0.5, 0.5]];
         m.colors = vec![[0.5, 0.2, 0.1]; 5];
         let rgba: Vec<u8> = (0..5 * 3 * 4).map(|k| (k * 7 % 256) as u8).collect();
-        m.texture = Some(Texture { width: 5, height: 3, rgba });
+        m.texture = Some(std::sync::Arc::new(Texture { width: 5, height: 3, rgba }));
         let glb = encode_glb(&m, &WriteOptions::default()).unwrap();
         let (doc, bin) = chunks(&glb);
         assert_eq!(doc["images"][0]["mimeType"], "image/png");

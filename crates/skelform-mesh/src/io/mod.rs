@@ -22,14 +22,14 @@ pub mod atomic;
 pub mod gltf;
 pub mod obj;
 pub mod ply;
-pub mod texture;
 pub mod stl;
+pub mod texture;
 
 pub use gltf::{read_glb, write_glb};
 pub use obj::{read_obj, write_obj, write_obj_with_mtl};
 pub use ply::{read_ply, write_ply, write_ply_curves};
-pub use texture::{decode_png, encode_png};
 pub use stl::{read_stl, write_stl};
+pub use texture::{decode_png, encode_png};
 
 /// A mesh file format, chosen by file extension.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
