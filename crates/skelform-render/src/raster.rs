@@ -687,6 +687,29 @@ mod tests {
     use super::*;
 
     #[test]
+    fn textures_sample_bilinearly_and_clamp_at_the_edges() {
+        // 2 x 1: black, white.
+        let t = skelform_mesh::Texture {
+            width: 2,
+            height: 1,
+            rgba: vec![0, 0, 0, 255, 255, 255, 255, 255],
+        };
+        let t = Texels::new(&t).unwrap();
+        // Texel centres at u = 1/4 and 3/4; halfway between, half of each (in linear light).
+        assert_eq!(t.sample([0.25, 0.5]), [0.0; 3]);
+        assert_eq!(t.sample([0.75, 0.5]), [1.0; 3]);
+        assert!((t.sample([0.5, 0.5])[0] - 0.5).abs() < 1e-6);
+        // Beyond the centres of the edge texels, and outside [0, 1]: the edge texel.
+        assert_eq!(t.sample([-3.0, 7.0]), [0.0; 3]);
+        assert_eq!(t.sample([0.9, 0.0]), [1.0; 3]);
+        assert_eq!(t.sample([f32::NAN, 0.5]), [0.0; 3]);
+        assert!(
+            Texels::new(&skelform_mesh::Texture { width: 2, height: 2, rgba: vec![0; 4] })
+                .is_none()
+        );
+    }
+
+    #[test]
     fn pixel_range_takes_centres_inside() {
         // Centres at 128, 384, 640 …: [100, 400] holds pixels 0 and 1.
         assert_eq!(pixel_range(100, 400), (0, 1));
