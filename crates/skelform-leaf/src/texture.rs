@@ -13,10 +13,12 @@
 //! [`LeafTexture`] turns the lines into colour: a point of the blade, found in the leaf's
 //! plane through its nearest blade triangle (the same barycentric coordinates in the flat
 //! web), is blade green, lighter near a tertiary line (within `width`) and palest on a
-//! primary or secondary vein (within its radius). The colours go to the mesh's vertices
-//! (`Mesh::colors`), so `skelform render` draws them and glTF carries them as `COLOR_0`; a
-//! line is as sharp as the mesh's vertex spacing allows, which is why `width` defaults to
-//! about half a cell of the example scenes.
+//! primary or secondary vein (within its radius), and the vein colour beyond the margin.
+//! It gives them two ways: [`LeafTexture::image`], an RGBA image of the flat leaf
+//! ([`skelform_mesh::Texture`]) with [`LeafTexture::uv`] placing any point of the bent leaf
+//! in it, sharp at any mesh resolution (what glb and `skelform render` use); and
+//! [`LeafTexture::colour_at`], the colour under a point, for per-vertex colours
+//! (`Mesh::colors`, what PLY keeps), as sharp only as the vertex spacing.
 //!
 //! Deterministic: the perturbations come from [`TextureParams::seed`] alone, in the order
 //! the cuts were made, and colouring a point reads only the finished lines.
