@@ -794,3 +794,34 @@ fn vertex_colours_round_trip_through_glb() {
     assert!(!String::from_utf8_lossy(&plain).contains("COLOR_0"));
     assert!(skelform_mesh::io::read_glb(&plain).unwrap().colors.is_empty());
 }
+
+#[test]
+fn a_textured_obj_gets_its_image_as_every_regions_map_kd() {
+    use skelform_mesh::io::{Format, WriteOptions, decode_png, write_mesh};
+    let mesh = Mesh {
+        positions: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        triangles: vec![[0, 1, 2], [0, 1, 3]],
+        labels: vec![RegionPair(1, 2), RegionPair(2, 3)],
+        uvs: vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]],
+        texture: Some(std::sync::Arc::new(skelform_mesh::Texture {
+            width: 2,
+            height: 1,
+            rgba: vec![10, 20, 30, 255, 40, 50, 60, 255],
+        })),
+        ..Mesh::default()
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("leaf.obj");
+    write_mesh(&out, &mesh, Format::Obj, &WriteOptions::default()).unwrap();
+    let mtl = std::fs::read_to_string(dir.path().join("leaf.mtl")).unwrap();
+    assert_eq!(mtl.matches("map_Kd leaf.texture.png").count(), 2, "{mtl}");
+    assert!(mtl.contains("Kd 1.0000 1.0000 1.0000"), "{mtl}");
+    let png = std::fs::read(dir.path().join("leaf.texture.png")).unwrap();
+    assert_eq!(decode_png(&png).unwrap(), **mesh.texture.as_ref().unwrap());
+    // Without the texture: palette colours, no image.
+    let plain = Mesh { texture: None, ..mesh };
+    let out = dir.path().join("plain.obj");
+    write_mesh(&out, &plain, Format::Obj, &WriteOptions::default()).unwrap();
+    assert!(!std::fs::read_to_string(dir.path().join("plain.mtl")).unwrap().contains("map_Kd"));
+    assert!(!dir.path().join("plain.texture.png").exists());
+}
