@@ -769,12 +769,16 @@ fn the_texture_image_holds_the_tertiary_lines_and_blade_vertices_map_into_it() {
     let palette = [tp.blade, tp.tertiary, tp.vein].map(byte);
     let mut nearest = [0usize; 3];
     for t in img.rgba.chunks_exact(4) {
-        let d = palette.map(|c| (0..3).map(|k| (i32::from(t[k]) - i32::from(c[k])).pow(2)).sum::<i32>());
+        let d = palette
+            .map(|c| (0..3).map(|k| (i32::from(t[k]) - i32::from(c[k])).pow(2)).sum::<i32>());
         nearest[(0..3).min_by_key(|&k| d[k]).unwrap()] += 1;
     }
     let n = f64::from(img.width * img.height);
     let [blade, tertiary, vein] = nearest.map(|c| c as f64 / n);
-    eprintln!("{}x{}: blade {blade:.3}, tertiary {tertiary:.4}, vein {vein:.3}", img.width, img.height);
+    eprintln!(
+        "{}x{}: blade {blade:.3}, tertiary {tertiary:.4}, vein {vein:.3}",
+        img.width, img.height
+    );
     assert!((0.15..0.6).contains(&blade), "{blade}");
     assert!((0.03..0.1).contains(&tertiary), "{tertiary}");
     assert!((0.3..0.8).contains(&vein), "{vein}");
