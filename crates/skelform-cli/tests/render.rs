@@ -390,17 +390,30 @@ fn the_khronos_validator_finds_no_errors() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(std::fs::read(&textured).unwrap().windows(10).any(|w| w == b"TEXCOORD_0"));
+    // The leaf's venation texture: an embedded PNG, every surface's baseColorTexture.
+    let leaf = dir.path().join("leaf.glb");
+    let o = skelform(&[
+        "mesh",
+        &example("nonmanifold/leaf.toml"),
+        "-o",
+        s(&leaf),
+        "--cell",
+        "0.05",
+        "-q",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(std::fs::read(&leaf).unwrap().windows(9).any(|w| w == b"image/png"));
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/gltf-validate.js");
     let o = Command::new("node")
         .arg(&script)
         .arg(&validator)
-        .args([&labelled, &torus, &bare, &coloured, &textured])
+        .args([&labelled, &torus, &bare, &coloured, &textured, &leaf])
         .output()
         .expect("run node");
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "validator: {out}\n{}", stderr(&o));
     let reports: Vec<Value> = out.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
-    assert_eq!(reports.len(), 5);
+    assert_eq!(reports.len(), 6);
     for r in reports {
         assert_eq!(r["errors"], 0, "{r}");
         assert_eq!(r["warnings"], 0, "{r}");

@@ -139,7 +139,7 @@ impl Leaf {
     /// perturbed lines, drawn with the veins (carried into the plane through the blade).
     pub fn texture(&self, p: &TextureParams) -> Result<LeafTexture, LeafError> {
         let tertiary = TertiaryVenation::new(&self.web, p)?;
-        let mut tex = LeafTexture::new(tertiary.clone(), self.plane.clone(), &[], p)?;
+        let mut tex = LeafTexture::new(tertiary.clone(), self.plane.clone(), Vec::new(), &[], p)?;
         let veins: Vec<(Vec<DVec2>, Vec<f64>)> = self
             .veins
             .iter()
@@ -148,7 +148,7 @@ impl Leaf {
                 (pts, v.radii.clone())
             })
             .collect();
-        tex = LeafTexture::new(tertiary, self.plane.clone(), &veins, p)?;
+        tex = LeafTexture::new(tertiary, self.plane.clone(), self.web.outline.clone(), &veins, p)?;
         Ok(tex)
     }
 

@@ -34,8 +34,7 @@
 //! lie inside the blade and stray from their cut by at most `roughness·L / (1 − q)`.
 //!
 //! Not done: taper along a segment (each segment has one radius, stepping down along a vein);
-//! the texture is drawn in vertex colours, so its lines are as sharp as the mesh's vertex
-//! spacing (no texture image).
+//! texture filtering is left to whoever draws the image (no mipmaps are made here).
 //!
 //! ```
 //! use skelform_leaf::{Fillet, Leaf, LeafParams, regions};

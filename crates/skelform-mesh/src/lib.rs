@@ -17,6 +17,10 @@
 //! | STL | triangle soup, welded on reading | no | no | no | everyone |
 //! | glTF binary | one primitive per label, vertices not shared between labels | yes (oriented to the winding) | per primitive (`extras`), palette materials | line primitives with a material, optional | trimesh, Blender, three.js; pymeshlab without curves |
 //!
+//! A mesh's texture image ([`Texture`], the leaf's venation) goes into the glb as PNG (the
+//! surfaces' base colour texture, read back) and beside a labelled OBJ as
+//! `OUT.texture.png` (every region's `map_Kd`); PLY and STL have no place for it.
+//!
 //! PLY, OBJ and glTF of one mesh read back to the same topology (`check` finds the same
 //! components); STL, having no indices, joins sheets that meet along a curve.
 //!
@@ -39,4 +43,4 @@ pub mod io;
 pub mod mesh;
 pub mod palette;
 
-pub use mesh::{CurveEdge, Mesh, MeshError, RegionPair, RegionTriple};
+pub use mesh::{CurveEdge, Mesh, MeshError, RegionPair, RegionTriple, Texture};

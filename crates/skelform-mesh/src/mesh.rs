@@ -61,7 +61,7 @@ pub struct CurveEdge {
 ///
 /// Invariants (checked by [`Mesh::validate`]): every index is in range; `normals`,
 /// `colors` and `uvs` are each empty or as long as `positions`; `labels` is empty or as long as
-/// `triangles`.
+/// `triangles`; a texture has the size it says ([`Texture::validate`]).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Mesh {
     /// Vertex positions in scene units, as `f32`: the polygonizers evaluate fields and place
@@ -85,6 +85,57 @@ pub struct Mesh {
     /// (`TEXCOORD_0`), OBJ (`vt`) and PLY (`u`, `v`). Per vertex, so a triangle across a
     /// sweep's seam (`v` = 0 = 1) interpolates backwards across the whole range.
     pub uvs: Vec<[f32; 2]>,
+    /// An image to sample at [`Mesh::uvs`], or `None`: the leaf's tertiary venation (§7.4).
+    /// Where a mesh has both a texture and texture coordinates, the texture is its colour
+    /// (the glb writer embeds it as the base colour texture, the renderer samples it per
+    /// pixel); [`Mesh::colors`] then serve only the formats that carry no image (PLY).
+    /// Shared, so that cloning a mesh does not copy the image.
+    pub texture: Option<std::sync::Arc<Texture>>,
+}
+
+/// An RGBA image (8 bits a channel, sRGB colour, straight alpha), rows from the top: texel
+/// `(x, y)` is at `rgba[4 * (y * width + x)..][..4]` and covers `u` in
+/// `[x / width, (x + 1) / width]`, `v` in `[y / height, (y + 1) / height]`, glTF's
+/// convention (`v` runs down the image). Format-neutral: writers decide how to store it.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Texture {
+    /// Width in texels (more than 0).
+    pub width: u32,
+    /// Height in texels (more than 0).
+    pub height: u32,
+    /// `width × height × 4` bytes.
+    pub rgba: Vec<u8>,
+}
+
+impl Texture {
+    /// The most texels along a side a texture may have: 8192 (256 MiB of RGBA at most),
+    /// beyond any use here and within what viewers load.
+    pub const MAX_SIDE: u32 = 8192;
+
+    /// The texel at column `x`, row `y`, or `None` outside the image.
+    pub fn texel(&self, x: u32, y: u32) -> Option<[u8; 4]> {
+        if x >= self.width || y >= self.height {
+            return None;
+        }
+        let at = 4 * (y as usize * self.width as usize + x as usize);
+        self.rgba.get(at..at + 4).and_then(|s| s.try_into().ok())
+    }
+
+    /// Checks the size: both sides from 1 to [`Texture::MAX_SIDE`] and four bytes a texel.
+    pub fn validate(&self) -> Result<(), MeshError> {
+        let expected =
+            (self.width as usize).checked_mul(self.height as usize).and_then(|n| n.checked_mul(4));
+        let sides = (1..=Texture::MAX_SIDE).contains(&self.width)
+            && (1..=Texture::MAX_SIDE).contains(&self.height);
+        if !sides || expected != Some(self.rgba.len()) {
+            return Err(MeshError::TextureSize {
+                width: self.width,
+                height: self.height,
+                bytes: self.rgba.len(),
+            });
+        }
+        Ok(())
+    }
 }
 
 /// What is wrong with a mesh that breaks the [`Mesh`] invariants.
@@ -134,6 +185,19 @@ pub enum MeshError {
         /// Length of [`Mesh::positions`].
         vertices: usize,
     },
+    #[error(
+        "a texture of {width} x {height} texels with {bytes} bytes (sides must be 1 to 8192, \
+         4 bytes a texel)"
+    )]
+    /// The texture's sides are out of range or its bytes are not four per texel.
+    TextureSize {
+        /// [`Texture::width`].
+        width: u32,
+        /// [`Texture::height`].
+        height: u32,
+        /// Length of [`Texture::rgba`].
+        bytes: usize,
+    },
     #[error("{labels} labels for {triangles} triangles")]
     /// Labels are present but not one per triangle.
     LabelCount {
@@ -173,6 +237,9 @@ impl Mesh {
         }
         if !self.uvs.is_empty() && self.uvs.len() != n {
             return Err(MeshError::UvCount { uvs: self.uvs.len(), vertices: n });
+        }
+        if let Some(t) = &self.texture {
+            t.validate()?;
         }
         if !self.labels.is_empty() && self.labels.len() != self.triangles.len() {
             return Err(MeshError::LabelCount {
@@ -240,6 +307,16 @@ mod tests {
         m.colors.clear();
         m.uvs = vec![[0.0, 1.0]; 4];
         assert_eq!(m.validate(), Err(MeshError::UvCount { uvs: 4, vertices: 3 }));
+        m.uvs.clear();
+        m.texture = Some(std::sync::Arc::new(Texture { width: 2, height: 2, rgba: vec![0; 16] }));
+        assert_eq!(m.validate(), Ok(()));
+        assert_eq!(m.texture.as_ref().unwrap().texel(1, 1), Some([0; 4]));
+        assert_eq!(m.texture.as_ref().unwrap().texel(2, 0), None);
+        m.texture = Some(std::sync::Arc::new(Texture { width: 2, height: 2, rgba: vec![0; 15] }));
+        assert!(matches!(m.validate(), Err(MeshError::TextureSize { bytes: 15, .. })));
+        m.texture = Some(std::sync::Arc::new(Texture { width: 0, height: 2, rgba: Vec::new() }));
+        assert!(matches!(m.validate(), Err(MeshError::TextureSize { width: 0, .. })));
+        m.texture = None;
         assert_eq!(RegionPair::new(2, 1), RegionPair(1, 2));
         assert_eq!(RegionTriple::new([3, 1, 2]).to_string(), "1_2_3");
     }

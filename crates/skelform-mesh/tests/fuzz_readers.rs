@@ -64,6 +64,7 @@ fn small_mesh() -> impl Strategy<Value = Mesh> {
                         .collect(),
                     colors: Vec::new(),
                     uvs: Vec::new(),
+                    texture: None,
                 })
         },
     )

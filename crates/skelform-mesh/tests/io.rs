@@ -46,7 +46,16 @@ fn sample() -> Mesh {
         CurveEdge { v: [2, 1], label: RegionTriple([0, 1, 2]) },
         CurveEdge { v: [1, 3], label: RegionTriple([1, 2, 7]) },
     ];
-    Mesh { positions, normals, triangles, labels, curves, colors: Vec::new(), uvs: Vec::new() }
+    Mesh {
+        positions,
+        normals,
+        triangles,
+        labels,
+        curves,
+        colors: Vec::new(),
+        uvs: Vec::new(),
+        texture: None,
+    }
 }
 
 fn bits(m: &Mesh) -> (Vec<[u32; 3]>, Vec<[u32; 3]>) {
@@ -784,4 +793,35 @@ fn vertex_colours_round_trip_through_glb() {
     let plain = to_bytes(&sample(), Format::Glb, &WriteOptions::default());
     assert!(!String::from_utf8_lossy(&plain).contains("COLOR_0"));
     assert!(skelform_mesh::io::read_glb(&plain).unwrap().colors.is_empty());
+}
+
+#[test]
+fn a_textured_obj_gets_its_image_as_every_regions_map_kd() {
+    use skelform_mesh::io::{Format, WriteOptions, decode_png, write_mesh};
+    let mesh = Mesh {
+        positions: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        triangles: vec![[0, 1, 2], [0, 1, 3]],
+        labels: vec![RegionPair(1, 2), RegionPair(2, 3)],
+        uvs: vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]],
+        texture: Some(std::sync::Arc::new(skelform_mesh::Texture {
+            width: 2,
+            height: 1,
+            rgba: vec![10, 20, 30, 255, 40, 50, 60, 255],
+        })),
+        ..Mesh::default()
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("leaf.obj");
+    write_mesh(&out, &mesh, Format::Obj, &WriteOptions::default()).unwrap();
+    let mtl = std::fs::read_to_string(dir.path().join("leaf.mtl")).unwrap();
+    assert_eq!(mtl.matches("map_Kd leaf.texture.png").count(), 2, "{mtl}");
+    assert!(mtl.contains("Kd 1.0000 1.0000 1.0000"), "{mtl}");
+    let png = std::fs::read(dir.path().join("leaf.texture.png")).unwrap();
+    assert_eq!(decode_png(&png).unwrap(), **mesh.texture.as_ref().unwrap());
+    // Without the texture: palette colours, no image.
+    let plain = Mesh { texture: None, ..mesh };
+    let out = dir.path().join("plain.obj");
+    write_mesh(&out, &plain, Format::Obj, &WriteOptions::default()).unwrap();
+    assert!(!std::fs::read_to_string(dir.path().join("plain.mtl")).unwrap().contains("map_Kd"));
+    assert!(!dir.path().join("plain.texture.png").exists());
 }

@@ -39,6 +39,7 @@ fn any_mesh() -> impl Strategy<Value = Mesh> {
                         .collect(),
                     colors: Vec::new(),
                     uvs: Vec::new(),
+                    texture: None,
                 })
         },
     )

@@ -19,8 +19,10 @@
 //!   invalid mesh or non-finite coordinates; never a panic on user data.
 //!
 //! What it does not do: shadows, reflections or global illumination (one directional light,
-//! a constant ambient term and a soft specular highlight); textures (per-vertex colours,
-//! [`Mesh::colors`], are drawn: [`Settings::vertex_colours`]);
+//! a constant ambient term and a soft specular highlight); texture filtering beyond
+//! bilinear (a mesh's [`Mesh::texture`] is sampled per pixel at its perspective-correct
+//! texture coordinates, bilinearly, clamped at the edges, without mipmaps; else its
+//! per-vertex colours, [`Mesh::colors`], are drawn: [`Settings::vertex_colours`]);
 //! text beyond the legend. Transparency composites every layer exactly, front to back, per
 //! pixel (an A-buffer per tile), so it costs memory in proportion to the layers of a tile.
 //!
@@ -191,9 +193,11 @@ pub struct Settings {
     /// outward winding, the inside). Labelled meshes ignore both: the back of a labelled
     /// sheet is its region colour darkened.
     pub back: Rgb,
-    /// Shade a mesh with its vertex colours ([`Mesh::colors`], interpolated across each
-    /// triangle; the back in the same colour, darker) instead of `surface` and `back` (or,
-    /// for a labelled mesh, its region colours), when it has them.
+    /// Shade a mesh with its own colours instead of `surface` and `back` (or, for a
+    /// labelled mesh, its region colours), when it has them: its texture
+    /// ([`Mesh::texture`], sampled per pixel at [`Mesh::uvs`]) when it has both, else its
+    /// vertex colours ([`Mesh::colors`], interpolated across each triangle); the back in
+    /// the same colour, darker.
     pub vertex_colours: bool,
     /// Colours for particular region pairs; others take the shared palette
     /// ([`skelform_mesh::palette::region_colour`]) in the order of the sorted labels.
@@ -369,6 +373,12 @@ impl<'m> Renderer<'m> {
         // leaf's tertiary venation texture) is drawn in them too: they were given on purpose,
         // the region colours are only a default.
         let vertex_colours = mesh.colors.iter().map(|c| c.map(image::to_linear_unit)).collect();
+        // A texture replaces the vertex colours where there are texture coordinates to
+        // sample it at (the leaf's venation: sharp at any mesh resolution).
+        let texture = match &mesh.texture {
+            Some(t) if !mesh.uvs.is_empty() => raster::Texels::new(t),
+            _ => None,
+        };
         Ok(Renderer {
             prepared: Prepared {
                 mesh,
@@ -377,6 +387,7 @@ impl<'m> Renderer<'m> {
                 colour_of,
                 pairs,
                 vertex_colours,
+                texture,
                 lo,
                 hi,
             },
@@ -450,7 +461,8 @@ impl<'m> Renderer<'m> {
         let mut entries = Vec::new();
         let colours = self.region_colours(s);
         // Drawn in its vertex colours, a labelled mesh shows no region colours to explain.
-        let painted = s.vertex_colours && !self.prepared.vertex_colours.is_empty();
+        let painted = s.vertex_colours
+            && (!self.prepared.vertex_colours.is_empty() || self.prepared.texture.is_some());
         if colours.len() > 1 && !painted {
             entries.push((Swatch::None, "regions".to_string()));
             for (p, c) in colours {

@@ -46,11 +46,52 @@ pub(crate) struct Prepared<'m> {
     pub colour_of: Vec<u16>,
     /// The distinct labels, sorted; empty for an unlabelled mesh.
     pub pairs: Vec<skelform_mesh::RegionPair>,
-    /// The mesh's vertex colours in linear light (unlabelled meshes only), or empty.
+    /// The mesh's vertex colours in linear light, or empty.
     pub vertex_colours: Vec<V3>,
+    /// The mesh's texture in linear light, when it has one and texture coordinates.
+    pub texture: Option<Texels>,
     /// Bounds of the vertices that triangles use.
     pub lo: [f32; 3],
     pub hi: [f32; 3],
+}
+
+/// A texture's texels in linear light, rows from the top (as [`skelform_mesh::Texture`]).
+pub(crate) struct Texels {
+    pub width: u32,
+    pub height: u32,
+    pub texels: Vec<V3>,
+}
+
+impl Texels {
+    /// The texels of `t`, converted once (alpha is ignored: surfaces are opaque).
+    pub fn new(t: &skelform_mesh::Texture) -> Option<Texels> {
+        t.validate().ok()?;
+        let table: Vec<f32> = (0..=255u8).map(crate::image::to_linear).collect();
+        let texels =
+            t.rgba.chunks_exact(4).map(|c| [0, 1, 2].map(|k| table[c[k] as usize])).collect();
+        Some(Texels { width: t.width, height: t.height, texels })
+    }
+
+    /// The bilinear sample at `[u, v]` (texel centres at `(i + ½) / width`), clamped at the
+    /// edges as the glb's sampler is.
+    pub fn sample(&self, uv: [f32; 2]) -> V3 {
+        let (w, h) = (self.width as usize, self.height as usize);
+        let axis = |c: f32, n: usize| {
+            let x = if c.is_finite() { c * n as f32 - 0.5 } else { 0.0 };
+            let x = x.clamp(0.0, (n - 1) as f32);
+            let i = (x.floor() as usize).min(n - 1);
+            (i, (i + 1).min(n - 1), x - i as f32)
+        };
+        let (x0, x1, fx) = axis(uv[0], w);
+        let (y0, y1, fy) = axis(uv[1], h);
+        let t = |x: usize, y: usize| self.texels[y * w + x];
+        let (a, b, c, d) = (t(x0, y0), t(x1, y0), t(x0, y1), t(x1, y1));
+        std::array::from_fn(|k| {
+            let top = a[k] + (b[k] - a[k]) * fx;
+            let bottom = c[k] + (d[k] - c[k]) * fx;
+            top + (bottom - top) * fy
+        })
+    }
 }
 
 /// Colours and lights of one render, in linear light.
@@ -486,16 +527,30 @@ impl<'a> View<'a> {
         let ray = self.cam.ray(f64::from(x) + 0.5, f64::from(y) + 0.5).map(|c| c as f32);
         let to_eye = ray.map(|c| -c);
         let ci = p.colour_of[f.tri as usize] as usize;
-        let vertex = (self.s.vertex_colours && !p.vertex_colours.is_empty()).then(|| {
-            let mut c = [0.0f32; 3];
+        // The mesh's own colours: its texture sampled per pixel at the interpolated texture
+        // coordinates (perspective-correct: `b` is), else its vertex colours interpolated.
+        let vertex = if !self.s.vertex_colours {
+            None
+        } else if let Some(tex) = &p.texture {
+            let mut uv = [0.0f32; 2];
             for (k, &vi) in t.iter().enumerate() {
-                let vc = p.vertex_colours[vi as usize];
-                for j in 0..3 {
-                    c[j] += b[k] * vc[j];
-                }
+                let w = p.mesh.uvs[vi as usize];
+                uv[0] += b[k] * w[0];
+                uv[1] += b[k] * w[1];
             }
-            c
-        });
+            Some(tex.sample(uv))
+        } else {
+            (!p.vertex_colours.is_empty()).then(|| {
+                let mut c = [0.0f32; 3];
+                for (k, &vi) in t.iter().enumerate() {
+                    let vc = p.vertex_colours[vi as usize];
+                    for j in 0..3 {
+                        c[j] += b[k] * vc[j];
+                    }
+                }
+                c
+            })
+        };
         let albedo = if dot(g, to_eye) >= 0.0 {
             vertex.unwrap_or(self.look.front[ci])
         } else {
@@ -630,6 +685,29 @@ pub(crate) fn render_view(p: &Prepared<'_>, s: &Settings, look: &Look, cam: Came
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn textures_sample_bilinearly_and_clamp_at_the_edges() {
+        // 2 x 1: black, white.
+        let t = skelform_mesh::Texture {
+            width: 2,
+            height: 1,
+            rgba: vec![0, 0, 0, 255, 255, 255, 255, 255],
+        };
+        let t = Texels::new(&t).unwrap();
+        // Texel centres at u = 1/4 and 3/4; halfway between, half of each (in linear light).
+        assert_eq!(t.sample([0.25, 0.5]), [0.0; 3]);
+        assert_eq!(t.sample([0.75, 0.5]), [1.0; 3]);
+        assert!((t.sample([0.5, 0.5])[0] - 0.5).abs() < 1e-6);
+        // Beyond the centres of the edge texels, and outside [0, 1]: the edge texel.
+        assert_eq!(t.sample([-3.0, 7.0]), [0.0; 3]);
+        assert_eq!(t.sample([0.9, 0.0]), [1.0; 3]);
+        assert_eq!(t.sample([f32::NAN, 0.5]), [0.0; 3]);
+        assert!(
+            Texels::new(&skelform_mesh::Texture { width: 2, height: 2, rgba: vec![0; 4] })
+                .is_none()
+        );
+    }
 
     #[test]
     fn pixel_range_takes_centres_inside() {

@@ -10,7 +10,8 @@
 //! fillet = "both"        # or "below": veins fillet into the blade's lower side only
 //! vein_rule = "capped"   # or "dissertation" (the default): see skelform_leaf::VeinRule
 //! kernel = "wyvill"      # the veins' convolution kernel
-//! texture = true         # tertiary venation (§7.4) as vertex colours; default false
+//! texture = true         # tertiary venation (§7.4) as a texture image; default false
+//! texture_size = 1024    # texels along the image's longer side (16 to 8192)
 //! tertiary_levels = 4    # midpoint subdivisions of each cut (1 to 8)
 //! tertiary_roughness = 0.2   # midpoint perturbation, a fraction of the piece (0 to 0.5)
 //! tertiary_width = 0.008 # half-width of a drawn tertiary vein, scene units
@@ -35,7 +36,7 @@ use skelform_leaf::{
     BladeRegions, Fillet, Leaf, LeafError, LeafParams, LeafTexture, TextureParams, VeinCurve,
     VeinRule, WebStats,
 };
-use skelform_mesh::RegionPair;
+use skelform_mesh::{RegionPair, Texture};
 use skelform_skeleton::Kernel;
 use toml::Spanned;
 
@@ -73,6 +74,7 @@ pub(crate) struct LeafSection {
     tertiary_levels: Option<Spanned<i64>>,
     tertiary_roughness: Option<Spanned<f64>>,
     tertiary_width: Option<Spanned<f64>>,
+    texture_size: Option<Spanned<i64>>,
     /// A flat blade instead of the generated leaf.
     outline: Option<Spanned<Vec<[f64; 2]>>>,
     vein: Option<Vec<VeinSpec>>,
@@ -102,8 +104,11 @@ pub struct LeafRegions {
     /// Everything blade and veins reach.
     pub bounds: Aabb,
     /// `[leaf] texture = true`: the tertiary venation texture (§7.4) that colours the mesh's
-    /// vertices ([`LeafRegions::colour`]).
+    /// vertices ([`LeafRegions::colour`]) and gives them texture coordinates
+    /// ([`LeafRegions::uv`]) into its image ([`LeafRegions::image`]).
     pub texture: Option<Arc<LeafTexture>>,
+    /// The texture's image, drawn once for every mesh of the scene.
+    pub image: Option<Arc<Texture>>,
 }
 
 impl std::fmt::Debug for LeafRegions {
@@ -126,6 +131,12 @@ impl LeafRegions {
     /// `texture = true`.
     pub fn colour(&self, p: DVec3) -> Option<[f32; 3]> {
         self.texture.as_ref().map(|t| t.colour_at(&self.field.blade, p))
+    }
+
+    /// The texture coordinates of a point on the leaf in [`LeafRegions::image`]; `None`
+    /// without `texture = true`.
+    pub fn uv(&self, p: DVec3) -> Option<[f32; 2]> {
+        self.texture.as_ref().map(|t| t.uv(&self.field.blade, p))
     }
 }
 
@@ -342,9 +353,11 @@ pub(crate) fn build(
         ));
     }
     let texture = texture_of(s, &leaf, at)?;
+    let image = texture.as_ref().map(|t| Arc::new(t.image()));
     let seeds = field.seeds();
     Ok(LeafRegions {
         texture,
+        image,
         interest: field.interest(),
         field: Arc::new(field),
         full_grid: s.full_grid.unwrap_or(false),
@@ -364,6 +377,7 @@ fn texture_of(
         ("tertiary_levels", s.tertiary_levels.as_ref().map(|x| x.span().start)),
         ("tertiary_roughness", s.tertiary_roughness.as_ref().map(|x| x.span().start)),
         ("tertiary_width", s.tertiary_width.as_ref().map(|x| x.span().start)),
+        ("texture_size", s.texture_size.as_ref().map(|x| x.span().start)),
     ];
     let on = s.texture.as_ref().is_some_and(|t| *t.get_ref());
     if !on {
@@ -382,10 +396,23 @@ fn texture_of(
         })?,
         None => d.levels,
     };
+    let size = match &s.texture_size {
+        Some(x) => u32::try_from(*x.get_ref()).map_err(|_| {
+            at(
+                x.span().start,
+                format!(
+                    "texture_size must be a whole number of texels from 16 to 8192 (got {})",
+                    x.get_ref()
+                ),
+            )
+        })?,
+        None => d.size,
+    };
     let p = TextureParams {
         levels,
         roughness: s.tertiary_roughness.as_ref().map_or(d.roughness, |x| *x.get_ref()),
         width: s.tertiary_width.as_ref().map_or(d.width, |x| *x.get_ref()),
+        size,
         // The leaf's seed (already checked) perturbs its tertiary veins too.
         seed: s.seed.as_ref().and_then(|x| u64::try_from(*x.get_ref()).ok()).unwrap_or(d.seed),
         ..d

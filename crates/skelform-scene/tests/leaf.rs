@@ -45,6 +45,9 @@ fn the_leaf_examples_load_and_polygonize() {
         // Both examples draw the tertiary venation texture (§7.4).
         let t = leaf.texture.as_ref().expect("texture = true");
         assert_eq!(t.tertiary.areoles, leaf.stats.polygons, "{name}");
+        // Its image, drawn once, 1024 texels along the longer side by default.
+        let img = leaf.image.as_ref().expect("an image with the texture");
+        assert_eq!(img.width.max(img.height), 1024, "{name}");
     }
     for name in ["tee-in-square.toml", "tee-in-square-fillet.toml"] {
         let s = example(name);
@@ -124,6 +127,15 @@ fn bad_leaves_are_errors_with_their_line() {
     let (l, _, m) = parse_err(&format!("{HEAD}[leaf]\ntexture = true\ntertiary_levels = -1\n"));
     assert_eq!(l, 8, "{m}");
     assert!(m.contains("tertiary_levels"), "{m}");
+    let (l, c, m) = parse_err(&format!("{HEAD}[leaf]\ntexture = true\ntexture_size = 8\n"));
+    assert_eq!((l, c), (8, 16), "{m}");
+    assert!(m.contains("texture_size must be"), "{m}");
+    let (l, _, m) = parse_err(&format!("{HEAD}[leaf]\ntexture = true\ntexture_size = -5\n"));
+    assert_eq!(l, 8, "{m}");
+    assert!(m.contains("texture_size"), "{m}");
+    let (l, _, m) = parse_err(&format!("{HEAD}[leaf]\ntexture_size = 512\n"));
+    assert_eq!(l, 7, "{m}");
+    assert!(m.contains("texture = true"), "{m}");
     let (l, _, m) = parse_err(&format!("{HEAD}[leaf]\ntertiary_width = 0.01\n"));
     assert_eq!(l, 7, "{m}");
     assert!(m.contains("texture = true"), "{m}");

@@ -319,6 +319,17 @@ impl Scene {
                         .unwrap_or_default()
                 })
                 .collect();
+            // And the texture image with each vertex's place in it, so that the lines are
+            // sharp at any mesh resolution where the image is used (glb, `skelform render`);
+            // the vertex colours stay for PLY.
+            if let Some(image) = &leaf.image {
+                mesh.uvs = mesh
+                    .positions
+                    .par_iter()
+                    .map(|p| leaf.uv(DVec3::from_array(p.map(f64::from))).unwrap_or_default())
+                    .collect();
+                mesh.texture = Some(image.clone());
+            }
         }
         if method != Method::NonManifold
             && let Some(swept) = &self.sweeps

@@ -116,10 +116,11 @@ fn the_hand_is_skin_with_bluish_veins_and_nails() {
 }
 
 #[test]
-fn the_leaf_carries_its_tertiary_venation_in_vertex_colours_and_the_glb() {
+fn the_leaf_carries_its_tertiary_venation_in_vertex_colours_the_ply_and_the_glb() {
     // examples/nonmanifold/leaf.toml has `texture = true`: every vertex of the labelled
     // non-manifold mesh has a colour of the texture, the blade mostly blade green with
-    // lighter tertiary lines, the veins pale; the colours survive the glb (COLOR_0).
+    // lighter tertiary lines, the veins pale; the colours survive the PLY, and the glb
+    // carries the texture image and texture coordinates instead.
     let scene = Scene::load(example("nonmanifold/leaf.toml")).unwrap();
     let o = Overrides { resolution: Some(Resolution::Cell(0.04)), ..Overrides::default() };
     let m = scene.mesh(&o).unwrap().mesh;
@@ -155,13 +156,22 @@ fn the_leaf_carries_its_tertiary_venation_in_vertex_colours_and_the_glb() {
     // The same colours on another run (the texture is seeded, colouring is per vertex).
     let again = scene.mesh(&o).unwrap().mesh;
     assert_eq!(again.colors, m.colors);
+    let mut ply = Vec::new();
+    write_mesh_to(&mut ply, &m, Format::Ply, &WriteOptions::default()).unwrap();
+    let back = read_ply(&ply[..]).unwrap();
+    assert_eq!(back.colors.len(), back.positions.len());
+    for (a, b) in back.colors.iter().zip(&m.colors) {
+        assert!(close(*a, *b, 1e-2), "{a:?} {b:?}");
+    }
     let mut glb = Vec::new();
     write_mesh_to(&mut glb, &m, Format::Glb, &WriteOptions::default()).unwrap();
     let back = read_glb(&glb).unwrap();
-    assert_eq!(back.colors.len(), back.positions.len());
+    assert!(back.colors.is_empty());
+    assert_eq!(back.texture, m.texture);
+    assert!(m.texture.is_some());
     let at: std::collections::HashMap<[u32; 3], usize> =
         m.positions.iter().enumerate().map(|(i, p)| (p.map(f32::to_bits), i)).collect();
-    for (q, a) in back.positions.iter().zip(&back.colors) {
-        assert!(close(*a, m.colors[at[&q.map(f32::to_bits)]], 1e-5));
+    for (q, uv) in back.positions.iter().zip(&back.uvs) {
+        assert_eq!(*uv, m.uvs[at[&q.map(f32::to_bits)]]);
     }
 }

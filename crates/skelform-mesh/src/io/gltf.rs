@@ -9,7 +9,11 @@
 //! vertex colours (sRGB in [`Mesh::colors`], linear in the file, as glTF defines it; the
 //! material's base colour is then white, so the colours show as they are), a float
 //! `TEXCOORD_0` accessor when the mesh has texture coordinates ([`Mesh::uvs`], as they
-//! are), and 32-bit indices; a vertex shared by two region
+//! are), and 32-bit indices. A mesh with a [`Mesh::texture`] and texture coordinates has
+//! it embedded as a PNG (an image in a buffer view, a linear sampler clamped at the edges)
+//! and used as every surface material's `baseColorTexture` (`texCoord` 0, base colour
+//! factor white); `COLOR_0` is then left out, since glTF multiplies the base colour
+//! texture by it (the mesh's vertex colours still go to PLY). A vertex shared by two region
 //! pairs is written once for each. Normals are unit length and turned, where needed, to
 //! agree with the winding of the primitive's triangles (counter-clockwise from the lesser
 //! region, glTF's front face), so viewers light each sheet from its front; meshes without
@@ -23,7 +27,10 @@
 //!
 //! Read: GLB files with their buffers in the BIN chunk or in base64 `data:` URIs (as
 //! Open3D and others write them), float `VEC3` positions, normals and colours and float
-//! `VEC2` `TEXCOORD_0` (other colour and texture-coordinate layouts are skipped), indices of any
+//! `VEC2` `TEXCOORD_0` (other colour and texture-coordinate layouts are skipped), the
+//! first material's base colour texture when it is a PNG in the file (left out, not
+//! refused, when it cannot be decoded or is over [`Texture::MAX_SIDE`] a side, checked
+//! from its header before decoding), indices of any
 //! unsigned type (or none), triangle and line primitives. The nodes of the default scene
 //! are walked (or the root nodes when there is no scene, or every mesh once when there are
 //! no nodes), and each node's transform (`matrix`, or `translation`, `rotation`, `scale`),
@@ -45,7 +52,7 @@ use std::io::Write;
 use serde_json::{Value, json};
 
 use super::{IoError, WriteOptions, buffered, finish, limits};
-use crate::mesh::{CurveEdge, Mesh, RegionPair, RegionTriple};
+use crate::mesh::{CurveEdge, Mesh, RegionPair, RegionTriple, Texture};
 use crate::palette::{SURFACE_COLOUR, region_colour};
 
 const MAGIC: u32 = 0x4654_6C67; // "glTF"
@@ -87,12 +94,18 @@ struct Builder {
 
 impl Builder {
     fn view(&mut self, bytes: &[u8], target: u32) -> usize {
+        let v = self.raw_view(bytes);
+        self.views[v]["target"] = json!(target);
+        v
+    }
+
+    /// A buffer view without a target (an image's bytes).
+    fn raw_view(&mut self, bytes: &[u8]) -> usize {
         debug_assert!(self.bin.len().is_multiple_of(4));
         self.views.push(json!({
             "buffer": 0,
             "byteOffset": self.bin.len(),
             "byteLength": bytes.len(),
-            "target": target,
         }));
         self.bin.extend_from_slice(bytes);
         while !self.bin.len().is_multiple_of(4) {
@@ -205,6 +218,13 @@ pub fn encode_glb(mesh: &Mesh, opts: &WriteOptions) -> Result<Vec<u8>, IoError> 
     let groups: Vec<_> = groups.into_iter().filter(|(_, t)| !t.is_empty()).collect();
 
     let mut b = Builder { bin: Vec::new(), views: Vec::new(), accessors: Vec::new() };
+    // A texture with texture coordinates is the surfaces' colour: embedded as PNG, the base
+    // colour texture of every surface material; `COLOR_0` is left out, as it would multiply
+    // the texture (the vertex colours stay in the mesh for PLY).
+    let texture = match &mesh.texture {
+        Some(t) if !mesh.uvs.is_empty() => Some(super::texture::encode_png(t)?),
+        _ => None,
+    };
     let mut materials = Vec::new();
     let mut primitives = Vec::new();
     for (k, (label, tris)) in groups.iter().enumerate() {
@@ -241,8 +261,8 @@ pub fn encode_glb(mesh: &Mesh, opts: &WriteOptions) -> Result<Vec<u8>, IoError> 
                 .collect();
             attributes["NORMAL"] = json!(b.vec3(&normals, false));
         }
-        let coloured = !mesh.colors.is_empty();
-        if coloured {
+        let coloured = !mesh.colors.is_empty() || texture.is_some();
+        if !mesh.colors.is_empty() && texture.is_none() {
             let colours: Vec<[f32; 3]> =
                 used.iter().map(|&v| mesh.colors[v as usize].map(srgb_to_linear)).collect();
             attributes["COLOR_0"] = json!(b.vec3(&colours, false));
@@ -262,9 +282,10 @@ pub fn encode_glb(mesh: &Mesh, opts: &WriteOptions) -> Result<Vec<u8>, IoError> 
             ),
             None => ("surface".to_string(), SURFACE_COLOUR, json!({})),
         };
-        // Vertex colours multiply the base colour: white lets them show as they are.
+        // Vertex colours and textures multiply the base colour: white lets them show as
+        // they are.
         let colour = if coloured { [255; 3] } else { colour };
-        materials.push(json!({
+        let mut material = json!({
             "name": name,
             "pbrMetallicRoughness": {
                 "baseColorFactor": [linear(colour[0]), linear(colour[1]), linear(colour[2]), 1.0],
@@ -272,7 +293,12 @@ pub fn encode_glb(mesh: &Mesh, opts: &WriteOptions) -> Result<Vec<u8>, IoError> 
                 "roughnessFactor": 0.6,
             },
             "doubleSided": true,
-        }));
+        });
+        if texture.is_some() {
+            material["pbrMetallicRoughness"]["baseColorTexture"] =
+                json!({ "index": 0, "texCoord": 0 });
+        }
+        materials.push(material);
         let mut p = json!({
             "attributes": attributes,
             "indices": indices,
@@ -337,6 +363,21 @@ pub fn encode_glb(mesh: &Mesh, opts: &WriteOptions) -> Result<Vec<u8>, IoError> 
         doc["nodes"] = json!(nodes);
         doc["meshes"] = json!(meshes);
         doc["materials"] = json!(materials);
+        if let Some(png) = &texture
+            && !primitives.is_empty()
+        {
+            let view = b.raw_view(png);
+            doc["images"] = json!([{ "bufferView": view, "mimeType": "image/png" }]);
+            // Linear filtering with mipmaps, clamped at the edges: texture coordinates run
+            // from 0 to 1 across the image and never wrap.
+            doc["samplers"] = json!([{
+                "magFilter": 9729,
+                "minFilter": 9987,
+                "wrapS": 33071,
+                "wrapT": 33071,
+            }]);
+            doc["textures"] = json!([{ "sampler": 0, "source": 0 }]);
+        }
         doc["accessors"] = json!(b.accessors);
         doc["bufferViews"] = json!(b.views);
         doc["buffers"] = json!([{ "byteLength": b.bin.len() }]);
@@ -803,6 +844,32 @@ impl<'a> Reader<'a> {
         Ok(out)
     }
 
+    /// The base colour texture of the first material that has one, when its image is a
+    /// PNG (or anything the PNG decoder takes) in a buffer view or a base64 `data:` URI. A
+    /// texture that cannot be read is left out rather than refused, like colours in other
+    /// layouts: the surfaces are what the reader is for.
+    fn texture(&self) -> Option<Texture> {
+        let index = self.list("materials").iter().find_map(|m| {
+            m.get("pbrMetallicRoughness")?.get("baseColorTexture")?.get("index")?.as_u64()
+        })?;
+        let source = self.list("textures").get(usize::try_from(index).ok()?)?.get("source")?;
+        let image = self.list("images").get(usize::try_from(source.as_u64()?).ok()?)?;
+        let bytes: std::borrow::Cow<'_, [u8]> = if let Some(v) = image.get("bufferView") {
+            let view = self.list("bufferViews").get(usize::try_from(v.as_u64()?).ok()?)?;
+            let buffer = usize::try_from(view.get("buffer")?.as_u64()?).ok()?;
+            let data: &[u8] = self.buffers.get(buffer)?.as_ref().ok()?;
+            let off = usize::try_from(view.get("byteOffset").map_or(Some(0), Value::as_u64)?);
+            let len = usize::try_from(view.get("byteLength")?.as_u64()?).ok()?;
+            let off = off.ok()?;
+            std::borrow::Cow::Owned(data.get(off..off.checked_add(len)?)?.to_vec())
+        } else {
+            let uri = image.get("uri")?.as_str()?;
+            let (_, data) = uri.strip_prefix("data:")?.split_once(";base64,")?;
+            std::borrow::Cow::Owned(base64_decode(data.as_bytes()).ok()?)
+        };
+        super::texture::decode_png(&bytes).ok()
+    }
+
     fn mesh(&self) -> Result<Mesh, IoError> {
         let mut positions: Vec<[f32; 3]> = Vec::new();
         let mut normals: Vec<Option<[f32; 3]>> = Vec::new();
@@ -999,6 +1066,9 @@ impl<'a> Reader<'a> {
         if !labels.is_empty() && labels.iter().all(Option::is_some) {
             mesh.labels = labels.into_iter().flatten().collect();
         }
+        if !mesh.uvs.is_empty() {
+            mesh.texture = self.texture().map(std::sync::Arc::new);
+        }
         Ok(mesh)
     }
 }
@@ -1046,6 +1116,7 @@ mod tests {
             ],
             colors: Vec::new(),
             uvs: Vec::new(),
+            texture: None,
         }
     }
 
@@ -1180,6 +1251,51 @@ mod tests {
         assert!(doc["meshes"][0]["primitives"][0]["attributes"].get("NORMAL").is_none());
         let back = read_glb(&glb).unwrap();
         assert!(back.labels.is_empty() && back.normals.is_empty());
+        assert_eq!(back.triangles.len(), 5);
+    }
+
+    #[test]
+    fn a_texture_is_embedded_as_the_base_colour_and_read_back() {
+        let mut m = three_pairs();
+        m.uvs = vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0], [0.5, 0.5]];
+        m.colors = vec![[0.5, 0.2, 0.1]; 5];
+        let rgba: Vec<u8> = (0..5 * 3 * 4).map(|k| (k * 7 % 256) as u8).collect();
+        m.texture = Some(std::sync::Arc::new(Texture { width: 5, height: 3, rgba }));
+        let glb = encode_glb(&m, &WriteOptions::default()).unwrap();
+        let (doc, bin) = chunks(&glb);
+        assert_eq!(doc["images"][0]["mimeType"], "image/png");
+        assert_eq!(doc["textures"][0]["source"], 0);
+        let view = &doc["bufferViews"][doc["images"][0]["bufferView"].as_u64().unwrap() as usize];
+        assert!(view.get("target").is_none());
+        let off = view["byteOffset"].as_u64().unwrap() as usize;
+        assert_eq!(&bin[off + 1..off + 4], b"PNG");
+        // Every surface material takes the texture, white; no COLOR_0 to multiply it.
+        for (k, mat) in doc["materials"].as_array().unwrap().iter().enumerate().take(3) {
+            let pbr = &mat["pbrMetallicRoughness"];
+            assert_eq!(pbr["baseColorTexture"]["index"], 0, "material {k}");
+            assert_eq!(pbr["baseColorFactor"], json!([1.0, 1.0, 1.0, 1.0]));
+        }
+        assert!(doc["materials"][3]["pbrMetallicRoughness"].get("baseColorTexture").is_none());
+        for p in doc["meshes"][0]["primitives"].as_array().unwrap() {
+            assert!(p["attributes"].get("COLOR_0").is_none());
+            assert!(p["attributes"].get("TEXCOORD_0").is_some());
+        }
+        let back = read_glb(&glb).unwrap();
+        assert_eq!(back.texture, m.texture);
+        assert!(back.colors.is_empty());
+        // Without texture coordinates the texture has nothing to map: not written.
+        let bare = Mesh { uvs: Vec::new(), ..m.clone() };
+        let (doc, _) = chunks(&encode_glb(&bare, &WriteOptions::default()).unwrap());
+        assert!(doc.get("images").is_none());
+        assert!(doc["meshes"][0]["primitives"][0]["attributes"].get("COLOR_0").is_some());
+        // A texture whose PNG is damaged is left out; the surfaces are still read.
+        let mut broken = glb.clone();
+        let at = 28 + u32_at(&glb, 12).unwrap() as usize + off + 40;
+        for b in &mut broken[at..at + 16] {
+            *b ^= 0xFF;
+        }
+        let back = read_glb(&broken).unwrap();
+        assert!(back.texture.is_none());
         assert_eq!(back.triangles.len(), 5);
     }
 

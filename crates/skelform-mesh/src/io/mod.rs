@@ -23,11 +23,13 @@ pub mod gltf;
 pub mod obj;
 pub mod ply;
 pub mod stl;
+pub mod texture;
 
 pub use gltf::{read_glb, write_glb};
 pub use obj::{read_obj, write_obj, write_obj_with_mtl};
 pub use ply::{read_ply, write_ply, write_ply_curves};
 pub use stl::{read_stl, write_stl};
+pub use texture::{decode_png, encode_png};
 
 /// A mesh file format, chosen by file extension.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -359,7 +361,9 @@ pub fn write_mesh_to(
 ///   Otherwise a curves file left there by an earlier run (one whose header says skelform
 ///   wrote it) is removed, so it is never read back as this mesh's curves.
 /// - OBJ of a labelled mesh or one with curves: `OUT.mtl` ([`obj::mtl_path`]), the palette
-///   colour of each region pair as a material, named by the `mtllib` line.
+///   colour of each region pair as a material, named by the `mtllib` line. A labelled mesh
+///   with a texture and texture coordinates (the leaf's venation) also gets the image as
+///   `OUT.texture.png` ([`obj::texture_path`]), every region's `map_Kd`.
 pub fn write_mesh(
     path: &Path,
     mesh: &Mesh,
@@ -395,7 +399,16 @@ pub fn write_mesh(
         }
         Format::Obj if obj::wants_mtl(mesh, opts) => {
             let mtl = obj::mtl_path(path);
-            write(&mtl, &|file| obj::write_mtl(file, mesh, opts))?;
+            let image = match &mesh.texture {
+                Some(t) if !mesh.uvs.is_empty() && !mesh.labels.is_empty() => {
+                    let png = texture::encode_png(t).map_err(|e| e.with_path(path))?;
+                    let at = obj::texture_path(path);
+                    write(&at, &|file| file.write_all(&png).map_err(IoError::write))?;
+                    at.file_name().map(|n| n.to_string_lossy().into_owned())
+                }
+                _ => None,
+            };
+            write(&mtl, &|file| obj::write_mtl_with_texture(file, mesh, opts, image.as_deref()))?;
             let name = mtl.file_name().map(|n| n.to_string_lossy().into_owned());
             write(path, &|file| write_obj_with_mtl(file, mesh, opts, name.as_deref()))
         }

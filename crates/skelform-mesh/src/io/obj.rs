@@ -316,6 +316,7 @@ impl Reader {
             curves: self.curves,
             colors: Vec::new(),
             uvs,
+            texture: None,
         })
     }
 }
@@ -418,9 +419,27 @@ pub fn mtl_path(path: &Path) -> PathBuf {
 /// palette's colours).
 const CURVE_COLOUR: [u8; 3] = [24, 24, 24];
 
+/// The texture image that goes with the OBJ file `path` when its mesh has a texture:
+/// `OUT.texture.png` for `OUT.obj` (not `OUT.png`, which a picture of the mesh may be).
+pub fn texture_path(path: &Path) -> PathBuf {
+    super::beside(path, "texture", Some("png"))
+}
+
 /// Writes the material library of `mesh`: `region_A_B` for each distinct label in sorted
 /// order with its palette colour, and `curve` when curves are written.
 pub fn write_mtl(w: &mut impl Write, mesh: &Mesh, opts: &WriteOptions) -> Result<(), IoError> {
+    write_mtl_with_texture(w, mesh, opts, None)
+}
+
+/// [`write_mtl`], with every region's material taking the image `texture` (a file name
+/// beside the library) as its diffuse map (`map_Kd`, diffuse colour white), as the glb's
+/// base colour texture does.
+pub fn write_mtl_with_texture(
+    w: &mut impl Write,
+    mesh: &Mesh,
+    opts: &WriteOptions,
+    texture: Option<&str>,
+) -> Result<(), IoError> {
     let mut distinct = mesh.labels.clone();
     distinct.sort_unstable();
     distinct.dedup();
@@ -435,7 +454,13 @@ pub fn write_mtl(w: &mut impl Write, mesh: &Mesh, opts: &WriteOptions) -> Result
             )
         };
         for (k, l) in distinct.iter().enumerate() {
-            material(&mut w, &format!("region_{l}"), region_colour(k))?;
+            match texture {
+                Some(file) => {
+                    material(&mut w, &format!("region_{l}"), [255; 3])?;
+                    writeln!(w, "map_Kd {file}")?;
+                }
+                None => material(&mut w, &format!("region_{l}"), region_colour(k))?,
+            }
         }
         if opts.curves && !mesh.curves.is_empty() {
             material(&mut w, "curve", CURVE_COLOUR)?;
