@@ -31,7 +31,7 @@
 //! blended normals). By default the field keeps its own gradient, crease and all;
 //! [`SkeletonField::with_blended_normals`](crate::SkeletonField::with_blended_normals)
 //! turns the junction's gradient towards the appendix's blended normal instead
-//! ([`PreparedJunction::blended_normal`]), which is smooth across the crease.
+//! (`PreparedJunction::blended_normal`), which is smooth across the crease.
 //!
 //! The gradient of `D` involves the Hessian of the convolution (through `Convexity`), so it
 //! is taken by central differences of `D` with a step of 10⁻⁴ of the smallest limb radius,
