@@ -269,7 +269,7 @@ fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats)
         return run.finish();
     }
     let t = Instant::now();
-    let starts = find_starts(&mut run)?;
+    let starts = search_domain(&mut run)?;
     run.starts_bytes = vec_bytes(&starts);
     run.stats.search = t.elapsed();
 
@@ -651,6 +651,30 @@ impl<'a> Run<'a> {
         }
     }
 
+    /// How edge roots are found, from the options (both ways of finishing).
+    fn root_options(&self) -> RootOptions {
+        RootOptions {
+            method: self.opts.root,
+            tolerance: self.opts.lattice.tolerance,
+            t_min: crate::grid::cell::T_MIN,
+            ..RootOptions::default()
+        }
+    }
+
+    /// The mesh of the placed vertices and the propagated triangles, with its counts in the
+    /// statistics (both ways of finishing).
+    fn into_mesh(mut self, positions: &[DVec3], normals: Vec<[f32; 3]>) -> (Mesh, Stats) {
+        let mesh = Mesh {
+            positions: positions.iter().map(|p| p.as_vec3().to_array()).collect(),
+            normals,
+            triangles: self.triangles,
+            ..Mesh::default()
+        };
+        self.stats.vertices = mesh.vertex_count();
+        self.stats.triangles = mesh.triangle_count();
+        (mesh, self.stats)
+    }
+
     fn finish(mut self) -> Result<(Mesh, Stats), Error> {
         if self.gradients {
             return self.finish_with_gradients();
@@ -658,12 +682,7 @@ impl<'a> Run<'a> {
         let t = Instant::now();
         let how = Placement {
             refine: self.opts.lattice.refine,
-            roots: RootOptions {
-                method: self.opts.root,
-                tolerance: self.opts.lattice.tolerance,
-                t_min: crate::grid::cell::T_MIN,
-                ..RootOptions::default()
-            },
+            roots: self.root_options(),
             tolerance: self.opts.lattice.tolerance,
         };
         let ends = &self.ends;
@@ -685,15 +704,7 @@ impl<'a> Run<'a> {
             Vec::new()
         };
         self.stats.normals = t.elapsed();
-        let mesh = Mesh {
-            positions: positions.iter().map(|p| p.as_vec3().to_array()).collect(),
-            normals,
-            triangles: self.triangles,
-            ..Mesh::default()
-        };
-        self.stats.vertices = mesh.vertex_count();
-        self.stats.triangles = mesh.triangle_count();
-        Ok((mesh, self.stats))
+        Ok(self.into_mesh(&positions, normals))
     }
 }
 
@@ -727,12 +738,7 @@ impl Run<'_> {
                 _ => cell.push(i),
             }
         }
-        let roots = RootOptions {
-            method: self.opts.root,
-            tolerance: self.opts.lattice.tolerance,
-            t_min: crate::grid::cell::T_MIN,
-            ..RootOptions::default()
-        };
+        let roots = self.root_options();
         let mut evals = refine_roots_with_gradients(self.field, &mut brackets, &roots);
         let want_normals = self.opts.lattice.normals && !self.triangles.is_empty();
         let mut normals = vec![[0f32; 3]; if want_normals { positions.len() } else { 0 }];
@@ -774,15 +780,7 @@ impl Run<'_> {
             fill_from_faces(&mut normals, &positions, &self.triangles);
         }
         self.stats.normals = t.elapsed();
-        let mesh = Mesh {
-            positions: positions.iter().map(|p| p.as_vec3().to_array()).collect(),
-            normals,
-            triangles: self.triangles,
-            ..Mesh::default()
-        };
-        self.stats.vertices = mesh.vertex_count();
-        self.stats.triangles = mesh.triangle_count();
-        Ok((mesh, self.stats))
+        Ok(self.into_mesh(&positions, normals))
     }
 }
 
@@ -884,12 +882,6 @@ impl TetraSink for RunSink<'_, '_> {
     fn triangle(&mut self, t: [u32; 3]) {
         self.run.triangles.push(t);
     }
-}
-
-/// Where propagation starts without seeds: the crossings a coarse search of the domain
-/// finds (seeds are walked from by [`Run::propagate_seeds`]).
-fn find_starts(run: &mut Run) -> Result<Vec<(usize, DVec3, Bisection)>, Error> {
-    search_domain(run)
 }
 
 /// The 26 directions to the neighbours of a lattice point, axes first.
