@@ -858,10 +858,10 @@ impl<'a> Reader<'a> {
             let view = self.list("bufferViews").get(usize::try_from(v.as_u64()?).ok()?)?;
             let buffer = usize::try_from(view.get("buffer")?.as_u64()?).ok()?;
             let data: &[u8] = self.buffers.get(buffer)?.as_ref().ok()?;
-            let off = usize::try_from(view.get("byteOffset").map_or(Some(0), Value::as_u64)?);
+            let off =
+                usize::try_from(view.get("byteOffset").map_or(Some(0), Value::as_u64)?).ok()?;
             let len = usize::try_from(view.get("byteLength")?.as_u64()?).ok()?;
-            let off = off.ok()?;
-            std::borrow::Cow::Owned(data.get(off..off.checked_add(len)?)?.to_vec())
+            std::borrow::Cow::Borrowed(data.get(off..off.checked_add(len)?)?)
         } else {
             let uri = image.get("uri")?.as_str()?;
             let (_, data) = uri.strip_prefix("data:")?.split_once(";base64,")?;
