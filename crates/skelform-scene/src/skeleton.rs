@@ -687,7 +687,14 @@ fn weight_image(
     at: At,
     offset: usize,
 ) -> Result<WeightImage, SceneError> {
-    let png = crate::sweep::read_png(name, base, at, offset, "weight_image", MAX_SECTION_PIXELS)?;
+    let png = crate::sweep::read_png(
+        name,
+        base,
+        at,
+        offset,
+        crate::sweep::FileKey::WeightImage,
+        MAX_SECTION_PIXELS,
+    )?;
     let values = png.pixels.iter().map(|&(light, alpha)| light / 255.0 * (alpha / 255.0)).collect();
     WeightImage::new(png.width, png.height, values)
         .map_err(|e| at(offset, format!("weight_image '{name}': {e}")))

@@ -86,6 +86,29 @@ pub(crate) struct Png {
     pub(crate) pixels: Vec<(f64, f64)>,
 }
 
+/// The scene keys whose values name files that parsing reads (every file a scene can make
+/// the library open, besides the scene itself): a front end that must keep a scene inside
+/// its folder (the studio) checks exactly these. [`read_png`] takes only these names.
+pub const FILE_KEYS: &[&str] = &[FileKey::SectionImage.name(), FileKey::WeightImage.name()];
+
+/// A key of [`FILE_KEYS`]: the only way to ask for a file to be read.
+#[derive(Clone, Copy)]
+pub(crate) enum FileKey {
+    /// A sweep's cross-section drawn as an image.
+    SectionImage,
+    /// A polygon's weights drawn as an image.
+    WeightImage,
+}
+
+impl FileKey {
+    pub(crate) const fn name(self) -> &'static str {
+        match self {
+            FileKey::SectionImage => "section_image",
+            FileKey::WeightImage => "weight_image",
+        }
+    }
+}
+
 /// Reads the PNG `name` (relative to `base`, the scene's folder) for the key `key`,
 /// checking its file size and dimensions (2 ..= `max_side` on a side) before decoding;
 /// errors at `offset`, naming the key and the file.
@@ -94,9 +117,10 @@ pub(crate) fn read_png(
     base: Option<&Path>,
     at: At,
     offset: usize,
-    key: &str,
+    key: FileKey,
     max_side: usize,
 ) -> Result<Png, SceneError> {
+    let key = key.name();
     let path = match base {
         Some(dir) if Path::new(name).is_relative() => dir.join(name),
         _ => Path::new(name).to_path_buf(),
@@ -159,7 +183,7 @@ fn load_section(
     at: At,
     offset: usize,
 ) -> Result<SectionImage, SceneError> {
-    let png = read_png(name, base, at, offset, "section_image", MAX_SECTION_PIXELS)?;
+    let png = read_png(name, base, at, offset, FileKey::SectionImage, MAX_SECTION_PIXELS)?;
     // A pixel is inside when it is at least half light (and at least half opaque).
     let inside: Vec<bool> =
         png.pixels.iter().map(|&(light, alpha)| light >= 127.5 && alpha >= 127.5).collect();

@@ -148,58 +148,120 @@ pub enum Outcome {
     },
 }
 
-/// Starts the meshing thread; `publish` is called with each result and decides (under the
+/// The two meshing threads, one per level: the coarse surface of a new edit never waits
+/// behind the full level of an older one, whose cancellation may take a moment to be seen.
+pub struct Mesher {
+    coarse: Sender<Arc<Job>>,
+    full: Sender<Arc<Job>>,
+}
+
+impl Mesher {
+    /// Hands `job` to both levels (a closed channel means the studio is shutting down).
+    pub fn submit(&self, job: Job) {
+        let job = Arc::new(job);
+        let _ = self.coarse.send(job.clone());
+        let _ = self.full.send(job);
+    }
+}
+
+/// Starts the meshing threads; `publish` is called with each result and decides (under the
 /// studio's lock) whether it is still current.
 pub fn start(
     coarse_factor: f64,
-    publish: impl Fn(Outcome) + Send + 'static,
-) -> std::io::Result<Sender<Job>> {
-    let (tx, rx) = channel::<Job>();
-    std::thread::Builder::new()
-        .name("skelform-studio-mesher".into())
-        .spawn(move || worker(rx, coarse_factor, publish))?;
-    Ok(tx)
+    publish: impl Fn(Outcome) + Send + Sync + 'static,
+) -> std::io::Result<Mesher> {
+    let publish = Arc::new(publish);
+    let spawn = |level: Level| -> std::io::Result<Sender<Arc<Job>>> {
+        let (tx, rx) = channel::<Arc<Job>>();
+        // Each level has a rayon pool of its own: in the global pool the coarse run's tasks
+        // would queue behind the full run's.
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(std::thread::available_parallelism().map_or(2, |n| n.get()))
+            .thread_name(move |i| format!("skelform-studio-{}-{i}", level.name()))
+            .start_handler(move |_| {
+                if level == Level::Full {
+                    yield_to_the_coarse_level();
+                }
+            })
+            .build()
+            .map_err(std::io::Error::other)?;
+        let publish = publish.clone();
+        std::thread::Builder::new()
+            .name(format!("skelform-studio-{}", level.name()))
+            .spawn(move || worker(rx, level, coarse_factor, &pool, &*publish))?;
+        Ok(tx)
+    };
+    Ok(Mesher { coarse: spawn(Level::Coarse)?, full: spawn(Level::Full)? })
 }
 
-fn worker(rx: Receiver<Job>, coarse_factor: f64, publish: impl Fn(Outcome)) {
-    // One incremental re-mesher per level: each keeps the lattice of its own resolution.
-    let mut live = [skelform::Live::default(), skelform::Live::default()];
+/// The full level is the dissertation's refinement in idle time: its threads run at a lower
+/// priority, so that while both levels are at work (the first moments after every edit of
+/// a drag) the cores go to the coarse surface the designer is waiting for. Alone, the full
+/// level still has every core.
+#[cfg(target_os = "linux")]
+fn yield_to_the_coarse_level() {
+    // SAFETY: setpriority only reads its integer arguments. On Linux, PRIO_PROCESS with id 0
+    // sets the nice value of the calling thread alone. A refusal leaves the normal priority,
+    // which is only slower, so its result is not needed.
+    unsafe {
+        libc::setpriority(libc::PRIO_PROCESS, 0, 10);
+    }
+}
+
+#[cfg(not(target_os = "linux"))]
+fn yield_to_the_coarse_level() {}
+
+impl Level {
+    fn name(self) -> &'static str {
+        match self {
+            Level::Coarse => "coarse",
+            Level::Full => "full",
+        }
+    }
+}
+
+fn worker(
+    rx: Receiver<Arc<Job>>,
+    level: Level,
+    coarse_factor: f64,
+    pool: &rayon::ThreadPool,
+    publish: &(impl Fn(Outcome) + ?Sized),
+) {
+    // The incremental re-mesher of this level: it keeps the lattice of its own resolution.
+    let mut live = skelform::Live::default();
     while let Ok(mut job) = rx.recv() {
         // Only the newest of the jobs that queued up meanwhile is worth doing.
         while let Ok(newer) = rx.try_recv() {
             job = newer;
         }
-        for level in [Level::Coarse, Level::Full] {
-            if job.control.is_cancelled() {
-                break;
-            }
-            let start = Instant::now();
-            let waited_ms = start.duration_since(job.queued).as_secs_f64() * 1e3;
-            let result = mesh_scene(
-                &mut live[level as usize],
+        if job.control.is_cancelled() {
+            continue;
+        }
+        let start = Instant::now();
+        let waited_ms = start.duration_since(job.queued).as_secs_f64() * 1e3;
+        let result = pool.install(|| {
+            mesh_scene(
+                &mut live,
                 &job.scene,
                 job.pose.as_deref(),
                 level,
                 coarse_factor,
                 &job.control,
-            );
-            let ms = start.elapsed().as_secs_f64() * 1e3;
-            match result {
-                Ok(meshed) => publish(Outcome::Mesh {
-                    revision: job.revision,
-                    level,
-                    phases_ms: phases(&meshed.stats),
-                    mesh: Arc::new(meshed.mesh),
-                    ms,
-                    waited_ms,
-                    run: live[level as usize].last_run().cloned(),
-                }),
-                Err(e) if e.is_cancelled() => break,
-                Err(e) => {
-                    publish(Outcome::Failed { revision: job.revision, message: e.to_string() });
-                    break;
-                }
-            }
+            )
+        });
+        let ms = start.elapsed().as_secs_f64() * 1e3;
+        match result {
+            Ok(meshed) => publish(Outcome::Mesh {
+                revision: job.revision,
+                level,
+                phases_ms: phases(&meshed.stats),
+                mesh: Arc::new(meshed.mesh),
+                ms,
+                waited_ms,
+                run: live.last_run().cloned(),
+            }),
+            Err(e) if e.is_cancelled() => {}
+            Err(e) => publish(Outcome::Failed { revision: job.revision, message: e.to_string() }),
         }
     }
 }

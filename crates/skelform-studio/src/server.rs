@@ -3,7 +3,6 @@
 
 use std::net::SocketAddr;
 use std::path::Path;
-use std::sync::mpsc::Sender;
 use std::sync::{Arc, Mutex, MutexGuard};
 
 use axum::Router;
@@ -22,7 +21,7 @@ use tokio::sync::broadcast;
 use toml_edit::DocumentMut;
 
 use crate::edit::{self, Step};
-use crate::mesher::{self, Job, Level, Outcome};
+use crate::mesher::{self, Job, Level, Mesher, Outcome};
 use crate::slice::{self, SliceSpec};
 use crate::{Place, Settings, Shared, StudioError};
 
@@ -90,6 +89,12 @@ struct Doc {
     frame: Option<Bytes>,
     /// The cancellation flag of the work in flight.
     control: Control,
+    /// The revision and level of the surface last published: the two levels run side by
+    /// side, and a coarse surface must not replace its revision's full one.
+    shown: Option<(u64, Level)>,
+    /// The newest revision whose meshing failed: both levels report a failure, the page
+    /// needs it once.
+    failed: Option<u64>,
 }
 
 /// What every request handler shares.
@@ -100,7 +105,7 @@ pub struct State {
     token: String,
     origins: Vec<String>,
     doc: Mutex<Doc>,
-    jobs: Mutex<Option<Sender<Job>>>,
+    jobs: Mutex<Option<Mesher>>,
     out: broadcast::Sender<Out>,
 }
 
@@ -165,6 +170,8 @@ impl Studio {
                 full: None,
                 frame: None,
                 control: Control::default(),
+                shown: None,
+                failed: None,
             }),
             jobs: Mutex::new(None),
             out,
@@ -253,20 +260,17 @@ fn check(
     Ok(scene)
 }
 
-/// Refuses a file the scene names (a sweep's `section_image`) unless it lies in `dir`: a
-/// plain relative path without `..`, and, when it exists, not a link to elsewhere. Text that
-/// is not TOML passes here and is refused by the parse with its position.
+/// Refuses a file the scene names (every key of [`skelform::FILE_KEYS`]: a sweep's
+/// `section_image`, a polygon's `weight_image`, wherever it stands in the document) unless
+/// it lies in `dir`: a plain relative path without `..`, and, when it exists, not a link to
+/// elsewhere. Text that is not TOML passes here and is refused by the parse with its
+/// position.
 fn confine(text: &str, dir: &Path) -> Result<(), String> {
     let Ok(doc) = text.parse::<DocumentMut>() else { return Ok(()) };
-    let sweeps = doc
-        .get("skeleton")
-        .and_then(|s| s.get("sweep"))
-        .and_then(|s| s.as_array_of_tables())
-        .into_iter()
-        .flat_map(|a| a.iter());
-    for sweep in sweeps {
-        let Some(name) = sweep.get("section_image").and_then(|v| v.as_str()) else { continue };
-        let path = Path::new(name);
+    let mut named = Vec::new();
+    files_in_table(doc.as_table(), &mut named);
+    for (key, name) in named {
+        let path = Path::new(&name);
         let plain = path
             .components()
             .all(|c| matches!(c, std::path::Component::Normal(_) | std::path::Component::CurDir));
@@ -277,11 +281,35 @@ fn confine(text: &str, dir: &Path) -> Result<(), String> {
             };
         if !inside {
             return Err(format!(
-                "section_image '{name}': the studio reads only files in the scene's folder"
+                "{key} '{name}': the studio reads only files in the scene's folder"
             ));
         }
     }
     Ok(())
+}
+
+/// The file keys and their values anywhere in `table`, in document order. A value that is
+/// not a string is left to the parse, which refuses it with its position.
+fn files_in_table<'a>(table: &'a toml_edit::Table, out: &mut Vec<(&'a str, String)>) {
+    for (key, item) in table.iter() {
+        match item {
+            toml_edit::Item::Value(v) => files_in_value(key, v, out),
+            toml_edit::Item::Table(t) => files_in_table(t, out),
+            toml_edit::Item::ArrayOfTables(a) => a.iter().for_each(|t| files_in_table(t, out)),
+            toml_edit::Item::None => {}
+        }
+    }
+}
+
+fn files_in_value<'a>(key: &'a str, v: &'a toml_edit::Value, out: &mut Vec<(&'a str, String)>) {
+    match v {
+        toml_edit::Value::String(s) if skelform::FILE_KEYS.contains(&key) => {
+            out.push((key, s.value().clone()));
+        }
+        toml_edit::Value::InlineTable(t) => t.iter().for_each(|(k, v)| files_in_value(k, v, out)),
+        toml_edit::Value::Array(a) => a.iter().for_each(|v| files_in_value(key, v, out)),
+        _ => {}
+    }
 }
 
 /// Constant-time comparison, so that the token cannot be guessed a byte at a time.
@@ -504,8 +532,8 @@ impl State {
             control: g.control.clone(),
             queued: std::time::Instant::now(),
         };
-        if let Some(tx) = lock(&self.jobs).as_ref() {
-            let _ = tx.send(job);
+        if let Some(mesher) = lock(&self.jobs).as_ref() {
+            mesher.submit(job);
         }
     }
 
@@ -515,9 +543,13 @@ impl State {
         let mut g = lock(&self.doc);
         match outcome {
             Outcome::Mesh { revision, level, mesh, ms, waited_ms, run, phases_ms } => {
-                if revision != g.revision {
+                // A coarse surface that comes after its revision's full one is not shown.
+                if revision != g.revision
+                    || (level == Level::Coarse && g.shown == Some((revision, Level::Full)))
+                {
                     return;
                 }
+                g.shown = Some((revision, level));
                 let frame = Bytes::from(mesher::encode(revision, level, &mesh));
                 if level == Level::Full {
                     g.full = Some(mesh.clone());
@@ -539,7 +571,8 @@ impl State {
                 ));
             }
             Outcome::Failed { revision, message } => {
-                if revision == g.revision {
+                if revision == g.revision && g.failed != Some(revision) {
+                    g.failed = Some(revision);
                     self.broadcast(Out::Text(
                         json!({"type": "error", "revision": revision, "message": message})
                             .to_string(),
@@ -722,8 +755,10 @@ impl State {
     /// After the document or the pose changed: a new revision, its state, and meshing.
     fn changed(&self, g: &mut MutexGuard<'_, Doc>) {
         g.revision += 1;
-        self.broadcast(Out::Text(self.state_message(g)));
+        // Meshing starts before the page's state is built: the state goes out first all the
+        // same, since a surface is published under the lock held here.
         self.submit(g);
+        self.broadcast(Out::Text(self.state_message(g)));
         self.send_slice(g);
     }
 

@@ -546,6 +546,43 @@ async fn section_images_come_from_the_scenes_folder_only() {
     }
 }
 
+/// A polygon's weight image is a file the scene reads too: one outside the scene's folder is
+/// refused as an edit and when the scene is opened, before anything is read.
+#[tokio::test]
+async fn weight_images_come_from_the_scenes_folder_only() {
+    let polygon =
+        "\n[[skeleton.polygon]]\nvertices = [[-0.5, -0.2, 0], [0.5, -0.2, 0], [0, 0.5, 0]]\n";
+    let r = start_with(&(SCENE.replace("RES", "24") + polygon)).await;
+    let mut ws = connect(&r).await;
+    let first = next_state(&mut ws).await;
+    assert!(first["error"].is_null(), "{first}");
+    let outside = r.file.parent().unwrap().parent().unwrap().join("outside.png");
+    let outside = outside.to_str().unwrap();
+    for (i, bad) in ["../outside.png", outside, "/etc/passwd"].into_iter().enumerate() {
+        let seq = i as u64 + 1;
+        let path = json!(["skeleton", "polygon", 0, "weight_image"]);
+        send(&mut ws, json!({"seq": seq, "op": "set", "path": path, "value": bad})).await;
+        let reply = next_state(&mut ws).await;
+        assert_eq!(reply["type"], "error", "{bad} was accepted: {reply}");
+        let message = reply["message"].as_str().unwrap();
+        assert!(
+            message.contains("weight_image")
+                && message.contains("only files in the scene's folder"),
+            "{bad}: {message}"
+        );
+    }
+    let saved = std::fs::read_to_string(&r.file).unwrap();
+    assert!(!saved.contains("weight_image"), "the file was not changed");
+
+    let opened =
+        start_with(&(SCENE.replace("RES", "24") + polygon + "weight_image = \"../outside.png\"\n"))
+            .await;
+    let mut ws = connect(&opened).await;
+    let first = next_state(&mut ws).await;
+    let error = first["error"].as_str().unwrap_or_default();
+    assert!(error.contains("only files in the scene's folder"), "{first}");
+}
+
 /// Reads messages until the `meshed` report of the full level of `revision` (or newer);
 /// returns every `meshed` report seen on the way.
 async fn until_meshed(ws: &mut Ws, revision: u64) -> Vec<Value> {

@@ -93,7 +93,7 @@ pub use skelform_mesh::{Mesh, RegionPair, RegionTriple};
 pub use skelform_polygonize::grid::Streaming;
 pub use skelform_polygonize::refine::RootMethod;
 pub use skelform_polygonize::{LatticeOptions, MAX_THREADS, MemoryNeed, Resolution, Threads};
-pub use skelform_scene::{LoadOptions, Method, PoseBlend, SceneError};
+pub use skelform_scene::{FILE_KEYS, LoadOptions, Method, PoseBlend, SceneError};
 
 /// The scene crate itself: the schema, its checked description and the builders of fields
 /// from it.
