@@ -51,8 +51,8 @@ use skelform_mesh::{CurveEdge, Mesh};
 
 use super::config::{self, ThesisClass};
 use super::{
-    Error, Healing, Options, SELF_INTERSECTION, Stats, critical_vertices, gradients,
-    memory_need, report,
+    Error, Healing, Options, SELF_INTERSECTION, Stats, critical_vertices, gradients, memory_need,
+    report,
 };
 use crate::grid::cube::{CORNERS, EDGES, FACES, edge_axis, edge_between, other_axes};
 use crate::grid::table::{ambiguous_faces, loops_for};
@@ -303,8 +303,7 @@ pub(super) fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, 
         let center = if class == ThesisClass::Thirteen {
             let pf = |f: usize| positions[face_point[f] as usize];
             let segs = [(pf(0), pf(1)), (pf(2), pf(3)), (pf(4), pf(5))];
-            let x = nearest_to_lines(&segs)
-                .unwrap_or_else(|| (0..6).map(pf).sum::<DVec3>() / 6.0);
+            let x = nearest_to_lines(&segs).unwrap_or_else(|| (0..6).map(pf).sum::<DVec3>() / 6.0);
             let known = face_point.iter().chain(ids.iter()).filter(|&&v| v != u32::MAX);
             match known.copied().find(|&v| (positions[v as usize] - x).length() <= tol) {
                 Some(v) => Some(v),
