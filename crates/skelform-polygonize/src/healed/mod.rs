@@ -39,6 +39,17 @@
 //!    its own normal; with it off the sheets share the vertex, which then carries one
 //!    sheet's normal.
 //!
+//! # The thesis's own healing
+//!
+//! [`Healing::Thesis`] (`healing = "thesis"` in a scene) runs the thesis's algorithm as it
+//! stands instead: standard marching cubes, then each critical cube of class 10, 12 or 13
+//! replaced by its fixed pattern (figs. 4.5, 4.7, 4.8), nothing traced or checked. On the
+//! thesis's lattice it reproduces every count of its table (Xano, plane-and-ball, Zeppelin,
+//! Diabolo). It is not the default: a crossing heals only where the faces of class
+//! 10/12/13 cubes show its four crossings, and the patterns need not meet their
+//! neighbours, so a crossing off the lattice's symmetry keeps marching cubes' joined sheets
+//! with holes round the few patterns (see `thesis`'s module text and docs/SCENES.md).
+//!
 //! # Beyond the thesis
 //!
 //! - **More than one cell can resolve.** The thesis heals cube by cube with patterns for one
