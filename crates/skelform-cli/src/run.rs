@@ -46,7 +46,8 @@ pub enum MethodArg {
     /// walls or tubes thinner than a cell's diagonal that the cube method keeps; the cubes
     /// where the two join corners differently are counted and reported as a warning.
     Tetra,
-    /// Marching cubes healed along self-intersections.
+    /// Marching cubes healed along self-intersections (the scene key `healing = "thesis"`
+    /// gives the thesis's own per-cube healing instead of the default zone healing).
     Healed,
     /// Labelled surfaces between regions of space, meeting along curves (ch. 4).
     Nonmanifold,

@@ -401,11 +401,20 @@ impl fmt::Display for healed::Stats {
             c.class13,
             c.other
         )?;
-        writeln!(
-            f,
-            "search        {} thesis face points (class 10/12/13 faces), {} seeds tried",
-            self.face_points, self.seeds_tried
-        )?;
+        if self.mode == healed::Healing::Thesis {
+            writeln!(
+                f,
+                "healing       thesis (per cube): {} critical class 10/12/13 cubes replaced, {} face points, \
+                 {} coincident-vertex triangles skipped",
+                self.healed_cubes, self.face_points, self.skipped_triangles
+            )?;
+        } else {
+            writeln!(
+                f,
+                "search        {} thesis face points (class 10/12/13 faces), {} seeds tried",
+                self.face_points, self.seeds_tried
+            )?;
+        }
         // The thesis's table: "triangles by standard MC: …; by HMC: … (correct triangles by
         // MC …, triangles used for healing the critical cubes …)".
         writeln!(
@@ -413,6 +422,25 @@ impl fmt::Display for healed::Stats {
             "triangles     standard MC {}; HMC {} (kept MC {}, healing {})",
             self.mc_triangles, self.triangles, self.kept_mc_triangles, self.healing_triangles
         )?;
+        if self.mode == healed::Healing::Thesis {
+            writeln!(
+                f,
+                "spines        {} self-intersection segments (class 10/12: one per cube, class 13: six)",
+                self.curve_edges
+            )?;
+            writeln!(f, "vertices      {}", self.vertices)?;
+            writeln!(f, "triangles     {}", self.triangles)?;
+            return writeln!(
+                f,
+                "time          sampling {:.3}s, extraction {:.3}s, refinement {:.3}s, critical test {:.3}s, healing {:.3}s, normals {:.3}s",
+                secs(self.sampling),
+                secs(self.extraction),
+                secs(self.refinement),
+                secs(self.search),
+                secs(self.healing),
+                secs(self.normals),
+            );
+        }
         let length: f64 = self.curves.iter().map(|c| c.length).sum::<f64>() + 0.0;
         writeln!(
             f,

@@ -13,7 +13,8 @@ use skelform_mesh::Mesh;
 use skelform_mesh::check::{check, weld};
 use skelform_polygonize::grid;
 use skelform_polygonize::healed::{
-    Epsilon, Options, PointKind, SELF_INTERSECTION, Stats, config, polygonize,
+    CriticalCubes, Epsilon, Healing, Options, PointKind, SELF_INTERSECTION, Stats, config,
+    polygonize,
 };
 use skelform_polygonize::{Error, LatticeOptions, Resolution};
 
@@ -321,7 +322,8 @@ struct Thesis {
 
 /// The thesis's lattice: cubes of `cell` from −2 while they fit below 2 (26 cubes of 0.15:
 /// with it our plain marching cubes gives exactly its MC counts for Xano, plane-and-ball and
-/// Zeppelin; 36 cubes of 0.11 for Diabolo, whose MC count no lattice we tried reproduces).
+/// Zeppelin; 36 cubes of 0.11 for Diabolo, whose MC count our MC33 tunnels change and the
+/// thesis's standard marching cubes, `Healing::Thesis`, gives exactly).
 const THESIS: [Thesis; 4] = [
     Thesis {
         name: "Xano",
@@ -427,6 +429,110 @@ fn thesis_surfaces_beside_its_table() {
     }
     // Xano reproduces the thesis exactly: 26 cubes along each axis, 75 of class 10 healed
     // with 8 triangles each and the class-13 cube of the triple point with 24.
+}
+
+/// The thesis's own healing (`Healing::Thesis`) on its four surfaces: every count of its
+/// table exactly, from its standard marching cubes (MC), the triangles kept outside the
+/// healed cubes, the patterns' triangles (8 per class 10 or 12 cube, 24 per class 13 cube),
+/// to the total. Its critical test is `|f_x| + |f_y| + |f_z| < 0.2`.
+#[test]
+fn thesis_healing_reproduces_its_table_exactly() {
+    // Healed cubes per surface by class (10, 12, 13), which the counts follow from.
+    let classes = [(75, 0, 1), (24, 28, 0), (50, 0, 1), (103, 20, 1)];
+    for (t, &(c10, c12, c13)) in THESIS.iter().zip(&classes) {
+        let field = f(t.formula);
+        let domain = Aabb::new(DVec3::splat(-2.0), DVec3::splat(t.max));
+        let o = Options {
+            healing: Healing::Thesis,
+            epsilon: Epsilon::Absolute(0.2),
+            ..Options::default()
+        };
+        let (m, s) = heal_with(&field, domain, Resolution::Cell(t.cell), o);
+        println!(
+            "{:<15} MC {} ({}), kept {} ({}), healing {} ({}), HMC {} ({})",
+            t.name,
+            s.mc_triangles,
+            t.mc,
+            s.kept_mc_triangles,
+            t.kept,
+            s.healing_triangles,
+            t.healing,
+            s.triangles,
+            t.kept + t.healing
+        );
+        assert_eq!(s.mode, Healing::Thesis);
+        assert_eq!(
+            (s.mc_triangles, s.kept_mc_triangles, s.healing_triangles, s.triangles),
+            (t.mc, t.kept, t.healing, t.kept + t.healing),
+            "{}",
+            t.name
+        );
+        assert_eq!(m.triangles.len(), s.triangles);
+        let cc = s.critical_cubes;
+        assert_eq!((cc.class10, cc.class12, cc.class13), (c10, c12, c13), "{}", t.name);
+        assert_eq!(s.healed_cubes, c10 + c12 + c13);
+        assert_eq!(s.mc_triangles - s.kept_mc_triangles, 4 * s.healed_cubes, "{}", t.name);
+        assert_eq!(s.skipped_triangles, 0);
+        // One spine per class 10/12 cube, six per class 13 cube, each an edge of four
+        // triangles (two sheets crossing) where the neighbouring cubes are healed too.
+        assert_eq!(s.curve_edges, c10 + c12 + 6 * c13, "{}", t.name);
+        let deg = edge_degrees(&m);
+        for c in &m.curves {
+            let key = (c.v[0].min(c.v[1]), c.v[0].max(c.v[1]));
+            assert_eq!(deg.get(&key), Some(&4), "{}: spine {key:?}", t.name);
+        }
+        assert!(m.triangles.iter().all(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2]));
+    }
+}
+
+/// Why the zone healing is the default: on two spheres crossing off the lattice's axes the
+/// thesis's patterns heal only the few cubes whose faces show the crossing, and do not meet
+/// the cubes beside them (open edges inside the box), while the zone healing closes the
+/// whole circle. Each thesis pattern is still whole: its spine has its four triangles.
+#[test]
+fn thesis_healing_leaves_holes_on_a_generic_crossing_where_zone_healing_does_not() {
+    let field = f("(x^2 + y^2 + z^2 - 1)*((x - 0.7)^2 + y^2 + z^2 - 0.5)");
+    let domain = Aabb::cube(1.6);
+    let res = Resolution::Samples(40);
+    let (bbox, h) = lattice_box(domain, res);
+    let o =
+        Options { healing: Healing::Thesis, epsilon: Epsilon::Absolute(0.2), ..Options::default() };
+    let (t, ts) = heal_with(&field, domain, res, o);
+    let (z, zs) = heal(&field, domain, res);
+    assert_eq!(ts.triangles, ts.kept_mc_triangles + ts.healing_triangles);
+    assert!(ts.healed_cubes > 0 && ts.curve_edges > 0);
+    let deg = edge_degrees(&t);
+    assert!(
+        t.curves.iter().all(|c| deg.get(&(c.v[0].min(c.v[1]), c.v[0].max(c.v[1]))) == Some(&4))
+    );
+    let (thesis_open, zone_open) = (boundary_inside(&t, &bbox, h), boundary_inside(&z, &bbox, h));
+    println!(
+        "thesis: {} curve edges, {thesis_open} open edges; zone: {} curve edges, {zone_open}",
+        ts.curve_edges, zs.curve_edges
+    );
+    assert!(thesis_open > 0);
+    assert_eq!(zone_open, 0);
+    assert!(zs.curve_edges > 4 * ts.curve_edges);
+}
+
+/// The zone healing is the default, and the thesis's healing does not depend on it.
+#[test]
+fn thesis_healing_is_an_option() {
+    assert_eq!(Options::default().healing, Healing::Zone);
+    let field = f("x*y*z");
+    let domain = Aabb::new(DVec3::splat(-2.0), DVec3::splat(1.9));
+    let (_, zone) = heal(&field, domain, Resolution::Cell(0.15));
+    assert_eq!(zone.mode, Healing::Zone);
+    // Without a critical cube nothing is healed: plain marching cubes as the thesis's.
+    let o = Options {
+        healing: Healing::Thesis,
+        epsilon: Epsilon::Absolute(1e-9),
+        ..Options::default()
+    };
+    let (m, s) = heal_with(&field, domain, Resolution::Cell(0.15), o);
+    assert_eq!(s.critical_cubes, CriticalCubes::default());
+    assert_eq!((s.triangles, s.kept_mc_triangles, s.healing_triangles), (4054, 4054, 0));
+    assert!(m.curves.is_empty());
 }
 
 #[test]
@@ -615,6 +721,14 @@ fn output_does_not_depend_on_the_thread_count() {
     let one = run(1);
     assert_eq!(one, run(4));
     assert_eq!(one, run(7));
+    let thesis = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        let o = Options { healing: Healing::Thesis, ..Options::default() };
+        pool.install(|| heal_with(&field, domain, Resolution::Cell(0.11), o).0)
+    };
+    let one = thesis(1);
+    assert_eq!(one, thesis(4));
+    assert_eq!(one, thesis(7));
 }
 
 // ---------------------------------------------------------------------------------------
@@ -633,6 +747,12 @@ fn non_finite_values_do_not_break_it() {
     let (m, s) = heal(&nan, Aabb::cube(1.0), Resolution::Samples(10));
     assert!(m.triangles.is_empty());
     assert_eq!(s.non_finite_samples, 1000);
+    // The thesis's healing too.
+    let o = Options { healing: Healing::Thesis, ..Options::default() };
+    let (m, _) = heal_with(&field, Aabb::cube(1.0), Resolution::Samples(20), o.clone());
+    m.validate().unwrap();
+    let (m, _) = heal_with(&nan, Aabb::cube(1.0), Resolution::Samples(10), o);
+    assert!(m.triangles.is_empty());
     // Infinite gradients near a cusp.
     let cusp = f("abs(x)^0.5 * y");
     let (m, _) = heal(&cusp, Aabb::cube(1.0), Resolution::Samples(16));

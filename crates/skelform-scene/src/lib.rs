@@ -196,23 +196,34 @@ pub struct Continuation {
 }
 
 /// Settings that only the healed polygonizer reads (`[mesh]` keys `epsilon`,
-/// `critical_cells`, `split_sheets`).
+/// `critical_cells`, `split_sheets`, `healing`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Healed {
-    /// The thesis's absolute critical test, `|f_x| + |f_y| + |f_z| < epsilon`.
+    /// The thesis's absolute critical test, `|f_x| + |f_y| + |f_z| < epsilon` (with
+    /// `healing = "thesis"` the default, at the thesis's 0.2).
     pub epsilon: Option<f64>,
-    /// The scale-free critical test in cells (the default when neither is given).
+    /// The scale-free critical test in cells (the zone healing's default when neither is
+    /// given).
     pub critical_cells: Option<f64>,
     /// One copy of each self-intersection vertex per sheet, with that sheet's normal (the
     /// default, so that renders have no seam along the crossings); `false` shares the curve
     /// vertices between the sheets.
     pub split_sheets: bool,
+    /// Which healing: the zone healing (default) or the thesis's own per-cube patterns
+    /// (`healing = "thesis"`, which reproduces its triangle counts).
+    pub healing: skelform_polygonize::healed::Healing,
 }
 
 impl Default for Healed {
-    /// Per-sheet curve vertices, as the healed polygonizer's own default.
+    /// Per-sheet curve vertices and the zone healing, as the healed polygonizer's own
+    /// defaults.
     fn default() -> Self {
-        Self { epsilon: None, critical_cells: None, split_sheets: true }
+        Self {
+            epsilon: None,
+            critical_cells: None,
+            split_sheets: true,
+            healing: skelform_polygonize::healed::Healing::Zone,
+        }
     }
 }
 

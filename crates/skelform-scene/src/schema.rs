@@ -15,6 +15,7 @@ use toml::Spanned;
 
 use crate::diag::Source;
 use crate::{Continuation, Healed, Output, Scene, SceneError, iso_field};
+use skelform_polygonize::healed::Healing;
 use skelform_polygonize::refine::RootMethod;
 
 /// Which polygonizer a scene asks for.
@@ -142,6 +143,8 @@ struct MeshSection {
     critical_cells: Option<Spanned<f64>>,
     /// Healed: one copy of each self-intersection vertex per sheet, with that sheet's normal.
     split_sheets: Option<bool>,
+    /// Healed: "zone" (default) or "thesis" (the thesis's per-cube patterns).
+    healing: Option<Spanned<String>>,
 }
 
 #[derive(Deserialize)]
@@ -203,6 +206,7 @@ pub(crate) fn build(
         epsilon: None,
         critical_cells: None,
         split_sheets: None,
+        healing: None,
     });
     let resolution = match (&mesh.resolution, &mesh.cell) {
         (Some(_), Some(c)) => {
@@ -543,7 +547,20 @@ fn healed_settings(cx: &Source, mesh: &MeshSection) -> Result<Healed, SceneError
     if let (Some(_), Some(c)) = (&mesh.epsilon, &mesh.critical_cells) {
         return Err(cx.at(c.span().start, "give either 'epsilon' or 'critical_cells', not both"));
     }
-    Ok(Healed { epsilon, critical_cells, split_sheets: mesh.split_sheets.unwrap_or(true) })
+    let healing = match &mesh.healing {
+        None => Healing::Zone,
+        Some(h) => match h.get_ref().as_str() {
+            "zone" => Healing::Zone,
+            "thesis" => Healing::Thesis,
+            other => {
+                return Err(cx.at(
+                    h.span().start,
+                    format!("unknown healing '{other}'; expected zone or thesis"),
+                ));
+            }
+        },
+    };
+    Ok(Healed { epsilon, critical_cells, split_sheets: mesh.split_sheets.unwrap_or(true), healing })
 }
 
 fn parse_format(s: &str) -> Option<Format> {

@@ -152,6 +152,30 @@ fn region_ids_fit_the_files_they_are_written_to() {
     assert!(m.contains("from 0 to 2147483647 (got 2147483648)"), "{m}");
 }
 
+/// `[mesh] healing` picks the zone healing (default) or the thesis's own; anything else is
+/// an error at the value, and the thesis's healing takes the thesis's critical test unless
+/// the scene gives one.
+#[test]
+fn healed_healing_is_zone_or_thesis() {
+    use skelform_polygonize::healed::Healing;
+    let with = |v: &str| {
+        format!("{HEAD}[mesh]\nmethod = \"healed\"\nhealing = {v}\n[field]\nformula = \"x*y*z\"\n")
+    };
+    let s = Scene::parse(&with("\"thesis\""), "s.toml").unwrap();
+    assert_eq!(s.healed.healing, Healing::Thesis);
+    assert_eq!(s.healed.epsilon, None);
+    let s = Scene::parse(&with("\"zone\""), "s.toml").unwrap();
+    assert_eq!(s.healed.healing, Healing::Zone);
+    assert_eq!(skelform_scene::Healed::default().healing, Healing::Zone);
+    let line = HEAD.lines().count() + 3;
+    let (l, c, m) = err(&with("\"nguyen\""));
+    assert_eq!((l, c), (line, 11), "{m}");
+    assert!(m.contains("unknown healing 'nguyen'; expected zone or thesis"), "{m}");
+    let (l, c, m) = err(&with("2"));
+    assert_eq!(l, line, "{m}");
+    assert!(c >= 11, "{m}");
+}
+
 /// Healed meshes give each sheet its own curve vertices (and normals) unless the scene asks
 /// for shared ones; a scene built in code has the same default as one read from a file.
 #[test]

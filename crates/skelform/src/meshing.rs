@@ -230,12 +230,15 @@ impl Scene {
                 let h = &self.healed;
                 let options = healed::Options {
                     lattice,
-                    epsilon: match (h.epsilon, h.critical_cells) {
-                        (Some(e), _) => healed::Epsilon::Absolute(e),
-                        (None, Some(c)) => healed::Epsilon::Cells(c),
-                        (None, None) => healed::Options::default().epsilon,
+                    epsilon: match (h.epsilon, h.critical_cells, h.healing) {
+                        (Some(e), _, _) => healed::Epsilon::Absolute(e),
+                        (None, Some(c), _) => healed::Epsilon::Cells(c),
+                        // The thesis's own test and tolerance (its fig. 4.3).
+                        (None, None, healed::Healing::Thesis) => healed::Epsilon::Absolute(0.2),
+                        (None, None, healed::Healing::Zone) => healed::Options::default().epsilon,
                     },
                     split_sheets: h.split_sheets,
+                    healing: h.healing,
                     ..healed::Options::default()
                 };
                 Plan::Healed(options)

@@ -39,6 +39,17 @@
 //!    its own normal; with it off the sheets share the vertex, which then carries one
 //!    sheet's normal.
 //!
+//! # The thesis's own healing
+//!
+//! [`Healing::Thesis`] (`healing = "thesis"` in a scene) runs the thesis's algorithm as it
+//! stands instead: standard marching cubes, then each critical cube of class 10, 12 or 13
+//! replaced by its fixed pattern (figs. 4.5, 4.7, 4.8), nothing traced or checked. On the
+//! thesis's lattice it reproduces every count of its table (Xano, plane-and-ball, Zeppelin,
+//! Diabolo). It is not the default: a crossing heals only where the faces of class
+//! 10/12/13 cubes show its four crossings, and the patterns need not meet their
+//! neighbours, so a crossing off the lattice's symmetry keeps marching cubes' joined sheets
+//! with holes round the few patterns (see `thesis`'s module text and docs/SCENES.md).
+//!
 //! # Beyond the thesis
 //!
 //! - **More than one cell can resolve.** The thesis heals cube by cube with patterns for one
@@ -91,6 +102,7 @@
 pub mod config;
 mod local;
 mod network;
+mod thesis;
 mod trace;
 mod zone;
 
@@ -132,6 +144,25 @@ pub enum Epsilon {
     Cells(f64),
 }
 
+/// Which healing replaces the marching-cubes triangles round self-intersections.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "lowercase"))]
+pub enum Healing {
+    /// The default: the self-intersection curves are found and traced, and the cubes round
+    /// them are re-triangulated as regions that grow until marching cubes is right on their
+    /// boundary, so the healed mesh has no holes that marching cubes would not have.
+    #[default]
+    Zone,
+    /// The thesis's own algorithm (§4.3), cube by cube: standard marching cubes, then every
+    /// critical cube of class 10, 12 or 13 replaced by its fixed pattern (figs. 4.5, 4.7,
+    /// 4.8). Reproduces the thesis's triangle counts; where a crossing does not show its
+    /// four crossings on the faces of class 10/12/13 cubes (most crossings off the
+    /// lattice's symmetry) the mesh has holes there. [`Options::epsilon`] is its critical
+    /// test (the thesis's: `Epsilon::Absolute(0.2)`).
+    Thesis,
+}
+
 /// Settings of the healed polygonizer.
 #[derive(Clone, Debug)]
 pub struct Options {
@@ -153,11 +184,14 @@ pub struct Options {
     /// Most cubes all healed regions together may have; beyond it nothing is healed (and the
     /// regions are reported).
     pub max_healed_cubes: usize,
+    /// Which healing: the zone healing (default) or the thesis's per-cube patterns.
+    pub healing: Healing,
 }
 
 impl Default for Options {
     fn default() -> Self {
         Self {
+            healing: Healing::Zone,
             lattice: LatticeOptions::default(),
             epsilon: Epsilon::Cells(2.0),
             split_sheets: true,
@@ -219,6 +253,8 @@ pub struct SingularLine {
 #[derive(Clone, Debug, Default, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct Stats {
+    /// Which healing made the mesh.
+    pub mode: Healing,
     /// Samples along x, y and z of the lattice that covered the domain.
     pub grid_dims: [usize; 3],
     /// Side of the lattice's cubic cells.
@@ -245,6 +281,9 @@ pub struct Stats {
     pub kept_mc_triangles: usize,
     /// Triangles made by healing.
     pub healing_triangles: usize,
+    /// Thesis healing: pattern triangles left out because two of their vertices are one
+    /// point (a self-intersection point on a cube edge, thesis fig. 4.8).
+    pub skipped_triangles: usize,
     /// Triangles in the healed mesh (the thesis's "triangles by HMC").
     pub triangles: usize,
     /// Vertices in the healed mesh.
@@ -370,6 +409,9 @@ pub fn memory_need(grid: &Grid) -> crate::MemoryNeed {
 /// [`polygonize`] on the current thread pool.
 fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats), Error> {
     check_options(options)?;
+    if options.healing == Healing::Thesis {
+        return thesis::polygonize(field, options);
+    }
     let lattice = &options.lattice;
     let control = &lattice.control;
     let grid = lattice.grid()?;
