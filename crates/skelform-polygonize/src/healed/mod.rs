@@ -911,7 +911,6 @@ fn split_sheets(
     positions: &mut Vec<DVec3>,
     normals: &mut Vec<DVec3>,
 ) {
-    // Each vertex's pieces: `node_pieces[start[v]..start[v] + count]`.
     let index: FxHashMap<(u32, Piece), usize> =
         node_pieces.iter().enumerate().map(|(k, &x)| (x, k)).collect();
     let mut count: FxHashMap<u32, usize> = FxHashMap::default();
@@ -943,18 +942,14 @@ fn split_sheets(
     }
     // A strip's key: its first piece in order (for pieces that are bands, the band).
     let strip: Vec<usize> = (0..node_pieces.len()).map(|k| root(&mut parent, k)).collect();
-    let groups = |f: &mut dyn FnMut(u32, &[(u32, Piece)], usize)| {
-        let mut i = 0;
-        while i < node_pieces.len() {
-            let v = node_pieces[i].0;
-            let mut j = i;
-            while j < node_pieces.len() && node_pieces[j].0 == v {
-                j += 1;
-            }
-            f(v, &node_pieces[i..j], i);
-            i = j;
+    // Each vertex with its pieces: `(v, first, end)`, `node_pieces[first..end]`.
+    let mut groups: Vec<(u32, usize, usize)> = Vec::new();
+    for (k, &(v, _)) in node_pieces.iter().enumerate() {
+        match groups.last_mut() {
+            Some(g) if g.0 == v => g.2 = k + 1,
+            _ => groups.push((v, k, k + 1)),
         }
-    };
+    }
     let plane = |v: u32, b: Piece| piece_plane.get(&(v, b)).copied().unwrap_or(DVec3::ZERO);
     let parallel = |v: u32, a: Piece, b: Piece| plane(v, a).dot(plane(v, b)).abs();
     const PAIRINGS: [[usize; 4]; 3] = [[0, 1, 2, 3], [0, 2, 1, 3], [0, 3, 1, 2]];
@@ -968,17 +963,19 @@ fn split_sheets(
     // Votes for pairs of strips.
     let mut votes: FxHashMap<(usize, usize), u32> = FxHashMap::default();
     let pair = |a: usize, b: usize| (a.min(b), a.max(b));
-    groups(&mut |v, pieces, first| {
+    for &(v, first, end) in &groups {
+        let pieces = &node_pieces[first..end];
         if pieces.len() == 4 {
             let p = local_best(v, pieces);
             let s = |k: usize| strip[first + p[k]];
             *votes.entry(pair(s(0), s(1))).or_insert(0) += 1;
             *votes.entry(pair(s(2), s(3))).or_insert(0) += 1;
         }
-    });
+    }
     // (vertex, piece) → the vertex id that piece uses.
     let mut use_id: FxHashMap<(u32, Piece), u32> = FxHashMap::default();
-    groups(&mut |v, pieces, first| {
+    for &(v, first, end) in &groups {
+        let pieces = &node_pieces[first..end];
         // The sheet of each piece.
         let sheet_of: Vec<usize> = if pieces.len() == 4 {
             let s = |k: usize| strip[first + k];
@@ -1036,7 +1033,7 @@ fn split_sheets(
             });
             use_id.insert((v, piece), id);
         }
-    });
+    }
     for (t, pieces) in triangles.iter_mut().zip(piece_of) {
         for (v, &piece) in t.iter_mut().zip(pieces) {
             if let Some(&id) = use_id.get(&(*v, piece)) {
