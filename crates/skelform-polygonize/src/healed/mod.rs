@@ -77,6 +77,9 @@
 //!   every boundary segment was explained; otherwise its marching-cubes triangles are kept
 //!   and it is reported in [`Stats::unresolved`]. So the mesh never has a hole that marching
 //!   cubes would not have (boundary edges only where the surface leaves the domain).
+//! - A crossing that ends in a pinch point (the Whitney umbrella, the cross-cap) is healed up
+//!   to it: the bands fold round the pinch point, which is one vertex of both sheets (they
+//!   become one there), while every curve vertex before it has one copy per sheet.
 //! - Self-intersection curves are in [`Mesh::curves`] with the label `RegionTriple([0, 0,
 //!   0])`: PLY writes them as the `edge` element, OBJ as `l` lines.
 //! - Bare lines and points (a handle, an isolated point) are reported in
