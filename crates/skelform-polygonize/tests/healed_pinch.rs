@@ -21,7 +21,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use glam::DVec3;
 use skelform_field::{Aabb, Field, FnField};
 use skelform_mesh::Mesh;
-use skelform_mesh::check::weld;
+use skelform_mesh::check::{check, weld};
 use skelform_polygonize::healed::{Options, Stats, polygonize};
 use skelform_polygonize::{LatticeOptions, Resolution};
 
@@ -141,6 +141,11 @@ fn violations(surface: Surface, samples: usize, offset: DVec3) -> Vec<String> {
     if d > 0 {
         out.push(format!("{d} duplicate faces"));
     }
+    // Folded edges are counted, not failed (see the survey).
+    let folded = check(w).folded_edges;
+    if folded > 0 {
+        println!("NOTE {surface:?} {samples} samples, offset {offset:?}: {folded} folded edges");
+    }
     let degree = edge_degrees(w);
     let curves: BTreeSet<(u32, u32)> =
         w.curves.iter().map(|c| (c.v[0].min(c.v[1]), c.v[0].max(c.v[1]))).collect();
@@ -205,6 +210,12 @@ fn pinch_sweep() {
     assert!(all.is_empty(), "{all:#?}");
 }
 
+/// Every resolution and offset of the survey; prints the failing cases, and as `NOTE`s the
+/// cases with folded edges (welded faces more than 175° apart). Those are not failures here:
+/// 1–4 per mesh in about half the cases, in the fans round the curve's nodes next to a pinch
+/// point (the sheets nearly flat together there, their trace in the lattice plane of the
+/// node), and the same before this sweep's fixes where those meshes healed (the Whitney
+/// umbrella at 61 samples, offset (0.77, 0.61, 0.09): the same four edges).
 #[test]
 #[ignore = "a survey: every resolution from 30 to 128 at four offsets; run by hand"]
 fn pinch_survey() {
