@@ -212,10 +212,11 @@ fn pinch_sweep() {
 
 /// Every resolution and offset of the survey; prints the failing cases, and as `NOTE`s the
 /// cases with folded edges (welded faces more than 175° apart). Those are not failures here:
-/// 1–4 per mesh in about half the cases, in the fans round the curve's nodes next to a pinch
-/// point (the sheets nearly flat together there, their trace in the lattice plane of the
-/// node), and the same before this sweep's fixes where those meshes healed (the Whitney
-/// umbrella at 61 samples, offset (0.77, 0.61, 0.09): the same four edges).
+/// 1–4 per mesh in 40 of the 108 cases of `pinch_sweep`, in the fans round the curve's nodes
+/// next to a pinch point (the sheets nearly flat together there, their trace in the lattice
+/// plane of the node), and the same before this sweep's fixes where those meshes healed (the
+/// Whitney umbrella at 61 samples, offset (0.77, 0.61, 0.09): the same four edges; at 84 and
+/// 123 samples and the turned umbrella at 48, the same counts).
 #[test]
 #[ignore = "a survey: every resolution from 30 to 128 at four offsets; run by hand"]
 fn pinch_survey() {
