@@ -88,6 +88,9 @@
 //!   every boundary segment was explained; otherwise its marching-cubes triangles are kept
 //!   and it is reported in [`Stats::unresolved`]. So the mesh never has a hole that marching
 //!   cubes would not have (boundary edges only where the surface leaves the domain).
+//! - A crossing that ends in a pinch point (the Whitney umbrella, the cross-cap) is healed up
+//!   to it: the bands fold round the pinch point, which is one vertex of both sheets (they
+//!   become one there), while every curve vertex before it has one copy per sheet.
 //! - Self-intersection curves are in [`Mesh::curves`] with the label `RegionTriple([0, 0,
 //!   0])`: PLY writes them as the `edge` element, OBJ as `l` lines.
 //! - Bare lines and points (a handle, an isolated point) are reported in
@@ -581,12 +584,14 @@ fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats)
     let mut normals_all: Vec<DVec3> = grads.iter().map(|g| g.normalize_or_zero()).collect();
     normals_all.resize(positions_all.len(), DVec3::ZERO);
     let mut probe = Probe::new(field, h);
-    // Per band, the normal at each curve vertex: the gradient just off the curve, into the band.
-    let mut band_normal: FxHashMap<(u32, u32), DVec3> = FxHashMap::default();
+    // The sheet pieces round each curve vertex (see `sheet_pieces`), and per piece the normal
+    // there: the gradient just off the curve, into the piece.
+    let piece_of = sheet_pieces(&healing.triangles, &healing.band_of, &healing.curve_edges, n_mc);
+    let mut piece_normal: FxHashMap<(u32, Piece), DVec3> = FxHashMap::default();
     for (k, tri) in healing.triangles.iter().enumerate() {
-        let band = healing.band_of[k];
         for (i, &v) in tri.iter().enumerate() {
-            if v < n_mc || band_normal.contains_key(&(v, band)) {
+            let key = (v, piece_of[k][i]);
+            if v < n_mc || piece_normal.contains_key(&key) {
                 continue;
             }
             let p = positions_all[v as usize];
@@ -597,35 +602,49 @@ fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats)
             let n = probe
                 .grad(p + dir * (1e-3 * h))
                 .map_or(DVec3::ZERO, |(_, g)| g.normalize_or_zero());
-            band_normal.insert((v, band), n);
+            piece_normal.insert(key, n);
         }
     }
-    // Per band, the plane of its triangles at each curve vertex (which bands are one sheet).
-    let mut band_plane: FxHashMap<(u32, u32), DVec3> = FxHashMap::default();
+    // Per piece, the plane of its triangles at each curve vertex (which pieces are one sheet).
+    let mut piece_plane: FxHashMap<(u32, Piece), DVec3> = FxHashMap::default();
     for (k, tri) in healing.triangles.iter().enumerate() {
         let q = tri.map(|v| positions_all[v as usize]);
         let n = (q[1] - q[0]).cross(q[2] - q[0]);
-        for &v in tri.iter().filter(|&&v| v >= n_mc) {
-            *band_plane.entry((v, healing.band_of[k])).or_insert(DVec3::ZERO) += n;
+        for (i, &v) in tri.iter().enumerate().filter(|(_, v)| **v >= n_mc) {
+            *piece_plane.entry((v, piece_of[k][i])).or_insert(DVec3::ZERO) += n;
         }
     }
-    for n in band_plane.values_mut() {
+    for n in piece_plane.values_mut() {
         *n = n.normalize_or_zero();
     }
-    let mut node_bands: Vec<(u32, u32)> = band_normal.keys().copied().collect();
-    node_bands.sort_unstable();
-    for &(v, band) in &node_bands {
-        if normals_all[v as usize] == DVec3::ZERO {
-            normals_all[v as usize] = band_normal[&(v, band)];
+    let mut node_pieces: Vec<(u32, Piece)> = piece_normal.keys().copied().collect();
+    node_pieces.sort_unstable();
+    for key in &node_pieces {
+        if normals_all[key.0 as usize] == DVec3::ZERO {
+            normals_all[key.0 as usize] = piece_normal[key];
         }
     }
+    // Curve vertices on one curve edge: pinch points and exits from the box.
+    let mut curve_degree: FxHashMap<u32, usize> = FxHashMap::default();
+    let distinct: FxHashSet<[u32; 2]> =
+        healing.curve_edges.iter().map(|&[a, b]| [a.min(b), a.max(b)]).collect();
+    for e in &distinct {
+        for &v in e {
+            *curve_degree.entry(v + n_mc).or_insert(0) += 1;
+        }
+    }
+    let curve_set: FxHashSet<[u32; 2]> = distinct.iter().map(|e| e.map(|v| v + n_mc)).collect();
+    let curve_ends: FxHashSet<u32> =
+        curve_degree.iter().filter(|x| *x.1 == 1).map(|x| *x.0).collect();
     if options.split_sheets {
         split_sheets(
             &mut triangles[first_heal..],
-            &healing.band_of,
-            &node_bands,
-            &band_normal,
-            &band_plane,
+            &piece_of,
+            &node_pieces,
+            &piece_normal,
+            &piece_plane,
+            &curve_set,
+            &curve_ends,
             &mut positions_all,
             &mut normals_all,
         );
@@ -904,59 +923,133 @@ fn scan_seeds(volume: &Volume) -> Vec<DVec3> {
     out.into_iter().map(|x| x.1).collect()
 }
 
-/// Gives each sheet at each curve vertex its own copy of the vertex: bands whose planes at
-/// the vertex are parallel are one sheet (its two halves across the curve).
+/// Gives each sheet at each curve vertex its own copy of the vertex: the sheet pieces round
+/// the vertex ([`sheet_pieces`]) whose planes there are parallel are one sheet (its two
+/// halves across the curve).
 ///
-/// The bands are told apart by `band_plane`, the (area-weighted) normal of each band's
-/// triangles at the vertex, not by the gradient normals (`band_normal`, what the copies get
+/// The pieces are told apart by `piece_plane`, the (area-weighted) normal of each piece's
+/// triangles at the vertex, not by the gradient normals (`piece_normal`, what the copies get
 /// for shading): the gradient is taken a thousandth of a cell off the curve towards the
-/// band's triangle, and where that direction leaves the sheet by a few degrees (a chord of a
+/// piece's triangle, and where that direction leaves the sheet by a few degrees (a chord of a
 /// curved sheet) the gradient of `f = a·b`, first-order small in both factors there, tilts
 /// by tens of degrees (the plane-and-ball at 32 samples: a sphere band's normal 50° off
-/// radial). Four bands (two sheets crossing) are paired as the one of the three pairings
+/// radial). Four pieces (two sheets crossing) are paired as the one of the three pairings
 /// whose pairs are most nearly parallel; a threshold alone split such a vertex three ways,
 /// and the copies then changed sheets along the curve (edges with three triangles, holes).
+///
+/// The pairing is made once per pair of strips, not per vertex: the pieces that follow each
+/// other along the curve (across its edges) form strips, each vertex votes for its best
+/// pairing, and every vertex takes the pairing of its strips with the most votes. Where the
+/// two sheets are nearly parallel (the cross-cap near its pinch point on the box) a vertex's
+/// own planes can pair them the other way, and the copies then changed sheets along the
+/// curve. The copy that keeps the vertex's id (the one the curve edges use) is the sheet of
+/// the strip first in order, the same one at both ends of every curve edge.
+#[allow(clippy::too_many_arguments)]
 fn split_sheets(
     triangles: &mut [[u32; 3]],
-    band_of: &[u32],
-    node_bands: &[(u32, u32)],
-    band_normal: &FxHashMap<(u32, u32), DVec3>,
-    band_plane: &FxHashMap<(u32, u32), DVec3>,
+    piece_of: &[[Piece; 3]],
+    node_pieces: &[(u32, Piece)],
+    piece_normal: &FxHashMap<(u32, Piece), DVec3>,
+    piece_plane: &FxHashMap<(u32, Piece), DVec3>,
+    curve: &FxHashSet<[u32; 2]>,
+    curve_ends: &FxHashSet<u32>,
     positions: &mut Vec<DVec3>,
     normals: &mut Vec<DVec3>,
 ) {
-    // (vertex, band) → the vertex id that band uses.
-    let mut use_id: FxHashMap<(u32, u32), u32> = FxHashMap::default();
-    let mut i = 0;
-    while i < node_bands.len() {
-        let v = node_bands[i].0;
-        let mut j = i;
-        while j < node_bands.len() && node_bands[j].0 == v {
-            j += 1;
+    let index: FxHashMap<(u32, Piece), usize> =
+        node_pieces.iter().enumerate().map(|(k, &x)| (x, k)).collect();
+    let mut count: FxHashMap<u32, usize> = FxHashMap::default();
+    for &(v, _) in node_pieces {
+        *count.entry(v).or_insert(0) += 1;
+    }
+    // Strips: pieces joined across curve edges between vertices where two sheets cross.
+    let mut parent: Vec<usize> = (0..node_pieces.len()).collect();
+    fn root(parent: &mut [usize], mut a: usize) -> usize {
+        while parent[a] != a {
+            parent[a] = parent[parent[a]];
+            a = parent[a];
         }
-        let bands: Vec<u32> = node_bands[i..j].iter().map(|x| x.1).collect();
-        let plane = |b: u32| band_plane.get(&(v, b)).copied().unwrap_or(DVec3::ZERO);
-        let parallel = |a: u32, b: u32| plane(a).dot(plane(b)).abs();
-        // The sheet of each band, numbered in order of first band.
-        let sheet_of: Vec<usize> = if bands.len() == 4 {
-            let pairings = [[0, 1, 2, 3], [0, 2, 1, 3], [0, 3, 1, 2]];
-            let score = |p: &[usize; 4]| {
-                parallel(bands[p[0]], bands[p[1]]) + parallel(bands[p[2]], bands[p[3]])
-            };
-            let best = pairings
+        a
+    }
+    let crossing = |v: u32| count.get(&v).copied().unwrap_or(0) >= 4;
+    for (t, pc) in triangles.iter().zip(piece_of) {
+        for i in 0..3 {
+            let (a, b) = (t[i], t[(i + 1) % 3]);
+            if !curve.contains(&[a.min(b), a.max(b)]) || !crossing(a) || !crossing(b) {
+                continue;
+            }
+            if let (Some(&x), Some(&y)) = (index.get(&(a, pc[i])), index.get(&(b, pc[(i + 1) % 3])))
+            {
+                let (rx, ry) = (root(&mut parent, x), root(&mut parent, y));
+                parent[rx.max(ry)] = rx.min(ry);
+            }
+        }
+    }
+    // A strip's key: its first piece in order (for pieces that are bands, the band).
+    let strip: Vec<usize> = (0..node_pieces.len()).map(|k| root(&mut parent, k)).collect();
+    // Each vertex with its pieces: `(v, first, end)`, `node_pieces[first..end]`.
+    let mut groups: Vec<(u32, usize, usize)> = Vec::new();
+    for (k, &(v, _)) in node_pieces.iter().enumerate() {
+        match groups.last_mut() {
+            Some(g) if g.0 == v => g.2 = k + 1,
+            _ => groups.push((v, k, k + 1)),
+        }
+    }
+    let plane = |v: u32, b: Piece| piece_plane.get(&(v, b)).copied().unwrap_or(DVec3::ZERO);
+    let parallel = |v: u32, a: Piece, b: Piece| plane(v, a).dot(plane(v, b)).abs();
+    const PAIRINGS: [[usize; 4]; 3] = [[0, 1, 2, 3], [0, 2, 1, 3], [0, 3, 1, 2]];
+    let local_best = |v: u32, pieces: &[(u32, Piece)]| {
+        let score = |p: &[usize; 4]| {
+            parallel(v, pieces[p[0]].1, pieces[p[1]].1)
+                + parallel(v, pieces[p[2]].1, pieces[p[3]].1)
+        };
+        PAIRINGS.iter().max_by(|x, y| score(x).total_cmp(&score(y))).copied().unwrap_or(PAIRINGS[0])
+    };
+    // Votes for pairs of strips.
+    let mut votes: FxHashMap<(usize, usize), u32> = FxHashMap::default();
+    let pair = |a: usize, b: usize| (a.min(b), a.max(b));
+    for &(v, first, end) in &groups {
+        let pieces = &node_pieces[first..end];
+        if pieces.len() == 4 {
+            let p = local_best(v, pieces);
+            let s = |k: usize| strip[first + p[k]];
+            *votes.entry(pair(s(0), s(1))).or_insert(0) += 1;
+            *votes.entry(pair(s(2), s(3))).or_insert(0) += 1;
+        }
+    }
+    // (vertex, piece) → the vertex id that piece uses.
+    let mut use_id: FxHashMap<(u32, Piece), u32> = FxHashMap::default();
+    for &(v, first, end) in &groups {
+        let pieces = &node_pieces[first..end];
+        // The sheet of each piece.
+        let sheet_of: Vec<usize> = if pieces.len() == 4 {
+            let s = |k: usize| strip[first + k];
+            let vote = |a: usize, b: usize| votes.get(&pair(s(a), s(b))).copied().unwrap_or(0);
+            let local = local_best(v, pieces);
+            let best = PAIRINGS
                 .iter()
-                .max_by(|x, y| score(x).total_cmp(&score(y)))
+                .max_by_key(|p| (vote(p[0], p[1]) + vote(p[2], p[3]), **p == local))
                 .copied()
-                .unwrap_or([0, 1, 2, 3]);
+                .unwrap_or(local);
             let mut out = vec![1; 4];
             out[best[0]] = 0;
             out[best[1]] = 0;
+            // Sheet 0 keeps the id: the sheet of the strip first in order.
+            let first_strip = (0..4).min_by_key(|&k| s(k)).unwrap_or(0);
+            if out[first_strip] == 1 {
+                out.iter_mut().for_each(|x| *x = 1 - *x);
+            }
             out
+        } else if pieces.len() < 4 && curve_ends.contains(&v) {
+            // A pinch point (or one on the box): its pieces are the folds where the two
+            // sheets become one, and between them they close round it once the sheets'
+            // copies of the next curve vertex are apart; one copy.
+            vec![0; pieces.len()]
         } else {
-            let mut firsts: Vec<u32> = Vec::new();
-            bands
+            let mut firsts: Vec<Piece> = Vec::new();
+            pieces
                 .iter()
-                .map(|&b| match firsts.iter().position(|&f| parallel(f, b) > 0.8) {
+                .map(|&(_, b)| match firsts.iter().position(|&f| parallel(v, f, b) > 0.8) {
                     Some(k) => k,
                     None => {
                         firsts.push(b);
@@ -965,29 +1058,113 @@ fn split_sheets(
                 })
                 .collect()
         };
-        let mut ids: Vec<u32> = Vec::new();
-        for (&band, &sheet) in bands.iter().zip(&sheet_of) {
-            if sheet == ids.len() {
-                let n = band_normal[&(v, band)];
-                let id = if sheet == 0 {
+        // Copies in the order of the sheets' first pieces; sheet 0 first (it keeps `v`).
+        let mut ids: Vec<Option<u32>> = vec![None; sheet_of.iter().max().map_or(0, |m| m + 1)];
+        let order = (0..pieces.len())
+            .filter(|&k| sheet_of[k] == 0)
+            .chain((0..pieces.len()).filter(|&k| sheet_of[k] != 0));
+        for k in order {
+            let (sheet, piece) = (sheet_of[k], pieces[k].1);
+            let id = *ids[sheet].get_or_insert_with(|| {
+                let n = piece_normal[&(v, piece)];
+                if sheet == 0 {
                     normals[v as usize] = n;
                     v
                 } else {
                     positions.push(positions[v as usize]);
                     normals.push(n);
                     positions.len() as u32 - 1
-                };
-                ids.push(id);
-            }
-            use_id.insert((v, band), ids[sheet]);
+                }
+            });
+            use_id.insert((v, piece), id);
         }
-        i = j;
     }
-    for (t, &band) in triangles.iter_mut().zip(band_of) {
-        for v in t.iter_mut() {
-            if let Some(&id) = use_id.get(&(*v, band)) {
+    for (t, pieces) in triangles.iter_mut().zip(piece_of) {
+        for (v, &piece) in t.iter_mut().zip(pieces) {
+            if let Some(&id) = use_id.get(&(*v, piece)) {
                 *v = id;
             }
         }
     }
+}
+
+/// A sheet piece round a curve vertex: its band, and which of that band's fans round the
+/// vertex it is (in the order of their first triangles).
+type Piece = (u32, u32);
+
+/// The sheet piece of each corner of each band triangle at a curve vertex (`(u32::MAX, 0)` at
+/// marching-cubes vertices): the fans of triangles round the vertex that meet across edges
+/// off the curves.
+///
+/// A band is not a sheet piece everywhere. Along a crossing between two pinch points (the
+/// cross-cap) the trace of the zone's boundary is one loop that runs along the curve four
+/// times, folding round each pinch point, so one band holds all four pieces of every curve
+/// vertex; round the Whitney umbrella's pinch point each band holds the two pieces that fold
+/// into one there. Told apart by band alone, those vertices were not split at all. The
+/// curve edges cut the triangles round a vertex into its pieces: four where two sheets
+/// cross, one per fold at a pinch point (where the sheets do become one).
+fn sheet_pieces(
+    triangles: &[[u32; 3]],
+    band_of: &[u32],
+    curve_edges: &[[u32; 2]],
+    n_mc: u32,
+) -> Vec<[Piece; 3]> {
+    let curve: FxHashSet<[u32; 2]> =
+        curve_edges.iter().map(|&[a, b]| [a.min(b) + n_mc, a.max(b) + n_mc]).collect();
+    // Per curve vertex, its corners in triangle order.
+    let mut corners: FxHashMap<u32, Vec<(usize, usize)>> = FxHashMap::default();
+    for (k, t) in triangles.iter().enumerate() {
+        for (i, &v) in t.iter().enumerate() {
+            if v >= n_mc {
+                corners.entry(v).or_default().push((k, i));
+            }
+        }
+    }
+    let mut out = vec![[(u32::MAX, 0); 3]; triangles.len()];
+    let mut vertices: Vec<u32> = corners.keys().copied().collect();
+    vertices.sort_unstable();
+    for v in vertices {
+        let list = &corners[&v];
+        // Union-find over the corners: joined across an edge (v, x) off the curves.
+        let mut parent: Vec<usize> = (0..list.len()).collect();
+        fn root(parent: &mut [usize], mut a: usize) -> usize {
+            while parent[a] != a {
+                parent[a] = parent[parent[a]];
+                a = parent[a];
+            }
+            a
+        }
+        let mut first_at: FxHashMap<(u32, u32), usize> = FxHashMap::default();
+        for (c, &(k, i)) in list.iter().enumerate() {
+            let t = triangles[k];
+            for x in [t[(i + 1) % 3], t[(i + 2) % 3]] {
+                if curve.contains(&[v.min(x), v.max(x)]) {
+                    continue;
+                }
+                match first_at.get(&(x, band_of[k])) {
+                    Some(&d) => {
+                        let (ra, rb) = (root(&mut parent, c), root(&mut parent, d));
+                        parent[ra.max(rb)] = ra.min(rb);
+                    }
+                    None => {
+                        first_at.insert((x, band_of[k]), c);
+                    }
+                }
+            }
+        }
+        // Number each band's fans in the order of their first corners.
+        let mut number: FxHashMap<usize, u32> = FxHashMap::default();
+        let mut count: FxHashMap<u32, u32> = FxHashMap::default();
+        for (c, &(k, i)) in list.iter().enumerate() {
+            let r = root(&mut parent, c);
+            let band = band_of[k];
+            let sub = *number.entry(r).or_insert_with(|| {
+                let n = count.entry(band).or_insert(0);
+                *n += 1;
+                *n - 1
+            });
+            out[k][i] = (band, sub);
+        }
+    }
+    out
 }

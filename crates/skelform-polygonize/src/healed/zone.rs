@@ -991,6 +991,16 @@ fn heal_component(
     for (band, (trace, closed)) in components.iter().enumerate() {
         let band = band as u32;
         let (mut walk, mut w) = walk_along(inp, &zone, trace)?;
+        // A loop's seam must not be where its walk turns (see `loop_seam`).
+        let rotated: Vec<u32>;
+        let trace: &[u32] = match loop_seam(net, &walk, &w).filter(|_| *closed) {
+            Some(k) => {
+                rotated = trace[k..].iter().chain(&trace[1..=k]).copied().collect();
+                (walk, w) = walk_along(inp, &zone, &rotated)?;
+                &rotated
+            }
+            None => trace,
+        };
         remove_wiggles(net, &mut walk, &mut w, h, *closed);
         if !closed {
             extend_to_exits(inp, trace, &mut walk, &mut w);
@@ -1294,6 +1304,46 @@ fn walk_along(
         w.push(walk.len() - 1);
     }
     Ok((walk, w))
+}
+
+/// Where a closed trace should start: a vertex whose walk node the walk passes straight
+/// through (the nodes before and after it differ), as far along the walk as can be from
+/// every place where it turns; `None` when the walk's seam does not turn, or turns at the end
+/// of a curve (where the walk does reach the end).
+///
+/// A loop's first vertex is its last, and its walk's first node its last: a back-and-forth
+/// move there (the walk leaves node `n` for `m` at its start and comes back from `m` at its
+/// end) is not seen by [`remove_wiggles`], which looks at interior nodes. Round a pinch
+/// point that move is a fold: the cross-cap's trace is one loop that runs along the curve
+/// four times, folding twice at the pinch, and when its first vertex lay at one of those
+/// folds the walk was never taken on to the pinch there, so the curve's last edge got two
+/// bands, not four, and the whole curve was left as marching cubes made it. Far from the
+/// turns, because a fold taken on to the pinch needs trace vertices after it to zip with: a
+/// seam just past one left the way back from the pinch to the loop's last vertex alone, and
+/// its two triangles there were one triangle twice.
+fn loop_seam(net: &Network, walk: &[u32], w: &[usize]) -> Option<usize> {
+    let n = walk.len();
+    if n < 3 || walk[1] != walk[n - 2] || net.degree(walk[0]) <= 1 {
+        return None;
+    }
+    let turns: Vec<usize> =
+        std::iter::once(0).chain((1..n - 1).filter(|&m| walk[m - 1] == walk[m + 1])).collect();
+    // Walk positions from the nearest turn, round the loop (its last position is its first).
+    let period = n - 1;
+    let away = |j: usize| {
+        turns.iter().map(|&m| j.abs_diff(m).min(period - j.abs_diff(m))).min().unwrap_or(0)
+    };
+    (1..w.len() - 1)
+        .filter(|&k| {
+            let j = w[k];
+            j > 0
+                && j + 1 < n
+                && w[k - 1] < j
+                && w[k + 1] > j
+                && walk[j - 1] != walk[j + 1]
+                && net.degree(walk[j]) == 2
+        })
+        .max_by_key(|&k| (away(w[k]), std::cmp::Reverse(k)))
 }
 
 /// Removes a walk's back-and-forth moves, which are wiggles of the nearest-node mapping,
