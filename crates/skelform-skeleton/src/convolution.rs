@@ -200,12 +200,17 @@ impl PreparedPolygon {
         let z = w.dot(self.n);
         let z2 = z * z;
         let support2 = kernel.support() * kernel.support();
+        // A piecewise-polynomial kernel is zero beyond its support, and so is its line
+        // integral along any line that far away (`Kernel::line_integral` skips every piece).
+        let finite_support = matches!(kernel, Kernel::Wyvill | Kernel::Triweight | Kernel::BSpline);
         // Beyond the kernel's reach of the polygon's plane every edge is skipped below
         // (`z² + h² ≥ z²`), so the value is `T(|z|)·θ`: exactly zero where the tail is, and
-        // the winding angle θ (two arc tangents per edge) need not be computed. Values
-        // only: the gradient's edge terms are not all exactly zero there (the Gaussian's
-        // line integral is not cut off).
-        if !want_grad && z2 >= support2 && kernel.tail(z.abs()) == 0.0 {
+        // the winding angle θ (two arc tangents per edge) need not be computed. The gradient
+        // is zero there too for a kernel of finite support (its edge terms are line
+        // integrals beyond the support, its normal term `k(|z|) = 0`), not for the Gaussian
+        // (its line integral is not cut off). The sums this is added to never hold −0, so
+        // returning +0 for the ±0 the loop would give changes no bit of a field value.
+        if (!want_grad || finite_support) && z2 >= support2 && kernel.tail(z.abs()) == 0.0 {
             return (0.0, DVec3::ZERO);
         }
         let mut tail_sum = 0.0;
@@ -225,7 +230,10 @@ impl PreparedPolygon {
             let tb = ta + e.len;
             let hs = rel.perp_dot(e.dir);
             let h = hs.abs();
-            if want_grad {
+            // An edge whose line is beyond a kernel of finite support has a line integral
+            // of exactly zero, so it is not computed: most of a polygon's edges, seen from
+            // most lattice points.
+            if want_grad && (z2 + h * h < support2 || !finite_support) {
                 // Divergence theorem: ∇_q ∫_P k = −Σ n_out ∫_edge k.
                 let n_out = DVec2::new(e.dir.y, -e.dir.x);
                 grad_q -= n_out * kernel.line_integral(z2 + h * h, ta, tb).0;

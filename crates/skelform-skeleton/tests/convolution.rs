@@ -372,3 +372,46 @@ fn polynomial_kernels_closed_form_polygon_equals_adaptive_quadrature() {
     polygon_fast_path_equals_adaptive_quadrature(Kernel::Wyvill);
     polygon_fast_path_equals_adaptive_quadrature(Kernel::Triweight);
 }
+
+/// Polygon gradients skip the edges whose lines lie beyond a kernel of finite support, and
+/// every edge where the polygon's plane does: the gradient must still be the derivative of
+/// the value (which computes every edge), at points that see one edge of a large polygon
+/// and not the others, across the edge of the plane's reach, and zero beyond it.
+#[test]
+fn polygon_gradients_skipping_out_of_reach_edges_match_central_differences() {
+    let v = |x: f64, y: f64| DVec3::new(x, y, 0.0);
+    // A large pentagon against r = 0.1 (reach 0.2 for the Wyvill kernel).
+    let poly = Polygon::new(vec![v(0.0, 0.0), v(1.0, 0.0), v(1.2, 0.6), v(0.5, 1.0), v(-0.2, 0.6)])
+        .unwrap();
+    let shape = Shape::Polygon(poly);
+    let r = 0.1;
+    for k in [Kernel::Wyvill, Kernel::Triweight, Kernel::BSpline] {
+        let reach = k.support() * r;
+        let mut points = Vec::new();
+        for x in [0.05, 0.5, 0.95] {
+            for y in [-0.15, -0.05, 0.03, 0.1, 0.3] {
+                for z in [0.0, 0.04, 0.5 * reach, 0.9 * reach, 0.999 * reach] {
+                    points.push(DVec3::new(x, y, z));
+                }
+            }
+        }
+        for p in points {
+            let (f, g) = convolve(k, &shape, r, p);
+            let h = 1e-6;
+            let at = |d: DVec3| convolve(k, &shape, r, p + d).0;
+            let fd = DVec3::new(
+                at(DVec3::X * h) - at(-DVec3::X * h),
+                at(DVec3::Y * h) - at(-DVec3::Y * h),
+                at(DVec3::Z * h) - at(-DVec3::Z * h),
+            ) / (2.0 * h);
+            assert!(
+                (g - fd).length() <= 1e-6 * (1.0 + g.length()),
+                "{k:?} at {p} (value {f}): {g} vs {fd}"
+            );
+        }
+        for z in [1.0001 * reach, 2.0 * reach, -1.5 * reach] {
+            let (f, g) = convolve(k, &shape, r, DVec3::new(0.5, 0.4, z));
+            assert_eq!((f, g), (0.0, DVec3::ZERO), "{k:?} beyond the plane's reach, z = {z}");
+        }
+    }
+}
