@@ -17,7 +17,7 @@ use rayon::prelude::*;
 use skelform::DVec3;
 use skelform::volume::{
     Grid, GridVertex, Level, MAX_SAMPLES_PER_AXIS, Near, Place, SlabVertex, Volume, VolumeView,
-    extract_view_records_into, extract_volume_records, sanitize_sample,
+    extract_view_records_into, extract_volume_records_into, sanitize_sample,
 };
 use std::sync::{Mutex, PoisonError};
 
@@ -218,10 +218,9 @@ fn keep_buffer(values: Vec<f32>) {
 
 /// The vertex records and triangles of the last call, kept for the next (emptied): written
 /// again without a page fault a page, where fresh memory for them costs as much as a tenth
-/// of an extraction. Only an extraction of a volume read in place on one thread writes into
-/// them (more threads assemble their slabs into fresh memory); the faces handed to Python
-/// are a copy of the triangles, in memory the allocator has usually had back from the
-/// arrays of an earlier call.
+/// of an extraction (on one thread the slabs write into them, on more they are placed
+/// there). The arrays handed to Python are copies in the conventions' layout, in pooled
+/// memory (`pooled`).
 static RECORDS: Mutex<(Vec<Vertex>, Vec<[u32; 3]>)> = Mutex::new((Vec::new(), Vec::new()));
 
 /// The most vertex records, and triangles, kept between calls (about 0.9 and 0.4 GiB).
@@ -575,12 +574,12 @@ fn extract<T: Sample>(a: ArrayView3<'_, T>, o: &Options<'_>, run: &Run) -> PyRes
     };
     let (v, layout) = layout(a, o.step)?;
     let samples = samples(v, &layout, level)?;
+    let kept = std::mem::take(&mut *RECORDS.lock().unwrap_or_else(PoisonError::into_inner));
     let records = match &samples {
-        Samples::InPlace(view) => {
-            let kept = std::mem::take(&mut *RECORDS.lock().unwrap_or_else(PoisonError::into_inner));
-            extract_view_records_into::<Vertex>(view, &run.control, kept)
+        Samples::InPlace(view) => extract_view_records_into::<Vertex>(view, &run.control, kept),
+        Samples::Converted(volume) => {
+            extract_volume_records_into::<Vertex>(volume, &run.control, kept)
         }
-        Samples::Converted(volume) => extract_volume_records::<Vertex>(volume, &run.control),
     };
     // The samples are done with once extracted: a converted buffer goes back for the next
     // call whatever happens now.

@@ -303,13 +303,23 @@ pub fn extract_volume_records<V: SlabVertex>(
     volume: &Volume,
     control: &Control,
 ) -> Result<(Vec<V>, Vec<[u32; 3]>), Cancelled> {
+    extract_volume_records_into(volume, control, Default::default())
+}
+
+/// [`extract_volume_records`] that writes the vertices and triangles into `reuse`, as
+/// [`extract_view_records_into`] does.
+pub fn extract_volume_records_into<V: SlabVertex>(
+    volume: &Volume,
+    control: &Control,
+    reuse: (Vec<V>, Vec<[u32; 3]>),
+) -> Result<(Vec<V>, Vec<[u32; 3]>), Cancelled> {
     let (vertices, triangles, _, _) = extract_as::<V, _>(
         &volume.grid,
         &volume.values,
         Relative,
         control,
         Workspace::shared(),
-        Default::default(),
+        reuse,
     )?;
     Ok((vertices, triangles))
 }
@@ -323,10 +333,9 @@ pub fn extract_view_records<V: SlabVertex>(
 }
 
 /// [`extract_view_records`] that writes the vertices and triangles into `reuse` (emptied
-/// first) when one thread makes the whole mesh: a caller that extracts again and again
-/// passes back the arrays of its last call, whose memory is then written without a page
-/// fault a page. (On more threads the slabs are assembled into fresh memory and `reuse` is
-/// dropped.)
+/// first): a caller that extracts again and again passes back the arrays of its last call,
+/// whose memory is then written without a page fault a page, on one thread as the slabs are
+/// made, on more as they are placed. (The mesh does not depend on `reuse`.)
 pub fn extract_view_records_into<V: SlabVertex>(
     view: &VolumeView<'_>,
     control: &Control,
