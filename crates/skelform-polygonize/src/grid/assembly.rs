@@ -53,14 +53,11 @@ impl<T> Drop for Block<T> {
 }
 
 impl<T: Copy + Send + Sync> Assembly<T> {
-    pub(crate) fn new() -> Self {
-        Self::with_least(skelform_field::pages::ROOM / size_of::<T>())
-    }
-
     /// An array over the memory of `v` (its elements dropped): a caller's array from its
     /// last extraction, whose pages are already in memory, so that placing the slabs costs
     /// no page fault (and no zeroing by the kernel) where fresh memory would cost one a
-    /// page. Grows from there like [`new`](Self::new)'s.
+    /// page. Grows from there (or from nothing) in blocks of
+    /// [`ROOM`](skelform_field::pages::ROOM) bytes or more.
     pub(crate) fn from_vec(v: Vec<T>) -> Self {
         let least = skelform_field::pages::ROOM / size_of::<T>();
         if v.capacity() == 0 {

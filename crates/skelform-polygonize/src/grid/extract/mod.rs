@@ -137,6 +137,11 @@ pub trait SlabVertex: Copy + Default + Send + Sync + 'static {
     /// Whether `make` reads the samples around the vertex (up to a lattice step past the
     /// cube's layers): the slab then fetches the layers it will read ahead of time.
     const READS_NEAR: bool = false;
+
+    /// Whether the triangles over these records are wound the other way round (normals
+    /// towards `f < 0`): a caller whose convention is that winding (scikit-image's in its
+    /// axis order) takes the triangles as they are made, without a pass to rewind them.
+    const REWOUND: bool = false;
 }
 
 /// The samples a slab can read while it makes a vertex: the whole volume for an extraction
@@ -610,7 +615,9 @@ impl<V: SlabVertex, L: Level> CubeSink for SlabSink<'_, '_, V, L> {
         id
     }
 
+    #[inline]
     fn triangle(&mut self, t: [u32; 3]) {
+        let t = if V::REWOUND { [t[0], t[2], t[1]] } else { t };
         self.store.push_triangle(t);
     }
 }
