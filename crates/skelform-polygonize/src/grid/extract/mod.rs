@@ -771,6 +771,56 @@ mod tests {
         }
     }
 
+    /// Positions over triangles wound the other way round.
+    #[derive(Clone, Copy, Default, PartialEq, Debug)]
+    struct Rewound([f32; 3]);
+
+    impl SlabVertex for Rewound {
+        const REWOUND: bool = true;
+        fn make<L: Level>(grid: &Grid, v: GridVertex, e: [f32; 2], n: &Near<'_, L>) -> Self {
+            Rewound(<[f32; 3]>::make(grid, v, e, n))
+        }
+    }
+
+    /// On one thread and on several, an extraction into the arrays of the last one makes
+    /// the mesh a fresh one makes, bit for bit, in the same memory (no new pages); records
+    /// that ask for it get every triangle wound the other way round, and nothing else
+    /// changes.
+    #[test]
+    fn reused_arrays_and_rewound_triangles_keep_the_mesh() {
+        let dims = [41, 37, 5 * SLAB + 3];
+        let grid = Grid { origin: DVec3::ZERO, cell: 1.0, dims };
+        let raw = noise(dims.iter().product(), 17);
+        let view = VolumeView::new(grid, &raw, 0.0).unwrap_or_else(|| unreachable!());
+        let control = Control::default();
+        let fresh = extract_view_positions(&view, &control).unwrap_or_else(|_| unreachable!());
+        assert!(fresh.1.len() > 10_000);
+        for threads in [1, 3] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build();
+            let pool = pool.unwrap_or_else(|e| panic!("{e}"));
+            pool.install(|| {
+                let mut kept = (Vec::<[f32; 3]>::new(), Vec::new());
+                for run in 0..4 {
+                    let at = (kept.0.as_ptr(), kept.1.as_ptr());
+                    let got = extract_view_records_into(&view, &control, kept)
+                        .unwrap_or_else(|_| unreachable!());
+                    assert!(got == fresh, "run {run} on {threads} threads differs");
+                    // (On one thread, the arrays of a fresh run are cut to size, and
+                    // the next run grows them once: each slab makes room for twice what
+                    // the one before made.)
+                    if run > 1 {
+                        assert_eq!((got.0.as_ptr(), got.1.as_ptr()), at, "new memory");
+                    }
+                    kept = got;
+                }
+                let (v, t) = extract_view_records::<Rewound>(&view, &control)
+                    .unwrap_or_else(|_| unreachable!());
+                assert!(v.iter().map(|r| r.0).eq(fresh.0.iter().copied()));
+                assert!(t.iter().map(|t| [t[0], t[2], t[1]]).eq(fresh.1.iter().copied()));
+            });
+        }
+    }
+
     /// A source that fails part way stops every thread and its error comes back.
     #[test]
     fn a_failing_source_stops_the_run() {
