@@ -18,6 +18,8 @@ use pyo3::prelude::*;
 pub(crate) enum Memory {
     F32(Vec<f32>),
     I32(Vec<i32>),
+    /// The extractor's triangles, handed to NumPy as the faces themselves.
+    Triangles(Vec<[u32; 3]>),
 }
 
 impl Memory {
@@ -25,6 +27,7 @@ impl Memory {
         match self {
             Memory::F32(v) => 4 * v.capacity(),
             Memory::I32(v) => 4 * v.capacity(),
+            Memory::Triangles(v) => 12 * v.capacity(),
         }
     }
 }
@@ -86,6 +89,28 @@ pub(crate) fn take<T: PoolElement>(n: usize) -> Vec<T> {
     v
 }
 
+/// An empty vector of triangles for the extractor to write the faces into: the largest
+/// kept one (the faces of an earlier call that NumPy let go of), else a new one, which the
+/// extractor grows in huge pages.
+pub(crate) fn take_triangles() -> Vec<[u32; 3]> {
+    let mut pool = POOL.lock().unwrap_or_else(PoisonError::into_inner);
+    let largest = pool
+        .iter()
+        .enumerate()
+        .filter_map(|(at, m)| match m {
+            Memory::Triangles(v) => Some((at, v.capacity())),
+            _ => None,
+        })
+        .max_by_key(|&(_, capacity)| capacity);
+    match largest.map(|(at, _)| pool.swap_remove(at)) {
+        Some(Memory::Triangles(mut v)) => {
+            v.clear();
+            v
+        }
+        _ => Vec::new(),
+    }
+}
+
 /// The base object of the arrays handed to NumPy: owns their memory, and gives it back to
 /// the pool when NumPy drops the last array on it.
 #[pyclass(frozen, module = "skelform._skelform")]
@@ -132,4 +157,16 @@ pub(crate) fn array1<'py, T: PoolElement>(
     // SAFETY: as in `array2`.
     let view = unsafe { ArrayView1::from_shape_ptr(n, start) };
     Ok(unsafe { PyArray1::borrow_from_array(&view, owner.into_any()) })
+}
+
+/// Triangles as NumPy's `int32` faces (F×3, C order), over the vector's own memory, with no
+/// copy. Every index must be below 2³¹ (the caller checks the vertex count), so that it
+/// reads as the same `int32`.
+pub(crate) fn faces<'py>(py: Python<'py>, v: Vec<[u32; 3]>) -> PyResult<Bound<'py, PyArray2<i32>>> {
+    let (start, rows) = (v.as_ptr().cast::<i32>(), v.len());
+    let owner = Bound::new(py, Pooled { memory: Mutex::new(Some(Memory::Triangles(v))) })?;
+    // SAFETY: as in `array2`; a `[u32; 3]` is three `u32`s in a row with the alignment of
+    // one, and a `u32` below 2³¹ has the bits of the `i32` of the same value.
+    let view = unsafe { ArrayView2::from_shape_ptr((rows, 3), start) };
+    Ok(unsafe { PyArray2::borrow_from_array(&view, owner.into_any()) })
 }

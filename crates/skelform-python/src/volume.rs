@@ -17,7 +17,7 @@ use rayon::prelude::*;
 use skelform::DVec3;
 use skelform::volume::{
     Grid, GridVertex, Level, MAX_SAMPLES_PER_AXIS, Near, Place, SlabVertex, Volume, VolumeView,
-    extract_view_records_into, extract_volume_records, sanitize_sample,
+    extract_view_records_into, extract_volume_records_into, sanitize_sample,
 };
 use std::sync::{Mutex, PoisonError};
 
@@ -216,15 +216,15 @@ fn keep_buffer(values: Vec<f32>) {
     }
 }
 
-/// The vertex records and triangles of the last call, kept for the next (emptied): written
-/// again without a page fault a page, where fresh memory for them costs as much as a tenth
-/// of an extraction. Only an extraction of a volume read in place on one thread writes into
-/// them (more threads assemble their slabs into fresh memory); the faces handed to Python
-/// are a copy of the triangles, in memory the allocator has usually had back from the
-/// arrays of an earlier call.
-static RECORDS: Mutex<(Vec<Vertex>, Vec<[u32; 3]>)> = Mutex::new((Vec::new(), Vec::new()));
+/// The vertex records of the last call, kept for the next (emptied): written again without
+/// a page fault a page, where fresh memory for them costs as much as a tenth of an
+/// extraction (on one thread the slabs write into them, on more they are placed there). The
+/// vertex arrays handed to Python are copies in the conventions' layout, in pooled memory;
+/// the faces are the extractor's triangles themselves, wound as the conventions want them
+/// ([`Record`]) and written into the faces of an earlier call (`pooled::take_triangles`).
+static RECORDS: Mutex<Vec<Vertex>> = Mutex::new(Vec::new());
 
-/// The most vertex records, and triangles, kept between calls (about 0.9 and 0.4 GiB).
+/// The most vertex records kept between calls (about 0.9 GiB).
 const KEEP_RECORDS: usize = 1 << 25;
 
 /// A vertex as the conventions need it, made by the extractor while the samples around it
@@ -237,9 +237,36 @@ struct Vertex {
     value: f32,
 }
 
-impl SlabVertex for Vertex {
-    const READS_NEAR: bool = true;
+/// A [`Vertex`] as the extractor makes it, over triangles wound the other way round when
+/// `REWOUND`: the faces come out of the extractor wound as scikit-image's conventions want
+/// them, and go to NumPy without a pass over them.
+#[derive(Clone, Copy, Default)]
+#[repr(transparent)]
+struct Record<const REWOUND: bool>(Vertex);
 
+impl<const REWOUND: bool> SlabVertex for Record<REWOUND> {
+    const READS_NEAR: bool = true;
+    const REWOUND: bool = REWOUND;
+
+    #[inline(always)]
+    fn make<L: Level>(grid: &Grid, v: GridVertex, ends: [f32; 2], near: &Near<'_, L>) -> Self {
+        Record(Vertex::make(grid, v, ends, near))
+    }
+}
+
+/// `v` as a vector of `B`, which has the layout of `A`: the records as [`Vertex`]es and
+/// back, without a copy.
+fn retype<A, B>(v: Vec<A>) -> Vec<B> {
+    assert!(size_of::<A>() == size_of::<B>() && align_of::<A>() == align_of::<B>());
+    let mut v = std::mem::ManuallyDrop::new(v);
+    // SAFETY: only called between `Vertex` and `Record<_>`, a `repr(transparent)` wrapper of
+    // it (the same layout, checked above, and every bit pattern of one is one of the other);
+    // the memory came from the global allocator for `capacity` elements of that layout; the
+    // ManuallyDrop hands the ownership over.
+    unsafe { Vec::from_raw_parts(v.as_mut_ptr().cast::<B>(), v.len(), v.capacity()) }
+}
+
+impl Vertex {
     #[inline(always)]
     fn make<L: Level>(grid: &Grid, v: GridVertex, _: [f32; 2], near: &Near<'_, L>) -> Self {
         let position = v.position(grid).as_vec3().to_array();
@@ -504,8 +531,9 @@ struct Options<'a> {
     mask: Option<ArrayView3<'a, bool>>,
 }
 
-/// Flat vertices, faces, normals and values.
-type Flat = (Vec<f32>, Vec<i32>, Vec<f32>, Vec<f32>);
+/// Flat vertices, faces (the extractor's triangles, wound for the conventions), normals and
+/// values.
+type Flat = (Vec<f32>, Vec<[u32; 3]>, Vec<f32>, Vec<f32>);
 
 /// The Rust half of `skelform.marching_cubes` (arguments already checked by the Python
 /// half, but for the level): vertices in array index units (spacing not applied), faces,
@@ -550,14 +578,12 @@ pub(crate) fn marching_cubes_core<'py>(
     }
     let (positions, faces, normals, values) =
         read!(f32, f64, i8, i16, i32, i64, u8, u16, u32, u64)?;
-    let n = positions.len() / 3;
-    let f = faces.len() / 3;
-    debug_assert_eq!((3 * n, 3 * f), (positions.len(), faces.len()));
+    debug_assert_eq!(positions.len() % 3, 0);
     // Over the vectors' own memory, which goes back to the pool for the next call when
     // NumPy lets go of it.
     Ok((
         pooled::array2(py, positions, 3)?,
-        pooled::array2(py, faces, 3)?,
+        pooled::faces(py, faces)?,
         pooled::array2(py, normals, 3)?,
         pooled::array1(py, values)?,
     ))
@@ -575,12 +601,16 @@ fn extract<T: Sample>(a: ArrayView3<'_, T>, o: &Options<'_>, run: &Run) -> PyRes
     };
     let (v, layout) = layout(a, o.step)?;
     let samples = samples(v, &layout, level)?;
-    let records = match &samples {
-        Samples::InPlace(view) => {
-            let kept = std::mem::take(&mut *RECORDS.lock().unwrap_or_else(PoisonError::into_inner));
-            extract_view_records_into::<Vertex>(view, &run.control, kept)
-        }
-        Samples::Converted(volume) => extract_volume_records::<Vertex>(volume, &run.control),
+    // The extractor winds counter-clockwise seen from the higher values in its own axes;
+    // the array's axis order is a reflection of them when it is (2, 1, 0).
+    let reflected = layout.axis_of == [2, 1, 0];
+    let rewound = reflected != o.ascent;
+    let kept = std::mem::take(&mut *RECORDS.lock().unwrap_or_else(PoisonError::into_inner));
+    let kept = (kept, pooled::take_triangles());
+    let records = if rewound {
+        extract_records::<true>(&samples, &run.control, kept)
+    } else {
+        extract_records::<false>(&samples, &run.control, kept)
     };
     // The samples are done with once extracted: a converted buffer goes back for the next
     // call whatever happens now.
@@ -629,18 +659,27 @@ fn extract<T: Sample>(a: ArrayView3<'_, T>, o: &Options<'_>, run: &Run) -> PyRes
             ex.vertices.len()
         )));
     }
-    let (flat, Extracted { mut vertices, mut triangles }) = conventions(&layout, ex, o.ascent);
+    let (flat, mut vertices) = conventions(&layout, ex);
     vertices.clear();
-    triangles.clear();
-    let fits = |capacity: usize| capacity <= KEEP_RECORDS;
-    let mut kept = RECORDS.lock().unwrap_or_else(PoisonError::into_inner);
-    if fits(vertices.capacity()) {
-        kept.0 = vertices;
-    }
-    if fits(triangles.capacity()) {
-        kept.1 = triangles;
+    if vertices.capacity() <= KEEP_RECORDS {
+        *RECORDS.lock().unwrap_or_else(PoisonError::into_inner) = vertices;
     }
     Ok(flat)
+}
+
+/// The extraction itself, over triangles wound the other way round when `REWOUND`, into
+/// the memory of `kept` (vertex records and triangles of earlier calls).
+fn extract_records<const REWOUND: bool>(
+    samples: &Samples<'_>,
+    control: &skelform::Control,
+    kept: (Vec<Vertex>, Vec<[u32; 3]>),
+) -> Result<(Vec<Vertex>, Vec<[u32; 3]>), skelform::volume::Cancelled> {
+    let kept = (retype::<Vertex, Record<REWOUND>>(kept.0), kept.1);
+    let (records, triangles) = match samples {
+        Samples::InPlace(view) => extract_view_records_into(view, control, kept),
+        Samples::Converted(volume) => extract_volume_records_into(volume, control, kept),
+    }?;
+    Ok((retype(records), triangles))
 }
 
 /// Runs `op` on `pool`, or on the current (global) pool.
@@ -655,11 +694,10 @@ fn install<R: Send>(
 }
 
 /// Flat arrays in scikit-image's conventions: vertices and normals in array axis order,
-/// faces wound for the gradient direction, the gradient size as the value. The vertex
-/// arrays are written once, in blocks on the pool's threads, into memory that is not
-/// zeroed first, and so are the faces, the extractor's triangles rewound and retyped. Gives
-/// the records back, for the next call.
-fn conventions(layout: &Layout, ex: Extracted, ascent: bool) -> (Flat, Extracted) {
+/// the gradient size as the value, and the faces, which the extractor wound already. The
+/// vertex arrays are written once, in blocks on the pool's threads, into memory that is not
+/// zeroed first. Gives the vertex records back, for the next call.
+fn conventions(layout: &Layout, ex: Extracted) -> (Flat, Vec<Vertex>) {
     /// Vertices per parallel task: enough to make a task's start-up cost nothing.
     const BLOCK: usize = 1 << 13;
     let n = ex.vertices.len();
@@ -689,26 +727,5 @@ fn conventions(layout: &Layout, ex: Extracted, ascent: bool) -> (Flat, Extracted
         normals.set_len(3 * n);
         values.set_len(n);
     }
-    // The extractor winds counter-clockwise seen from the higher values in its own axes;
-    // the array's axis order is a reflection of them when it is (2, 1, 0).
-    let reflected = layout.axis_of == [2, 1, 0];
-    let flip = reflected != ascent;
-    let f = ex.triangles.len();
-    let mut faces = pooled::take::<i32>(3 * f);
-    // The caller checked that the numbers fit.
-    let order = if flip { [0, 2, 1] } else { [0, 1, 2] };
-    faces.spare_capacity_mut()[..3 * f]
-        .par_chunks_mut(3 * BLOCK)
-        .zip(ex.triangles.par_chunks(BLOCK))
-        .for_each(|(out, ts)| {
-            for (o, t) in out.chunks_exact_mut(3).zip(ts) {
-                o[0].write(t[order[0]] as i32);
-                o[1].write(t[order[1]] as i32);
-                o[2].write(t[order[2]] as i32);
-            }
-        });
-    // SAFETY: the blocks above cover the first 3·f elements, block `b` with triangles
-    // `b·BLOCK..`, each triangle writing its three.
-    unsafe { faces.set_len(3 * f) };
-    ((positions, faces, normals, values), ex)
+    ((positions, ex.triangles, normals, values), ex.vertices)
 }

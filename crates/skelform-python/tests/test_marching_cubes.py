@@ -93,6 +93,27 @@ def test_ambiguous_noise_is_closed_and_watertight():
     assert np.all(np.isfinite(values)) and np.all(values >= 0)
 
 
+@pytest.mark.parametrize("order", ["C", "F"])
+@pytest.mark.parametrize("direction", ["descent", "ascent"])
+@pytest.mark.parametrize("threads", [1, 2])
+def test_winding_is_scikit_images_in_every_memory_order(order, direction, threads):
+    """The faces come wound from the extractor (its axes are the array's reversed in C
+    order, not in Fortran order): every face's normal, by the right-hand rule, points the
+    way scikit-image's do, out of a sphere (towards higher values) for "descent"."""
+    vol = np.asarray(sphere(), order=order)
+    verts, faces = skelform.marching_cubes(vol, 0.0, gradient_direction=direction,
+                                           threads=threads)[:2]
+    theirs = sk_marching_cubes(np.ascontiguousarray(vol), 0.0, gradient_direction=direction)
+    def outward(v, f):
+        n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+        return (n * (v[f].mean(1) - np.array([17.3, 19.6, 18.8]))).sum(1) > 0
+    ours = outward(verts, faces)
+    assert ours.all() if direction == "descent" else not ours.any()
+    assert outward(*theirs[:2]).mean() == pytest.approx(ours.mean(), abs=0.02)
+    assert faces.dtype == np.int32 and faces.flags.c_contiguous and faces.min() >= 0
+    assert closed(verts, faces)
+
+
 def test_dtypes_and_memory_orders_give_the_same_mesh():
     vol = np.round(sphere(24, (11.3, 12.1, 10.7), 7.0) * 100)
     ref = skelform.marching_cubes(vol.astype(np.float64), 0.5)

@@ -53,8 +53,24 @@ impl<T> Drop for Block<T> {
 }
 
 impl<T: Copy + Send + Sync> Assembly<T> {
-    pub(crate) fn new() -> Self {
-        Self::with_least(skelform_field::pages::ROOM / size_of::<T>())
+    /// An array over the memory of `v` (its elements dropped): a caller's array from its
+    /// last extraction, whose pages are already in memory, so that placing the slabs costs
+    /// no page fault (and no zeroing by the kernel) where fresh memory would cost one a
+    /// page. Grows from there (or from nothing) in blocks of
+    /// [`ROOM`](skelform_field::pages::ROOM) bytes or more.
+    pub(crate) fn from_vec(v: Vec<T>) -> Self {
+        let least = skelform_field::pages::ROOM / size_of::<T>();
+        if v.capacity() == 0 {
+            return Self::with_least(least);
+        }
+        let mut v = std::mem::ManuallyDrop::new(v);
+        v.clear();
+        // SAFETY (for `Block`'s use of it): a `Vec`'s memory comes from the global allocator
+        // with the layout of `capacity` elements of `T`, the layout `Block` frees and
+        // reallocates it with; the ManuallyDrop hands the ownership over.
+        let start = NonNull::new(v.as_mut_ptr()).unwrap_or_else(|| unreachable!());
+        let block = Block { start, capacity: v.capacity() };
+        Assembly { memory: RwLock::new(block), least: least.max(1) }
     }
 
     fn with_least(least: usize) -> Self {
@@ -126,11 +142,12 @@ impl<T: Copy + Send + Sync> Assembly<T> {
         }
     }
 
-    /// The first `len` elements as a `Vec`, the rest of the memory given back.
+    /// The first `len` elements as a `Vec`, the rest of the memory given back unless
+    /// `keep` (memory a caller will write again).
     ///
     /// # Safety
     /// Every element of `0..len` must have been written by [`place`](Self::place).
-    pub(crate) unsafe fn into_vec(self, len: usize) -> Vec<T> {
+    pub(crate) unsafe fn into_vec(self, len: usize, keep: bool) -> Vec<T> {
         let block = self.memory.into_inner().unwrap_or_else(|e| e.into_inner());
         if block.capacity == 0 {
             return Vec::new();
@@ -141,7 +158,9 @@ impl<T: Copy + Send + Sync> Assembly<T> {
         // `block.capacity` elements of T; the caller vouches for the first `len`; the
         // ManuallyDrop hands ownership to the Vec.
         let mut v = unsafe { Vec::from_raw_parts(block.start.as_ptr(), len, block.capacity) };
-        v.shrink_to_fit();
+        if !keep {
+            v.shrink_to_fit();
+        }
         v
     }
 }
@@ -172,7 +191,7 @@ mod tests {
             a.place(starts[p], &piece, |x| ((p as u64) << 32) | x as u64);
         });
         // SAFETY: the pieces cover 0..total.
-        let v = unsafe { a.into_vec(total) };
+        let v = unsafe { a.into_vec(total, false) };
         for (p, (&s, &n)) in starts.iter().zip(&sizes).enumerate() {
             for x in 0..n {
                 assert_eq!(v[s + x], ((p as u64) << 32) | x as u64);

@@ -36,8 +36,8 @@ pub use extract::{
     Cancelled, Extraction, GridVertex, LayerSource, Near, Place, Positions, SLAB, SampledVertex,
     SlabVertex, StreamError, StreamStats, Streamed, Workspace, dir_vector, extract,
     extract_positions, extract_streamed, extract_streamed_with, extract_view_positions,
-    extract_view_records, extract_view_records_into, extract_volume_records, extract_with,
-    surface_cubes,
+    extract_view_records, extract_view_records_into, extract_volume_records,
+    extract_volume_records_into, extract_with, surface_cubes,
 };
 
 pub use crate::lattice::Resolution;

@@ -137,6 +137,11 @@ pub trait SlabVertex: Copy + Default + Send + Sync + 'static {
     /// Whether `make` reads the samples around the vertex (up to a lattice step past the
     /// cube's layers): the slab then fetches the layers it will read ahead of time.
     const READS_NEAR: bool = false;
+
+    /// Whether the triangles over these records are wound the other way round (normals
+    /// towards `f < 0`): a caller whose convention is that winding (scikit-image's in its
+    /// axis order) takes the triangles as they are made, without a pass to rewind them.
+    const REWOUND: bool = false;
 }
 
 /// The samples a slab can read while it makes a vertex: the whole volume for an extraction
@@ -303,13 +308,23 @@ pub fn extract_volume_records<V: SlabVertex>(
     volume: &Volume,
     control: &Control,
 ) -> Result<(Vec<V>, Vec<[u32; 3]>), Cancelled> {
+    extract_volume_records_into(volume, control, Default::default())
+}
+
+/// [`extract_volume_records`] that writes the vertices and triangles into `reuse`, as
+/// [`extract_view_records_into`] does.
+pub fn extract_volume_records_into<V: SlabVertex>(
+    volume: &Volume,
+    control: &Control,
+    reuse: (Vec<V>, Vec<[u32; 3]>),
+) -> Result<(Vec<V>, Vec<[u32; 3]>), Cancelled> {
     let (vertices, triangles, _, _) = extract_as::<V, _>(
         &volume.grid,
         &volume.values,
         Relative,
         control,
         Workspace::shared(),
-        Default::default(),
+        reuse,
     )?;
     Ok((vertices, triangles))
 }
@@ -323,10 +338,9 @@ pub fn extract_view_records<V: SlabVertex>(
 }
 
 /// [`extract_view_records`] that writes the vertices and triangles into `reuse` (emptied
-/// first) when one thread makes the whole mesh: a caller that extracts again and again
-/// passes back the arrays of its last call, whose memory is then written without a page
-/// fault a page. (On more threads the slabs are assembled into fresh memory and `reuse` is
-/// dropped.)
+/// first): a caller that extracts again and again passes back the arrays of its last call,
+/// whose memory is then written without a page fault a page, on one thread as the slabs are
+/// made, on more as they are placed. (The mesh does not depend on `reuse`.)
 pub fn extract_view_records_into<V: SlabVertex>(
     view: &VolumeView<'_>,
     control: &Control,
@@ -601,7 +615,9 @@ impl<V: SlabVertex, L: Level> CubeSink for SlabSink<'_, '_, V, L> {
         id
     }
 
+    #[inline]
     fn triangle(&mut self, t: [u32; 3]) {
+        let t = if V::REWOUND { [t[0], t[2], t[1]] } else { t };
         self.store.push_triangle(t);
     }
 }
@@ -752,6 +768,56 @@ mod tests {
                 assert!(bits(&a.0) == bits(&b.0), "positions differ at level {level}");
                 assert!(a.1 == b.1, "triangles differ at level {level}");
             }
+        }
+    }
+
+    /// Positions over triangles wound the other way round.
+    #[derive(Clone, Copy, Default, PartialEq, Debug)]
+    struct Rewound([f32; 3]);
+
+    impl SlabVertex for Rewound {
+        const REWOUND: bool = true;
+        fn make<L: Level>(grid: &Grid, v: GridVertex, e: [f32; 2], n: &Near<'_, L>) -> Self {
+            Rewound(<[f32; 3]>::make(grid, v, e, n))
+        }
+    }
+
+    /// On one thread and on several, an extraction into the arrays of the last one makes
+    /// the mesh a fresh one makes, bit for bit, in the same memory (no new pages); records
+    /// that ask for it get every triangle wound the other way round, and nothing else
+    /// changes.
+    #[test]
+    fn reused_arrays_and_rewound_triangles_keep_the_mesh() {
+        let dims = [41, 37, 5 * SLAB + 3];
+        let grid = Grid { origin: DVec3::ZERO, cell: 1.0, dims };
+        let raw = noise(dims.iter().product(), 17);
+        let view = VolumeView::new(grid, &raw, 0.0).unwrap_or_else(|| unreachable!());
+        let control = Control::default();
+        let fresh = extract_view_positions(&view, &control).unwrap_or_else(|_| unreachable!());
+        assert!(fresh.1.len() > 10_000);
+        for threads in [1, 3] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build();
+            let pool = pool.unwrap_or_else(|e| panic!("{e}"));
+            pool.install(|| {
+                let mut kept = (Vec::<[f32; 3]>::new(), Vec::new());
+                for run in 0..4 {
+                    let at = (kept.0.as_ptr(), kept.1.as_ptr());
+                    let got = extract_view_records_into(&view, &control, kept)
+                        .unwrap_or_else(|_| unreachable!());
+                    assert!(got == fresh, "run {run} on {threads} threads differs");
+                    // (On one thread, the arrays of a fresh run are cut to size, and
+                    // the next run grows them once: each slab makes room for twice what
+                    // the one before made.)
+                    if run > 1 {
+                        assert_eq!((got.0.as_ptr(), got.1.as_ptr()), at, "new memory");
+                    }
+                    kept = got;
+                }
+                let (v, t) = extract_view_records::<Rewound>(&view, &control)
+                    .unwrap_or_else(|_| unreachable!());
+                assert!(v.iter().map(|r| r.0).eq(fresh.0.iter().copied()));
+                assert!(t.iter().map(|t| [t[0], t[2], t[1]]).eq(fresh.1.iter().copied()));
+            });
         }
     }
 

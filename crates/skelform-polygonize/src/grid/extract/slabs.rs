@@ -39,14 +39,14 @@ type Assembled<V, T> = (Vec<V>, Vec<[u32; 3]>, Vec<T>);
 /// thread claims the lowest slab no one has claimed, runs it into a buffer of its own and
 /// hands it over; a slab is placed in the mesh (an [`Assembly`]) as soon as every slab below
 /// it has been handed over, by the thread that completes that chain, so no thread ever waits
-/// for another, and every byte of the mesh is written once into fresh memory. A slab's
+/// for another, and every byte of the mesh is written once. A slab's
 /// vertices go after all those of the slabs below it, its triangles' numbers shifted by as
 /// many (a reference to the layer above, numbered just past the slab's own vertices, lands on
 /// the next slab's first ones).
 ///
-/// On one thread the vertices and triangles go into `reuse` (emptied first), whose capacity
-/// is kept as it is when it has some: a caller's arrays from its last extraction, already in
-/// memory.
+/// On any number of threads the vertices and triangles go into `reuse` (emptied first),
+/// whose capacity is kept as it is when it has some: a caller's arrays from its last
+/// extraction, already in memory (on more threads the slabs are placed there).
 pub(super) fn run_slabs<V, T, E>(
     slabs: usize,
     [nx, ny]: [usize; 2],
@@ -83,7 +83,9 @@ where
     let chain = Mutex::new(Chain::new(slabs));
     let lock = || chain.lock().unwrap_or_else(|e| e.into_inner());
     let (next, stop) = (AtomicUsize::new(0), AtomicBool::new(false));
-    let (vertices, triangles) = (Assembly::new(), Assembly::new());
+    // The mesh goes into the memory of `reuse` where it has some (see `Assembly::from_vec`).
+    let reused = [reuse.0.capacity() > 0, reuse.1.capacity() > 0];
+    let (vertices, triangles) = (Assembly::from_vec(reuse.0), Assembly::from_vec(reuse.1));
     let work = || {
         let mut scratch = Scratch::new(nx, ny);
         let mut hint = (0, 0);
@@ -136,7 +138,8 @@ where
     let [nv, nt] = chain.end;
     // SAFETY: every slab was placed: slab k wrote vertices and triangles from the ends of
     // slab k − 1's, as many as it has, so together they cover 0..nv and 0..nt.
-    let (vertices, triangles) = unsafe { (vertices.into_vec(nv), triangles.into_vec(nt)) };
+    let (vertices, triangles) =
+        unsafe { (vertices.into_vec(nv, reused[0]), triangles.into_vec(nt, reused[1])) };
     let results = chain.results.into_iter().flatten().collect();
     Ok((vertices, triangles, results))
 }
