@@ -386,45 +386,170 @@ fn refine_grad_chunk(field: &dyn Field, chunk: &mut [GradBracket], opts: &RootOp
     evals
 }
 
-/// Newton steps `p ← p − f ∇f / |∇f|²` towards the surface, each point kept inside its box;
-/// a point whose step fails (no gradient, non-finite value) stays where it was. Returns the
-/// evaluations made (value and gradient count as one).
-pub fn project_to_surface(
+/// A segment of a line through a point, on which [`roots_on_lines`] looks for the field's
+/// zero nearest the point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Line {
+    /// The starting point (e.g. where the trilinear interpolant is zero).
+    pub p: DVec3,
+    /// The line's unit direction.
+    pub dir: DVec3,
+    /// How far behind `p` the zero may lie (a distance, zero or more).
+    pub back: f64,
+    /// How far ahead of `p` (along `dir`) the zero may lie.
+    pub ahead: f64,
+}
+
+/// For each line, the field's zero on its segment nearest its point (`None` where the field
+/// keeps one sign on the whole segment, as far as the search sees); returns the zeros and
+/// the field evaluations made.
+///
+/// The segment is searched outward from the point on both sides at once, in steps of
+/// `first`, then twice, four times that distance and so on (so a zero a hundredth of a cell
+/// away costs a step or two, one at the segment's end a few more), and the first step on
+/// either side that changes the sign brackets the zero; where both sides change sign in the
+/// same round, the side whose secant puts the zero nearer wins. The bracket is then refined
+/// by regula falsi to `tolerance` (a distance). Why a search on a fixed line rather than
+/// Newton steps along the gradient: the line is chosen to keep several points apart (a
+/// tube's ring on rays from its saddle), which free steps need not (see
+/// [`crate::grid::Slide`]). In fixed chunks, one batch per round, so the result does not
+/// depend on the thread count.
+pub fn roots_on_lines(
     field: &dyn Field,
-    points: &mut [DVec3],
-    boxes: &[(DVec3, DVec3)],
+    lines: &[Line],
+    first: f64,
     tolerance: f64,
-) -> u64 {
-    points
-        .par_chunks_mut(CHUNK)
-        .zip(boxes.par_chunks(CHUNK))
-        .map(|(pts, bxs)| {
-            let mut vals = vec![0.0; pts.len()];
-            let mut grads = vec![DVec3::ZERO; pts.len()];
-            let mut evals = 0;
-            for _ in 0..8 {
-                field.eval_grad_many(pts, &mut vals, &mut grads);
-                evals += pts.len() as u64;
-                let mut moved = false;
-                for ((p, (lo, hi)), (f, g)) in pts.iter_mut().zip(bxs).zip(vals.iter().zip(&grads))
-                {
-                    let g2 = g.length_squared();
-                    if !(f.is_finite() && g2 > 0.0 && g2.is_finite()) {
-                        continue;
-                    }
-                    let step = *g * (*f / g2);
-                    if step.length() > tolerance {
-                        moved = true;
-                    }
-                    *p = (*p - step).clamp(*lo, *hi);
-                }
-                if !moved {
-                    break;
+) -> (Vec<Option<DVec3>>, u64) {
+    let parts: Vec<(Vec<Option<DVec3>>, u64)> =
+        lines.par_chunks(CHUNK).map(|chunk| lines_chunk(field, chunk, first, tolerance)).collect();
+    let evals = parts.iter().map(|p| p.1).sum();
+    (parts.into_iter().flat_map(|p| p.0).collect(), evals)
+}
+
+/// One side's search: the last point evaluated on it (as a signed distance from `p`) and
+/// the value there, and whether it goes on.
+#[derive(Clone, Copy)]
+struct Side {
+    s: f64,
+    f: f64,
+    open: bool,
+}
+
+fn lines_chunk(
+    field: &dyn Field,
+    lines: &[Line],
+    first: f64,
+    tolerance: f64,
+) -> (Vec<Option<DVec3>>, u64) {
+    let starts: Vec<DVec3> = lines.iter().map(|l| l.p).collect();
+    let mut values = vec![0.0; lines.len()];
+    field.eval_many(&starts, &mut values);
+    let mut out: Vec<Option<DVec3>> =
+        values.iter().zip(&starts).map(|(&f, &p)| (f == 0.0).then_some(p)).collect();
+    let mut evals = lines.len() as u64;
+    let ok = |x: f64| x.is_finite() && x > 0.0;
+    let mut sides: Vec<[Side; 2]> = lines
+        .iter()
+        .zip(&values)
+        .map(|(l, &f)| {
+            let go = f.is_finite() && f != 0.0 && ok(first);
+            [
+                Side { s: 0.0, f, open: go && ok(l.back) },
+                Side { s: 0.0, f, open: go && ok(l.ahead) },
+            ]
+        })
+        .collect();
+    // (line, signed distances and values at the bracket's ends, round)
+    let mut found: Vec<(usize, f64, f64, f64, f64, u32)> = Vec::new();
+    let (mut points, mut which) = (Vec::new(), Vec::new());
+    for round in 0..64u32 {
+        points.clear();
+        which.clear();
+        let step = first * 2f64.powi(round as i32);
+        for (n, (l, sd)) in lines.iter().zip(&sides).enumerate() {
+            for (k, side) in sd.iter().enumerate() {
+                if side.open {
+                    let s = if k == 0 { -step.min(l.back) } else { step.min(l.ahead) };
+                    points.push(l.p + l.dir * s);
+                    which.push((n, k, s));
                 }
             }
-            evals
-        })
-        .sum()
+        }
+        if points.is_empty() {
+            break;
+        }
+        values.resize(points.len(), 0.0);
+        field.eval_many(&points, &mut values);
+        evals += points.len() as u64;
+        // Per line, the bracket this round found, if any: (secant distance, bracket).
+        let mut best: Option<(usize, f64, (f64, f64, f64, f64))> = None;
+        let mut flush = |best: &mut Option<(usize, f64, (f64, f64, f64, f64))>,
+                         sides: &mut [[Side; 2]]| {
+            if let Some((n, _, (a, fa, b, fb))) = best.take() {
+                found.push((n, a, fa, b, fb, round));
+                sides[n] =
+                    [Side { open: false, ..sides[n][0] }, Side { open: false, ..sides[n][1] }];
+            }
+        };
+        for (&(n, k, s), &f) in which.iter().zip(&values) {
+            if best.as_ref().is_some_and(|b| b.0 != n) {
+                flush(&mut best, &mut sides);
+            }
+            let side = sides[n][k];
+            if !side.open {
+                continue; // the other side already ended this line's search
+            }
+            if f == 0.0 {
+                out[n] = Some(lines[n].p + lines[n].dir * s);
+                best = None;
+                sides[n] = [Side { open: false, ..side }; 2];
+                continue;
+            }
+            if !f.is_finite() {
+                sides[n][k].open = false;
+                continue;
+            }
+            if (f < 0.0) != (side.f < 0.0) {
+                let secant = side.s + (s - side.s) * side.f / (side.f - f);
+                if best.as_ref().is_none_or(|b| secant.abs() < b.1) {
+                    best = Some((n, secant.abs(), (side.s, side.f, s, f)));
+                }
+                continue;
+            }
+            let bound = if k == 0 { lines[n].back } else { lines[n].ahead };
+            sides[n][k] = Side { s, f, open: s.abs() < bound };
+        }
+        flush(&mut best, &mut sides);
+    }
+    // Regula falsi in each bracket, those of one round (one length, or less at a segment's
+    // end) together so that the relative tolerance fits them all.
+    let mut rounds: Vec<u32> = found.iter().map(|b| b.5).collect();
+    rounds.sort_unstable();
+    rounds.dedup();
+    for round in rounds {
+        let group: Vec<&(usize, f64, f64, f64, f64, u32)> =
+            found.iter().filter(|b| b.5 == round).collect();
+        let mut brackets: Vec<Bracket> = group
+            .iter()
+            .map(|&&(n, a, fa, b, fb, _)| {
+                let l = &lines[n];
+                Bracket {
+                    p0: l.p + l.dir * a,
+                    p1: l.p + l.dir * b,
+                    f0: fa,
+                    f1: fb,
+                    t: fa / (fa - fb),
+                }
+            })
+            .collect();
+        let length = if round == 0 { first } else { first * 2f64.powi(round as i32 - 1) };
+        let opts = RootOptions { tolerance: tolerance / length, ..RootOptions::default() };
+        evals += refine_chunk(field, &mut brackets, &opts);
+        for (b, &&(n, ..)) in brackets.iter().zip(&group) {
+            out[n] = Some(b.p0.lerp(b.p1, b.t));
+        }
+    }
+    (out, evals)
 }
 
 /// Unit normals from the field's gradient at each position; where the gradient vanishes or
