@@ -699,6 +699,36 @@ mod tests {
         }
     }
 
+    /// On each line the zero nearest the start is found, on either side, to the tolerance;
+    /// a line on which the field keeps its sign gives none, and a segment's bounds are kept.
+    #[test]
+    fn lines_find_the_nearest_zero_within_their_segment() {
+        // Zeros at x = 0.3 and x = 0.8 on the x axis (planes), none on the y axis segment.
+        let f = FnField(|p: DVec3| (p.x - 0.3) * (p.x - 0.8) + p.y * p.y + 0.01 * p.z);
+        let line = |x: f64, back: f64, ahead: f64| Line {
+            p: DVec3::new(x, 0.0, 0.0),
+            dir: DVec3::X,
+            back,
+            ahead,
+        };
+        let lines = [
+            line(0.5, 1.0, 1.0),  // 0.3 is nearer than 0.8
+            line(0.6, 1.0, 1.0),  // 0.8 is nearer
+            line(0.5, 0.1, 1.0),  // 0.3 out of reach behind: 0.8
+            line(0.5, 0.1, 0.2),  // neither within reach
+            Line { p: DVec3::new(0.5, 2.0, 0.0), dir: DVec3::Y, back: 0.5, ahead: 0.5 },
+        ];
+        let (zeros, evals) = roots_on_lines(&f, &lines, 1.0 / 32.0, 1e-9);
+        let xs: Vec<Option<f64>> = zeros.iter().map(|z| z.map(|p| p.x)).collect();
+        for (got, want) in xs.iter().zip([Some(0.3), Some(0.8), Some(0.8), None, None]) {
+            match (got, want) {
+                (Some(g), Some(w)) => assert!((g - w).abs() < 1e-8, "{xs:?}"),
+                (g, w) => assert_eq!(*g, w, "{xs:?}"),
+            }
+        }
+        assert!(evals < 5 * 40, "{evals}");
+    }
+
     #[test]
     fn bisection_takes_one_bit_per_step() {
         let f = FnField(|p: DVec3| p.x - 0.3);

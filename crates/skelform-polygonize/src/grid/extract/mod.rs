@@ -679,6 +679,20 @@ mod tests {
             .collect()
     }
 
+    /// A cell vertex's line of refinement takes no room of its own: a vertex record is as
+    /// large as before it had one, and the line comes back to its unit.
+    #[test]
+    fn cell_vertices_keep_their_line_in_the_record() {
+        assert_eq!(std::mem::size_of::<GridVertex>(), 48);
+        let slide = Slide { line: [0.25, -0.7, 1e-3], ray: true };
+        let v = GridVertex { base: [1, 2, 3], place: Place::cell([0.5; 3], slide) };
+        let back = v.slide().expect("a cell vertex");
+        assert!(back.ray);
+        for (a, b) in back.line.iter().zip(slide.line) {
+            assert!((a - b).abs() <= 0.5 * SLIDE_UNIT, "{a} {b}");
+        }
+    }
+
     /// The vector sign words (AVX2 where the CPU has it, else SSE2) say `v < 0` exactly as
     /// the scalar form, for rows that end mid-word and for −0, NaN and infinities.
     #[test]
