@@ -552,6 +552,52 @@ fn lines_chunk(
     (out, evals)
 }
 
+/// Newton steps `p ← p − f ∇f / |∇f|²` towards the surface, each point kept inside its box;
+/// a point whose step fails (no gradient, non-finite value) stays where it was. Returns the
+/// evaluations made (value and gradient count as one).
+///
+/// Free steps can carry several points onto one corner of their box: the polygonizers use
+/// this only as a second try for interior vertices whose lines have no zero, and keep its
+/// result only where the vertices stay apart and no triangle turns over (see
+/// `grid::place_cells`).
+pub fn project_to_surface(
+    field: &dyn Field,
+    points: &mut [DVec3],
+    boxes: &[(DVec3, DVec3)],
+    tolerance: f64,
+) -> u64 {
+    points
+        .par_chunks_mut(CHUNK)
+        .zip(boxes.par_chunks(CHUNK))
+        .map(|(pts, bxs)| {
+            let mut vals = vec![0.0; pts.len()];
+            let mut grads = vec![DVec3::ZERO; pts.len()];
+            let mut evals = 0;
+            for _ in 0..8 {
+                field.eval_grad_many(pts, &mut vals, &mut grads);
+                evals += pts.len() as u64;
+                let mut moved = false;
+                for ((p, (lo, hi)), (f, g)) in pts.iter_mut().zip(bxs).zip(vals.iter().zip(&grads))
+                {
+                    let g2 = g.length_squared();
+                    if !(f.is_finite() && g2 > 0.0 && g2.is_finite()) {
+                        continue;
+                    }
+                    let step = *g * (*f / g2);
+                    if step.length() > tolerance {
+                        moved = true;
+                    }
+                    *p = (*p - step).clamp(*lo, *hi);
+                }
+                if !moved {
+                    break;
+                }
+            }
+            evals
+        })
+        .sum()
+}
+
 /// Unit normals from the field's gradient at each position; where the gradient vanishes or
 /// is not finite, the area-weighted normal of the surrounding triangles instead. Returns the
 /// normals and the field evaluations made (a gradient counts as one).
@@ -712,10 +758,10 @@ mod tests {
             ahead,
         };
         let lines = [
-            line(0.5, 1.0, 1.0),  // 0.3 is nearer than 0.8
-            line(0.6, 1.0, 1.0),  // 0.8 is nearer
-            line(0.5, 0.1, 1.0),  // 0.3 out of reach behind: 0.8
-            line(0.5, 0.1, 0.2),  // neither within reach
+            line(0.5, 1.0, 1.0), // 0.3 is nearer than 0.8
+            line(0.6, 1.0, 1.0), // 0.8 is nearer
+            line(0.5, 0.1, 1.0), // 0.3 out of reach behind: 0.8
+            line(0.5, 0.1, 0.2), // neither within reach
             Line { p: DVec3::new(0.5, 2.0, 0.0), dir: DVec3::Y, back: 0.5, ahead: 0.5 },
         ];
         let (zeros, evals) = roots_on_lines(&f, &lines, 1.0 / 32.0, 1e-9);

@@ -31,7 +31,9 @@ use skelform_mesh::Mesh;
 
 use crate::Error;
 use crate::lattice::{LatticeOptions, MemoryNeed};
-use crate::refine::{Bracket, Line, RootOptions, gradient_normals, refine_roots, roots_on_lines};
+use crate::refine::{
+    Bracket, Line, RootOptions, gradient_normals, project_to_surface, refine_roots, roots_on_lines,
+};
 pub use extract::{
     Cancelled, Extraction, GridVertex, LayerSource, Near, Place, Positions, SLAB, SLIDE_UNIT,
     SampledVertex, SlabVertex, Slide, StreamError, StreamStats, Streamed, Workspace, dir_vector,
@@ -464,12 +466,6 @@ pub(crate) fn place_cells<'v>(
             *groups.entry((v.base, ray)).or_insert(next)
         })
         .collect();
-    let mut moves = vec![true; groups.len()];
-    for (z, &g) in zeros.iter().zip(&group) {
-        if z.is_none() {
-            moves[g] = false;
-        }
-    }
     // The triangles round the cell vertices, with each cell vertex's place in `cells`.
     let mut slot: rustc_hash::FxHashMap<u32, usize> = Default::default();
     slot.extend(cells.iter().enumerate().map(|(k, &i)| (i as u32, k)));
@@ -478,24 +474,105 @@ pub(crate) fn place_cells<'v>(
         bits[i / 64] |= 1 << (i % 64);
     }
     let marked = |v: u32| bits[v as usize / 64] >> (v % 64) & 1 == 1;
-    let around: Vec<&[u32; 3]> =
-        triangles.iter().filter(|t| t.iter().any(|&v| marked(v))).collect();
+    let around: Vec<[u32; 3]> =
+        triangles.iter().filter(|t| t.iter().any(|&v| marked(v))).copied().collect();
+    let mut placed: Vec<DVec3> = lines.iter().map(|l| l.p).collect();
+    let mut settle = |cand: &[Option<DVec3>], open: &[bool], turn: f64| {
+        let mut moves: Vec<bool> = open.to_vec();
+        for (c, &g) in cand.iter().zip(&group) {
+            if c.is_none() {
+                moves[g] = false;
+            }
+        }
+        let moving = Moving { cand, placed: &placed, lines: &lines, group: &group };
+        turn_nothing_over(&around, &slot, positions, &moving, turn, &mut moves);
+        for (k, c) in cand.iter().enumerate() {
+            if let (Some(c), true) = (c, moves[group[k]]) {
+                placed[k] = *c;
+            }
+        }
+        moves
+    };
+    let moved = settle(&zeros, &vec![true; groups.len()], 0.0);
+    // A second try for what stayed: Newton steps along the field's gradient within the cell,
+    // kept only where every vertex of the group converged onto the field.
+    let again: Vec<usize> = (0..cells.len()).filter(|&k| !moved[group[k]]).collect();
+    let mut evals = evals;
+    if !again.is_empty() {
+        let mut pts: Vec<DVec3> = again.iter().map(|&k| lines[k].p).collect();
+        let boxes: Vec<(DVec3, DVec3)> = again
+            .iter()
+            .map(|&k| {
+                let [i, j, l] = vertex(cells[k]).base.map(|x| x as usize);
+                let lo = grid.point(i, j, l);
+                let m = CELL_MARGIN * grid.cell;
+                (lo + DVec3::splat(m), lo + DVec3::splat(grid.cell - m))
+            })
+            .collect();
+        evals += project_to_surface(field, &mut pts, &boxes, tolerance * grid.cell);
+        let (mut values, mut grads) = (vec![0.0; pts.len()], vec![DVec3::ZERO; pts.len()]);
+        field.eval_grad_many(&pts, &mut values, &mut grads);
+        evals += pts.len() as u64;
+        let mut cand = vec![None; cells.len()];
+        for ((&k, p), (f, g)) in again.iter().zip(&pts).zip(values.iter().zip(&grads)) {
+            let off = f.abs() / g.length();
+            if off <= tolerance * grid.cell {
+                cand[k] = Some(*p);
+            }
+        }
+        let open: Vec<bool> = moved.iter().map(|m| !m).collect();
+        settle(&cand, &open, SECOND_TRY_TURN);
+    }
+    for (k, &i) in cells.iter().enumerate() {
+        positions[i] = placed[k];
+    }
+    evals
+}
+
+/// The least cosine of the angle a triangle round a cell vertex may turn through when the
+/// vertex moves by the second try (free Newton steps): 60°. Why: unlike the first try's
+/// lines, free steps can swing a tube's triangles across their neighbours (a fold, normals
+/// nearly opposite across an edge) without turning any one of them over.
+const SECOND_TRY_TURN: f64 = 0.5;
+
+/// Where a try would move the cell vertices: `cand[k]` for those of groups that move,
+/// `placed[k]` (their place so far) for the others, `lines[k].p` the interpolant's place.
+struct Moving<'a> {
+    cand: &'a [Option<DVec3>],
+    placed: &'a [DVec3],
+    lines: &'a [Line],
+    group: &'a [usize],
+}
+
+/// Clears `moves` for every group that, moved as `m` says, would turn a triangle round a
+/// cell vertex through an angle whose cosine is `turn` or less (or collapse it), compared
+/// with the cell vertices where the interpolant put them; repeated until none does.
+fn turn_nothing_over(
+    around: &[[u32; 3]],
+    slot: &rustc_hash::FxHashMap<u32, usize>,
+    positions: &[DVec3],
+    m: &Moving<'_>,
+    turn: f64,
+    moves: &mut [bool],
+) {
     loop {
         let mut changed = false;
-        for t in &around {
+        for t in around {
             let at = |after: bool| {
                 t.map(|v| match slot.get(&v) {
-                    Some(&k) if after && moves[group[k]] => zeros[k].unwrap_or(lines[k].p),
-                    Some(&k) => lines[k].p,
+                    Some(&k) if after && moves[m.group[k]] => m.cand[k].unwrap_or(m.placed[k]),
+                    Some(&k) if after => m.placed[k],
+                    Some(&k) => m.lines[k].p,
                     None => positions[v as usize],
                 })
             };
             let normal = |p: [DVec3; 3]| (p[1] - p[0]).cross(p[2] - p[0]);
             let (before, after) = (normal(at(false)), normal(at(true)));
-            if before.dot(after) <= 0.0 && before != DVec3::ZERO {
-                for v in t.iter() {
+            let limit = turn * before.length() * after.length();
+            if before.dot(after) <= limit && before != DVec3::ZERO {
+                for v in t {
                     if let Some(&k) = slot.get(v) {
-                        changed |= std::mem::replace(&mut moves[group[k]], false);
+                        changed |= std::mem::replace(&mut moves[m.group[k]], false);
                     }
                 }
             }
@@ -504,13 +581,6 @@ pub(crate) fn place_cells<'v>(
             break;
         }
     }
-    for (k, &i) in cells.iter().enumerate() {
-        positions[i] = match zeros[k] {
-            Some(z) if moves[group[k]] => z,
-            _ => lines[k].p,
-        };
-    }
-    evals
 }
 
 /// Positions of an extraction's vertices: interpolated, then refined on the field if asked
