@@ -426,6 +426,18 @@ pub fn roots_on_lines(
     (parts.into_iter().flat_map(|p| p.0).collect(), evals)
 }
 
+/// A bracket of a line's zero: its ends as signed distances from the line's point, the
+/// values there, and the round of the search that found it (which fixes its length).
+#[derive(Clone, Copy)]
+struct Found {
+    line: usize,
+    a: f64,
+    fa: f64,
+    b: f64,
+    fb: f64,
+    round: u32,
+}
+
 /// One side's search: the last point evaluated on it (as a signed distance from `p`) and
 /// the value there, and whether it goes on.
 #[derive(Clone, Copy)]
@@ -459,8 +471,7 @@ fn lines_chunk(
             ]
         })
         .collect();
-    // (line, signed distances and values at the bracket's ends, round)
-    let mut found: Vec<(usize, f64, f64, f64, f64, u32)> = Vec::new();
+    let mut found: Vec<Found> = Vec::new();
     let (mut points, mut which) = (Vec::new(), Vec::new());
     for round in 0..64u32 {
         points.clear();
@@ -481,18 +492,19 @@ fn lines_chunk(
         values.resize(points.len(), 0.0);
         field.eval_many(&points, &mut values);
         evals += points.len() as u64;
-        // Per line, the bracket this round found, if any: (secant distance, bracket).
-        let mut best: Option<(usize, f64, (f64, f64, f64, f64))> = None;
-        let mut flush = |best: &mut Option<(usize, f64, (f64, f64, f64, f64))>,
-                         sides: &mut [[Side; 2]]| {
-            if let Some((n, _, (a, fa, b, fb))) = best.take() {
-                found.push((n, a, fa, b, fb, round));
+        // The bracket this round found on the line at hand, if any, with the distance to
+        // its secant's root.
+        let mut best: Option<(f64, Found)> = None;
+        let mut flush = |best: &mut Option<(f64, Found)>, sides: &mut [[Side; 2]]| {
+            if let Some((_, b)) = best.take() {
+                let n = b.line;
+                found.push(b);
                 sides[n] =
                     [Side { open: false, ..sides[n][0] }, Side { open: false, ..sides[n][1] }];
             }
         };
         for (&(n, k, s), &f) in which.iter().zip(&values) {
-            if best.as_ref().is_some_and(|b| b.0 != n) {
+            if best.as_ref().is_some_and(|b| b.1.line != n) {
                 flush(&mut best, &mut sides);
             }
             let side = sides[n][k];
@@ -511,8 +523,9 @@ fn lines_chunk(
             }
             if (f < 0.0) != (side.f < 0.0) {
                 let secant = side.s + (s - side.s) * side.f / (side.f - f);
-                if best.as_ref().is_none_or(|b| secant.abs() < b.1) {
-                    best = Some((n, secant.abs(), (side.s, side.f, s, f)));
+                if best.as_ref().is_none_or(|b| secant.abs() < b.0) {
+                    let b = Found { line: n, a: side.s, fa: side.f, b: s, fb: f, round };
+                    best = Some((secant.abs(), b));
                 }
                 continue;
             }
@@ -523,30 +536,24 @@ fn lines_chunk(
     }
     // Regula falsi in each bracket, those of one round (one length, or less at a segment's
     // end) together so that the relative tolerance fits them all.
-    let mut rounds: Vec<u32> = found.iter().map(|b| b.5).collect();
+    let mut rounds: Vec<u32> = found.iter().map(|b| b.round).collect();
     rounds.sort_unstable();
     rounds.dedup();
     for round in rounds {
-        let group: Vec<&(usize, f64, f64, f64, f64, u32)> =
-            found.iter().filter(|b| b.5 == round).collect();
+        let group: Vec<&Found> = found.iter().filter(|b| b.round == round).collect();
         let mut brackets: Vec<Bracket> = group
             .iter()
-            .map(|&&(n, a, fa, b, fb, _)| {
-                let l = &lines[n];
-                Bracket {
-                    p0: l.p + l.dir * a,
-                    p1: l.p + l.dir * b,
-                    f0: fa,
-                    f1: fb,
-                    t: fa / (fa - fb),
-                }
+            .map(|b| {
+                let l = &lines[b.line];
+                let (p0, p1) = (l.p + l.dir * b.a, l.p + l.dir * b.b);
+                Bracket { p0, p1, f0: b.fa, f1: b.fb, t: b.fa / (b.fa - b.fb) }
             })
             .collect();
         let length = if round == 0 { first } else { first * 2f64.powi(round as i32 - 1) };
         let opts = RootOptions { tolerance: tolerance / length, ..RootOptions::default() };
         evals += refine_chunk(field, &mut brackets, &opts);
-        for (b, &&(n, ..)) in brackets.iter().zip(&group) {
-            out[n] = Some(b.p0.lerp(b.p1, b.t));
+        for (br, b) in brackets.iter().zip(&group) {
+            out[b.line] = Some(br.p0.lerp(br.p1, br.t));
         }
     }
     (out, evals)
