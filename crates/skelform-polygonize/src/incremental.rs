@@ -360,9 +360,9 @@ impl GridState {
             }
         }
 
-        // Root finding for the fresh edge vertices; every cell vertex is projected again
-        // (their projection stops per batch, so they are projected in the fresh run's
-        // batches).
+        // Root finding for the fresh edge vertices; every cell vertex is placed again, as a
+        // fresh run places it (after the edge vertices: whether a ring moves depends on
+        // their positions, and the second try's Newton steps stop per batch).
         let cells: Vec<usize> = (0..n).filter(|&i| key(&vertices[i]).is_none()).collect();
         if lattice.refine {
             let roots = RootOptions {

@@ -712,7 +712,8 @@ impl<'a> Run<'a> {
 impl Run<'_> {
     /// [`Run::finish`] where the corners' gradients are known: edge vertices are placed by
     /// [`refine_roots_with_gradients`] and take their normals from its gradients; the few
-    /// cell vertices are projected and take a gradient each, as in the other path.
+    /// cell vertices are placed (`grid::place_cells`) and take a gradient each, as in the
+    /// other path.
     fn finish_with_gradients(mut self) -> Result<(Mesh, Stats), Error> {
         let t = Instant::now();
         let grid = self.grid;
