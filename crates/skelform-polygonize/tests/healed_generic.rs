@@ -11,9 +11,11 @@
 //! The issue's reproducers (two spheres at 40-100 samples, the cross-cap at 41-81) and the
 //! failures the sweeps found run as they are.
 //!
-//! Still failing (issue 18), about 2% of sphere × torus draws (the sphere near the tube's
-//! inner side), and not in healing: plain marching cubes on the same lattice has the same
-//! defects (see `known_failure_plain_mc33_tunnel_ring_collapses`).
+//! The sphere × torus draws used to fail at about 2% (7, 8 and 2 of 300 at seeds 7, 8 and 9:
+//! the sphere near the tube's inner side), in plain marching cubes as much as in healing:
+//! tunnel ring vertices collapsed onto cell corners. They pass now, at 0 of 300 for each
+//! seed (see `plain_mc33_tunnel_rings_stay_apart_on_sphere_torus` and
+//! `sphere_torus_draws_with_collapsed_rings_heal`).
 
 use std::collections::{BTreeMap, BTreeSet};
 
