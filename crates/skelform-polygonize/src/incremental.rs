@@ -37,8 +37,7 @@ use crate::Error;
 use crate::grid::extract::{SLAB, SlabCounts, extract_slabs, slab_count};
 use crate::grid::{self, GridVertex, Options, Place, Stats};
 use crate::refine::{
-    Bracket, RootOptions, fill_from_faces, project_to_surface, refine_roots, refine_roots_until,
-    unit_gradients,
+    Bracket, RootOptions, fill_from_faces, refine_roots, refine_roots_until, unit_gradients,
 };
 
 /// Cells of margin around a changed box: one so that every lattice edge that meets the box
@@ -361,9 +360,9 @@ impl GridState {
             }
         }
 
-        // Root finding for the fresh edge vertices; every cell vertex is projected again
-        // (their projection stops per batch, so they are projected in the fresh run's
-        // batches).
+        // Root finding for the fresh edge vertices; every cell vertex is placed again, as a
+        // fresh run places it (after the edge vertices: whether a ring moves depends on
+        // their positions, and the second try's Newton steps stop per batch).
         let cells: Vec<usize> = (0..n).filter(|&i| key(&vertices[i]).is_none()).collect();
         if lattice.refine {
             let roots = RootOptions {
@@ -398,22 +397,15 @@ impl GridState {
             for (&i, b) in edges.iter().zip(&brackets) {
                 positions[i] = b.p0.lerp(b.p1, b.t);
             }
-            if !cells.is_empty() {
-                let mut pts: Vec<DVec3> =
-                    cells.iter().map(|&i| vertices[i].position(&grid)).collect();
-                let boxes: Vec<(DVec3, DVec3)> = cells
-                    .iter()
-                    .map(|&i| {
-                        let lo = at(vertices[i].base);
-                        (lo, lo + DVec3::splat(grid.cell))
-                    })
-                    .collect();
-                stats.refine_evaluations +=
-                    project_to_surface(field, &mut pts, &boxes, lattice.tolerance * grid.cell);
-                for (&i, p) in cells.iter().zip(pts) {
-                    positions[i] = p;
-                }
-            }
+            stats.refine_evaluations += grid::place_cells(
+                field,
+                &grid,
+                &cells,
+                |i| &vertices[i],
+                &mut positions,
+                &triangles,
+                lattice.tolerance,
+            );
         }
         stats.refinement = t.elapsed();
         // An update goes on to the end from here: what is left is proportional to the

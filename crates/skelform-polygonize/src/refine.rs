@@ -386,9 +386,187 @@ fn refine_grad_chunk(field: &dyn Field, chunk: &mut [GradBracket], opts: &RootOp
     evals
 }
 
+/// A segment of a line through a point, on which [`roots_on_lines`] looks for the field's
+/// zero nearest the point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Line {
+    /// The starting point (e.g. where the trilinear interpolant is zero).
+    pub p: DVec3,
+    /// The line's unit direction.
+    pub dir: DVec3,
+    /// How far behind `p` the zero may lie (a distance, zero or more).
+    pub back: f64,
+    /// How far ahead of `p` (along `dir`) the zero may lie.
+    pub ahead: f64,
+}
+
+/// For each line, the field's zero on its segment nearest its point (`None` where the field
+/// keeps one sign on the whole segment, as far as the search sees); returns the zeros and
+/// the field evaluations made.
+///
+/// The segment is searched outward from the point on both sides at once, in steps of
+/// `first`, then twice, four times that distance and so on (so a zero a hundredth of a cell
+/// away costs a step or two, one at the segment's end a few more), and the first step on
+/// either side that changes the sign brackets the zero; where both sides change sign in the
+/// same round, the side whose secant puts the zero nearer wins. The bracket is then refined
+/// by regula falsi to `tolerance` (a distance). Why a search on a fixed line rather than
+/// Newton steps along the gradient: the line is chosen to keep several points apart (a
+/// tube's ring on rays from its saddle), which free steps need not (see
+/// [`crate::grid::Slide`]). In fixed chunks, one batch per round, so the result does not
+/// depend on the thread count.
+pub fn roots_on_lines(
+    field: &dyn Field,
+    lines: &[Line],
+    first: f64,
+    tolerance: f64,
+) -> (Vec<Option<DVec3>>, u64) {
+    let parts: Vec<(Vec<Option<DVec3>>, u64)> =
+        lines.par_chunks(CHUNK).map(|chunk| lines_chunk(field, chunk, first, tolerance)).collect();
+    let evals = parts.iter().map(|p| p.1).sum();
+    (parts.into_iter().flat_map(|p| p.0).collect(), evals)
+}
+
+/// A bracket of a line's zero: its ends as signed distances from the line's point, the
+/// values there, and the round of the search that found it (which fixes its length).
+#[derive(Clone, Copy)]
+struct Found {
+    line: usize,
+    a: f64,
+    fa: f64,
+    b: f64,
+    fb: f64,
+    round: u32,
+}
+
+/// One side's search: the last point evaluated on it (as a signed distance from `p`) and
+/// the value there, and whether it goes on.
+#[derive(Clone, Copy)]
+struct Side {
+    s: f64,
+    f: f64,
+    open: bool,
+}
+
+fn lines_chunk(
+    field: &dyn Field,
+    lines: &[Line],
+    first: f64,
+    tolerance: f64,
+) -> (Vec<Option<DVec3>>, u64) {
+    let starts: Vec<DVec3> = lines.iter().map(|l| l.p).collect();
+    let mut values = vec![0.0; lines.len()];
+    field.eval_many(&starts, &mut values);
+    let mut out: Vec<Option<DVec3>> =
+        values.iter().zip(&starts).map(|(&f, &p)| (f == 0.0).then_some(p)).collect();
+    let mut evals = lines.len() as u64;
+    let ok = |x: f64| x.is_finite() && x > 0.0;
+    let mut sides: Vec<[Side; 2]> = lines
+        .iter()
+        .zip(&values)
+        .map(|(l, &f)| {
+            let go = f.is_finite() && f != 0.0 && ok(first);
+            [
+                Side { s: 0.0, f, open: go && ok(l.back) },
+                Side { s: 0.0, f, open: go && ok(l.ahead) },
+            ]
+        })
+        .collect();
+    let mut found: Vec<Found> = Vec::new();
+    let (mut points, mut which) = (Vec::new(), Vec::new());
+    for round in 0..64u32 {
+        points.clear();
+        which.clear();
+        let step = first * 2f64.powi(round as i32);
+        for (n, (l, sd)) in lines.iter().zip(&sides).enumerate() {
+            for (k, side) in sd.iter().enumerate() {
+                if side.open {
+                    let s = if k == 0 { -step.min(l.back) } else { step.min(l.ahead) };
+                    points.push(l.p + l.dir * s);
+                    which.push((n, k, s));
+                }
+            }
+        }
+        if points.is_empty() {
+            break;
+        }
+        values.resize(points.len(), 0.0);
+        field.eval_many(&points, &mut values);
+        evals += points.len() as u64;
+        // The bracket this round found on the line at hand, if any, with the distance to
+        // its secant's root.
+        let mut best: Option<(f64, Found)> = None;
+        let mut flush = |best: &mut Option<(f64, Found)>, sides: &mut [[Side; 2]]| {
+            if let Some((_, b)) = best.take() {
+                let n = b.line;
+                found.push(b);
+                sides[n] =
+                    [Side { open: false, ..sides[n][0] }, Side { open: false, ..sides[n][1] }];
+            }
+        };
+        for (&(n, k, s), &f) in which.iter().zip(&values) {
+            if best.as_ref().is_some_and(|b| b.1.line != n) {
+                flush(&mut best, &mut sides);
+            }
+            let side = sides[n][k];
+            if !side.open {
+                continue; // the other side already ended this line's search
+            }
+            if f == 0.0 {
+                out[n] = Some(lines[n].p + lines[n].dir * s);
+                best = None;
+                sides[n] = [Side { open: false, ..side }; 2];
+                continue;
+            }
+            if !f.is_finite() {
+                sides[n][k].open = false;
+                continue;
+            }
+            if (f < 0.0) != (side.f < 0.0) {
+                let secant = side.s + (s - side.s) * side.f / (side.f - f);
+                if best.as_ref().is_none_or(|b| secant.abs() < b.0) {
+                    let b = Found { line: n, a: side.s, fa: side.f, b: s, fb: f, round };
+                    best = Some((secant.abs(), b));
+                }
+                continue;
+            }
+            let bound = if k == 0 { lines[n].back } else { lines[n].ahead };
+            sides[n][k] = Side { s, f, open: s.abs() < bound };
+        }
+        flush(&mut best, &mut sides);
+    }
+    // Regula falsi in each bracket, those of one round (one length, or less at a segment's
+    // end) together so that the relative tolerance fits them all.
+    let mut rounds: Vec<u32> = found.iter().map(|b| b.round).collect();
+    rounds.sort_unstable();
+    rounds.dedup();
+    for round in rounds {
+        let group: Vec<&Found> = found.iter().filter(|b| b.round == round).collect();
+        let mut brackets: Vec<Bracket> = group
+            .iter()
+            .map(|b| {
+                let l = &lines[b.line];
+                let (p0, p1) = (l.p + l.dir * b.a, l.p + l.dir * b.b);
+                Bracket { p0, p1, f0: b.fa, f1: b.fb, t: b.fa / (b.fa - b.fb) }
+            })
+            .collect();
+        let length = if round == 0 { first } else { first * 2f64.powi(round as i32 - 1) };
+        let opts = RootOptions { tolerance: tolerance / length, ..RootOptions::default() };
+        evals += refine_chunk(field, &mut brackets, &opts);
+        for (br, b) in brackets.iter().zip(&group) {
+            out[b.line] = Some(br.p0.lerp(br.p1, br.t));
+        }
+    }
+    (out, evals)
+}
+
 /// Newton steps `p ← p − f ∇f / |∇f|²` towards the surface, each point kept inside its box;
 /// a point whose step fails (no gradient, non-finite value) stays where it was. Returns the
 /// evaluations made (value and gradient count as one).
+///
+/// Free steps can carry several points onto one corner of their box: the polygonizers use
+/// this only as a second try for interior vertices whose lines have no zero, and keep its
+/// result only where the vertices stay apart and no triangle turns over (see
+/// `grid::place_cells`).
 pub fn project_to_surface(
     field: &dyn Field,
     points: &mut [DVec3],
@@ -572,6 +750,36 @@ mod tests {
             let angle = br.grad.angle_between(f.gradient(p));
             assert!(angle < 1e-3, "{angle}");
         }
+    }
+
+    /// On each line the zero nearest the start is found, on either side, to the tolerance;
+    /// a line on which the field keeps its sign gives none, and a segment's bounds are kept.
+    #[test]
+    fn lines_find_the_nearest_zero_within_their_segment() {
+        // Zeros at x = 0.3 and x = 0.8 on the x axis (planes), none on the y axis segment.
+        let f = FnField(|p: DVec3| (p.x - 0.3) * (p.x - 0.8) + p.y * p.y + 0.01 * p.z);
+        let line = |x: f64, back: f64, ahead: f64| Line {
+            p: DVec3::new(x, 0.0, 0.0),
+            dir: DVec3::X,
+            back,
+            ahead,
+        };
+        let lines = [
+            line(0.5, 1.0, 1.0), // 0.3 is nearer than 0.8
+            line(0.6, 1.0, 1.0), // 0.8 is nearer
+            line(0.5, 0.1, 1.0), // 0.3 out of reach behind: 0.8
+            line(0.5, 0.1, 0.2), // neither within reach
+            Line { p: DVec3::new(0.5, 2.0, 0.0), dir: DVec3::Y, back: 0.5, ahead: 0.5 },
+        ];
+        let (zeros, evals) = roots_on_lines(&f, &lines, 1.0 / 32.0, 1e-9);
+        let xs: Vec<Option<f64>> = zeros.iter().map(|z| z.map(|p| p.x)).collect();
+        for (got, want) in xs.iter().zip([Some(0.3), Some(0.8), Some(0.8), None, None]) {
+            match (got, want) {
+                (Some(g), Some(w)) => assert!((g - w).abs() < 1e-8, "{xs:?}"),
+                (g, w) => assert_eq!(*g, w, "{xs:?}"),
+            }
+        }
+        assert!(evals < 5 * 40, "{evals}");
     }
 
     #[test]

@@ -47,13 +47,13 @@ use skelform_mesh::Mesh;
 
 use crate::grid::cell::{CubeSink, case_of, crossing, polygonize_cube};
 use crate::grid::cube::{CORNERS, EDGES, FACES};
-use crate::grid::{GridVertex, Place, Placement, place_vertices};
+use crate::grid::{GridVertex, Place, Placement, Slide, place_cells, place_vertices};
 use crate::lattice::cubes::CubeLattice;
 use crate::lattice::memory::vec_bytes;
 use crate::lattice::propagate::{Cubes, Limits, Order, propagate};
 use crate::lattice::search::CoarseSearch;
 use crate::refine::{
-    GradBracket, RootMethod, RootOptions, fill_from_faces, gradient_normals, project_to_surface,
+    GradBracket, RootMethod, RootOptions, fill_from_faces, gradient_normals,
     refine_roots_with_gradients, unit_gradients,
 };
 use crate::{Error, LatticeOptions, Resolution};
@@ -690,6 +690,7 @@ impl<'a> Run<'a> {
             self.field,
             &self.grid,
             &self.vertices,
+            &self.triangles,
             |i| ends[i].map(f64::from),
             &how,
         );
@@ -711,7 +712,8 @@ impl<'a> Run<'a> {
 impl Run<'_> {
     /// [`Run::finish`] where the corners' gradients are known: edge vertices are placed by
     /// [`refine_roots_with_gradients`] and take their normals from its gradients; the few
-    /// cell vertices are projected and take a gradient each, as in the other path.
+    /// cell vertices are placed (`grid::place_cells`) and take a gradient each, as in the
+    /// other path.
     fn finish_with_gradients(mut self) -> Result<(Mesh, Stats), Error> {
         let t = Instant::now();
         let grid = self.grid;
@@ -752,19 +754,16 @@ impl Run<'_> {
             }
         }
         if !cell.is_empty() {
-            let mut pts: Vec<DVec3> = cell.iter().map(|&i| positions[i]).collect();
-            let boxes: Vec<(DVec3, DVec3)> = cell
-                .iter()
-                .map(|&i| {
-                    let lo = at(self.vertices[i].base);
-                    (lo, lo + DVec3::splat(grid.cell))
-                })
-                .collect();
-            let tolerance = self.opts.lattice.tolerance * grid.cell;
-            evals += project_to_surface(self.field, &mut pts, &boxes, tolerance);
-            for (&i, p) in cell.iter().zip(&pts) {
-                positions[i] = *p;
-            }
+            evals += place_cells(
+                self.field,
+                &grid,
+                &cell,
+                |i| &self.vertices[i],
+                &mut positions,
+                &self.triangles,
+                self.opts.lattice.tolerance,
+            );
+            let pts: Vec<DVec3> = cell.iter().map(|&i| positions[i]).collect();
             if want_normals {
                 let n = unit_gradients(self.field, &pts);
                 self.stats.normal_evaluations = pts.len() as u64;
@@ -863,9 +862,9 @@ impl CubeSink for RunSink<'_, '_> {
         self.segment(c0, c1, crossing(ends[0], ends[1]), ends)
     }
 
-    fn cell_vertex(&mut self, offset: [f64; 3]) -> u32 {
+    fn cell_vertex(&mut self, offset: [f64; 3], slide: Slide) -> u32 {
         self.run.ends.push([0.0; 2]);
-        self.run.vertices.push(GridVertex { base: self.base, place: Place::Cell { offset } });
+        self.run.vertices.push(GridVertex { base: self.base, place: Place::cell(offset, slide) });
         self.run.vertices.len() as u32 - 1
     }
 

@@ -6,7 +6,8 @@
 //! continuation polygonizer in a hash map. Both therefore make exactly the same surface.
 
 use super::cube::{EDGES, FACES, edge_point};
-use super::interior::{level_on_ray, onto_level, tunnel};
+use super::extract::Slide;
+use super::interior::{level_on_ray, onto_level, trilinear_gradient, tunnel};
 use super::table::{CENTER, table};
 
 /// Where the surface crosses edges whose end values have opposite signs is never closer
@@ -21,8 +22,9 @@ pub trait CubeSink {
     /// [`crossing`]`(ends[0], ends[1])` (computed only then: most edges are shared by four
     /// cubes).
     fn edge_vertex(&mut self, e: usize, ends: [f32; 2]) -> u32;
-    /// A new vertex inside the cube, at `offset` (cell units from the lowest corner).
-    fn cell_vertex(&mut self, offset: [f64; 3]) -> u32;
+    /// A new vertex inside the cube, at `offset` (cell units from the lowest corner), on the
+    /// trilinear interpolant; refinement on the field moves it along `slide`.
+    fn cell_vertex(&mut self, offset: [f64; 3], slide: Slide) -> u32;
     fn triangle(&mut self, t: [u32; 3]);
 }
 
@@ -84,6 +86,17 @@ fn centroid(points: impl ExactSizeIterator<Item = [f64; 3]>) -> [f64; 3] {
     points.fold([0.0; 3], |c, p| std::array::from_fn(|d| c[d] + p[d] / n))
 }
 
+/// A fan centre: the loop's centroid moved along the gradient line onto the interpolant's
+/// level set, where the loop's own (edge) vertices are; refinement moves it along the
+/// interpolant's normal there, either way, so that it stays over its fan.
+fn fan_centre(v: &[f32; 8], edges: &[u8], sink: &mut impl CubeSink) -> u32 {
+    let p = onto_level(v, centroid(edges.iter().map(|e| cube_point(*e, v))));
+    let g = trilinear_gradient(v, p);
+    let norm = g.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let line = if norm > 0.0 && norm.is_finite() { g.map(|x| x / norm) } else { [0.0; 3] };
+    sink.cell_vertex(p, Slide { line, ray: false })
+}
+
 /// Triangulates one cube with corner values `v` (inside negative) into `sink`.
 #[inline]
 pub fn polygonize_cube(v: &[f32; 8], sink: &mut impl CubeSink) -> CubeOutcome {
@@ -128,11 +141,7 @@ pub fn polygonize_case(case: usize, v: &[f32; 8], sink: &mut impl CubeSink) -> C
     };
     let Some((saddle, la, lb)) = tube else {
         if let Some(l) = entry.center_loop {
-            let edges = t.loop_edges(entry, l as usize);
-            // The loop's centroid moved along the gradient line onto the interpolant's
-            // level set, where the loop's own (edge) vertices are.
-            let c = centroid(edges.iter().map(|e| cube_point(*e, v)));
-            local[CENTER as usize] = sink.cell_vertex(onto_level(v, c));
+            local[CENTER as usize] = fan_centre(v, t.loop_edges(entry, l as usize), sink);
         }
         for tri in t.triangles(entry) {
             sink.triangle(tri.map(|e| local[e as usize]));
@@ -150,6 +159,7 @@ pub fn polygonize_case(case: usize, v: &[f32; 8], sink: &mut impl CubeSink) -> C
     // direction of its loop-b vertex from loop b's centre (the tube's waist: the saddle has
     // the tube's sign, and across the tube the interpolant changes it); where that ray stays
     // on the saddle's side inside the cube, the vertex is put at half the way instead.
+    // Refinement moves each on its own ray from the saddle, never past it.
     let ring: Vec<(u32, [f64; 3])> = b
         .iter()
         .map(|&(_, p)| {
@@ -160,7 +170,8 @@ pub fn polygonize_case(case: usize, v: &[f32; 8], sink: &mut impl CubeSink) -> C
                     std::array::from_fn(|d| (saddle.p[d] + 0.5 * dir[d]).clamp(0.01, 0.99)),
                 )
             });
-            (sink.cell_vertex(offset), offset)
+            let line = std::array::from_fn(|d| offset[d] - saddle.p[d]);
+            (sink.cell_vertex(offset, Slide { line, ray: true }), offset)
         })
         .collect();
     let rev: Vec<(u32, [f64; 3])> = ring.iter().rev().copied().collect();
@@ -176,8 +187,7 @@ pub fn polygonize_case(case: usize, v: &[f32; 8], sink: &mut impl CubeSink) -> C
             }
         }
         if let Some(l) = entry.center_loop.filter(|&l| l as usize != la && l as usize != lb) {
-            let c = centroid(t.loop_edges(entry, l as usize).iter().map(|e| cube_point(*e, v)));
-            local[CENTER as usize] = sink.cell_vertex(onto_level(v, c));
+            local[CENTER as usize] = fan_centre(v, t.loop_edges(entry, l as usize), sink);
         }
         for tri in t.triangles(entry) {
             if !tri.iter().any(|&e| on_tube[e as usize]) {

@@ -41,6 +41,11 @@ pub fn trilinear(v: &[f32; 8], p: [f64; 3]) -> f64 {
     a + b * x + c * y + d * z + e * x * y + f * y * z + g * x * z + h * x * y * z
 }
 
+/// The trilinear interpolant's gradient at `p` in the unit cube (per cell).
+pub fn trilinear_gradient(v: &[f32; 8], p: [f64; 3]) -> [f64; 3] {
+    gradient(&coefficients(v), p)
+}
+
 /// A critical point of the interpolant strictly inside the cube.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Saddle {
@@ -372,7 +377,7 @@ mod tests {
             }
             id
         }
-        fn cell_vertex(&mut self, offset: [f64; 3]) -> u32 {
+        fn cell_vertex(&mut self, offset: [f64; 3], _: super::super::extract::Slide) -> u32 {
             self.interior.push(self.points.len());
             self.points.push(offset);
             self.points.len() as u32 - 1

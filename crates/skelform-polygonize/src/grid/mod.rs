@@ -31,11 +31,13 @@ use skelform_mesh::Mesh;
 
 use crate::Error;
 use crate::lattice::{LatticeOptions, MemoryNeed};
-use crate::refine::{Bracket, RootOptions, gradient_normals, project_to_surface, refine_roots};
+use crate::refine::{
+    Bracket, Line, RootOptions, gradient_normals, project_to_surface, refine_roots, roots_on_lines,
+};
 pub use extract::{
-    Cancelled, Extraction, GridVertex, LayerSource, Near, Place, Positions, SLAB, SampledVertex,
-    SlabVertex, StreamError, StreamStats, Streamed, Workspace, dir_vector, extract,
-    extract_positions, extract_streamed, extract_streamed_with, extract_view_positions,
+    Cancelled, Extraction, GridVertex, LayerSource, Near, Place, Positions, SLAB, SLIDE_UNIT,
+    SampledVertex, SlabVertex, Slide, StreamError, StreamStats, Streamed, Workspace, dir_vector,
+    extract, extract_positions, extract_streamed, extract_streamed_with, extract_view_positions,
     extract_view_records, extract_view_records_into, extract_volume_records,
     extract_volume_records_into, extract_with, surface_cubes,
 };
@@ -321,7 +323,7 @@ fn polygonize_streamed(
     phase(&options.lattice.control, "refinement", sampled.len())?;
     let how = Placement::for_grid(options.lattice.refine, options.lattice.tolerance);
     let ends = |i: usize| sampled[i].ends.map(f64::from);
-    let (positions, evals) = place_vertices(field, grid, &sampled, ends, &how);
+    let (positions, evals) = place_vertices(field, grid, &sampled, &triangles, ends, &how);
     stats.refine_evaluations = evals;
     stats.refinement = t.elapsed();
     if options.lattice.control.is_cancelled() {
@@ -355,6 +357,7 @@ pub(crate) fn place_vertices(
     field: &dyn Field,
     grid: &Grid,
     vertices: &[impl Borrow<GridVertex>],
+    triangles: &[[u32; 3]],
     ends: impl Fn(usize) -> [f64; 2],
     how: &Placement,
 ) -> (Vec<DVec3>, u64) {
@@ -380,21 +383,204 @@ pub(crate) fn place_vertices(
     for (&i, b) in edge.iter().zip(&brackets) {
         positions[i] = b.p0.lerp(b.p1, b.t);
     }
-    if !cell.is_empty() {
-        let mut pts: Vec<DVec3> = cell.iter().map(|&i| positions[i]).collect();
-        let boxes: Vec<(DVec3, DVec3)> = cell
-            .iter()
-            .map(|&i| {
-                let lo = at(vertex(i).base);
-                (lo, lo + DVec3::splat(grid.cell))
-            })
-            .collect();
-        evals += project_to_surface(field, &mut pts, &boxes, how.tolerance * grid.cell);
-        for (&i, p) in cell.iter().zip(pts) {
-            positions[i] = p;
+    evals += place_cells(field, grid, &cell, vertex, &mut positions, triangles, how.tolerance);
+    (positions, evals)
+}
+
+/// How close to its cell's faces refinement may bring an interior vertex (in cells), unless
+/// the interpolant put it closer: off the faces, where the neighbours' vertices are.
+const CELL_MARGIN: f64 = 1e-3;
+
+/// The least fraction of its distance from the saddle that a ring vertex keeps: the ring
+/// may shrink onto the field's thinner tube, but not so far that its vertices crowd together
+/// at the saddle.
+const RING_KEEP: f64 = 0.1;
+
+/// The line on which refinement looks for the field's zero for a cell vertex: through its
+/// interpolated position along its [`Slide`], within its cell (by [`CELL_MARGIN`]) and, for
+/// a ring vertex, not nearer the saddle than [`RING_KEEP`] of its distance from it. A vertex
+/// without a line gets an empty segment and stays where it is.
+pub(crate) fn cell_line(grid: &Grid, v: &GridVertex) -> Line {
+    let p = v.position(grid);
+    let empty = Line { p, dir: DVec3::X, back: 0.0, ahead: 0.0 };
+    let (Place::Cell { offset, .. }, Some(slide)) = (v.place, v.slide()) else {
+        return empty;
+    };
+    let line = DVec3::from_array(slide.line);
+    let length = line.length();
+    if !(length > 0.0 && length.is_finite()) {
+        return empty;
+    }
+    let dir = line / length;
+    let (mut back, mut ahead) = (f64::INFINITY, f64::INFINITY);
+    for d in 0..3 {
+        let (lo, hi) = (CELL_MARGIN.min(offset[d]), (1.0 - CELL_MARGIN).max(offset[d]));
+        let u = dir[d];
+        if u > 0.0 {
+            ahead = ahead.min((hi - offset[d]) / u);
+            back = back.min((offset[d] - lo) / u);
+        } else if u < 0.0 {
+            ahead = ahead.min((lo - offset[d]) / u);
+            back = back.min((offset[d] - hi) / u);
         }
     }
-    (positions, evals)
+    if slide.ray {
+        back = back.min((1.0 - RING_KEEP) * length);
+    }
+    Line { p, dir, back: back.max(0.0) * grid.cell, ahead: ahead.max(0.0) * grid.cell }
+}
+
+/// Places cell vertices (fan centres, tube rings) on the field: each on its [`cell_line`] to
+/// `tolerance` cells. `cells` are their indices; `positions` holds every vertex, the edge
+/// vertices already placed and the cell vertices where the interpolant put them, and gets
+/// the cell vertices' new positions. Returns the field evaluations made.
+///
+/// A ring moves only as a whole, and no vertex moves where that would turn one of the
+/// triangles round it over: where the field has no zero on some ring vertex's line (the
+/// lattice does not resolve the field there, and its tube is the interpolant's alone), a
+/// ring half on the field and half off it would twist the tube, and a fan centre or ring
+/// taken across its loop would fold its triangles over their neighbours. Those stay on the
+/// interpolant (where `skelform check --field` sees them off the surface).
+pub(crate) fn place_cells<'v>(
+    field: &dyn Field,
+    grid: &Grid,
+    cells: &[usize],
+    vertex: impl Fn(usize) -> &'v GridVertex,
+    positions: &mut [DVec3],
+    triangles: &[[u32; 3]],
+    tolerance: f64,
+) -> u64 {
+    if cells.is_empty() {
+        return 0;
+    }
+    let lines: Vec<Line> = cells.iter().map(|&i| cell_line(grid, vertex(i))).collect();
+    let (zeros, evals) = roots_on_lines(field, &lines, grid.cell / 32.0, tolerance * grid.cell);
+    // The vertices that move together: one cube's ring, or its fan centre.
+    let mut groups: std::collections::BTreeMap<([u32; 3], bool), usize> = Default::default();
+    let group: Vec<usize> = cells
+        .iter()
+        .map(|&i| {
+            let v = vertex(i);
+            let ray = v.slide().is_some_and(|s| s.ray);
+            let next = groups.len();
+            *groups.entry((v.base, ray)).or_insert(next)
+        })
+        .collect();
+    // The triangles round the cell vertices, with each cell vertex's place in `cells`.
+    let mut slot: rustc_hash::FxHashMap<u32, usize> = Default::default();
+    slot.extend(cells.iter().enumerate().map(|(k, &i)| (i as u32, k)));
+    let mut bits = vec![0u64; positions.len().div_ceil(64)];
+    for &i in cells {
+        bits[i / 64] |= 1 << (i % 64);
+    }
+    let marked = |v: u32| bits[v as usize / 64] >> (v % 64) & 1 == 1;
+    let around: Vec<[u32; 3]> =
+        triangles.iter().filter(|t| t.iter().any(|&v| marked(v))).copied().collect();
+    let mut placed: Vec<DVec3> = lines.iter().map(|l| l.p).collect();
+    let mut settle = |cand: &[Option<DVec3>], open: &[bool], turn: f64| {
+        let mut moves: Vec<bool> = open.to_vec();
+        for (c, &g) in cand.iter().zip(&group) {
+            if c.is_none() {
+                moves[g] = false;
+            }
+        }
+        let moving = Moving { cand, placed: &placed, lines: &lines, group: &group };
+        turn_nothing_over(&around, &slot, positions, &moving, turn, &mut moves);
+        for (k, c) in cand.iter().enumerate() {
+            if let (Some(c), true) = (c, moves[group[k]]) {
+                placed[k] = *c;
+            }
+        }
+        moves
+    };
+    let moved = settle(&zeros, &vec![true; groups.len()], 0.0);
+    // A second try for what stayed: Newton steps along the field's gradient within the cell,
+    // kept only where every vertex of the group converged onto the field.
+    let again: Vec<usize> = (0..cells.len()).filter(|&k| !moved[group[k]]).collect();
+    let mut evals = evals;
+    if !again.is_empty() {
+        let mut pts: Vec<DVec3> = again.iter().map(|&k| lines[k].p).collect();
+        let boxes: Vec<(DVec3, DVec3)> = again
+            .iter()
+            .map(|&k| {
+                let [i, j, l] = vertex(cells[k]).base.map(|x| x as usize);
+                let lo = grid.point(i, j, l);
+                let m = CELL_MARGIN * grid.cell;
+                (lo + DVec3::splat(m), lo + DVec3::splat(grid.cell - m))
+            })
+            .collect();
+        evals += project_to_surface(field, &mut pts, &boxes, tolerance * grid.cell);
+        let (mut values, mut grads) = (vec![0.0; pts.len()], vec![DVec3::ZERO; pts.len()]);
+        field.eval_grad_many(&pts, &mut values, &mut grads);
+        evals += pts.len() as u64;
+        let mut cand = vec![None; cells.len()];
+        for ((&k, p), (f, g)) in again.iter().zip(&pts).zip(values.iter().zip(&grads)) {
+            let off = f.abs() / g.length();
+            if off <= tolerance * grid.cell {
+                cand[k] = Some(*p);
+            }
+        }
+        let open: Vec<bool> = moved.iter().map(|m| !m).collect();
+        settle(&cand, &open, SECOND_TRY_TURN);
+    }
+    for (k, &i) in cells.iter().enumerate() {
+        positions[i] = placed[k];
+    }
+    evals
+}
+
+/// The least cosine of the angle a triangle round a cell vertex may turn through when the
+/// vertex moves by the second try (free Newton steps): 60°. Why: unlike the first try's
+/// lines, free steps can swing a tube's triangles across their neighbours (a fold, normals
+/// nearly opposite across an edge) without turning any one of them over.
+const SECOND_TRY_TURN: f64 = 0.5;
+
+/// Where a try would move the cell vertices: `cand[k]` for those of groups that move,
+/// `placed[k]` (their place so far) for the others, `lines[k].p` the interpolant's place.
+struct Moving<'a> {
+    cand: &'a [Option<DVec3>],
+    placed: &'a [DVec3],
+    lines: &'a [Line],
+    group: &'a [usize],
+}
+
+/// Clears `moves` for every group that, moved as `m` says, would turn a triangle round a
+/// cell vertex through an angle whose cosine is `turn` or less (or collapse it), compared
+/// with the cell vertices where the interpolant put them; repeated until none does.
+fn turn_nothing_over(
+    around: &[[u32; 3]],
+    slot: &rustc_hash::FxHashMap<u32, usize>,
+    positions: &[DVec3],
+    m: &Moving<'_>,
+    turn: f64,
+    moves: &mut [bool],
+) {
+    loop {
+        let mut changed = false;
+        for t in around {
+            let at = |after: bool| {
+                t.map(|v| match slot.get(&v) {
+                    Some(&k) if after && moves[m.group[k]] => m.cand[k].unwrap_or(m.placed[k]),
+                    Some(&k) if after => m.placed[k],
+                    Some(&k) => m.lines[k].p,
+                    None => positions[v as usize],
+                })
+            };
+            let normal = |p: [DVec3; 3]| (p[1] - p[0]).cross(p[2] - p[0]);
+            let (before, after) = (normal(at(false)), normal(at(true)));
+            let limit = turn * before.length() * after.length();
+            if before.dot(after) <= limit && before != DVec3::ZERO {
+                for v in t {
+                    if let Some(&k) = slot.get(v) {
+                        changed |= std::mem::replace(&mut moves[m.group[k]], false);
+                    }
+                }
+            }
+        }
+        if !changed {
+            break;
+        }
+    }
 }
 
 /// Positions of an extraction's vertices: interpolated, then refined on the field if asked
@@ -413,7 +599,7 @@ pub(crate) fn place_extracted(
         let v = &ex.vertices[i];
         [value(v.base), v.tip().map_or(0.0, value)]
     };
-    place_vertices(field, &volume.grid, &ex.vertices, ends, &how)
+    place_vertices(field, &volume.grid, &ex.vertices, &ex.triangles, ends, &how)
 }
 
 /// Marching cubes on a volume sampled elsewhere, with vertices interpolated linearly and no

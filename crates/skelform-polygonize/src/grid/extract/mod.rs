@@ -68,13 +68,53 @@ pub enum Place {
         /// The fraction along it.
         t: f64,
     },
-    /// Inside the cell whose lowest corner is `base`, at `offset` (in cells). Only the few
-    /// configurations whose loop cannot be triangulated from its own crossings use one;
-    /// refinement projects it onto the surface.
+    /// Inside the cell whose lowest corner is `base`, at `offset` (in cells): a fan centre
+    /// or a tube's ring vertex (MC33's interior vertices), on the trilinear interpolant.
+    /// Refinement moves it onto the field along the line its [`Slide`] gives (see
+    /// [`GridVertex::slide`]), never out of the cell.
     Cell {
         /// The position in the cell, in cells from `base`.
         offset: [f64; 3],
+        /// [`Slide::line`] in units of [`SLIDE_UNIT`] cells. Why so coarse: with it the
+        /// variant is no larger than `offset` alone (the tag, `ray` and these six bytes share
+        /// one word), so records of every vertex, mostly edge vertices, stay 48 bytes.
+        line: [i16; 3],
+        /// [`Slide::ray`].
+        ray: bool,
     },
+}
+
+/// The unit (in cells) of a cell vertex's stored [`Slide::line`]: 2⁻¹⁴, so components up to
+/// two cells fit an `i16`, to 3·10⁻⁵ cells.
+pub const SLIDE_UNIT: f64 = 1.0 / 16384.0;
+
+/// The line along which refinement moves an interior vertex onto the field.
+///
+/// Why a line, not Newton steps along the field's gradient: a tube's ring vertices lie a
+/// fraction of a cell apart, and each gradient step, clamped to the cell, can carry several
+/// of them onto the same corner, where they coincide and their triangles collapse (issue
+/// 18). On the rays from the saddle the ring's vertices keep their order around it and stay
+/// apart, and the fan centre keeps to its fan's normal.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Slide {
+    /// The line's direction (in cells). For a ring vertex, the vector from the tube's saddle
+    /// to the vertex; for a fan centre, the interpolant's gradient; zero for a vertex that
+    /// stays where the interpolant put it.
+    pub line: [f64; 3],
+    /// Whether the vertex stays on the ray from the saddle, `offset − line` (a ring vertex:
+    /// not past the saddle, where the ring's vertices would meet), rather than moving either
+    /// way along the line (a fan centre).
+    pub ray: bool,
+}
+
+impl Place {
+    /// A cell vertex at `offset` that refinement moves along `slide`.
+    pub fn cell(offset: [f64; 3], slide: Slide) -> Place {
+        let q = |x: f64| (x / SLIDE_UNIT).round().clamp(-32767.0, 32767.0) as i16;
+        let line =
+            if slide.line.iter().all(|x| x.is_finite()) { slide.line.map(q) } else { [0; 3] };
+        Place::Cell { offset, line, ray: slide.ray }
+    }
 }
 
 /// The offset a direction mask stands for.
@@ -103,9 +143,20 @@ impl GridVertex {
                 let d = dir_vector(dir);
                 [d[0] as f64 * t, d[1] as f64 * t, d[2] as f64 * t]
             }
-            Place::Cell { offset } => offset,
+            Place::Cell { offset, .. } => offset,
         };
         p0 + glam::DVec3::from_array(d) * grid.cell
+    }
+
+    /// A cell vertex's line of refinement (as stored, to [`SLIDE_UNIT`]); `None` for an edge
+    /// vertex.
+    pub fn slide(&self) -> Option<Slide> {
+        match self.place {
+            Place::Cell { line, ray, .. } => {
+                Some(Slide { line: line.map(|x| x as f64 * SLIDE_UNIT), ray })
+            }
+            Place::Edge { .. } => None,
+        }
     }
 }
 
@@ -238,7 +289,10 @@ impl SlabVertex for SampledVertex {
 
 impl Default for GridVertex {
     fn default() -> Self {
-        GridVertex { base: [0; 3], place: Place::Cell { offset: [0.0; 3] } }
+        GridVertex {
+            base: [0; 3],
+            place: Place::Cell { offset: [0.0; 3], line: [0; 3], ray: false },
+        }
     }
 }
 
@@ -607,9 +661,10 @@ impl<V: SlabVertex, L: Level> CubeSink for SlabSink<'_, '_, V, L> {
         }
     }
 
-    fn cell_vertex(&mut self, offset: [f64; 3]) -> u32 {
+    fn cell_vertex(&mut self, offset: [f64; 3], slide: Slide) -> u32 {
         let [i, j, k] = self.at;
-        let v = GridVertex { base: [i as u32, j as u32, k as u32], place: Place::Cell { offset } };
+        let v =
+            GridVertex { base: [i as u32, j as u32, k as u32], place: Place::cell(offset, slide) };
         let id = self.store.made();
         self.store.push_vertex(V::make(self.grid, v, [0.0; 2], self.near));
         id
@@ -638,6 +693,20 @@ mod tests {
                 if v.abs() < 0.05 { 0.0 } else { v }
             })
             .collect()
+    }
+
+    /// A cell vertex's line of refinement takes no room of its own: a vertex record is as
+    /// large as before it had one, and the line comes back to its unit.
+    #[test]
+    fn cell_vertices_keep_their_line_in_the_record() {
+        assert_eq!(std::mem::size_of::<GridVertex>(), 48);
+        let slide = Slide { line: [0.25, -0.7, 1e-3], ray: true };
+        let v = GridVertex { base: [1, 2, 3], place: Place::cell([0.5; 3], slide) };
+        let back = v.slide().expect("a cell vertex");
+        assert!(back.ray);
+        for (a, b) in back.line.iter().zip(slide.line) {
+            assert!((a - b).abs() <= 0.5 * SLIDE_UNIT, "{a} {b}");
+        }
     }
 
     /// The vector sign words (AVX2 where the CPU has it, else SSE2) say `v < 0` exactly as
