@@ -370,16 +370,31 @@ impl Run<'_> {
         if unmatched.len() < 4 || !any_interest {
             return Junctions { groups: vec![(unmatched, None)], link: None };
         }
-        let ends: Vec<Option<DVec3>> = unmatched
-            .iter()
-            .map(|w| match self.follow(corners, w, false) {
-                Some((p, _)) => Some(p),
-                None => self.follow(corners, w, true).map(|(p, _)| p),
-            })
-            .collect();
         let n = unmatched.len();
-        // Single linkage of the ends closer than JUNCTION fine triangles.
         let near = JUNCTION * 4.0 * self.eps;
+        let mut follow = |run: &mut Self, i: usize| match run.follow(corners, &unmatched[i], false)
+        {
+            Some(p) => Some(p),
+            None => run.follow(corners, &unmatched[i], true),
+        };
+        // Four crossings split only into two runs of two; when the first and third run to
+        // one junction, neither split is possible, and the other two need not be followed.
+        let mut found: Vec<Option<(DVec3, bool)>> = vec![None; n];
+        found[0] = follow(self, 0);
+        if n > 2 {
+            found[2] = follow(self, 2);
+        }
+        let one = n == 4
+            && matches!((found[0], found[2]), (Some((p, _)), Some((q, _))) if p.distance(q) < near);
+        if !one {
+            for (i, f) in found.iter_mut().enumerate() {
+                if i != 0 && i != 2 {
+                    *f = follow(self, i);
+                }
+            }
+        }
+        let ends: Vec<Option<DVec3>> = found.iter().map(|f| f.map(|(p, _)| p)).collect();
+        // Single linkage of the ends closer than JUNCTION fine triangles.
         let mut cluster: Vec<usize> = (0..n).collect();
         for i in 0..n {
             for j in i + 1..n {
@@ -425,7 +440,19 @@ impl Run<'_> {
                 return Junctions { groups, link: Some((ga, gb, pair)) };
             }
         }
-        groups.push((ring.iter().map(|&i| unmatched[i]).collect(), None));
+        // One junction: its vertex where the first contour of interest that was followed
+        // ends (as the chapter's follower puts it), not followed again.
+        let end = ring
+            .iter()
+            .filter(|&&i| {
+                let w = unmatched[i];
+                self.interesting(RegionPair::new(w.from, w.to))
+            })
+            .find_map(|&i| found[i]);
+        if let Some((_, true)) = end {
+            self.stats.face_vertices_at_crossing += 1;
+        }
+        groups.push((ring.iter().map(|&i| unmatched[i]).collect(), end.map(|(p, _)| p)));
         Junctions { groups, link: None }
     }
 }
