@@ -112,8 +112,12 @@ fn cut_box(o: DVec3, h: f64, zc: f64) -> impl RegionField {
 }
 
 fn run(regions: &dyn RegionField, cell: f64) -> (Mesh, Stats) {
-    let opts =
-        Options { lattice: lattice(Aabb::cube(1.0), cell), full_grid: true, ..Options::default() };
+    let opts = Options {
+        lattice: lattice(Aabb::cube(1.0), cell),
+        full_grid: true,
+        junctions: true,
+        ..Options::default()
+    };
     polygonize(regions, &opts).unwrap()
 }
 
@@ -135,7 +139,7 @@ fn print(name: &str, s: &Stats, lines: &[Polyline]) {
     );
 }
 
-/// Four cells of a foam meeting at a point: four curves (rays from the point, each where
+/// With `Options::junctions`. Four cells of a foam meeting at a point: four curves (rays from the point, each where
 /// three cells meet, with its own label) and nothing else. Two of the rays can leave a
 /// tetrahedron through one face, which then holds two junctions.
 #[test]
@@ -156,7 +160,7 @@ fn four_cells_meeting_at_a_point_give_four_whole_curves() {
     }
 }
 
-/// Three planes through one point: eight octants, and six curves (the half-axes, each where
+/// With `Options::junctions`. Three planes through one point: eight octants, and six curves (the half-axes, each where
 /// four octants meet) from the point. One face vertex per face fused the two junctions of a
 /// face that two half-axes cross, and left a spurious piece of curve, 0.02 to 0.04 long, with
 /// a label of three octants that meet nowhere along a curve, at every cell tried. With a face

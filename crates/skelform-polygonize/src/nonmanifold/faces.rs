@@ -367,7 +367,7 @@ impl Run<'_> {
     ) -> Junctions {
         let any_interest =
             unmatched.iter().any(|w| self.interesting(RegionPair::new(w.from, w.to)));
-        if unmatched.len() < 4 || !any_interest {
+        if unmatched.len() < 4 || !any_interest || !self.opts.junctions {
             return Junctions { groups: vec![(unmatched, None)], link: None };
         }
         let n = unmatched.len();
@@ -377,20 +377,47 @@ impl Run<'_> {
             Some(p) => Some(p),
             None => run.follow(corners, &unmatched[i], true),
         };
-        // Four crossings split only into two runs of two; when the first and third run to
-        // one junction, neither split is possible, and the other two need not be followed.
+        // Four crossings split only into two runs of two junctions of three regions each.
+        // Where the first contour ends, a ring of samples half the junction distance round
+        // it that meets all four regions says it is one junction (two closer than that
+        // share a vertex anyway), and the other three need not be followed.
         let mut found: Vec<Option<(DVec3, bool)>> = vec![None; n];
         found[0] = follow(self, 0);
-        if n > 2 {
-            found[2] = follow(self, 2);
-        }
-        let one = n == 4
-            && matches!((found[0], found[2]), (Some((p, _)), Some((q, _))) if p.distance(q) < near);
-        if !one {
-            for (i, f) in found.iter_mut().enumerate() {
-                if i != 0 && i != 2 {
-                    *f = follow(self, i);
+        let one = match found[0] {
+            Some((p, _)) if n == 4 => {
+                let [a, b, c] = corners.map(|k| self.point(k));
+                let u = (b - a).normalize();
+                let v = (b - a).cross(c - a).cross(b - a).normalize();
+                let ring: Vec<DVec3> = (0..8)
+                    .map(|k| {
+                        let t = k as f64 * std::f64::consts::FRAC_PI_4;
+                        p + (u * t.cos() + v * t.sin()) * (0.5 * near)
+                    })
+                    .collect();
+                let seen = self.regions_of(&ring);
+                unmatched.iter().all(|w| seen.contains(&w.from))
+            }
+            _ => false,
+        };
+        let close = |a: Option<(DVec3, bool)>, b: Option<(DVec3, bool)>| matches!((a, b), (Some((p, _)), Some((q, _))) if p.distance(q) < near);
+        if n == 4 && !one {
+            // Two runs of two: the second crossing runs with the first (then the fourth
+            // with the third) or the fourth does (then the third with the second).
+            found[1] = follow(self, 1);
+            if close(found[0], found[1]) {
+                found[2] = follow(self, 2);
+                found[3] = found[2];
+            } else {
+                found[3] = follow(self, 3);
+                if close(found[3], found[0]) {
+                    found[2] = found[1];
+                } else {
+                    found[2] = follow(self, 2);
                 }
+            }
+        } else if !one {
+            for (i, f) in found.iter_mut().enumerate().skip(1) {
+                *f = follow(self, i);
             }
         }
         let ends: Vec<Option<DVec3>> = found.iter().map(|f| f.map(|(p, _)| p)).collect();

@@ -59,6 +59,10 @@ impl Run<'_> {
             self.walk_polygons(&lines);
             return;
         }
+        if !self.opts.junctions {
+            self.one_centre(&hubs, &edges, t);
+            return;
+        }
         // Components of the contours on the tetrahedron's surface.
         let mut index: FxHashMap<u32, usize> = FxHashMap::default();
         let mut parent: Vec<usize> = Vec::new();
@@ -155,6 +159,46 @@ impl Run<'_> {
             self.walk_polygons(&free);
         }
         self.fan_paths(&edges, &hub_free, &internal);
+    }
+
+    /// The chapter's tetrahedron with face vertices: one internal vertex (the face vertex
+    /// itself when there is one, else their mean) and every contour fanned to it. Two face
+    /// vertices of one label are a curve passing through, whose vertex may be sharpened.
+    fn one_centre(
+        &mut self,
+        hubs: &[(u32, usize, Vec<u32>)],
+        edges: &[(u32, u32, RegionPair)],
+        t: [Key; 4],
+    ) {
+        let centre = if hubs.len() == 1 {
+            hubs[0].0
+        } else {
+            let m = hubs.iter().map(|h| self.positions[h.0 as usize]).sum::<DVec3>()
+                / hubs.len() as f64;
+            let v = self.internal_vertex(m);
+            if let [a, b] = hubs
+                && a.2 == b.2
+                && a.2.len() >= 3
+                && a.1 != b.1
+            {
+                self.through.push((v, [a.0, b.0], t));
+            }
+            v
+        };
+        for (h, _, regions) in hubs {
+            if *h != centre && regions.len() >= 3 {
+                let tri = RegionTriple::new([regions[0], regions[1], regions[2]]);
+                if self.opts.curves.is_empty() || self.opts.curves.contains(&tri) {
+                    self.curves.push(CurveEdge { v: [*h, centre], label: tri });
+                }
+            }
+        }
+        for &(u, v, pair) in edges {
+            if u != centre && v != centre {
+                self.triangles.push([u, v, centre]);
+                self.labels.push(pair);
+            }
+        }
     }
 
     /// A new vertex inside a tetrahedron.
