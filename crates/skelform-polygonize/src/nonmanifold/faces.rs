@@ -372,8 +372,7 @@ impl Run<'_> {
         }
         let n = unmatched.len();
         let near = JUNCTION * 4.0 * self.eps;
-        let mut follow = |run: &mut Self, i: usize| match run.follow(corners, &unmatched[i], false)
-        {
+        let follow = |run: &mut Self, i: usize| match run.follow(corners, &unmatched[i], false) {
             Some(p) => Some(p),
             None => run.follow(corners, &unmatched[i], true),
         };
