@@ -289,8 +289,11 @@ impl fmt::Display for nonmanifold::Stats {
         )?;
         writeln!(
             f,
-            "post-process  {} merged, {} snapped onto edges, {} triangles dropped",
-            self.merged_vertices, self.snapped_to_edges, self.dropped_triangles
+            "post-process  {} merged, {} snapped onto edges, {} triangles dropped, {} curve corners sharpened",
+            self.merged_vertices,
+            self.snapped_to_edges,
+            self.dropped_triangles,
+            self.sharpened_corners
         )?;
         writeln!(
             f,

@@ -17,15 +17,43 @@ pub(super) struct Walked {
     pub(super) to: u32,
 }
 
+/// A face vertex: where contours of the face meet (a junction), with the crossings joined
+/// to it.
 #[derive(Clone, Debug, Default)]
-pub(super) struct FaceInfo {
-    /// Lines between two crossings (disjoint lines), with their pair.
-    pub(super) lines: Vec<(u32, u32, RegionPair)>,
+pub(super) struct Hub {
+    pub(super) vertex: u32,
     /// Crossings joined to the face vertex, with their pair.
     pub(super) spokes: Vec<(u32, RegionPair)>,
-    pub(super) face_vertex: Option<u32>,
-    /// The regions meeting at the face vertex.
+    /// The regions meeting at the face vertex, sorted: its curve's label.
     pub(super) regions: Vec<u32>,
+}
+
+#[derive(Clone, Debug, Default)]
+pub(super) struct FaceInfo {
+    /// Lines between two crossings (disjoint lines), between a crossing and a loop vertex,
+    /// or between two face vertices (a contour joining two junctions of the face), with
+    /// their pair.
+    pub(super) lines: Vec<(u32, u32, RegionPair)>,
+    /// The face vertices of interest, one per separate junction of the face's contours.
+    pub(super) hubs: Vec<Hub>,
+}
+
+impl FaceInfo {
+    /// Every pair drawn on the face (lines and spokes).
+    pub(super) fn pairs(&self) -> impl Iterator<Item = RegionPair> + '_ {
+        self.lines
+            .iter()
+            .map(|l| l.2)
+            .chain(self.hubs.iter().flat_map(|h| h.spokes.iter().map(|s| s.1)))
+    }
+}
+
+/// Crossings left unpaired on a face, split into the junctions they run to (see
+/// [`Run::junctions`]): each group with the point its contours were followed to, when known,
+/// and the contour joining two groups, when there is one.
+struct Junctions {
+    groups: Vec<(Vec<Walked>, Option<DVec3>)>,
+    link: Option<(usize, usize, RegionPair)>,
 }
 
 impl Run<'_> {
@@ -61,28 +89,62 @@ impl Run<'_> {
             info.lines = lines;
         }
         if !unmatched.is_empty() {
-            let mut regions: Vec<u32> = unmatched.iter().flat_map(|w| [w.from, w.to]).collect();
-            regions.sort_unstable();
-            regions.dedup();
-            info.regions = regions;
-            let interesting: Vec<&Walked> = unmatched
-                .iter()
-                .filter(|w| self.interesting(RegionPair::new(w.from, w.to)))
-                .collect();
-            if !interesting.is_empty() {
-                let p = self.face_vertex(sorted, &unmatched, &interesting);
+            let split = self.junctions(sorted, unmatched, &mut info.lines);
+            // A group gets a face vertex when one of its contours (or the contour to the
+            // other group) is of interest.
+            let link_interesting = split.link.is_some_and(|(_, _, p)| self.interesting(p));
+            let mut vertex_of: Vec<Option<u32>> = Vec::with_capacity(split.groups.len());
+            for (gi, (group, end)) in split.groups.iter().enumerate() {
+                let linked = split.link.is_some_and(|(a, b, _)| a == gi || b == gi);
+                let interesting: Vec<&Walked> = group
+                    .iter()
+                    .filter(|w| self.interesting(RegionPair::new(w.from, w.to)))
+                    .collect();
+                if interesting.is_empty() && !(linked && link_interesting) {
+                    vertex_of.push(None);
+                    continue;
+                }
+                let mut regions: Vec<u32> = group.iter().flat_map(|w| [w.from, w.to]).collect();
+                if linked && let Some((_, _, p)) = split.link {
+                    regions.extend([p.0, p.1]);
+                }
+                regions.sort_unstable();
+                regions.dedup();
+                let p = match end {
+                    Some(p) => *p,
+                    None => {
+                        let starts = if interesting.is_empty() {
+                            group.iter().collect()
+                        } else {
+                            interesting
+                        };
+                        self.face_vertex(sorted, group, &starts)
+                    }
+                };
                 self.positions.push(p);
                 self.crossing.push(None);
                 self.stats.face_vertices += 1;
                 let v = self.positions.len() as u32 - 1;
-                info.face_vertex = Some(v);
-                info.spokes =
-                    unmatched.iter().map(|w| (w.vertex, RegionPair::new(w.from, w.to))).collect();
+                vertex_of.push(Some(v));
+                info.hubs.push(Hub {
+                    vertex: v,
+                    spokes: group
+                        .iter()
+                        .map(|w| (w.vertex, RegionPair::new(w.from, w.to)))
+                        .collect(),
+                    regions,
+                });
+            }
+            if let Some((a, b, pair)) = split.link
+                && let (Some(u), Some(v)) = (vertex_of[a], vertex_of[b])
+            {
+                info.lines.push((u, v, pair));
             }
         }
         let kept = info.clone();
-        self.inner_bytes +=
-            vec_bytes(&kept.lines) + vec_bytes(&kept.spokes) + vec_bytes(&kept.regions);
+        self.inner_bytes += vec_bytes(&kept.lines)
+            + vec_bytes(&kept.hubs)
+            + kept.hubs.iter().map(|h| vec_bytes(&h.spokes) + vec_bytes(&h.regions)).sum::<u64>();
         self.faces.insert(sorted, kept);
         info
     }
@@ -170,6 +232,24 @@ impl Run<'_> {
         crossings: &[Walked],
         starts: &[&Walked],
     ) -> DVec3 {
+        for pass in [false, true] {
+            for s in starts {
+                if let Some((p, at_crossing)) = self.follow(corners, s, pass) {
+                    self.stats.face_vertices_at_crossing += usize::from(at_crossing);
+                    return p;
+                }
+            }
+        }
+        self.stats.face_vertex_fallbacks += 1;
+        let n = crossings.len() as f64;
+        crossings.iter().map(|w| self.positions[w.vertex as usize]).sum::<DVec3>() / n
+    }
+
+    /// One try of [`Run::face_vertex`]: the contour from the crossing `s` followed into the
+    /// face (`back` false) or the other way, to where it meets a foreign region, moved at
+    /// least 2ε into the face, and whether a third region was already at the first
+    /// triangle; `None` when the walk does not get there.
+    fn follow(&mut self, corners: [Key; 3], s: &Walked, back: bool) -> Option<(DVec3, bool)> {
         let [a, b, c] = corners.map(|k| self.point(k));
         let n = (b - a).cross(c - a);
         let area2 = n.length_squared();
@@ -205,70 +285,255 @@ impl Run<'_> {
         };
         let side = 4.0 * self.eps;
         let max_steps = (8.0 * (b - a).length().max((c - a).length()) / side) as usize + 16;
-        // Every start into the face first; then every start the other way, for a crossing
-        // within a triangle of a corner where the contour runs along the face's side (a wall
-        // in the plane of that side, as a sheet on a lattice plane): there the first way can
-        // lead off the face at once, and the contour lies the other way.
-        for (pass, s) in [false, true].into_iter().flat_map(|p| starts.iter().map(move |s| (p, s)))
+        let v = self.positions[s.vertex as usize];
+        // The crossing lies on one of the three edges; find which, to step along it.
+        let edge_dir = [(a, b), (b, c), (c, a)]
+            .into_iter()
+            .map(|(p, q)| {
+                let d = (q - p).normalize();
+                ((v - p).cross(d).length(), d)
+            })
+            .min_by(|x, y| x.0.total_cmp(&y.0))
+            .map_or(DVec3::X, |(_, d)| d);
+        let mut px = v - edge_dir * side * 0.5;
+        let mut py = v + edge_dir * side * 0.5;
+        let mid = (px + py) * 0.5;
+        let mut w = n.normalize().cross(py - px).normalize();
+        if inside(mid + w * side) == back {
+            w = -w;
+        }
+        let (rx, ry) = (self.region_at(px), self.region_at(py));
+        let (x, y) = (s.from, s.to);
+        if ![rx, ry].iter().all(|&r| r == x || r == y) {
+            // The first triangle already has a corner in a third region (the crossing is
+            // within 2ε of it along the edge): it is the final triangle.
+            let apex = mid + w * side * 3f64.sqrt() * 0.5;
+            return Some((clamp((px + py + apex) / 3.0), true));
+        }
+        if !(rx == x && ry == y) {
+            if !(rx == y && ry == x) {
+                return None;
+            }
+            std::mem::swap(&mut px, &mut py);
+        }
+        // Into the face, the coarse stride first; the fine strip from the crossing
+        // when that fails, and for the other way (a few triangles at most).
+        if !back
+            && let Some(p) =
+                self.coarse_then_fine(v, edge_dir, w, (x, y), side, max_steps, &outside)
         {
-            let v = self.positions[s.vertex as usize];
-            // The crossing lies on one of the three edges; find which, to step along it.
-            let edge_dir = [(a, b), (b, c), (c, a)]
-                .into_iter()
-                .map(|(p, q)| {
-                    let d = (q - p).normalize();
-                    ((v - p).cross(d).length(), d)
-                })
-                .min_by(|x, y| x.0.total_cmp(&y.0))
-                .map_or(DVec3::X, |(_, d)| d);
-            let mut px = v - edge_dir * side * 0.5;
-            let mut py = v + edge_dir * side * 0.5;
-            let mid = (px + py) * 0.5;
-            let mut w = n.normalize().cross(py - px).normalize();
-            if inside(mid + w * side) == pass {
-                w = -w;
+            return Some((clamp(p), false));
+        }
+        let mut apex = mid + w * side * 3f64.sqrt() * 0.5;
+        // The strip may run up to two triangles beyond the face: where the regions meet
+        // on (or within ε of) the face's own edge, as when a wall falls half-way between
+        // lattice planes, the contour reaches the foreign region only just outside.
+        for _ in 0..max_steps {
+            if outside(apex) > 2.0 * side {
+                break;
             }
-            let (rx, ry) = (self.region_at(px), self.region_at(py));
-            let (x, y) = (s.from, s.to);
-            if ![rx, ry].iter().all(|&r| r == x || r == y) {
-                // The first triangle already has a corner in a third region (the crossing is
-                // within 2ε of it along the edge): it is the final triangle.
-                self.stats.face_vertices_at_crossing += 1;
-                let apex = mid + w * side * 3f64.sqrt() * 0.5;
-                return clamp((px + py + apex) / 3.0);
+            let r = self.region_at(apex);
+            if !flip_strip(r, x, y, &mut px, &mut py, &mut apex) {
+                return Some((clamp((px + py + apex) / 3.0), false));
             }
-            if !(rx == x && ry == y) {
-                if !(rx == y && ry == x) {
-                    continue;
+        }
+        None
+    }
+}
+
+impl Run<'_> {
+    /// Splits the crossings that `pair_off` left on a face into the junctions their
+    /// contours run to, beyond the chapter's one face vertex per face (its fig. 4.14 and
+    /// future work): with one vertex, two junctions on one face (two curves leaving a
+    /// tetrahedron through the same face, as near a point where four regions meet) were
+    /// fused into one vertex of four regions, and the curves through it came out as short
+    /// spurious pieces with a wrong label.
+    ///
+    /// With three crossings or fewer (one junction: the usual case) nothing is followed.
+    /// Otherwise the contour from every crossing is followed to its junction, and crossings
+    /// whose contours end within [`JUNCTION`] fine triangles of each other share one. A
+    /// junction whose crossings are consecutive round the face and enclose one region
+    /// (before the first and after the last) is separate: it is taken out, and what is left
+    /// paired off again (a line may then join crossings that it separated). What is left at
+    /// the end is one junction, or two when it falls into two consecutive runs: then a
+    /// contour runs between them, of the regions on either side of the runs' ends.
+    /// Anything else (a contour that cannot be followed, junctions interleaved round the
+    /// face) keeps one face vertex for what is left, as the chapter does.
+    fn junctions(
+        &mut self,
+        corners: [Key; 3],
+        unmatched: Vec<Walked>,
+        lines: &mut Vec<(u32, u32, RegionPair)>,
+    ) -> Junctions {
+        let any_interest =
+            unmatched.iter().any(|w| self.interesting(RegionPair::new(w.from, w.to)));
+        if unmatched.len() < 4 || !any_interest || !self.opts.junctions {
+            return Junctions { groups: vec![(unmatched, None)], link: None };
+        }
+        let n = unmatched.len();
+        let near = JUNCTION * 4.0 * self.eps;
+        let follow = |run: &mut Self, i: usize| match run.follow(corners, &unmatched[i], false) {
+            Some(p) => Some(p),
+            None => run.follow(corners, &unmatched[i], true),
+        };
+        // Four crossings split only into two runs of two junctions of three regions each.
+        // Where the first contour ends, a ring of samples half the junction distance round
+        // it that meets all four regions says it is one junction (two closer than that
+        // share a vertex anyway), and the other three need not be followed.
+        let mut found: Vec<Option<(DVec3, bool)>> = vec![None; n];
+        found[0] = follow(self, 0);
+        let one = match found[0] {
+            Some((p, _)) if n == 4 => {
+                let [a, b, c] = corners.map(|k| self.point(k));
+                let u = (b - a).normalize();
+                let v = (b - a).cross(c - a).cross(b - a).normalize();
+                let ring: Vec<DVec3> = (0..8)
+                    .map(|k| {
+                        let t = k as f64 * std::f64::consts::FRAC_PI_4;
+                        p + (u * t.cos() + v * t.sin()) * (0.5 * near)
+                    })
+                    .collect();
+                let seen = self.regions_of(&ring);
+                unmatched.iter().all(|w| seen.contains(&w.from))
+            }
+            _ => false,
+        };
+        let close = |a: Option<(DVec3, bool)>, b: Option<(DVec3, bool)>| matches!((a, b), (Some((p, _)), Some((q, _))) if p.distance(q) < near);
+        if n == 4 && !one {
+            // Two runs of two: the second crossing runs with the first (then the fourth
+            // with the third) or the fourth does (then the third with the second).
+            found[1] = follow(self, 1);
+            if close(found[0], found[1]) {
+                found[2] = follow(self, 2);
+                found[3] = found[2];
+            } else {
+                found[3] = follow(self, 3);
+                if close(found[3], found[0]) {
+                    found[2] = found[1];
+                } else {
+                    found[2] = follow(self, 2);
                 }
-                std::mem::swap(&mut px, &mut py);
             }
-            // Into the face, the coarse stride first; the fine strip from the crossing
-            // when that fails, and for the other way (a few triangles at most).
-            if !pass
-                && let Some(p) =
-                    self.coarse_then_fine(v, edge_dir, w, (x, y), side, max_steps, &outside)
-            {
-                return clamp(p);
+        } else if !one {
+            for (i, f) in found.iter_mut().enumerate().skip(1) {
+                *f = follow(self, i);
             }
-            let mut apex = mid + w * side * 3f64.sqrt() * 0.5;
-            // The strip may run up to two triangles beyond the face: where the regions meet
-            // on (or within ε of) the face's own edge, as when a wall falls half-way between
-            // lattice planes, the contour reaches the foreign region only just outside.
-            for _ in 0..max_steps {
-                if outside(apex) > 2.0 * side {
-                    break;
-                }
-                let r = self.region_at(apex);
-                if !flip_strip(r, x, y, &mut px, &mut py, &mut apex) {
-                    return clamp((px + py + apex) / 3.0);
+        }
+        let ends: Vec<Option<DVec3>> = found.iter().map(|f| f.map(|(p, _)| p)).collect();
+        // Single linkage of the ends closer than JUNCTION fine triangles.
+        let mut cluster: Vec<usize> = (0..n).collect();
+        for i in 0..n {
+            for j in i + 1..n {
+                if let (Some(p), Some(q)) = (ends[i], ends[j])
+                    && p.distance(q) < near
+                {
+                    let (ci, cj) = (cluster[i], cluster[j]);
+                    for c in cluster.iter_mut() {
+                        if *c == cj {
+                            *c = ci;
+                        }
+                    }
                 }
             }
         }
-        self.stats.face_vertex_fallbacks += 1;
-        let n = crossings.len() as f64;
-        crossings.iter().map(|w| self.positions[w.vertex as usize]).sum::<DVec3>() / n
+        let cluster: Vec<Option<usize>> = (0..n).map(|i| ends[i].map(|_| cluster[i])).collect();
+        let mean = |members: &[usize]| {
+            members.iter().filter_map(|&i| ends[i]).sum::<DVec3>() / members.len() as f64
+        };
+        let mut groups: Vec<(Vec<Walked>, Option<DVec3>)> = Vec::new();
+        let mut ring: Vec<usize> = (0..n).collect();
+        while let Some(run) = closed_run(&ring, &cluster, &unmatched) {
+            let members: Vec<usize> = run.iter().map(|&k| ring[k]).collect();
+            groups.push((members.iter().map(|&i| unmatched[i]).collect(), Some(mean(&members))));
+            let rest: Vec<Walked> =
+                ring.iter().filter(|i| !members.contains(i)).map(|&i| unmatched[i]).collect();
+            let left = pair_off(&rest, lines);
+            ring.retain(|&i| left.iter().any(|w| w.vertex == unmatched[i].vertex));
+        }
+        if ring.is_empty() {
+            return Junctions { groups, link: None };
+        }
+        // What is left: two consecutive runs of one junction each, or one junction.
+        if let Some(split) = two_runs(&ring, &cluster) {
+            let [a, b] = split.map(|run| run.iter().map(|&k| ring[k]).collect::<Vec<usize>>());
+            let (first, last) = (unmatched[a[0]], unmatched[a[a.len() - 1]]);
+            if first.from != last.to {
+                let pair = RegionPair::new(first.from, last.to);
+                let (ga, gb) = (groups.len(), groups.len() + 1);
+                for m in [a, b] {
+                    groups.push((m.iter().map(|&i| unmatched[i]).collect(), Some(mean(&m))));
+                }
+                return Junctions { groups, link: Some((ga, gb, pair)) };
+            }
+        }
+        // One junction: its vertex where the first contour of interest that was followed
+        // ends (as the chapter's follower puts it), not followed again.
+        let end = ring
+            .iter()
+            .filter(|&&i| {
+                let w = unmatched[i];
+                self.interesting(RegionPair::new(w.from, w.to))
+            })
+            .find_map(|&i| found[i]);
+        if let Some((_, true)) = end {
+            self.stats.face_vertices_at_crossing += 1;
+        }
+        groups.push((ring.iter().map(|&i| unmatched[i]).collect(), end.map(|(p, _)| p)));
+        Junctions { groups, link: None }
     }
+}
+
+/// Fine triangles within which followed contour ends are one junction ([`Run::junctions`]):
+/// the follower stops within about one fine triangle of the junction it reaches, so four
+/// leave room for its error; two junctions closer than that (a sixteenth of a cell at
+/// the default ε) stay one face vertex.
+const JUNCTION: f64 = 4.0;
+
+/// A junction that can be taken out of a face's ring of unpaired crossings (positions in
+/// `ring`, which holds indices into `walked`): all the crossings of one cluster, at least
+/// three, consecutive round the ring but not the whole of it, with one region before the
+/// first and after the last.
+fn closed_run(ring: &[usize], cluster: &[Option<usize>], walked: &[Walked]) -> Option<Vec<usize>> {
+    let len = ring.len();
+    for start in 0..len {
+        let Some(c) = cluster[ring[start]] else { continue };
+        // Start at the first of a run: the one before belongs to another cluster.
+        if cluster[ring[(start + len - 1) % len]] == Some(c) {
+            continue;
+        }
+        let run: Vec<usize> = (0..len)
+            .map(|k| (start + k) % len)
+            .take_while(|&k| cluster[ring[k]] == Some(c))
+            .collect();
+        let total = ring.iter().filter(|&&i| cluster[i] == Some(c)).count();
+        if run.len() >= 3 && run.len() == total && run.len() < len {
+            let (first, last) = (walked[ring[run[0]]], walked[ring[run[run.len() - 1]]]);
+            if first.from == last.to {
+                return Some(run);
+            }
+        }
+    }
+    None
+}
+
+/// The ring (positions) as two consecutive runs of two clusters, each of at least two
+/// crossings, every crossing's contour followed.
+fn two_runs(ring: &[usize], cluster: &[Option<usize>]) -> Option<[Vec<usize>; 2]> {
+    let len = ring.len();
+    if len < 4 || ring.iter().any(|&i| cluster[i].is_none()) {
+        return None;
+    }
+    // The first position whose predecessor is in another cluster.
+    let start = (0..len).find(|&k| cluster[ring[k]] != cluster[ring[(k + len - 1) % len]])?;
+    let c0 = cluster[ring[start]];
+    let a: Vec<usize> =
+        (0..len).map(|k| (start + k) % len).take_while(|&k| cluster[ring[k]] == c0).collect();
+    let b: Vec<usize> = (a.len()..len).map(|k| (start + k) % len).collect();
+    let c1 = cluster[ring[b[0]]];
+    if a.len() < 2 || b.len() < 2 || b.iter().any(|&k| cluster[ring[k]] != c1) {
+        return None;
+    }
+    Some([a, b])
 }
 
 /// How many times longer the sides of the contour follower's coarse triangles are than

@@ -8,6 +8,9 @@ use skelform_mesh::{CurveEdge, Mesh, RegionPair, RegionTriple};
 
 use super::Run;
 
+/// Least turn of a curve (radians, 30°) that [`Run::sharpen`] takes for a corner.
+const CORNER_TURN: f64 = std::f64::consts::PI / 6.0;
+
 impl Run<'_> {
     /// Winds every triangle counter-clockwise seen from its lesser region. Each triangle has
     /// an edge vertex of its own pair, whose lattice segment runs from one region into the
@@ -15,7 +18,8 @@ impl Run<'_> {
     /// the triangle would do for large triangles, but a flat triangle under a curved surface
     /// can have both probes on one side.)
     pub(super) fn orient(&mut self) {
-        for (t, pair) in self.triangles.iter_mut().zip(&self.labels) {
+        let mut unknown: Vec<usize> = Vec::new();
+        for (i, (t, pair)) in self.triangles.iter_mut().zip(&self.labels).enumerate() {
             let [a, b, c] = t.map(|i| self.positions[i as usize]);
             let n = (b - a).cross(c - a);
             let witness = t.iter().find_map(|&v| match self.crossing[v as usize] {
@@ -31,9 +35,169 @@ impl Run<'_> {
                         t.swap(1, 2);
                     }
                 }
-                None => self.stats.unoriented_triangles += 1,
+                None => unknown.push(i),
             }
         }
+        if !unknown.is_empty() {
+            self.orient_from_neighbours(&unknown);
+        }
+    }
+
+    /// Winds the triangles without an edge vertex of their own pair (the joins between two
+    /// internal vertices, and fans of a contour between two face vertices) like a
+    /// neighbour of their pair across a shared side, which the two must cross in opposite
+    /// directions; repeated until no more can be wound. The rest are counted
+    /// (`unoriented_triangles`).
+    fn orient_from_neighbours(&mut self, unknown: &[usize]) {
+        let key = |a: u32, b: u32| (a.min(b), a.max(b));
+        let mut sharing: FxHashMap<((u32, u32), RegionPair), Vec<usize>> = FxHashMap::default();
+        for &i in unknown {
+            let t = self.triangles[i];
+            for k in 0..3 {
+                sharing.insert((key(t[k], t[(k + 1) % 3]), self.labels[i]), Vec::new());
+            }
+        }
+        for (i, (t, pair)) in self.triangles.iter().zip(&self.labels).enumerate() {
+            for k in 0..3 {
+                if let Some(v) = sharing.get_mut(&(key(t[k], t[(k + 1) % 3]), *pair)) {
+                    v.push(i);
+                }
+            }
+        }
+        let mut done = vec![true; self.triangles.len()];
+        for &i in unknown {
+            done[i] = false;
+        }
+        let mut left = unknown.to_vec();
+        loop {
+            let before = left.len();
+            let mut still = Vec::with_capacity(left.len());
+            for &i in &left {
+                let t = self.triangles[i];
+                let found = (0..3).find_map(|k| {
+                    let (a, b) = (t[k], t[(k + 1) % 3]);
+                    let s = &sharing[&(key(a, b), self.labels[i])];
+                    let j = match s.as_slice() {
+                        [x, y] if *x == i => *y,
+                        [x, y] if *y == i => *x,
+                        _ => return None,
+                    };
+                    done[j].then(|| {
+                        let tj = self.triangles[j];
+                        (0..3).any(|m| tj[m] == a && tj[(m + 1) % 3] == b)
+                    })
+                });
+                match found {
+                    Some(same_way) => {
+                        if same_way {
+                            self.triangles[i].swap(1, 2);
+                        }
+                        done[i] = true;
+                    }
+                    None => still.push(i),
+                }
+            }
+            left = still;
+            if left.is_empty() || left.len() == before {
+                break;
+            }
+        }
+        self.stats.unoriented_triangles += left.len();
+    }
+
+    /// Keeps the corners of curves sharp, beyond the chapter (which notes that its corners
+    /// come out bevelled): the internal vertex of a curve passing through a tetrahedron is
+    /// put at the midpoint of the face vertices where it enters and leaves, which cuts a
+    /// corner inside the tetrahedron short by up to a quarter of a cell. Where the curve
+    /// runs straight for two face vertices before and after (each side bends by at most a
+    /// fifth of the turn between them) and turns by at least [`CORNER_TURN`], the lines
+    /// through those sides are extended; where they meet (to within 16ε) inside the
+    /// tetrahedron, the vertex moves to the meeting point, the corner. A smooth curve bends
+    /// on each side about half as much as between them and is left alone.
+    pub(super) fn sharpen(&mut self) {
+        let mut at: FxHashMap<u32, Vec<usize>> = FxHashMap::default();
+        for (i, (_, hubs, _)) in self.through.iter().enumerate() {
+            for &h in hubs {
+                at.entry(h).or_default().push(i);
+            }
+        }
+        // Along the curve from face vertex `h`, away from the pass `i`: the next pass and
+        // the face vertex it leaves by.
+        let beyond = |h: u32, i: usize| -> Option<(usize, u32)> {
+            let j = match at.get(&h)?.as_slice() {
+                [a, b] if *a == i => *b,
+                [a, b] if *b == i => *a,
+                _ => return None,
+            };
+            let hs = self.through[j].1;
+            Some((j, if hs[0] == h { hs[1] } else { hs[0] }))
+        };
+        let mut moves: Vec<(u32, DVec3)> = Vec::new();
+        for (i, &(c, [h1, h2], tet)) in self.through.iter().enumerate() {
+            let side = |h: u32| -> Option<[u32; 3]> {
+                let (j, a) = beyond(h, i)?;
+                let (_, b) = beyond(a, j)?;
+                Some([h, a, b])
+            };
+            let (Some(s1), Some(s2)) = (side(h1), side(h2)) else { continue };
+            let p = |v: u32| self.positions[v as usize];
+            let [p1, p0, pm] = s1.map(p);
+            let [p2, p3, p4] = s2.map(p);
+            // Each side's line runs through the face vertex and the one two further on; the
+            // one between tells how much the side bends, unless a side is too short to tell
+            // a direction (the curve clipping a tetrahedron's corner).
+            let short = self.grid.cell / 8.0;
+            let angle = |a: DVec3, b: DVec3| {
+                a.normalize_or_zero().dot(b.normalize_or_zero()).clamp(-1.0, 1.0).acos()
+            };
+            let bend = |h: DVec3, a: DVec3, b: DVec3| {
+                if h.distance(a) < short || a.distance(b) < short {
+                    0.0
+                } else {
+                    angle(h - a, a - b)
+                }
+            };
+            let (d1, d2) = ((p1 - pm).normalize_or_zero(), (p2 - p4).normalize_or_zero());
+            let turn = angle(d1, -d2);
+            let bends = bend(p1, p0, pm).max(bend(p2, p3, p4));
+            if turn < CORNER_TURN || bends > turn / 5.0 {
+                continue;
+            }
+            // Closest points of the lines p1 + s d1 and p2 + u d2.
+            let w = p1 - p2;
+            let (b, d, e) = (d1.dot(d2), d1.dot(w), d2.dot(w));
+            let den = 1.0 - b * b;
+            if den < 1e-6 {
+                continue;
+            }
+            let (s, u) = ((b * e - d) / den, (e - b * d) / den);
+            let (q1, q2) = (p1 + d1 * s, p2 + d2 * u);
+            if s < 0.0 || u < 0.0 || q1.distance(q2) > 16.0 * self.eps {
+                continue;
+            }
+            let x = (q1 + q2) * 0.5;
+            // At a face vertex the chord already follows the curve on both sides.
+            if x.distance(p1).min(x.distance(p2)) < 16.0 * self.eps {
+                continue;
+            }
+            if self.in_tetrahedron(tet, x) {
+                moves.push((c, x));
+            }
+        }
+        self.stats.sharpened_corners += moves.len();
+        for (c, x) in moves {
+            self.positions[c as usize] = x;
+        }
+    }
+
+    /// Whether `x` lies in the tetrahedron of lattice points `t` (to within ε).
+    fn in_tetrahedron(&self, t: [crate::lattice::cubes::Key; 4], x: DVec3) -> bool {
+        let [a, b, c, d] = t.map(|k| self.point(k));
+        let vol = |p: DVec3, q: DVec3, r: DVec3, s: DVec3| (q - p).cross(r - p).dot(s - p);
+        let total = vol(a, b, c, d);
+        let parts = [vol(x, b, c, d), vol(a, x, c, d), vol(a, b, x, d), vol(a, b, c, x)];
+        let cell3 = self.grid.cell.powi(2) * self.eps;
+        parts.iter().all(|&v| v * total.signum() >= -cell3)
     }
 
     /// Merges close vertices, drops degenerate triangles, duplicates vertices per pair.
@@ -48,6 +212,13 @@ impl Run<'_> {
             x
         }
         let limit = self.opts.close_factor * self.eps;
+        for &(u, v) in &self.fused {
+            let (ru, rv) = (root(&mut parent, u), root(&mut parent, v));
+            if ru != rv {
+                parent[ru.max(rv) as usize] = ru.min(rv);
+                self.stats.merged_vertices += 1;
+            }
+        }
         for t in &self.triangles {
             for k in 0..3 {
                 let (u, v) = (t[k], t[(k + 1) % 3]);

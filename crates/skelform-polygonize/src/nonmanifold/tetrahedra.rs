@@ -12,61 +12,311 @@ use crate::lattice::cubes::Key;
 
 impl Run<'_> {
     /// Polygonizes one tetrahedron of lattice points.
+    ///
+    /// Its faces' contours of interest (lines and the spokes of face vertices) are split
+    /// into the components they make on the tetrahedron's surface. A component without face
+    /// vertices is a disjoint sheet, polygonized by walking vertex to partner (the chapter's
+    /// polygons). One with face vertices gets internal vertices, beyond the chapter's one
+    /// per tetrahedron (its future work): two face vertices of one label (the same regions
+    /// meet there) in a component are a curve passing through, with its own internal vertex
+    /// on the curve; the other face vertices meet at one internal vertex (a point where
+    /// their curves meet). With one internal vertex in all the tetrahedron fans every
+    /// contour to it, as the chapter does. With several, each sheet's contour runs from a
+    /// face vertex to a face vertex and is fanned to the first one's internal vertex; where
+    /// the last one's differs, a triangle joins the two internal vertices (the sheet runs
+    /// between two curves), and the joins of one sheet that go round three or more internal
+    /// vertices are closed by a fan. One internal vertex for everything had joined separate
+    /// sheets at it and fused curves passing one tetrahedron into a false meeting point.
     pub(super) fn tetrahedron(&mut self, t: [Key; 4]) {
         let mut faces: Vec<FaceInfo> = Vec::with_capacity(4);
         for f in tets::FACES {
             faces.push(self.face([t[f[0]], t[f[1]], t[f[2]]]));
         }
-        let hubs: Vec<u32> = faces
-            .iter()
-            .filter(|f| f.spokes.iter().any(|(_, p)| self.interesting(*p)))
-            .filter_map(|f| f.face_vertex)
-            .collect();
-        if !hubs.is_empty() {
-            let centre = if hubs.len() == 1 {
-                hubs[0]
-            } else {
-                let m = hubs.iter().map(|&h| self.positions[h as usize]).sum::<DVec3>()
-                    / hubs.len() as f64;
-                self.positions.push(m);
-                self.crossing.push(None);
-                self.stats.internal_vertices += 1;
-                self.positions.len() as u32 - 1
-            };
-            for f in &faces {
-                let mut lines: Vec<(u32, u32, RegionPair)> = f.lines.clone();
-                if let Some(fv) = f.face_vertex {
-                    lines.extend(f.spokes.iter().map(|&(v, p)| (v, fv, p)));
-                    if fv != centre
-                        && f.spokes.iter().any(|(_, p)| self.interesting(*p))
-                        && f.regions.len() >= 3
-                    {
-                        let tri = RegionTriple::new([f.regions[0], f.regions[1], f.regions[2]]);
-                        if self.opts.curves.is_empty() || self.opts.curves.contains(&tri) {
-                            self.curves.push(CurveEdge { v: [fv, centre], label: tri });
-                        }
-                    }
+        // Contours of interest, and the face vertices they reach (vertex, face, regions).
+        let mut edges: Vec<(u32, u32, RegionPair)> = Vec::new();
+        let mut hubs: Vec<(u32, usize, Vec<u32>)> = Vec::new();
+        for (fi, f) in faces.iter().enumerate() {
+            edges.extend(f.lines.iter().copied().filter(|l| self.interesting(l.2)));
+            for h in &f.hubs {
+                let spokes = h.spokes.iter().filter(|s| self.interesting(s.1));
+                let before = edges.len();
+                edges.extend(spokes.map(|&(c, p)| (c, h.vertex, p)));
+                let linked = f
+                    .lines
+                    .iter()
+                    .any(|l| self.interesting(l.2) && (l.0 == h.vertex || l.1 == h.vertex));
+                if edges.len() > before || linked {
+                    hubs.push((h.vertex, fi, h.regions.clone()));
                 }
-                for (u, v, pair) in lines {
-                    if self.interesting(pair) && u != centre && v != centre {
-                        self.triangles.push([u, v, centre]);
-                        self.labels.push(pair);
-                    }
+            }
+        }
+        if hubs.is_empty() {
+            let lines: Vec<(usize, u32, u32, RegionPair)> = faces
+                .iter()
+                .enumerate()
+                .flat_map(|(fi, f)| f.lines.iter().map(move |&(u, v, p)| (fi, u, v, p)))
+                .collect();
+            self.walk_polygons(&lines);
+            return;
+        }
+        if !self.opts.junctions {
+            self.one_centre(&hubs, &edges, t);
+            return;
+        }
+        // Components of the contours on the tetrahedron's surface.
+        let mut index: FxHashMap<u32, usize> = FxHashMap::default();
+        let mut parent: Vec<usize> = Vec::new();
+        for &(u, v, _) in &edges {
+            for x in [u, v] {
+                index.entry(x).or_insert_with(|| {
+                    parent.push(parent.len());
+                    parent.len() - 1
+                });
+            }
+            let (a, b) = (root(&mut parent, index[&u]), root(&mut parent, index[&v]));
+            parent[a.max(b)] = a.min(b);
+        }
+        let comp_of = |parent: &mut Vec<usize>, v: u32| index.get(&v).map(|&i| root(parent, i));
+        // Internal vertex of each face vertex, component by component (in hub order).
+        let mut internal: FxHashMap<u32, u32> = FxHashMap::default();
+        let mut comps: Vec<usize> = hubs.iter().filter_map(|h| comp_of(&mut parent, h.0)).collect();
+        comps.sort_unstable();
+        comps.dedup();
+        let mut centres: Vec<u32> = Vec::new();
+        for &c in &comps {
+            let mine: Vec<&(u32, usize, Vec<u32>)> =
+                hubs.iter().filter(|h| comp_of(&mut parent, h.0) == Some(c)).collect();
+            let mut rest: Vec<u32> = Vec::new();
+            for (i, h) in mine.iter().enumerate() {
+                let same: Vec<usize> = (0..mine.len()).filter(|&j| mine[j].2 == h.2).collect();
+                let through =
+                    same.len() == 2 && h.2.len() >= 3 && mine[same[0]].1 != mine[same[1]].1;
+                if !through {
+                    rest.push(h.0);
+                } else if same[0] == i {
+                    let (a, b) = (mine[same[0]].0, mine[same[1]].0);
+                    let m = (self.positions[a as usize] + self.positions[b as usize]) * 0.5;
+                    let v = self.internal_vertex(m);
+                    self.through.push((v, [a, b], t));
+                    internal.extend([(a, v), (b, v)]);
+                    centres.push(v);
+                }
+            }
+            if rest.len() == 1 {
+                internal.insert(rest[0], rest[0]);
+                centres.push(rest[0]);
+            } else if !rest.is_empty() {
+                let m = rest.iter().map(|&h| self.positions[h as usize]).sum::<DVec3>()
+                    / rest.len() as f64;
+                let v = self.internal_vertex(m);
+                internal.extend(rest.iter().map(|&h| (h, v)));
+                centres.push(v);
+            }
+        }
+        for (h, _, regions) in &hubs {
+            let c = internal[h];
+            if c != *h && regions.len() >= 5 {
+                // Five or more regions at one face vertex: junctions too close on the face to
+                // tell apart, the point where the curves meet at the face. Its segment to the
+                // internal vertex would be a short piece of curve with an arbitrary label: the
+                // two are made one point instead, where the curves meet.
+                self.fused.push((*h, c));
+            } else if c != *h && regions.len() >= 3 {
+                let tri = RegionTriple::new([regions[0], regions[1], regions[2]]);
+                if self.opts.curves.is_empty() || self.opts.curves.contains(&tri) {
+                    self.curves.push(CurveEdge { v: [*h, c], label: tri });
+                }
+            }
+        }
+        let hub_free: Vec<bool> = {
+            let hub_comps: FxHashSet<usize> = comps.iter().copied().collect();
+            edges
+                .iter()
+                .map(|e| !hub_comps.contains(&comp_of(&mut parent, e.0).unwrap_or(usize::MAX)))
+                .collect()
+        };
+        if centres.len() == 1 && !hub_free.contains(&true) {
+            // The chapter's case: every contour fanned to the one internal vertex.
+            let centre = centres[0];
+            for &(u, v, pair) in &edges {
+                if u != centre && v != centre {
+                    self.triangles.push([u, v, centre]);
+                    self.labels.push(pair);
                 }
             }
             return;
         }
-        // Disjoint surfaces: walk vertex → partner in a face → the other face on its edge
-        // (or, from a loop vertex inside a face, on to its other partner in that face).
+        // Disjoint sheets beside the face vertices' components.
+        let free_vertices: FxHashSet<u32> =
+            edges.iter().zip(&hub_free).filter(|(_, f)| **f).map(|(e, _)| e.0).collect();
+        let free: Vec<(usize, u32, u32, RegionPair)> = faces
+            .iter()
+            .enumerate()
+            .flat_map(|(fi, f)| f.lines.iter().map(move |&(u, v, p)| (fi, u, v, p)))
+            .filter(|&(_, u, _, p)| self.interesting(p) && free_vertices.contains(&u))
+            .collect();
+        if !free.is_empty() {
+            self.walk_polygons(&free);
+        }
+        self.fan_paths(&edges, &hub_free, &internal);
+    }
+
+    /// The chapter's tetrahedron with face vertices: one internal vertex (the face vertex
+    /// itself when there is one, else their mean) and every contour fanned to it. Two face
+    /// vertices of one label are a curve passing through, whose vertex may be sharpened.
+    fn one_centre(
+        &mut self,
+        hubs: &[(u32, usize, Vec<u32>)],
+        edges: &[(u32, u32, RegionPair)],
+        t: [Key; 4],
+    ) {
+        let centre = if hubs.len() == 1 {
+            hubs[0].0
+        } else {
+            let m = hubs.iter().map(|h| self.positions[h.0 as usize]).sum::<DVec3>()
+                / hubs.len() as f64;
+            let v = self.internal_vertex(m);
+            if let [a, b] = hubs
+                && a.2 == b.2
+                && a.2.len() >= 3
+                && a.1 != b.1
+            {
+                self.through.push((v, [a.0, b.0], t));
+            }
+            v
+        };
+        for (h, _, regions) in hubs {
+            if *h != centre && regions.len() >= 3 {
+                let tri = RegionTriple::new([regions[0], regions[1], regions[2]]);
+                if self.opts.curves.is_empty() || self.opts.curves.contains(&tri) {
+                    self.curves.push(CurveEdge { v: [*h, centre], label: tri });
+                }
+            }
+        }
+        for &(u, v, pair) in edges {
+            if u != centre && v != centre {
+                self.triangles.push([u, v, centre]);
+                self.labels.push(pair);
+            }
+        }
+    }
+
+    /// A new vertex inside a tetrahedron.
+    fn internal_vertex(&mut self, p: DVec3) -> u32 {
+        self.positions.push(p);
+        self.crossing.push(None);
+        self.stats.internal_vertices += 1;
+        self.positions.len() as u32 - 1
+    }
+
+    /// The contours of the face vertices' components, sheet by sheet, from face vertex to
+    /// face vertex, each fanned to the internal vertex of the face vertex it starts from
+    /// (see [`Run::tetrahedron`]).
+    fn fan_paths(
+        &mut self,
+        edges: &[(u32, u32, RegionPair)],
+        hub_free: &[bool],
+        internal: &FxHashMap<u32, u32>,
+    ) {
+        let mut at: FxHashMap<u32, Vec<usize>> = FxHashMap::default();
+        for (i, e) in edges.iter().enumerate() {
+            if !hub_free[i] {
+                at.entry(e.0).or_default().push(i);
+                at.entry(e.1).or_default().push(i);
+            }
+        }
+        let mut used: Vec<bool> = hub_free.to_vec();
+        let mut joins: Vec<(RegionPair, u32, u32)> = Vec::new();
+        let mut starts: Vec<u32> = internal.keys().copied().collect();
+        starts.sort_unstable();
+        let other = |e: usize, v: u32| if edges[e].0 == v { edges[e].1 } else { edges[e].0 };
+        for &h in &starts {
+            let cs = internal[&h];
+            while let Some(&e) = at[&h].iter().find(|&&e| !used[e]) {
+                used[e] = true;
+                let pair = edges[e].2;
+                let (mut cur, mut next) = (h, other(e, h));
+                loop {
+                    self.fan(cur, next, cs, pair);
+                    cur = next;
+                    if internal.contains_key(&cur) {
+                        break;
+                    }
+                    let Some(&e2) = at[&cur].iter().find(|&&e2| !used[e2] && edges[e2].2 == pair)
+                    else {
+                        break;
+                    };
+                    used[e2] = true;
+                    next = other(e2, cur);
+                }
+                if let Some(&ce) = internal.get(&cur)
+                    && ce != cs
+                {
+                    self.fan(cur, ce, cs, pair);
+                    joins.push((pair, cs, ce));
+                }
+            }
+        }
+        // Joins of a sheet round three or more internal vertices: close them with a fan.
+        joins.sort_unstable();
+        let mut i = 0;
+        while i < joins.len() {
+            let pair = joins[i].0;
+            let mut j = i;
+            while j < joins.len() && joins[j].0 == pair {
+                j += 1;
+            }
+            let mut open: Vec<(u32, u32)> = Vec::new();
+            for &(_, a, b) in &joins[i..j] {
+                // A join back the same way cancels (two triangles on the shared side).
+                if let Some(k) =
+                    open.iter().position(|&(x, y)| (x, y) == (b, a) || (x, y) == (a, b))
+                {
+                    open.swap_remove(k);
+                } else {
+                    open.push((a, b));
+                }
+            }
+            if open.len() >= 3 {
+                let mut cycle = vec![open[0].0, open[0].1];
+                let mut rest = open[1..].to_vec();
+                while let Some(k) = rest
+                    .iter()
+                    .position(|&(x, y)| x == cycle[cycle.len() - 1] || y == cycle[cycle.len() - 1])
+                {
+                    let (x, y) = rest.swap_remove(k);
+                    let last = cycle[cycle.len() - 1];
+                    cycle.push(if x == last { y } else { x });
+                }
+                if cycle.first() == cycle.last() {
+                    cycle.pop();
+                    for k in 1..cycle.len().saturating_sub(1) {
+                        self.fan(cycle[k], cycle[k + 1], cycle[0], pair);
+                    }
+                }
+            }
+            i = j;
+        }
+    }
+
+    fn fan(&mut self, a: u32, b: u32, centre: u32, pair: RegionPair) {
+        if a != centre && b != centre && a != b {
+            self.triangles.push([a, b, centre]);
+            self.labels.push(pair);
+        }
+    }
+
+    /// Disjoint surfaces: walk vertex → partner in a face → the other face on its edge (or,
+    /// from a loop vertex inside a face, on to its other partner in that face), and fan each
+    /// polygon. `lines` are (face, u, v, pair).
+    fn walk_polygons(&mut self, lines: &[(usize, u32, u32, RegionPair)]) {
         let mut links: FxHashMap<u32, Vec<(usize, u32)>> = FxHashMap::default();
         let mut pair_of: FxHashMap<u32, RegionPair> = FxHashMap::default();
-        for (fi, f) in faces.iter().enumerate() {
-            for &(u, v, p) in &f.lines {
-                links.entry(u).or_default().push((fi, v));
-                links.entry(v).or_default().push((fi, u));
-                pair_of.insert(u, p);
-                pair_of.insert(v, p);
-            }
+        for &(fi, u, v, p) in lines {
+            links.entry(u).or_default().push((fi, v));
+            links.entry(v).or_default().push((fi, u));
+            pair_of.insert(u, p);
+            pair_of.insert(v, p);
         }
         let mut starts: Vec<u32> =
             pair_of.keys().copied().filter(|&v| self.crossing[v as usize].is_some()).collect();
@@ -141,9 +391,7 @@ impl Run<'_> {
                     let v = pts[0][axis];
                     if pts.iter().all(|p| p[axis] == v) {
                         let info = self.face([t[f[0]], t[f[1]], t[f[2]]]);
-                        let lines =
-                            info.lines.iter().map(|l| l.2).chain(info.spokes.iter().map(|s| s.1));
-                        if lines.into_iter().any(|p| self.interesting(p)) {
+                        if info.pairs().any(|p| self.interesting(p)) {
                             open.push((axis, usize::from(v != c[axis])));
                         }
                     }
@@ -154,4 +402,13 @@ impl Run<'_> {
         open.dedup();
         open
     }
+}
+
+/// Union-find root, halving the path.
+fn root(parent: &mut [usize], mut x: usize) -> usize {
+    while parent[x] != x {
+        parent[x] = parent[parent[x]];
+        x = parent[x];
+    }
+    x
 }
