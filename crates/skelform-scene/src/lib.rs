@@ -49,8 +49,8 @@ pub use leaf::LeafRegions;
 pub use pose::{Articulation, REST as REST_POSE};
 pub use regions::Regions;
 pub use schema::{Method, ParseMethodError};
-pub use sweep::FILE_KEYS;
 pub use skelform_field::combine::Combine;
+pub use sweep::FILE_KEYS;
 
 /// A picture of a scene in the gallery beside its default one (`[scene] views`).
 #[derive(Clone, Debug, PartialEq)]
