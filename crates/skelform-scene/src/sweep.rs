@@ -88,7 +88,7 @@ pub(crate) struct Png {
 
 /// The scene keys whose values name files that parsing reads (every file a scene can make
 /// the library open, besides the scene itself): a front end that must keep a scene inside
-/// its folder (the studio) checks exactly these. [`read_png`] takes only these names.
+/// its folder (the studio) checks exactly these. The reader takes only these names.
 pub const FILE_KEYS: &[&str] = &[FileKey::SectionImage.name(), FileKey::WeightImage.name()];
 
 /// A key of [`FILE_KEYS`]: the only way to ask for a file to be read.
