@@ -409,6 +409,32 @@ pub fn memory_need(grid: &Grid) -> crate::MemoryNeed {
     crate::MemoryNeed::Lattice { bytes: grid::memory_needed(grid, false), streamed: false }
 }
 
+/// The lattice of a healed run, sampled whole after its memory was checked, and the stats
+/// that both healings begin with.
+struct Sampled {
+    grid: Grid,
+    volume: skelform_field::grid::Volume,
+    /// Bytes the lattice holds, to which each later stage adds its own.
+    needed: u64,
+    stats: Stats,
+}
+
+fn sample_lattice(field: &dyn Field, options: &Options) -> Result<Sampled, Error> {
+    let lattice = &options.lattice;
+    let grid = lattice.grid()?;
+    let need = memory_need(&grid);
+    crate::lattice::memory::refuse(need, lattice.max_memory, &grid)?;
+    let mut stats =
+        Stats { grid_dims: grid.dims, cell: grid.cell, mode: options.healing, ..Stats::default() };
+    let t = Instant::now();
+    let volume = sample(field, &grid, &lattice.control)?;
+    stats.sampling = t.elapsed();
+    stats.samples = grid.sample_count();
+    stats.non_finite_samples = volume.non_finite;
+    (stats.min_sample, stats.max_sample) = volume.value_range();
+    Ok(Sampled { grid, volume, needed: need.bytes(), stats })
+}
+
 /// [`polygonize`] on the current thread pool.
 fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats), Error> {
     check_options(options)?;
@@ -417,22 +443,10 @@ fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats)
     }
     let lattice = &options.lattice;
     let control = &lattice.control;
-    let grid = lattice.grid()?;
-    let need = memory_need(&grid);
-    crate::lattice::memory::refuse(need, lattice.max_memory, &grid)?;
-    let needed = need.bytes();
+    let Sampled { grid, volume, needed, mut stats } = sample_lattice(field, options)?;
     let h = grid.cell;
-    let mut stats = Stats { grid_dims: grid.dims, cell: h, ..Stats::default() };
 
     // 1. Marching cubes.
-    let t = Instant::now();
-    let volume = sample(field, &grid, control)?;
-    stats.sampling = t.elapsed();
-    stats.samples = grid.sample_count();
-    stats.non_finite_samples = volume.non_finite;
-    let (lo, hi) = volume.value_range();
-    stats.min_sample = lo;
-    stats.max_sample = hi;
     let t = Instant::now();
     let ex = extract(&volume, control)?;
     stats.extraction = t.elapsed();

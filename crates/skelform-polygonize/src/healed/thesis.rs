@@ -1,4 +1,4 @@
-//! The thesis's own healing, cube by cube (Nguyen 2016, §4.3; [`Healing::Thesis`]).
+//! The thesis's own healing, cube by cube (Nguyen 2016, §4.3; [`Healing::Thesis`](super::Healing::Thesis)).
 //!
 //! 1. **Standard marching cubes**: each cube's crossings are joined by one fixed rule on
 //!    every ambiguous face, with no interior test and no interior vertex (a fan over each
@@ -39,24 +39,23 @@
 //! (one off the lattice's symmetry, or a cube of another class) keeps its marching-cubes
 //! triangles, so the pieces do not meet the neighbouring cubes' triangles there (holes and
 //! stray flaps); there is no search for the curve and no check of the result. The zone
-//! healing ([`Healing::Zone`]) is the default for that reason.
+//! healing ([`Healing::Zone`](super::Healing::Zone)) is the default for that reason.
 
 use std::time::Instant;
 
 use glam::{DMat3, DVec2, DVec3};
 use rustc_hash::{FxHashMap, FxHashSet};
 use skelform_field::Field;
-use skelform_field::grid::sample;
 use skelform_mesh::{CurveEdge, Mesh};
 
 use super::config::{self, ThesisClass};
 use super::{
-    Error, Healing, Options, SELF_INTERSECTION, Stats, critical_vertices, gradients, memory_need,
-    report,
+    Error, Options, SELF_INTERSECTION, Sampled, Stats, critical_vertices, gradients, report,
+    sample_lattice,
 };
 use crate::grid::cube::{CORNERS, EDGES, FACES, edge_axis, edge_between, other_axes};
 use crate::grid::table::{ambiguous_faces, loops_for};
-use crate::lattice::memory::{check, refuse, vec_bytes};
+use crate::lattice::memory::{check, vec_bytes};
 use crate::refine::{Bracket, RootOptions, face_normals, refine_roots};
 
 /// A cube the surface passes through.
@@ -127,22 +126,8 @@ fn nearest_to_lines(segments: &[(DVec3, DVec3)]) -> Option<DVec3> {
 pub(super) fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats), Error> {
     let lattice = &options.lattice;
     let control = &lattice.control;
-    let grid = lattice.grid()?;
-    let need = memory_need(&grid);
-    refuse(need, lattice.max_memory, &grid)?;
-    let needed = need.bytes();
+    let Sampled { grid, volume, needed, mut stats } = sample_lattice(field, options)?;
     let h = grid.cell;
-    let mut stats =
-        Stats { grid_dims: grid.dims, cell: h, mode: Healing::Thesis, ..Stats::default() };
-
-    let t = Instant::now();
-    let volume = sample(field, &grid, control)?;
-    stats.sampling = t.elapsed();
-    stats.samples = grid.sample_count();
-    stats.non_finite_samples = volume.non_finite;
-    let (lo, hi) = volume.value_range();
-    stats.min_sample = lo;
-    stats.max_sample = hi;
 
     // 1. Standard marching cubes: the corners with f ≤ 0 joined on every ambiguous face.
     let t = Instant::now();
