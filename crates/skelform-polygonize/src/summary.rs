@@ -431,19 +431,29 @@ impl fmt::Display for healed::Stats {
                 "spines        {} self-intersection segments (class 10/12: one per cube, class 13: six)",
                 self.curve_edges
             )?;
-            writeln!(f, "vertices      {}", self.vertices)?;
-            writeln!(f, "triangles     {}", self.triangles)?;
-            return writeln!(
-                f,
-                "time          sampling {:.3}s, extraction {:.3}s, refinement {:.3}s, critical test {:.3}s, healing {:.3}s, normals {:.3}s",
-                secs(self.sampling),
-                secs(self.extraction),
-                secs(self.refinement),
-                secs(self.search),
-                secs(self.healing),
-                secs(self.normals),
-            );
+        } else {
+            self.fmt_zones(f)?;
         }
+        writeln!(f, "vertices      {}", self.vertices)?;
+        writeln!(f, "triangles     {}", self.triangles)?;
+        // The thesis's healing spends its search time on the critical test alone.
+        let search = if self.mode == healed::Healing::Thesis { "critical test" } else { "search" };
+        writeln!(
+            f,
+            "time          sampling {:.3}s, extraction {:.3}s, refinement {:.3}s, {search} {:.3}s, healing {:.3}s, normals {:.3}s",
+            secs(self.sampling),
+            secs(self.extraction),
+            secs(self.refinement),
+            secs(self.search),
+            secs(self.healing),
+            secs(self.normals),
+        )
+    }
+}
+
+impl healed::Stats {
+    /// The zone healing's own lines: its curves, zones and singularities.
+    fn fmt_zones(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let length: f64 = self.curves.iter().map(|c| c.length).sum::<f64>() + 0.0;
         writeln!(
             f,
@@ -477,17 +487,6 @@ impl fmt::Display for healed::Stats {
         for u in &self.unresolved {
             writeln!(f, "  not healed near {}: {} cubes, {}", at(u.center), u.cubes, u.reason)?;
         }
-        writeln!(f, "vertices      {}", self.vertices)?;
-        writeln!(f, "triangles     {}", self.triangles)?;
-        writeln!(
-            f,
-            "time          sampling {:.3}s, extraction {:.3}s, refinement {:.3}s, search {:.3}s, healing {:.3}s, normals {:.3}s",
-            secs(self.sampling),
-            secs(self.extraction),
-            secs(self.refinement),
-            secs(self.search),
-            secs(self.healing),
-            secs(self.normals),
-        )
+        Ok(())
     }
 }
