@@ -540,6 +540,18 @@ impl State {
     /// A result from the worker, published only while its revision is the newest: under the
     /// lock, so no newer state can slip in between the check and the send.
     fn publish(&self, outcome: Outcome) {
+        // The frame is encoded before the lock is taken (a full surface is a megabyte), so
+        // that an edit arriving meanwhile is not held up; a frame made stale meanwhile is
+        // dropped below.
+        let frame = match &outcome {
+            Outcome::Mesh { revision, level, mesh, .. } => {
+                if *revision != lock(&self.doc).revision {
+                    return;
+                }
+                Some(Bytes::from(mesher::encode(*revision, *level, mesh)))
+            }
+            Outcome::Failed { .. } => None,
+        };
         let mut g = lock(&self.doc);
         match outcome {
             Outcome::Mesh { revision, level, mesh, ms, waited_ms, run, phases_ms } => {
@@ -549,8 +561,8 @@ impl State {
                 {
                     return;
                 }
+                let Some(frame) = frame else { return };
                 g.shown = Some((revision, level));
-                let frame = Bytes::from(mesher::encode(revision, level, &mesh));
                 if level == Level::Full {
                     g.full = Some(mesh.clone());
                 }
