@@ -403,6 +403,26 @@ pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats),
     options.lattice.threads.install(|| polygonize_here(field, options))
 }
 
+/// The mesh's normals from the gradients at its vertices; a vertex where the gradient
+/// vanishes or is not finite (on a self-intersection curve, at a singular point) takes its
+/// triangles' mean normal instead.
+fn vertex_normals(
+    mut normals: Vec<DVec3>,
+    positions: &[DVec3],
+    triangles: &[[u32; 3]],
+) -> Vec<[f32; 3]> {
+    let bad = |n: &DVec3| *n == DVec3::ZERO || !n.is_finite();
+    if normals.iter().any(bad) {
+        let face = face_normals(positions, triangles);
+        for (n, f) in normals.iter_mut().zip(face) {
+            if bad(n) {
+                *n = DVec3::from_array(f.map(f64::from));
+            }
+        }
+    }
+    normals.iter().map(|n| n.as_vec3().to_array()).collect()
+}
+
 /// What a healed run on `grid` holds before any triangle: the whole sampled volume (healing
 /// looks back at it), never streamed.
 pub fn memory_need(grid: &Grid) -> crate::MemoryNeed {
@@ -696,17 +716,8 @@ fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats)
         .map(|c| CurveEdge { v: c.map(|v| remap[v as usize]), label: SELF_INTERSECTION })
         .collect();
     if options.lattice.normals && !mesh.triangles.is_empty() {
-        let mut n: Vec<DVec3> =
-            (0..used.len()).filter(|&i| used[i]).map(|i| normals_all[i]).collect();
-        if n.iter().any(|x| *x == DVec3::ZERO || !x.is_finite()) {
-            let face = face_normals(&kept_positions, &mesh.triangles);
-            for (x, f) in n.iter_mut().zip(face) {
-                if *x == DVec3::ZERO || !x.is_finite() {
-                    *x = DVec3::from_array(f.map(f64::from));
-                }
-            }
-        }
-        mesh.normals = n.iter().map(|x| x.as_vec3().to_array()).collect();
+        let n: Vec<DVec3> = (0..used.len()).filter(|&i| used[i]).map(|i| normals_all[i]).collect();
+        mesh.normals = vertex_normals(n, &kept_positions, &mesh.triangles);
     }
     stats.normals = t.elapsed();
 

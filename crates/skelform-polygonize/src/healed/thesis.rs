@@ -51,12 +51,12 @@ use skelform_mesh::{CurveEdge, Mesh};
 use super::config::{self, ThesisClass};
 use super::{
     Error, Options, SELF_INTERSECTION, Sampled, Stats, critical_vertices, gradients, report,
-    sample_lattice,
+    sample_lattice, vertex_normals,
 };
 use crate::grid::cube::{CORNERS, EDGES, FACES, edge_axis, edge_between, other_axes};
 use crate::grid::table::{ambiguous_faces, loops_for};
 use crate::lattice::memory::{check, vec_bytes};
-use crate::refine::{Bracket, RootOptions, face_normals, refine_roots};
+use crate::refine::{Bracket, RootOptions, refine_roots};
 
 /// A cube the surface passes through.
 struct SurfaceCube {
@@ -448,15 +448,7 @@ pub(super) fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, 
         ..Mesh::default()
     };
     if lattice.normals && !mesh.triangles.is_empty() {
-        if normals.iter().any(|n| *n == DVec3::ZERO || !n.is_finite()) {
-            let face = face_normals(&kept, &mesh.triangles);
-            for (n, f) in normals.iter_mut().zip(face) {
-                if *n == DVec3::ZERO || !n.is_finite() {
-                    *n = DVec3::from_array(f.map(f64::from));
-                }
-            }
-        }
-        mesh.normals = normals.iter().map(|n| n.as_vec3().to_array()).collect();
+        mesh.normals = vertex_normals(normals, &kept, &mesh.triangles);
     }
     stats.normals = t.elapsed();
     stats.curve_edges = mesh.curves.len();
