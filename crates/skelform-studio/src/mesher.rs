@@ -130,6 +130,9 @@ pub enum Outcome {
         level: Level,
         /// The surface.
         mesh: Arc<Mesh>,
+        /// The surface as a frame ([`encode`]), made on the meshing thread: a full surface
+        /// is a megabyte, and the studio publishes under its document's lock.
+        frame: Vec<u8>,
         /// Milliseconds the call took.
         ms: f64,
         /// Milliseconds from the job's hand-over to the start of this level's run.
@@ -254,6 +257,7 @@ fn worker(
             Ok(meshed) => publish(Outcome::Mesh {
                 revision: job.revision,
                 level,
+                frame: encode(job.revision, level, &meshed.mesh),
                 phases_ms: phases(&meshed.stats),
                 mesh: Arc::new(meshed.mesh),
                 ms,

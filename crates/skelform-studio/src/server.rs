@@ -540,28 +540,16 @@ impl State {
     /// A result from the worker, published only while its revision is the newest: under the
     /// lock, so no newer state can slip in between the check and the send.
     fn publish(&self, outcome: Outcome) {
-        // The frame is encoded before the lock is taken (a full surface is a megabyte), so
-        // that an edit arriving meanwhile is not held up; a frame made stale meanwhile is
-        // dropped below.
-        let frame = match &outcome {
-            Outcome::Mesh { revision, level, mesh, .. } => {
-                if *revision != lock(&self.doc).revision {
-                    return;
-                }
-                Some(Bytes::from(mesher::encode(*revision, *level, mesh)))
-            }
-            Outcome::Failed { .. } => None,
-        };
         let mut g = lock(&self.doc);
         match outcome {
-            Outcome::Mesh { revision, level, mesh, ms, waited_ms, run, phases_ms } => {
+            Outcome::Mesh { revision, level, mesh, frame, ms, waited_ms, run, phases_ms } => {
                 // A coarse surface that comes after its revision's full one is not shown.
                 if revision != g.revision
                     || (level == Level::Coarse && g.shown == Some((revision, Level::Full)))
                 {
                     return;
                 }
-                let Some(frame) = frame else { return };
+                let frame = Bytes::from(frame);
                 g.shown = Some((revision, level));
                 if level == Level::Full {
                     g.full = Some(mesh.clone());
