@@ -194,7 +194,8 @@ test('the hand in the studio: drag a handle, bend a joint, undo, save', async ()
     const handling = await page.evaluate(() => window.studio.handling);
     const handled = (kind) => ms(median(handling.filter((h) => h.kind === kind).map((h) => h.ms)));
     console.log(`studio, hand: edit → state median ${ms(median(states))} ms; the page's handling of a state ` +
-        `median ${handled('state')} ms, of a surface ${handled('frame')} ms`);
+        `median ${handled('state')} ms, of a surface ${handled('frame')} ms, a render ${handled('render')} ms ` +
+        `(${handling.filter((h) => h.kind === 'render').length} renders)`);
     const meshed = (await page.evaluate(() => window.studio.meshed)).filter(timed);
     for (const level of [0, 1]) {
         const runs = meshed.filter((m) => m.level === level);
@@ -202,7 +203,9 @@ test('the hand in the studio: drag a handle, bend a joint, undo, save', async ()
         console.log(`studio, hand: the server's ${level ? 'full' : 'coarse'} level, median ${ms(median(runs.map((m) => m.ms)))} ms, ` +
             `waited median ${ms(median(runs.map((m) => m.waited)))} ms, ` +
             `${runs.length - scratch.length} of ${runs.length} incremental` +
-            (scratch.length ? ` (from scratch: ${[...new Set(scratch)].join('; ')})` : ''));
+            (scratch.length ? ` (from scratch: ${[...new Set(scratch)].join('; ')})` : '') +
+            `; phases median: ${['sampling', 'extraction', 'refinement', 'normals']
+                .map((p) => `${p} ${ms(median(runs.filter((m) => m.phases).map((m) => m.phases[p])))}`).join(', ')} ms`);
     }
     // Every edit after the samples edit moves or re-angles elements: re-meshed incrementally.
     assert.deepEqual(meshed.filter((m) => !m.incremental).map((m) => [m.revision, m.level, m.because]), [],

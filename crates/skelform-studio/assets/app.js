@@ -13,9 +13,15 @@ const studio = (window.studio = {
     revision: 0, frameRevision: 0, level: -1, vertices: 0, triangles: 0,
     timings: [], meshed: [], errors: [], state: null, handles: [], ready: false,
     // Where an edit's time goes on this side: edit → state arrival, and the page's own
-    // handling of each state and frame (ms).
+    // handling of each state, frame and render (ms).
     stateTimings: [], handling: [],
 });
+// The timings kept: the newest few thousand, so a long session does not grow without bound.
+const KEPT = 4000;
+function record(list, entry) {
+    list.push(entry);
+    if (list.length > KEPT) list.splice(0, list.length - KEPT);
+}
 
 // --- three.js -------------------------------------------------------------------------
 const view = $('view');
@@ -80,7 +86,9 @@ renderer.setAnimationLoop(() => {
     orbit.update();
     if (!stale) return;
     stale = false;
+    const start = performance.now();
     renderer.render(scene, camera);
+    record(studio.handling, { kind: 'render', ms: performance.now() - start });
 });
 
 let framed = false;
@@ -106,6 +114,7 @@ function send(msg) {
     if (!socket || socket.readyState !== WebSocket.OPEN) return;
     msg.seq = ++seq;
     sentAt.set(msg.seq, performance.now());
+    if (sentAt.size > KEPT) sentAt.delete(sentAt.keys().next().value);
     socket.send(JSON.stringify(msg));
 }
 studio.send = send;
@@ -129,7 +138,7 @@ function connect() {
         else {
             const start = performance.now();
             onFrame(e.data);
-            studio.handling.push({ kind: 'frame', ms: performance.now() - start });
+            record(studio.handling, { kind: 'frame', ms: performance.now() - start });
         }
     };
 }
@@ -138,18 +147,18 @@ function onText(m) {
     if (m.type === 'state') {
         const start = performance.now();
         if (m.revision > studio.revision && sentAt.has(m.seq)) {
-            studio.stateTimings.push({ seq: m.seq, revision: m.revision, ms: start - sentAt.get(m.seq) });
+            record(studio.stateTimings, { seq: m.seq, revision: m.revision, ms: start - sentAt.get(m.seq) });
         }
         onState(m);
-        studio.handling.push({ kind: 'state', revision: m.revision, ms: performance.now() - start });
+        record(studio.handling, { kind: 'state', revision: m.revision, ms: performance.now() - start });
     }
     else if (m.type === 'error') message(m.message);
     else if (m.type === 'saved') message(`saved ${m.file}`, true);
     else if (m.type === 'exported') message(`wrote ${m.file}`, true);
     else if (m.type === 'meshed') {
-        studio.meshed.push({
+        record(studio.meshed, {
             revision: m.revision, level: m.level, ms: m.ms, waited: m.waited_ms,
-            incremental: m.incremental, because: m.full_because,
+            incremental: m.incremental, because: m.full_because, phases: m.phases_ms,
         });
         $('status').textContent = `revision ${m.revision} ${m.level ? 'full' : 'coarse'}: ` +
             `${m.vertices} vertices, ${m.triangles} triangles, meshed in ${m.ms.toFixed(0)} ms` +
@@ -201,7 +210,7 @@ function onFrame(buffer) {
     const s = revisionSeq.get(revision);
     if (s !== undefined && sentAt.has(s)) {
         const ms = performance.now() - sentAt.get(s);
-        studio.timings.push({ seq: s, revision, level, ms });
+        record(studio.timings, { seq: s, revision, level, ms });
     }
     studio.ready = true;
 }
@@ -267,6 +276,7 @@ function onState(m) {
     studio.state = m;
     studio.revision = m.revision;
     revisionSeq.set(m.revision, m.seq);
+    if (revisionSeq.size > KEPT) revisionSeq.delete(revisionSeq.keys().next().value);
     $('file').textContent = m.file;
     $('dirty').textContent = m.dirty ? ' ●' : '';
     $('undo').disabled = !m.can_undo;

@@ -412,23 +412,29 @@ async fn session(s: Shared, mut socket: WebSocket) {
     {
         return;
     }
+    // The page's edits are applied in order on a blocking thread of their own (parsing a
+    // scene builds its field: not for the async workers), while this loop goes on
+    // forwarding states and surfaces: an edit that arrives during a drag's burst of them
+    // does not hold up the state and surface of the one before.
+    let (edits, mut replies) = editor(s.clone());
     loop {
         tokio::select! {
             incoming = socket.recv() => {
                 let Some(Ok(msg)) = incoming else { break };
-                let reply = match msg {
-                    Message::Text(t) => {
-                        let s2 = s.clone();
-                        let text = t.to_string();
-                        // Parsing a scene builds its field: not for the async workers.
-                        tokio::task::spawn_blocking(move || s2.handle(&text)).await.ok().flatten()
-                    }
+                let refused = match msg {
+                    Message::Text(t) => edits.try_send(t.to_string()).is_err(),
                     Message::Close(_) => break,
-                    _ => None,
+                    _ => false,
                 };
-                if let Some(r) = reply
-                    && socket.send(Message::Text(r.into())).await.is_err()
-                {
+                if refused {
+                    let busy = error_reply(0, "too many edits waiting: this one was dropped");
+                    if socket.send(Message::Text(busy.into())).await.is_err() {
+                        break;
+                    }
+                }
+            }
+            Some(reply) = replies.recv() => {
+                if socket.send(Message::Text(reply.into())).await.is_err() {
                     break;
                 }
             }
@@ -459,6 +465,30 @@ async fn session(s: Shared, mut socket: WebSocket) {
             }
         }
     }
+}
+
+/// Edits waiting for their turn, per page: a page that sends faster than they can be
+/// applied is told so instead of queueing without bound.
+const EDIT_QUEUE: usize = 256;
+
+/// Starts a page's editor: a blocking task that applies the page's messages one after the
+/// other, in the order they came, and hands back its replies (errors, saves, exports) for
+/// this page alone. It ends when the page's session drops the sender.
+fn editor(
+    s: Shared,
+) -> (tokio::sync::mpsc::Sender<String>, tokio::sync::mpsc::UnboundedReceiver<String>) {
+    let (edits, mut incoming) = tokio::sync::mpsc::channel::<String>(EDIT_QUEUE);
+    let (replies, outgoing) = tokio::sync::mpsc::unbounded_channel();
+    tokio::task::spawn_blocking(move || {
+        while let Some(text) = incoming.blocking_recv() {
+            if let Some(reply) = s.handle(&text)
+                && replies.send(reply).is_err()
+            {
+                break;
+            }
+        }
+    });
+    (edits, outgoing)
 }
 
 /// An edit from the page.
