@@ -69,6 +69,37 @@ fn hessian(k: &[f64; 8], p: [f64; 3]) -> [f64; 3] {
     [e + h * z, f + h * x, g + h * y]
 }
 
+/// The direction along which a saddle at `p` joins its side's regions: the Hessian's
+/// eigenvector whose eigenvalue has the sign the other two lack (the tube's axis), or zero
+/// where the Hessian is singular.
+pub fn saddle_axis(v: &[f32; 8], p: [f64; 3]) -> [f64; 3] {
+    let [u, w, x] = hessian(&coefficients(v), p); // H = [[0, u, x], [u, 0, w], [x, w, 0]]
+    let (sum, det) = (u * u + w * w + x * x, 2.0 * u * w * x);
+    if !(sum > 0.0) || det == 0.0 || !det.is_finite() {
+        return [0.0; 3];
+    }
+    // λ³ − sum·λ − det = 0 (zero trace): three real roots, by the trigonometric formula. The
+    // odd one is the largest where det > 0 (one positive), the smallest where det < 0.
+    let r = 2.0 * (sum / 3.0).sqrt();
+    let phase = (4.0 * det / (r * r * r)).clamp(-1.0, 1.0).acos() / 3.0;
+    let lambda = if det > 0.0 {
+        r * phase.cos()
+    } else {
+        r * (phase - 2.0 * std::f64::consts::FRAC_PI_3 * 2.0).cos()
+    };
+    let rows = [[-lambda, u, x], [u, -lambda, w], [x, w, -lambda]];
+    let cross = |a: [f64; 3], b: [f64; 3]| {
+        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    };
+    let len = |a: [f64; 3]| a.iter().map(|t| t * t).sum::<f64>();
+    let best = [cross(rows[0], rows[1]), cross(rows[1], rows[2]), cross(rows[0], rows[2])]
+        .into_iter()
+        .max_by(|a, b| len(*a).total_cmp(&len(*b)))
+        .unwrap_or([0.0; 3]);
+    let l = len(best).sqrt();
+    if l > 0.0 { best.map(|t| t / l) } else { [0.0; 3] }
+}
+
 /// One Newton step towards a zero of the gradient from `p`, or `None` where the Hessian is
 /// singular (the critical set is then a line or a curve, never an isolated point).
 fn newton_step(k: &[f64; 8], p: [f64; 3], scale: f64) -> Option<[f64; 3]> {
@@ -577,5 +608,158 @@ mod tests {
         }
         eprintln!("worst interior vertex value / max sample: {worst}");
         assert!(worst < 1e-9, "an interior vertex off the interpolant by {worst}");
+    }
+}
+
+#[cfg(test)]
+mod explore {
+    use super::super::cell::{CubeSink, case_of, crossing, face_decisions, polygonize_cube};
+    use super::super::cube::edge_point;
+    use super::super::extract::Slide;
+    use super::super::table::table;
+    use super::*;
+
+    #[derive(Default)]
+    pub struct OneCube {
+        pub points: Vec<[f64; 3]>,
+        pub interior: Vec<usize>,
+        pub edges: std::collections::HashMap<usize, u32>,
+        pub tris: Vec<[u32; 3]>,
+    }
+    impl CubeSink for OneCube {
+        fn edge_vertex(&mut self, e: usize, ends: [f32; 2]) -> u32 {
+            let n = self.points.len() as u32;
+            let id = *self.edges.entry(e).or_insert(n);
+            if id == n {
+                self.points.push(edge_point(e, crossing(ends[0], ends[1])));
+            }
+            id
+        }
+        fn cell_vertex(&mut self, offset: [f64; 3], _: Slide) -> u32 {
+            self.interior.push(self.points.len());
+            self.points.push(offset);
+            self.points.len() as u32 - 1
+        }
+        fn triangle(&mut self, t: [u32; 3]) {
+            self.tris.push(t);
+        }
+    }
+    type V = [f64; 3];
+    fn sub(a: V, b: V) -> V {
+        [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+    }
+    fn dot(a: V, b: V) -> f64 {
+        a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+    }
+    fn cross(a: V, b: V) -> V {
+        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    }
+    fn seg_tri(p: V, q: V, a: V, b: V, c: V) -> bool {
+        let n = cross(sub(b, a), sub(c, a));
+        let (dp, dq) = (dot(sub(p, a), n), dot(sub(q, a), n));
+        if !((dp > 0.0 && dq < 0.0) || (dp < 0.0 && dq > 0.0)) {
+            return false;
+        }
+        let s = dp / (dp - dq);
+        let x = [0, 1, 2].map(|i| p[i] + (q[i] - p[i]) * s);
+        [(a, b), (b, c), (c, a)].iter().all(|&(u, v)| dot(cross(sub(v, u), sub(x, u)), n) > 0.0)
+    }
+    pub fn crossing_pairs(m: &OneCube) -> Vec<(usize, usize)> {
+        let mut out = vec![];
+        for i in 0..m.tris.len() {
+            for j in i + 1..m.tris.len() {
+                let (s, t) = (m.tris[i], m.tris[j]);
+                let shared = s.iter().filter(|v| t.contains(v)).count();
+                if shared >= 2 {
+                    continue;
+                }
+                let edges = |a: [u32; 3], o: [u32; 3]| -> Vec<(u32, u32)> {
+                    (0..3)
+                        .map(|k| (a[k], a[(k + 1) % 3]))
+                        .filter(|(u, v)| shared == 0 || (!o.contains(u) && !o.contains(v)))
+                        .collect()
+                };
+                let p = |i: u32| m.points[i as usize];
+                let hit = |es: Vec<(u32, u32)>, tri: [u32; 3]| {
+                    es.into_iter()
+                        .any(|(u, v)| seg_tri(p(u), p(v), p(tri[0]), p(tri[1]), p(tri[2])))
+                };
+                if hit(edges(s, t), t) || hit(edges(t, s), s) {
+                    out.push((i, j));
+                }
+            }
+        }
+        out
+    }
+    fn lcg(seed: &mut u64) -> f32 {
+        *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((*seed >> 33) as f64 / (1u64 << 31) as f64 * 2.0 - 1.0) as f32
+    }
+    #[test]
+    #[ignore]
+    fn explore_crossings() {
+        let t = table();
+        let mut seed = 1u64;
+        let mut stats: std::collections::BTreeMap<String, (usize, usize)> = Default::default();
+        let mut shown = 0;
+        for _ in 0..2_000_000 {
+            let v: [f32; 8] = std::array::from_fn(|_| lcg(&mut seed));
+            let case = case_of(&v);
+            let d = face_decisions(&v, t.ambiguous[case]);
+            let e = t.entry(case, d as usize);
+            let mut m = OneCube::default();
+            let o = polygonize_cube(&v, &mut m);
+            let n = case.count_ones().min(8 - case.count_ones());
+            let key = format!(
+                "tube{} in{} loops{} lens{:?} amb{}",
+                o.tunnel,
+                n,
+                e.loop_count,
+                &e.loop_len[..e.loop_count as usize],
+                t.ambiguous[case].count_ones()
+            );
+            let c = crossing_pairs(&m);
+            let s = stats.entry(key.clone()).or_default();
+            s.0 += 1;
+            if !c.is_empty() {
+                s.1 += 1;
+                if shown < 12 {
+                    shown += 1;
+                    let sd = saddles(&v)
+                        .into_iter()
+                        .find(|s| tunnel(&v, s.value < 0.0) == Some(*s))
+                        .unwrap();
+                    let sp = sd.p;
+                    let or: Vec<i32> = m
+                        .tris
+                        .iter()
+                        .map(|t| {
+                            let q = t.map(|i| sub(m.points[i as usize], sp));
+                            let d = dot(q[0], cross(q[1], q[2]));
+                            if d > 0.0 {
+                                1
+                            } else if d < 0.0 {
+                                -1
+                            } else {
+                                0
+                            }
+                        })
+                        .collect();
+                    let face = sp.iter().map(|t| t.min(1.0 - t)).fold(1.0, f64::min);
+                    let pts: Vec<_> = m
+                        .points
+                        .iter()
+                        .map(|p| sub(*p, sp))
+                        .map(|d| (dot(d, d).sqrt() * 1000.0).round() / 1000.0)
+                        .collect();
+                    eprintln!(
+                        "{key} face {face:.3} values {v:?} pairs {c:?} saddle {sd:?} orient {or:?} dists {pts:?}"
+                    );
+                }
+            }
+        }
+        for (k, s) in stats {
+            eprintln!("{k}: {} tubes, {} crossing", s.0, s.1);
+        }
     }
 }

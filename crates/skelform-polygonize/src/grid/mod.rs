@@ -18,6 +18,7 @@ pub(crate) mod cube;
 pub(crate) mod extract;
 pub(crate) mod interior;
 pub(crate) mod table;
+pub(crate) mod tube;
 
 use std::borrow::Borrow;
 use std::sync::Arc;

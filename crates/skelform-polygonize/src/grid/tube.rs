@@ -1,0 +1,357 @@
+//! A tube through one cube's interior (MC33 4.1.2, 6.1.2, 7.4.2, 10.1.2, 12.1.2, 13.5.2),
+//! built so that it cannot cross itself.
+//!
+//! Why it is embedded: every vertex of the tube is seen from the saddle `s` in its own
+//! direction, and the tube is a *radial graph* over the sphere of directions around `s`.
+//! The two loops lie on the cube's boundary, which is convex with `s` inside, so seen from
+//! `s` they are two disjoint simple closed curves `A` and `B` (each loop segment, lying in a
+//! face, is seen as an arc of a great circle). Between them lies an annulus of directions,
+//! in which the ray from `s` leaves the tube (it starts on the tube's side and ends on the
+//! cube's boundary on the other side). The ring vertices lie on rays through the middle of
+//! that annulus, and the triangles are chosen so that, seen from `s`, each one turns the
+//! same way (`orient(s, p, q, r)` has the tube's sign). Triangles that all turn the same way
+//! seen from one point, with the boundary the two loops, cover the annulus of directions
+//! once: no ray from `s` meets two of them, so no two of them cross. Moving a ring vertex
+//! along its ray (refinement does) changes no triangle's turn.
+//!
+//! The directions are measured round an axis `u` from the loop `b`'s side to loop `a`'s:
+//! each ring vertex sits on a half-plane through the axis (a meridian), halfway between
+//! where the meridian meets the two loops; the bands from loop `a` to the ring and from the
+//! ring to loop `b` are zipped in order of the angle round the axis, each step taking the
+//! triangle that turns the right way. Where the first axis (between the loops' mean
+//! directions) leaves some triangle turned the wrong way (a loop winding unevenly round it),
+//! the saddle's own axis (the Hessian's eigenvector of the odd sign) and the axis between
+//! the loops' centroids are tried before the best of the three is kept.
+
+use glam::DVec3;
+
+use super::cell::CubeSink;
+use super::extract::Slide;
+use super::interior::{level_on_ray, saddle_axis, trilinear};
+
+/// One loop vertex: the sink's id and its position in the cube.
+pub type LoopVertex = (u32, [f64; 3]);
+
+/// Emits a tube from loop `a` through a ring round the saddle `s` to loop `b`, both loops
+/// oriented as the boundaries of the disks the tube replaces. `inside` tells the tube's
+/// side (`f < 0` inside it), which fixes the way its triangles turn seen from `s`: away
+/// from `s` for an inside tube, towards it otherwise.
+pub fn build(
+    v: &[f32; 8],
+    s: [f64; 3],
+    inside: bool,
+    a: &[LoopVertex],
+    b: &[LoopVertex],
+    sink: &mut impl CubeSink,
+) {
+    let sv = DVec3::from_array(s);
+    let sign = if inside { 1.0 } else { -1.0 };
+    let at =
+        |l: &[LoopVertex]| -> Vec<DVec3> { l.iter().map(|x| DVec3::from_array(x.1)).collect() };
+    let (pa, pb) = (at(a), at(b));
+    if pa.is_empty() || pb.is_empty() {
+        return;
+    }
+    let centroid = |ps: &[DVec3]| ps.iter().sum::<DVec3>() / ps.len() as f64;
+    let joining = centroid(&pa) - centroid(&pb);
+    let mut hessian = DVec3::from_array(saddle_axis(v, s));
+    if hessian.dot(joining) < 0.0 {
+        hessian = -hessian;
+    }
+    let n = pa.len().max(pb.len());
+    let mut best: Option<Plan> = None;
+    'search: for step in [0.0, 0.1, -0.1, 0.2, -0.2, 0.3, -0.3] {
+        let c = sv + hessian * step;
+        if step != 0.0
+            && (c.min_element() < 0.02
+                || c.max_element() > 0.98
+                || (trilinear(v, c.to_array()) < 0.0) != inside)
+        {
+            continue;
+        }
+        let mean_dir = |ps: &[DVec3]| {
+            ps.iter().map(|&p| (p - c).normalize_or_zero()).sum::<DVec3>().normalize_or_zero()
+        };
+        let (ca, cb) = (mean_dir(&pa), mean_dir(&pb));
+        let axes: Vec<DVec3> = [ca - cb, hessian, joining]
+            .iter()
+            .map(|u| u.normalize_or_zero())
+            .filter(|u| *u != DVec3::ZERO)
+            .collect();
+        let mut band_axes = axes.clone();
+        band_axes.extend([ca, cb].iter().filter(|u| **u != DVec3::ZERO));
+        // Rings: through the middle of the annulus of directions between the loops, on the
+        // meridians of each axis; then in each plane through `c` that separates the loops.
+        let meridian = axes.iter().map(|&u| meridian_ring(c, u, sign, &pa, &pb, n));
+        let plane = axes.iter().filter_map(|&w| {
+            let separates = pa.iter().all(|&p| (p - c).dot(w) > 1e-9)
+                && pb.iter().all(|&p| (p - c).dot(w) < -1e-9);
+            separates.then(|| plane_ring(c, w, sign, &pa, n))
+        });
+        for dirs in meridian.chain(plane) {
+            let ring: Vec<DVec3> = dirs.iter().map(|&d| ray_point(v, c, d)).collect();
+            let plan = Plan::new(c, sign, &pa, &pb, ring, &band_axes);
+            if best.as_ref().is_none_or(|b| plan.wrong < b.wrong) {
+                best = Some(plan);
+            }
+            if best.as_ref().is_some_and(|b| b.wrong == 0) {
+                break 'search;
+            }
+        }
+    }
+    let Some(plan) = best else {
+        return;
+    };
+    let ring: Vec<u32> = plan
+        .ring
+        .iter()
+        .map(|&p| {
+            let line = (p - plan.centre).to_array();
+            sink.cell_vertex(p.to_array(), Slide { line, ray: true })
+        })
+        .collect();
+    let id = |v: Vert| match v {
+        Vert::A(i) => a[i].0,
+        Vert::B(i) => b[i].0,
+        Vert::Ring(i) => ring[i],
+    };
+    for t in &plan.tris {
+        sink.triangle(t.map(id));
+    }
+}
+
+/// A tube vertex: of loop `a`, of loop `b`, or of the ring.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Vert {
+    A(usize),
+    B(usize),
+    Ring(usize),
+}
+
+/// The tube for one axis: ring positions, triangles, and how many triangles turn the wrong
+/// way seen from the saddle.
+struct Plan {
+    centre: DVec3,
+    ring: Vec<DVec3>,
+    tris: Vec<[Vert; 3]>,
+    wrong: usize,
+}
+
+/// The angle of `d` round the axis in the frame `(e1, e2)`.
+fn angle(d: DVec3, e1: DVec3, e2: DVec3) -> f64 {
+    d.dot(e2).atan2(d.dot(e1))
+}
+
+/// `x` reduced to `(-π, π]`.
+fn wrap(x: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    let r = x.rem_euclid(TAU);
+    if r > PI { r - TAU } else { r }
+}
+
+/// Angles round the axis along a closed polygon, unwrapped so that each step turns by less
+/// than half a turn: `n + 1` values, the last the first's plus the polygon's winding.
+fn unwrapped(ps: &[DVec3], s: DVec3, e1: DVec3, e2: DVec3) -> Vec<f64> {
+    let mut out = Vec::with_capacity(ps.len() + 1);
+    let first = angle(ps[0] - s, e1, e2);
+    out.push(first);
+    let mut last = first;
+    let mut acc = first;
+    for k in 1..=ps.len() {
+        let a = angle(ps[k % ps.len()] - s, e1, e2);
+        acc += wrap(a - last);
+        last = a;
+        out.push(acc);
+    }
+    out
+}
+
+/// The polar angles (from `u`) at which the half-plane through the axis towards `w` meets
+/// the closed polygon `ps`.
+fn meridian_hits(ps: &[DVec3], s: DVec3, u: DVec3, w: DVec3) -> impl Iterator<Item = f64> + '_ {
+    let n = u.cross(w);
+    (0..ps.len()).filter_map(move |k| {
+        let (p, q) = (ps[k] - s, ps[(k + 1) % ps.len()] - s);
+        let (sp, sq) = (p.dot(n), q.dot(n));
+        if (sp <= 0.0) == (sq <= 0.0) {
+            return None;
+        }
+        let x = p + (q - p) * (sp / (sp - sq));
+        let side = x.dot(w);
+        (side > 0.0).then(|| side.atan2(x.dot(u)))
+    })
+}
+
+/// `n` directions from `c` through the middle of the annulus between the loops, on
+/// half-planes through the axis `u` at even angles: on each, halfway (in angle from `u`)
+/// between the last point of loop a and the first of loop b. They run round `u` the way
+/// loop a does.
+fn meridian_ring(
+    c: DVec3,
+    u: DVec3,
+    sign: f64,
+    pa: &[DVec3],
+    pb: &[DVec3],
+    n: usize,
+) -> Vec<DVec3> {
+    use std::f64::consts::{PI, TAU};
+    let e1 = u.any_orthonormal_vector();
+    let e2 = u.cross(e1);
+    let ka = unwrapped(pa, c, e1, e2);
+    let turn = if ka[pa.len()] == ka[0] { -sign } else { (ka[pa.len()] - ka[0]).signum() };
+    (0..n)
+        .map(|k| {
+            let phi = ka[0] + turn * TAU * (k as f64 + 0.5) / n as f64;
+            let w = e1 * phi.cos() + e2 * phi.sin();
+            let ta = meridian_hits(pa, c, u, w).fold(0.0, f64::max);
+            let tb = meridian_hits(pb, c, u, w).fold(PI, f64::min);
+            let theta = 0.5 * (ta + tb);
+            u * theta.cos() + w * theta.sin()
+        })
+        .collect()
+}
+
+/// `n` directions from `c` at even angles in the plane normal to `w`, which separates the
+/// loops (loop a on `w`'s side), running the way loop a runs round the tube: seen from `c`
+/// inside an inside tube, a loop's disk turns clockwise round the axis towards it.
+fn plane_ring(c: DVec3, w: DVec3, sign: f64, pa: &[DVec3], n: usize) -> Vec<DVec3> {
+    use std::f64::consts::TAU;
+    let e1 = w.any_orthonormal_vector();
+    let e2 = w.cross(e1);
+    let start = angle(pa[0] - c, e1, e2);
+    (0..n)
+        .map(|k| {
+            let phi = start - sign * TAU * (k as f64 + 0.5) / n as f64;
+            e1 * phi.cos() + e2 * phi.sin()
+        })
+        .collect()
+}
+
+impl Plan {
+    /// The tube through `ring` (running the way loop a does): each band zipped round the
+    /// first of `axes` that turns none of its triangles the wrong way, else the one that
+    /// turns fewest.
+    fn new(
+        c: DVec3,
+        sign: f64,
+        pa: &[DVec3],
+        pb: &[DVec3],
+        ring: Vec<DVec3>,
+        axes: &[DVec3],
+    ) -> Plan {
+        let pos = |x: Vert| match x {
+            Vert::A(i) => pa[i],
+            Vert::B(i) => pb[i],
+            Vert::Ring(i) => ring[i],
+        };
+        let turns_right = |t: [Vert; 3]| {
+            let [p, q, r] = t.map(|x| pos(x) - c);
+            p.dot(q.cross(r)) * sign > 0.0
+        };
+        let av: Vec<Vert> = (0..pa.len()).map(Vert::A).collect();
+        let rv: Vec<Vert> = (0..ring.len()).map(Vert::Ring).collect();
+        let bv: Vec<Vert> = (0..pb.len()).rev().map(Vert::B).collect();
+        let band = |p: &[Vert], q: &[Vert]| {
+            let mut best: Option<(Vec<[Vert; 3]>, usize)> = None;
+            for &u in axes {
+                let e1 = u.any_orthonormal_vector();
+                let e2 = u.cross(e1);
+                let keys = |xs: &[Vert]| {
+                    let ps: Vec<DVec3> = xs.iter().map(|&x| pos(x)).collect();
+                    unwrapped(&ps, c, e1, e2)
+                };
+                let (mut kp, mut kq) = (keys(p), keys(q));
+                if kp[p.len()] < kp[0] {
+                    kp.iter_mut().chain(kq.iter_mut()).for_each(|k| *k = -*k);
+                }
+                let mut tris = Vec::with_capacity(p.len() + q.len());
+                zip(p, &kp, q, &kq, &turns_right, &mut tris);
+                let wrong = tris.iter().filter(|&&t| !turns_right(t)).count();
+                if best.as_ref().is_none_or(|b| wrong < b.1) {
+                    best = Some((tris, wrong));
+                }
+                if wrong == 0 {
+                    break;
+                }
+            }
+            best.unwrap_or_default()
+        };
+        let (mut tris, wrong_a) = band(&av, &rv);
+        let (tris_b, wrong_b) = band(&rv, &bv);
+        tris.extend(tris_b);
+        Plan { centre: c, ring, tris, wrong: wrong_a + wrong_b }
+    }
+}
+
+/// The point of the interpolant's level set on the ray from `s` along `d`, or, where the
+/// ray has none inside the cube (it leaves through a cap), the point halfway to the cube's
+/// boundary: off the level set, but on the ray, which is what keeps the tube embedded.
+fn ray_point(v: &[f32; 8], s: DVec3, d: DVec3) -> DVec3 {
+    if let Some(p) = level_on_ray(v, s.to_array(), d.to_array()) {
+        return DVec3::from_array(p);
+    }
+    let exit = (0..3)
+        .filter(|&i| d[i] != 0.0)
+        .map(|i| if d[i] > 0.0 { (1.0 - s[i]) / d[i] } else { -s[i] / d[i] })
+        .fold(f64::INFINITY, f64::min);
+    s + d * (0.5 * exit)
+}
+
+/// Triangles of a band between the closed sequences `p` and `q`, which run the same way
+/// round the axis, with `kp`, `kq` their angle keys (`n + 1` each: the last is the first
+/// after a full turn). Each triangle keeps `p`'s edges in their direction and runs `q`'s
+/// backwards, as a band between a disk's boundary and the reversed boundary of another.
+///
+/// The walk starts from the rung between `p[0]` and the vertex of `q` nearest it in angle
+/// and steps along whichever sequence's next vertex comes first round the axis, unless that
+/// triangle turns the wrong way seen from the saddle and the other does not.
+fn zip(
+    p: &[Vert],
+    kp: &[f64],
+    q: &[Vert],
+    kq: &[f64],
+    turns_right: &dyn Fn([Vert; 3]) -> bool,
+    out: &mut Vec<[Vert; 3]>,
+) {
+    let (np, nq) = (p.len(), q.len());
+    // Rotate q to start at the vertex nearest p[0] in angle; its keys shifted within half
+    // a turn of p[0]'s.
+    let start = (0..nq)
+        .min_by(|&x, &y| wrap(kq[x] - kp[0]).abs().total_cmp(&wrap(kq[y] - kp[0]).abs()))
+        .unwrap_or(0);
+    let shift = kp[0] + wrap(kq[start] - kp[0]) - kq[start];
+    let key_q = |j: usize| {
+        let k = start + j;
+        let turns = (k / nq) as f64;
+        kq[k % nq] + shift + turns * (kq[nq] - kq[0])
+    };
+    let pp = |i: usize| p[i % np];
+    let qq = |j: usize| q[(start + j) % nq];
+    let key_p = |i: usize| if i <= np { kp[i] } else { kp[np] + kp[i - np] - kp[0] };
+    let (mut i, mut j) = (0, 0);
+    let (mut run_p, mut run_q) = (0, 0);
+    while i < np || j < nq {
+        let can_p = i < np && !(i + 1 == np && j <= run_q);
+        let can_q = j < nq && !(j + 1 == nq && i <= run_p);
+        let tri_p = [pp(i), pp(i + 1), qq(j)];
+        let tri_q = [qq(j + 1), qq(j), pp(i)];
+        let advance_p = match (can_p, can_q) {
+            (true, false) => true,
+            (false, true) => false,
+            _ => {
+                let by_angle = key_p(i + 1) <= key_q(j + 1);
+                let (good_p, good_q) = (turns_right(tri_p), turns_right(tri_q));
+                if good_p != good_q { good_p } else { by_angle }
+            }
+        };
+        if advance_p {
+            run_p += usize::from(j == 0);
+            out.push(tri_p);
+            i += 1;
+        } else {
+            run_q += usize::from(i == 0);
+            out.push(tri_q);
+            j += 1;
+        }
+    }
+}
