@@ -89,12 +89,20 @@ pub fn build(
             separates.then(|| plane_ring(c, w, sign, &pa, n))
         });
         for dirs in meridian.chain(plane) {
-            let ring: Vec<DVec3> = dirs.iter().map(|&d| ray_point(v, c, d)).collect();
-            let plan = Plan::new(c, sign, &pa, &pb, ring, &band_axes);
-            if best.as_ref().is_none_or(|b| plan.wrong < b.wrong) {
+            let mut off = 0;
+            let ring: Vec<DVec3> = dirs
+                .iter()
+                .map(|&d| {
+                    let (p, on) = ray_point(v, c, d);
+                    off += usize::from(!on);
+                    p
+                })
+                .collect();
+            let plan = Plan::new(c, sign, &pa, &pb, ring, &band_axes, off);
+            if best.as_ref().is_none_or(|b| plan.flaws() < b.flaws()) {
                 best = Some(plan);
             }
-            if best.as_ref().is_some_and(|b| b.wrong == 0) {
+            if best.as_ref().is_some_and(|b| b.flaws() == (0, 0)) {
                 break 'search;
             }
         }
@@ -135,6 +143,7 @@ struct Plan {
     ring: Vec<DVec3>,
     tris: Vec<[Vert; 3]>,
     wrong: usize,
+    off: usize,
 }
 
 /// The angle of `d` round the axis in the frame `(e1, e2)`.
@@ -238,6 +247,7 @@ impl Plan {
         pb: &[DVec3],
         ring: Vec<DVec3>,
         axes: &[DVec3],
+        off: usize,
     ) -> Plan {
         let pos = |x: Vert| match x {
             Vert::A(i) => pa[i],
@@ -279,22 +289,28 @@ impl Plan {
         let (mut tris, wrong_a) = band(&av, &rv);
         let (tris_b, wrong_b) = band(&rv, &bv);
         tris.extend(tris_b);
-        Plan { centre: c, ring, tris, wrong: wrong_a + wrong_b }
+        Plan { centre: c, ring, tris, wrong: wrong_a + wrong_b, off }
+    }
+
+    /// What makes a plan worse: triangles turned the wrong way (a crossing is then
+    /// possible), then ring vertices off the interpolant's level set.
+    fn flaws(&self) -> (usize, usize) {
+        (self.wrong, self.off)
     }
 }
 
 /// The point of the interpolant's level set on the ray from `s` along `d`, or, where the
 /// ray has none inside the cube (it leaves through a cap), the point halfway to the cube's
 /// boundary: off the level set, but on the ray, which is what keeps the tube embedded.
-fn ray_point(v: &[f32; 8], s: DVec3, d: DVec3) -> DVec3 {
+fn ray_point(v: &[f32; 8], s: DVec3, d: DVec3) -> (DVec3, bool) {
     if let Some(p) = level_on_ray(v, s.to_array(), d.to_array()) {
-        return DVec3::from_array(p);
+        return (DVec3::from_array(p), true);
     }
     let exit = (0..3)
         .filter(|&i| d[i] != 0.0)
         .map(|i| if d[i] > 0.0 { (1.0 - s[i]) / d[i] } else { -s[i] / d[i] })
         .fold(f64::INFINITY, f64::min);
-    s + d * (0.5 * exit)
+    (s + d * (0.5 * exit), false)
 }
 
 /// Triangles of a band between the closed sequences `p` and `q`, which run the same way
