@@ -702,7 +702,7 @@ mod explore {
         let mut seed = 1u64;
         let mut stats: std::collections::BTreeMap<String, (usize, usize)> = Default::default();
         let mut shown = 0;
-        for _ in 0..20_000_000 {
+        for _ in 0..2_000_000 {
             let v: [f32; 8] = std::array::from_fn(|_| lcg(&mut seed));
             let case = case_of(&v);
             let d = face_decisions(&v, t.ambiguous[case]);

@@ -29,6 +29,15 @@ use super::cell::CubeSink;
 use super::extract::Slide;
 use super::interior::{level_on_ray, saddle_axis, trilinear};
 
+/// The clearance (see [`Plan`]'s `margin`, in cells) at which the search for a tube stops.
+const ENOUGH: f64 = 0.15;
+
+#[cfg(test)]
+thread_local! {
+    /// Plans made (rings placed), for tests that count the work per tube.
+    pub static PLANS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+}
+
 /// One loop vertex: the sink's id and its position in the cube.
 pub type LoopVertex = (u32, [f64; 3]);
 
@@ -99,10 +108,12 @@ pub fn build(
                 })
                 .collect();
             let plan = Plan::new(c, sign, &pa, &pb, ring, &band_axes, off);
+            #[cfg(test)]
+            PLANS.with(|p| p.set(p.get() + 1));
             if best.as_ref().is_none_or(|b| plan.flaws() < b.flaws()) {
                 best = Some(plan);
             }
-            if best.as_ref().is_some_and(|b| b.flaws() == (0, 0)) {
+            if best.as_ref().is_some_and(|b| b.wrong == 0 && b.off == 0 && b.margin >= ENOUGH) {
                 break 'search;
             }
         }
@@ -144,6 +155,10 @@ struct Plan {
     tris: Vec<[Vert; 3]>,
     wrong: usize,
     off: usize,
+    /// The least distance (in cells) from the centre to a triangle's plane, on the side
+    /// that turns it the right way: how far the loop vertices can move (refinement moves
+    /// them along the cube's edges) before a triangle could turn over.
+    margin: f64,
 }
 
 /// The angle of `d` round the axis in the frame `(e1, e2)`.
@@ -258,11 +273,19 @@ impl Plan {
             let [p, q, r] = t.map(|x| pos(x) - c);
             p.dot(q.cross(r)) * sign > 0.0
         };
+        // The signed distance from `c` to the triangle's plane (positive when it turns the
+        // right way).
+        let clearance = |t: [Vert; 3]| {
+            let [p, q, r] = t.map(pos);
+            let n = (q - p).cross(r - p);
+            let len = n.length();
+            if len > 0.0 { n.dot(p - c) * sign / len } else { 0.0 }
+        };
         let av: Vec<Vert> = (0..pa.len()).map(Vert::A).collect();
         let rv: Vec<Vert> = (0..ring.len()).map(Vert::Ring).collect();
         let bv: Vec<Vert> = (0..pb.len()).rev().map(Vert::B).collect();
         let band = |p: &[Vert], q: &[Vert]| {
-            let mut best: Option<(Vec<[Vert; 3]>, usize)> = None;
+            let mut best: Option<(Vec<[Vert; 3]>, usize, f64)> = None;
             for &u in axes {
                 let e1 = u.any_orthonormal_vector();
                 let e2 = u.cross(e1);
@@ -277,25 +300,24 @@ impl Plan {
                 let mut tris = Vec::with_capacity(p.len() + q.len());
                 zip(p, &kp, q, &kq, &turns_right, &mut tris);
                 let wrong = tris.iter().filter(|&&t| !turns_right(t)).count();
-                if best.as_ref().is_none_or(|b| wrong < b.1) {
-                    best = Some((tris, wrong));
-                }
-                if wrong == 0 {
-                    break;
+                let margin = tris.iter().map(|&t| clearance(t)).fold(f64::INFINITY, f64::min);
+                if best.as_ref().is_none_or(|b| (wrong, -margin) < (b.1, -b.2)) {
+                    best = Some((tris, wrong, margin));
                 }
             }
-            best.unwrap_or_default()
+            best.unwrap_or((Vec::new(), usize::MAX, f64::NEG_INFINITY))
         };
-        let (mut tris, wrong_a) = band(&av, &rv);
-        let (tris_b, wrong_b) = band(&rv, &bv);
+        let (mut tris, wrong_a, margin_a) = band(&av, &rv);
+        let (tris_b, wrong_b, margin_b) = band(&rv, &bv);
         tris.extend(tris_b);
-        Plan { centre: c, ring, tris, wrong: wrong_a + wrong_b, off }
+        let wrong = wrong_a.saturating_add(wrong_b);
+        Plan { centre: c, ring, tris, wrong, off, margin: margin_a.min(margin_b) }
     }
 
     /// What makes a plan worse: triangles turned the wrong way (a crossing is then
     /// possible), then ring vertices off the interpolant's level set.
-    fn flaws(&self) -> (usize, usize) {
-        (self.wrong, self.off)
+    fn flaws(&self) -> (usize, usize, f64) {
+        (self.wrong, self.off, -self.margin)
     }
 }
 
