@@ -3,7 +3,9 @@
 //! their line inside their cube; either way they stay in their cube and apart, and their
 //! refinement neither collapses, doubles nor folds faces. (Newton steps clamped to the cell,
 //! as before, left 27 of these fields' 152 interior vertices up to 0.1 cells off the field,
-//! and collapsed, folded or crossed faces in 10 of the 24 fields.)
+//! and collapsed, folded or crossed faces in 10 of the 24 fields.) No two triangles cross,
+//! before refinement or after: tubes zipped by distance from a ring shaped like one loop
+//! crossed themselves in 5 of the 24 fields even on the interpolant.
 //!
 //! The fields are random sums of cosines with wavelengths of three to eight cells, on a lattice
 //! coarse enough that many cubes have an ambiguous interior (tubes) or a fan. Interior
@@ -175,28 +177,6 @@ fn refined_interior_vertices_lie_on_the_field_and_keep_the_mesh_sound() {
         // edge vertices refined, and with all of them refined.
         let crossed = [&unrefined, &mid, &m].map(|mesh| crossings(mesh, 0.0).len());
         tally.crossings += crossed.iter().sum::<usize>();
-        for (i, j) in crossings(&mid, 0.0) {
-            for t in [i, j] {
-                let tri = mid.triangles[t as usize];
-                let q: Vec<_> = tri
-                    .iter()
-                    .map(|&v| {
-                        (
-                            (DVec3::from_array(mid.positions[v as usize].map(f64::from))
-                                - g.origin)
-                                / g.cell,
-                            interior.iter().any(|x| x.0 == v as usize),
-                        )
-                    })
-                    .collect();
-                let u: Vec<_> = tri.iter().map(|&v| (DVec3::from_array(unrefined.positions[v as usize].map(f64::from)) - g.origin) / g.cell).collect();
-                eprintln!("DBG seed {seed} tri {t} {q:?} unrefined {u:?}");
-                if t == i {
-                    let vals: Vec<f64> = (0..8).map(|c| field.eval(g.point(15 + (c & 1), 17 + ((c >> 1) & 1), 16 + (c >> 2)))).collect();
-                    eprintln!("DBG values {vals:?}");
-                }
-            }
-        }
         if crossed != [0, 0, 0] {
             problems.push(format!(
                 "seed {seed}: crossing pairs {crossed:?} (unrefined, edge vertices refined, \

@@ -30,7 +30,7 @@ use super::extract::Slide;
 use super::interior::{level_on_ray, saddle_axis, trilinear};
 
 /// The clearance (see [`Plan`]'s `margin`, in cells) at which the search for a tube stops.
-const ENOUGH: f64 = 0.15;
+const ENOUGH: f64 = 0.1;
 
 #[cfg(test)]
 thread_local! {
@@ -273,13 +273,20 @@ impl Plan {
             let [p, q, r] = t.map(|x| pos(x) - c);
             p.dot(q.cross(r)) * sign > 0.0
         };
-        // The signed distance from `c` to the triangle's plane (positive when it turns the
-        // right way).
+        // How far a loop vertex of the triangle can move (refinement moves it along its
+        // cube edge) before the triangle turns over seen from `c`: its distance from the
+        // plane through `c` and the other two vertices, least over the loop vertices.
+        // Ring vertices move only along their rays from `c`, which turns nothing over.
         let clearance = |t: [Vert; 3]| {
-            let [p, q, r] = t.map(pos);
-            let n = (q - p).cross(r - p);
-            let len = n.length();
-            if len > 0.0 { n.dot(p - c) * sign / len } else { 0.0 }
+            let d = t.map(|x| pos(x) - c);
+            let turn = d[0].dot(d[1].cross(d[2])) * sign;
+            (0..3)
+                .filter(|&k| !matches!(t[k], Vert::Ring(_)))
+                .map(|k| {
+                    let across = d[(k + 1) % 3].cross(d[(k + 2) % 3]).length();
+                    if across > 0.0 { turn / across } else { 0.0 }
+                })
+                .fold(f64::INFINITY, f64::min)
         };
         let av: Vec<Vert> = (0..pa.len()).map(Vert::A).collect();
         let rv: Vec<Vert> = (0..ring.len()).map(Vert::Ring).collect();
