@@ -38,6 +38,11 @@ thread_local! {
     pub static PLANS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
 }
 
+/// The least distance (in cells) of a ring vertex from its tube's centre: where the
+/// interpolant's level set passes through the saddle (a saddle value of zero, up to
+/// rounding), its ring would shrink to a point and its triangles to slivers.
+const MIN_RING: f64 = 1e-3;
+
 /// One loop vertex: the sink's id and its position in the cube.
 pub type LoopVertex = (u32, [f64; 3]);
 
@@ -328,18 +333,21 @@ impl Plan {
     }
 }
 
-/// The point of the interpolant's level set on the ray from `s` along `d`, or, where the
-/// ray has none inside the cube (it leaves through a cap), the point halfway to the cube's
-/// boundary: off the level set, but on the ray, which is what keeps the tube embedded.
+/// The point of the interpolant's level set on the ray from `s` along `d` (a unit vector),
+/// with `true`; or, where the ray has none inside the cube (it leaves through a cap) or has
+/// it nearer `s` than [`MIN_RING`] (a tube pinched at a saddle on the level set), a point on
+/// the ray halfway to the cube's boundary or [`MIN_RING`] from `s`, with `false`: off the
+/// level set, but on the ray, which is what keeps the tube embedded.
 fn ray_point(v: &[f32; 8], s: DVec3, d: DVec3) -> (DVec3, bool) {
-    if let Some(p) = level_on_ray(v, s.to_array(), d.to_array()) {
-        return (DVec3::from_array(p), true);
-    }
     let exit = (0..3)
         .filter(|&i| d[i] != 0.0)
         .map(|i| if d[i] > 0.0 { (1.0 - s[i]) / d[i] } else { -s[i] / d[i] })
         .fold(f64::INFINITY, f64::min);
-    (s + d * (0.5 * exit), false)
+    match level_on_ray(v, s.to_array(), d.to_array()).map(DVec3::from_array) {
+        Some(p) if p.distance(s) >= MIN_RING => (p, true),
+        Some(_) => (s + d * MIN_RING.min(0.5 * exit), false),
+        None => (s + d * (0.5 * exit), false),
+    }
 }
 
 /// Triangles of a band between the closed sequences `p` and `q`, which run the same way
