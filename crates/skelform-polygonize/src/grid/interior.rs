@@ -75,7 +75,7 @@ fn hessian(k: &[f64; 8], p: [f64; 3]) -> [f64; 3] {
 pub fn saddle_axis(v: &[f32; 8], p: [f64; 3]) -> [f64; 3] {
     let [u, w, x] = hessian(&coefficients(v), p); // H = [[0, u, x], [u, 0, w], [x, w, 0]]
     let (sum, det) = (u * u + w * w + x * x, 2.0 * u * w * x);
-    if !(sum > 0.0) || det == 0.0 || !det.is_finite() {
+    if sum == 0.0 || !sum.is_finite() || det == 0.0 || !det.is_finite() {
         return [0.0; 3];
     }
     // λ³ − sum·λ − det = 0 (zero trace): three real roots, by the trigonometric formula. The
