@@ -684,6 +684,28 @@ mod tests {
         }
     }
 
+    /// The saddle's axis is an eigenvector of the interpolant's Hessian there, with the
+    /// eigenvalue whose sign the other two lack: negative for a saddle that joins the inside.
+    #[test]
+    fn saddle_axis_is_the_odd_eigenvector() {
+        let mut seed = 3u64;
+        let mut seen = 0;
+        while seen < 500 {
+            let v: [f32; 8] = std::array::from_fn(|_| lcg(&mut seed));
+            for s in saddles(&v) {
+                let a = saddle_axis(&v, s.p);
+                let [u, w, x] = hessian(&coefficients(&v), s.p);
+                let ha = [u * a[1] + x * a[2], u * a[0] + w * a[2], x * a[0] + w * a[1]];
+                let lambda: f64 = (0..3).map(|i| ha[i] * a[i]).sum();
+                let residual = (0..3).map(|i| (ha[i] - lambda * a[i]).abs()).fold(0.0, f64::max);
+                let scale = (u * u + w * w + x * x).sqrt();
+                assert!(residual < 1e-9 * scale, "values {v:?}: residual {residual}");
+                assert_eq!(lambda < 0.0, s.joins_inside, "values {v:?}: eigenvalue {lambda}");
+                seen += 1;
+            }
+        }
+    }
+
     /// The work a tube costs: rings placed (each up to 12 interior vertices, each 64
     /// evaluations of the interpolant) per tube over 2000 random tube cubes. The search
     /// stops at the first ring that clears its centre enough; most tubes take one.
