@@ -203,6 +203,24 @@ pub fn saddles(v: &[f32; 8]) -> Vec<Saddle> {
 /// fan centres on the gradient line, so that they lie on the interpolant (whose level set
 /// the edge vertices also lie on) instead of near it.
 pub fn level_on_ray(v: &[f32; 8], from: [f64; 3], dir: [f64; 3]) -> Option<[f64; 3]> {
+    level_on_ray_to(v, from, dir, 48)
+}
+
+#[cfg(test)]
+thread_local! {
+    /// Evaluations of the interpolant on rays, for tests that count the work per tube.
+    pub static RAY_EVALS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+}
+
+/// [`level_on_ray`] with `bisections` steps of bisection after the sampling (48 give the
+/// root to rounding; a search that only compares candidate rays needs far fewer, and the
+/// root it keeps is then refined on the same ray).
+pub fn level_on_ray_to(
+    v: &[f32; 8],
+    from: [f64; 3],
+    dir: [f64; 3],
+    bisections: u32,
+) -> Option<[f64; 3]> {
     // The ray's exit from the cube.
     let mut t_max = f64::INFINITY;
     for i in 0..3 {
@@ -216,7 +234,11 @@ pub fn level_on_ray(v: &[f32; 8], from: [f64; 3], dir: [f64; 3]) -> Option<[f64;
         return None;
     }
     let at = |t: f64| -> [f64; 3] { std::array::from_fn(|i| from[i] + t * dir[i]) };
-    let inside = |t: f64| trilinear(v, at(t)) < 0.0;
+    let inside = |t: f64| {
+        #[cfg(test)]
+        RAY_EVALS.with(|n| n.set(n.get() + 1));
+        trilinear(v, at(t)) < 0.0
+    };
     let start = inside(0.0);
     const STEPS: usize = 16;
     let (mut lo, mut hi) = (0.0, f64::NAN);
@@ -233,7 +255,7 @@ pub fn level_on_ray(v: &[f32; 8], from: [f64; 3], dir: [f64; 3]) -> Option<[f64;
     if hi.is_nan() || hi > t_max * (1.0 - 1e-3) && inside(t_max * (1.0 - 1e-3)) == start {
         return None;
     }
-    for _ in 0..48 {
+    for _ in 0..bisections {
         let mid = 0.5 * (lo + hi);
         if inside(mid) == start { lo = mid } else { hi = mid }
     }
@@ -711,14 +733,16 @@ mod tests {
     /// stops at the first ring that clears its centre enough; most tubes take one.
     #[test]
     fn tubes_take_few_rings() {
-        let (mut tubes, mut first) = (0u64, 0u64);
+        let (mut tubes, mut first, mut ray_evals) = (0u64, 0u64, 0u64);
         let before = super::super::tube::PLANS.with(|p| p.get());
         for seed in 0..2000u64 {
             let Some(v) = tube_cube(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15), 0) else {
                 continue;
             };
             let start = super::super::tube::PLANS.with(|p| p.get());
+            let evals = RAY_EVALS.with(|n| n.get());
             mesh_of(&v);
+            ray_evals += RAY_EVALS.with(|n| n.get()) - evals;
             let used = super::super::tube::PLANS.with(|p| p.get()) - start;
             tubes += 1;
             first += u64::from(used == 1);
@@ -726,8 +750,13 @@ mod tests {
         let plans = super::super::tube::PLANS.with(|p| p.get()) - before;
         // tube_cube itself meshes its tube once.
         let per_tube = plans as f64 / tubes as f64 / 2.0;
-        eprintln!("{tubes} tubes, {per_tube:.2} rings per tube, {first} with one");
+        let evals = ray_evals as f64 / tubes as f64;
+        eprintln!(
+            "{tubes} tubes, {per_tube:.2} rings per tube, {first} with one, {evals:.0} \
+             evaluations of the interpolant on rays per tube"
+        );
         assert!(tubes > 1900);
         assert!(per_tube < 10.0, "{per_tube} rings per tube");
+        assert!(evals < 1500.0, "{evals} evaluations per tube");
     }
 }

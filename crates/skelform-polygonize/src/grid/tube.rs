@@ -30,7 +30,7 @@ use glam::DVec3;
 
 use super::cell::CubeSink;
 use super::extract::Slide;
-use super::interior::{level_on_ray, saddle_axis, trilinear};
+use super::interior::{level_on_ray, level_on_ray_to, saddle_axis, trilinear};
 
 /// The clearance (in cells: how far every loop vertex can move before one of its triangles
 /// turns over seen from the centre) at which the search for a tube stops. The 24 random
@@ -139,7 +139,12 @@ pub fn build(
         .ring
         .iter()
         .map(|&p| {
-            let line = (p - plan.centre).to_array();
+            let c = plan.centre;
+            let p = level_on_ray(v, c.to_array(), (p - c).to_array())
+                .map(DVec3::from_array)
+                .filter(|q| q.distance(c) >= MIN_RING)
+                .unwrap_or(p);
+            let line = (p - c).to_array();
             sink.cell_vertex(p.to_array(), Slide { line, ray: true })
         })
         .collect();
@@ -352,7 +357,9 @@ fn ray_point(v: &[f32; 8], s: DVec3, d: DVec3) -> (DVec3, bool) {
         .filter(|&i| d[i] != 0.0)
         .map(|i| if d[i] > 0.0 { (1.0 - s[i]) / d[i] } else { -s[i] / d[i] })
         .fold(f64::INFINITY, f64::min);
-    match level_on_ray(v, s.to_array(), d.to_array()).map(DVec3::from_array) {
+    // Candidates are compared with the root to about 1e-5 of the ray; the kept ring's
+    // vertices are then refined on the same rays (which changes no triangle's turn).
+    match level_on_ray_to(v, s.to_array(), d.to_array(), 14).map(DVec3::from_array) {
         Some(p) if p.distance(s) >= MIN_RING => (p, true),
         Some(_) => (s + d * MIN_RING.min(0.5 * exit), false),
         None => (s + d * (0.5 * exit), false),
