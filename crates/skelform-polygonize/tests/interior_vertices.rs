@@ -3,7 +3,9 @@
 //! their line inside their cube; either way they stay in their cube and apart, and their
 //! refinement neither collapses, doubles nor folds faces. (Newton steps clamped to the cell,
 //! as before, left 27 of these fields' 152 interior vertices up to 0.1 cells off the field,
-//! and collapsed, folded or crossed faces in 10 of the 24 fields.)
+//! and collapsed, folded or crossed faces in 10 of the 24 fields.) No two triangles cross,
+//! before refinement or after: tubes zipped by distance from a ring shaped like one loop
+//! crossed themselves in 5 of the 24 fields even on the interpolant.
 //!
 //! The fields are random sums of cosines with wavelengths of three to eight cells, on a lattice
 //! coarse enough that many cubes have an ambiguous interior (tubes) or a fan. Interior
@@ -104,6 +106,8 @@ struct Tally {
     /// line, or moving them would turn a triangle over), and the largest `|f| / |∇f|` there.
     kept: usize,
     worst_kept: f64,
+    /// Pairs of triangles that cross, over the three meshes of every field.
+    crossings: usize,
 }
 
 /// The mesh with its interior vertices put back where the interpolant put them (edge
@@ -164,11 +168,19 @@ fn refined_interior_vertices_lie_on_the_field_and_keep_the_mesh_sound() {
         }
         let mid = with_interior_unrefined(&m, &unrefined, &interior);
         let folds = (r.folded_edges, check(&mid).folded_edges);
-        let crossed = (crossings(&m, 0.0).len(), crossings(&mid, 0.0).len());
-        if folds.0 > folds.1 || crossed.0 > crossed.1 {
+        if folds.0 > folds.1 {
             problems.push(format!(
-                "seed {seed}: folded edges {folds:?}, crossing pairs {crossed:?} (refined, \
-                 interior on the interpolant)"
+                "seed {seed}: folded edges {folds:?} (refined, interior on the interpolant)"
+            ));
+        }
+        // No triangle passes through another: with every vertex on the interpolant, with the
+        // edge vertices refined, and with all of them refined.
+        let crossed = [&unrefined, &mid, &m].map(|mesh| crossings(mesh, 0.0).len());
+        tally.crossings += crossed.iter().sum::<usize>();
+        if crossed != [0, 0, 0] {
+            problems.push(format!(
+                "seed {seed}: crossing pairs {crossed:?} (unrefined, edge vertices refined, \
+                 refined)"
             ));
         }
     }

@@ -7,7 +7,7 @@
 
 use super::cube::{EDGES, FACES, edge_point};
 use super::extract::Slide;
-use super::interior::{level_on_ray, onto_level, trilinear_gradient, tunnel};
+use super::interior::{onto_level, trilinear_gradient, tunnel};
 use super::table::{CENTER, table};
 
 /// Where the surface crosses edges whose end values have opposite signs is never closer
@@ -152,31 +152,9 @@ pub fn polygonize_case(case: usize, v: &[f32; 8], sink: &mut impl CubeSink) -> C
     let at = |e: &u8| (local[*e as usize], cube_point(*e, v));
     let a: Vec<(u32, [f64; 3])> = t.loop_edges(entry, la).iter().map(at).collect();
     let b: Vec<(u32, [f64; 3])> = t.loop_edges(entry, lb).iter().map(at).collect();
-    // A ring shaped like loop b, half its size, around the saddle: the tube runs
-    // a → ring → b, so every rung has one end that only this cube has.
-    let cb = centroid(b.iter().map(|x| x.1));
-    // Each ring vertex lies on the interpolant's level set, on the ray from the saddle in the
-    // direction of its loop-b vertex from loop b's centre (the tube's waist: the saddle has
-    // the tube's sign, and across the tube the interpolant changes it); where that ray stays
-    // on the saddle's side inside the cube, the vertex is put at half the way instead.
-    // Refinement moves each on its own ray from the saddle, never past it.
-    let ring: Vec<(u32, [f64; 3])> = b
-        .iter()
-        .map(|&(_, p)| {
-            let dir: [f64; 3] = std::array::from_fn(|d| p[d] - cb[d]);
-            let offset = level_on_ray(v, saddle.p, dir).unwrap_or_else(|| {
-                onto_level(
-                    v,
-                    std::array::from_fn(|d| (saddle.p[d] + 0.5 * dir[d]).clamp(0.01, 0.99)),
-                )
-            });
-            let line = std::array::from_fn(|d| offset[d] - saddle.p[d]);
-            (sink.cell_vertex(offset, Slide { line, ray: true }), offset)
-        })
-        .collect();
-    let rev: Vec<(u32, [f64; 3])> = ring.iter().rev().copied().collect();
-    zip_loops(&a, &ring, |tri| sink.triangle(tri));
-    zip_loops(&rev, &b, |tri| sink.triangle(tri));
+    // The tube runs a → ring → b round the saddle, so every rung has one end that only this
+    // cube has; its side is the saddle's.
+    super::tube::build(v, saddle.p, saddle.value < 0.0, &a, &b, sink);
     // A third loop stays a disk, with the table's triangles over it (each triangle lies on
     // one loop).
     if entry.loop_count == 3 {
@@ -196,44 +174,4 @@ pub fn polygonize_case(case: usize, v: &[f32; 8], sink: &mut impl CubeSink) -> C
         }
     }
     outcome
-}
-
-/// Triangles of a band joining two loops of `(vertex, position)`, zipped from their nearest
-/// points.
-///
-/// Both loops are oriented as the boundaries of the disks the band replaces; the band joins
-/// `a` to `b` reversed, so every loop edge keeps its direction and the band is oriented like
-/// those disks.
-pub fn zip_loops(a: &[(u32, [f64; 3])], b: &[(u32, [f64; 3])], mut emit: impl FnMut([u32; 3])) {
-    let dist = |p: [f64; 3], q: [f64; 3]| (0..3).map(|i| (p[i] - q[i]).powi(2)).sum::<f64>();
-    let (na, nb) = (a.len(), b.len());
-    let rb: Vec<(u32, [f64; 3])> = b.iter().rev().copied().collect();
-    let start = (0..nb)
-        .min_by(|&x, &y| dist(a[0].1, rb[x].1).total_cmp(&dist(a[0].1, rb[y].1)))
-        .unwrap_or(0);
-    let bb = |j: usize| rb[(start + j) % nb];
-    let aa = |i: usize| a[i % na];
-    // The walk goes from rung (0, 0) to (na, nb), which is (0, 0) again. Rungs (0, j) and
-    // (na, j) are the same rung, as are (i, 0) and (i, nb); so arriving at i = na while j is
-    // still within the walk's opening run along b (or the reverse) would use a rung twice.
-    let (mut i, mut j) = (0, 0);
-    let (mut run_a, mut run_b) = (0, 0);
-    while i < na || j < nb {
-        let can_a = i < na && !(i + 1 == na && j <= run_b);
-        let can_b = j < nb && !(j + 1 == nb && i <= run_a);
-        let advance_a = match (can_a, can_b) {
-            (true, false) => true,
-            (false, true) => false,
-            _ => dist(aa(i + 1).1, bb(j).1) <= dist(aa(i).1, bb(j + 1).1),
-        };
-        if advance_a {
-            run_a += usize::from(j == 0);
-            emit([aa(i).0, aa(i + 1).0, bb(j).0]);
-            i += 1;
-        } else {
-            run_b += usize::from(i == 0);
-            emit([bb(j + 1).0, bb(j).0, aa(i).0]);
-            j += 1;
-        }
-    }
 }

@@ -69,6 +69,37 @@ fn hessian(k: &[f64; 8], p: [f64; 3]) -> [f64; 3] {
     [e + h * z, f + h * x, g + h * y]
 }
 
+/// The direction along which a saddle at `p` joins its side's regions: the Hessian's
+/// eigenvector whose eigenvalue has the sign the other two lack (the tube's axis), or zero
+/// where the Hessian is singular.
+pub fn saddle_axis(v: &[f32; 8], p: [f64; 3]) -> [f64; 3] {
+    let [u, w, x] = hessian(&coefficients(v), p); // H = [[0, u, x], [u, 0, w], [x, w, 0]]
+    let (sum, det) = (u * u + w * w + x * x, 2.0 * u * w * x);
+    if sum == 0.0 || !sum.is_finite() || det == 0.0 || !det.is_finite() {
+        return [0.0; 3];
+    }
+    // λ³ − sum·λ − det = 0 (zero trace): three real roots, by the trigonometric formula. The
+    // odd one is the largest where det > 0 (one positive), the smallest where det < 0.
+    let r = 2.0 * (sum / 3.0).sqrt();
+    let phase = (4.0 * det / (r * r * r)).clamp(-1.0, 1.0).acos() / 3.0;
+    let lambda = if det > 0.0 {
+        r * phase.cos()
+    } else {
+        r * (phase - 2.0 * std::f64::consts::FRAC_PI_3 * 2.0).cos()
+    };
+    let rows = [[-lambda, u, x], [u, -lambda, w], [x, w, -lambda]];
+    let cross = |a: [f64; 3], b: [f64; 3]| {
+        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    };
+    let len = |a: [f64; 3]| a.iter().map(|t| t * t).sum::<f64>();
+    let best = [cross(rows[0], rows[1]), cross(rows[1], rows[2]), cross(rows[0], rows[2])]
+        .into_iter()
+        .max_by(|a, b| len(*a).total_cmp(&len(*b)))
+        .unwrap_or([0.0; 3]);
+    let l = len(best).sqrt();
+    if l > 0.0 { best.map(|t| t / l) } else { [0.0; 3] }
+}
+
 /// One Newton step towards a zero of the gradient from `p`, or `None` where the Hessian is
 /// singular (the critical set is then a line or a curve, never an isolated point).
 fn newton_step(k: &[f64; 8], p: [f64; 3], scale: f64) -> Option<[f64; 3]> {
@@ -172,6 +203,24 @@ pub fn saddles(v: &[f32; 8]) -> Vec<Saddle> {
 /// fan centres on the gradient line, so that they lie on the interpolant (whose level set
 /// the edge vertices also lie on) instead of near it.
 pub fn level_on_ray(v: &[f32; 8], from: [f64; 3], dir: [f64; 3]) -> Option<[f64; 3]> {
+    level_on_ray_to(v, from, dir, 48)
+}
+
+#[cfg(test)]
+thread_local! {
+    /// Evaluations of the interpolant on rays, for tests that count the work per tube.
+    pub static RAY_EVALS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+}
+
+/// [`level_on_ray`] with `bisections` steps of bisection after the sampling (48 give the
+/// root to rounding; a search that only compares candidate rays needs far fewer, and the
+/// root it keeps is then refined on the same ray).
+pub fn level_on_ray_to(
+    v: &[f32; 8],
+    from: [f64; 3],
+    dir: [f64; 3],
+    bisections: u32,
+) -> Option<[f64; 3]> {
     // The ray's exit from the cube.
     let mut t_max = f64::INFINITY;
     for i in 0..3 {
@@ -185,7 +234,11 @@ pub fn level_on_ray(v: &[f32; 8], from: [f64; 3], dir: [f64; 3]) -> Option<[f64;
         return None;
     }
     let at = |t: f64| -> [f64; 3] { std::array::from_fn(|i| from[i] + t * dir[i]) };
-    let inside = |t: f64| trilinear(v, at(t)) < 0.0;
+    let inside = |t: f64| {
+        #[cfg(test)]
+        RAY_EVALS.with(|n| n.set(n.get() + 1));
+        trilinear(v, at(t)) < 0.0
+    };
     let start = inside(0.0);
     const STEPS: usize = 16;
     let (mut lo, mut hi) = (0.0, f64::NAN);
@@ -202,7 +255,7 @@ pub fn level_on_ray(v: &[f32; 8], from: [f64; 3], dir: [f64; 3]) -> Option<[f64;
     if hi.is_nan() || hi > t_max * (1.0 - 1e-3) && inside(t_max * (1.0 - 1e-3)) == start {
         return None;
     }
-    for _ in 0..48 {
+    for _ in 0..bisections {
         let mid = 0.5 * (lo + hi);
         if inside(mid) == start { lo = mid } else { hi = mid }
     }
@@ -363,6 +416,8 @@ mod tests {
     struct OneCube {
         points: Vec<[f64; 3]>,
         interior: Vec<usize>,
+        /// Each interior vertex's slide, as `cell_vertex` got it.
+        slides: Vec<super::super::extract::Slide>,
         edges: std::collections::HashMap<usize, u32>,
         tris: Vec<[u32; 3]>,
     }
@@ -377,8 +432,9 @@ mod tests {
             }
             id
         }
-        fn cell_vertex(&mut self, offset: [f64; 3], _: super::super::extract::Slide) -> u32 {
+        fn cell_vertex(&mut self, offset: [f64; 3], slide: super::super::extract::Slide) -> u32 {
             self.interior.push(self.points.len());
+            self.slides.push(slide);
             self.points.push(offset);
             self.points.len() as u32 - 1
         }
@@ -577,5 +633,130 @@ mod tests {
         }
         eprintln!("worst interior vertex value / max sample: {worst}");
         assert!(worst < 1e-9, "an interior vertex off the interpolant by {worst}");
+    }
+
+    /// Pairs of the cube's triangles that cross (`skelform check`'s test, no tolerance).
+    fn crossing_pairs(m: &OneCube) -> usize {
+        let mesh = skelform_mesh::Mesh {
+            positions: m.points.iter().map(|p| p.map(|x| x as f32)).collect(),
+            triangles: m.tris.clone(),
+            ..Default::default()
+        };
+        skelform_mesh::check::crossings(&mesh, 0.0).len()
+    }
+
+    /// A cube whose interpolant has a tube, from the stream `seed`: random values in
+    /// [-1, 1], or (by `kind`) on a grid of eighths, where coefficients vanish exactly, with
+    /// `h = 0` or without.
+    fn tube_cube(seed: u64, kind: u8) -> Option<[f32; 8]> {
+        let mut s = seed;
+        for _ in 0..200_000 {
+            let mut v: [f32; 8] = std::array::from_fn(|_| lcg(&mut s));
+            if kind > 0 {
+                v = v.map(|x| (x * 16.0).round() / 8.0);
+            }
+            if kind == 2 {
+                v[7] = v[6] + v[5] + v[3] - v[1] - v[2] - v[4] + v[0];
+            }
+            let mut sink = OneCube::default();
+            if super::super::cell::polygonize_cube(&v, &mut sink).tunnel {
+                return Some(v);
+            }
+        }
+        None
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(3000))]
+
+        /// A tube never crosses itself (issue 18): none of a tube cube's triangles passes
+        /// through another, with its ring on the interpolant and wherever refinement may
+        /// slide the ring's vertices along their rays (from a tenth of their distance from
+        /// the tube's centre to the cube's boundary); and the cube's surface has the
+        /// interpolant's topology.
+        #[test]
+        fn tubes_are_embedded_with_the_interpolants_topology(
+            seed in proptest::prelude::any::<u64>(),
+            kind in 0u8..3,
+            slides in proptest::collection::vec(0.0f64..1.0, 12),
+        ) {
+            let Some(v) = tube_cube(seed, kind) else { return Ok(()) };
+            let mut m = mesh_of(&v);
+            proptest::prop_assert_eq!(crossing_pairs(&m), 0, "values {:?}", v);
+            if !near_degenerate(&v) {
+                proptest::prop_assert_eq!(mesh_topology(&m), reference_topology(&v, 33), "values {:?}", v);
+            }
+            // Slide every ring vertex along its ray: from `offset − 0.9·line` (a tenth of
+            // the way from the centre) to where the ray leaves the cube.
+            for (k, (&i, slide)) in m.interior.clone().iter().zip(m.slides.clone()).enumerate() {
+                if !slide.ray {
+                    continue;
+                }
+                let p = m.points[i];
+                let l = slide.line;
+                let centre: [f64; 3] = std::array::from_fn(|d| p[d] - l[d]);
+                let exit = (0..3)
+                    .filter(|&d| l[d] != 0.0)
+                    .map(|d| if l[d] > 0.0 { (1.0 - centre[d]) / l[d] } else { -centre[d] / l[d] })
+                    .fold(f64::INFINITY, f64::min);
+                let t = 0.1 + (exit * 0.999 - 0.1) * slides[k % slides.len()];
+                m.points[i] = std::array::from_fn(|d| centre[d] + t * l[d]);
+            }
+            proptest::prop_assert_eq!(crossing_pairs(&m), 0, "values {:?}, ring slid", v);
+        }
+    }
+
+    /// The saddle's axis is an eigenvector of the interpolant's Hessian there, with the
+    /// eigenvalue whose sign the other two lack: negative for a saddle that joins the inside.
+    #[test]
+    fn saddle_axis_is_the_odd_eigenvector() {
+        let mut seed = 3u64;
+        let mut seen = 0;
+        while seen < 500 {
+            let v: [f32; 8] = std::array::from_fn(|_| lcg(&mut seed));
+            for s in saddles(&v) {
+                let a = saddle_axis(&v, s.p);
+                let [u, w, x] = hessian(&coefficients(&v), s.p);
+                let ha = [u * a[1] + x * a[2], u * a[0] + w * a[2], x * a[0] + w * a[1]];
+                let lambda: f64 = (0..3).map(|i| ha[i] * a[i]).sum();
+                let residual = (0..3).map(|i| (ha[i] - lambda * a[i]).abs()).fold(0.0, f64::max);
+                let scale = (u * u + w * w + x * x).sqrt();
+                assert!(residual < 1e-9 * scale, "values {v:?}: residual {residual}");
+                assert_eq!(lambda < 0.0, s.joins_inside, "values {v:?}: eigenvalue {lambda}");
+                seen += 1;
+            }
+        }
+    }
+
+    /// The work a tube costs: rings placed (each up to 12 interior vertices, each 64
+    /// evaluations of the interpolant) per tube over 2000 random tube cubes. The search
+    /// stops at the first ring that clears its centre enough; most tubes take one.
+    #[test]
+    fn tubes_take_few_rings() {
+        let (mut tubes, mut first, mut ray_evals) = (0u64, 0u64, 0u64);
+        let before = super::super::tube::PLANS.with(|p| p.get());
+        for seed in 0..2000u64 {
+            let Some(v) = tube_cube(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15), 0) else {
+                continue;
+            };
+            let start = super::super::tube::PLANS.with(|p| p.get());
+            let evals = RAY_EVALS.with(|n| n.get());
+            mesh_of(&v);
+            ray_evals += RAY_EVALS.with(|n| n.get()) - evals;
+            let used = super::super::tube::PLANS.with(|p| p.get()) - start;
+            tubes += 1;
+            first += u64::from(used == 1);
+        }
+        let plans = super::super::tube::PLANS.with(|p| p.get()) - before;
+        // tube_cube itself meshes its tube once.
+        let per_tube = plans as f64 / tubes as f64 / 2.0;
+        let evals = ray_evals as f64 / tubes as f64;
+        eprintln!(
+            "{tubes} tubes, {per_tube:.2} rings per tube, {first} with one, {evals:.0} \
+             evaluations of the interpolant on rays per tube"
+        );
+        assert!(tubes > 1900);
+        assert!(per_tube < 10.0, "{per_tube} rings per tube");
+        assert!(evals < 1500.0, "{evals} evaluations per tube");
     }
 }

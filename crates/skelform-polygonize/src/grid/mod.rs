@@ -18,6 +18,7 @@ pub(crate) mod cube;
 pub(crate) mod extract;
 pub(crate) mod interior;
 pub(crate) mod table;
+pub(crate) mod tube;
 
 use std::borrow::Borrow;
 use std::sync::Arc;
@@ -391,14 +392,14 @@ pub(crate) fn place_vertices(
 /// the interpolant put it closer: off the faces, where the neighbours' vertices are.
 const CELL_MARGIN: f64 = 1e-3;
 
-/// The least fraction of its distance from the saddle that a ring vertex keeps: the ring
+/// The least fraction of its distance from the tube's centre that a ring vertex keeps: the ring
 /// may shrink onto the field's thinner tube, but not so far that its vertices crowd together
-/// at the saddle.
+/// at the centre.
 const RING_KEEP: f64 = 0.1;
 
 /// The line on which refinement looks for the field's zero for a cell vertex: through its
 /// interpolated position along its [`Slide`], within its cell (by [`CELL_MARGIN`]) and, for
-/// a ring vertex, not nearer the saddle than [`RING_KEEP`] of its distance from it. A vertex
+/// a ring vertex, not nearer the tube's centre than [`RING_KEEP`] of its distance from it. A vertex
 /// without a line gets an empty segment and stays where it is.
 pub(crate) fn cell_line(grid: &Grid, v: &GridVertex) -> Line {
     let p = v.position(grid);

@@ -93,16 +93,17 @@ pub const SLIDE_UNIT: f64 = 1.0 / 16384.0;
 /// Why a line, not Newton steps along the field's gradient: a tube's ring vertices lie a
 /// fraction of a cell apart, and each gradient step, clamped to the cell, can carry several
 /// of them onto the same corner, where they coincide and their triangles collapse (issue
-/// 18). On the rays from the saddle the ring's vertices keep their order around it and stay
-/// apart, and the fan centre keeps to its fan's normal.
+/// 18). On the rays from the tube's centre (`grid::tube`) the ring's vertices keep their order
+/// around it, stay apart and turn none of the tube's triangles over (seen from the centre,
+/// which is what keeps the tube embedded), and the fan centre keeps to its fan's normal.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Slide {
-    /// The line's direction (in cells). For a ring vertex, the vector from the tube's saddle
+    /// The line's direction (in cells). For a ring vertex, the vector from the tube's centre
     /// to the vertex; for a fan centre, the interpolant's gradient; zero for a vertex that
     /// stays where the interpolant put it.
     pub line: [f64; 3],
-    /// Whether the vertex stays on the ray from the saddle, `offset − line` (a ring vertex:
-    /// not past the saddle, where the ring's vertices would meet), rather than moving either
+    /// Whether the vertex stays on the ray from the centre, `offset − line` (a ring vertex:
+    /// not past the centre, where the ring's vertices would meet), rather than moving either
     /// way along the line (a fan centre).
     pub ray: bool,
 }
