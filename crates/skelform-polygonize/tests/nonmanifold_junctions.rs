@@ -168,7 +168,7 @@ fn four_cells_meeting_at_a_point_give_four_whole_curves() {
 /// where all three planes cross a face within a fraction of a cell of the corner.
 #[test]
 fn three_planes_through_a_point_give_six_curves_and_no_short_pieces() {
-    for cell in [0.08, 0.04] {
+    for cell in [0.1, 0.08, 0.06, 0.04] {
         let (m, s) = run(&octants(O), cell);
         let lines = polylines(&m);
         print("octants", &s, &lines);
