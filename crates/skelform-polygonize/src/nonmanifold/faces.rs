@@ -756,4 +756,57 @@ mod tests {
         assert_eq!(left.len(), 3);
         assert!(lines.is_empty());
     }
+
+    #[test]
+    fn three_junctions_round_an_enclosed_region_are_joined_as_a_triangle() {
+        // Three walls crossing near a face: each junction has two crossings, the regions
+        // 10, 11, 12 lie between the runs, 20, 21, 22 in them, and 7 is enclosed.
+        let runs = vec![
+            vec![w(0, 10, 20), w(1, 20, 11)],
+            vec![w(2, 11, 21), w(3, 21, 12)],
+            vec![w(4, 12, 22), w(5, 22, 10)],
+        ];
+        let links = linked_runs(&runs, Some(7)).unwrap();
+        assert_eq!(
+            links,
+            vec![
+                (0, 1, RegionPair::new(11, 7)),
+                (1, 2, RegionPair::new(12, 7)),
+                (2, 0, RegionPair::new(10, 7))
+            ]
+        );
+        // The centre in a region of a run's own crossings: no such picture.
+        assert_eq!(linked_runs(&runs, Some(21)), None);
+    }
+
+    #[test]
+    fn junctions_on_a_path_miss_the_side_across_the_region_they_border() {
+        // Three junctions of three regions on a path, all bordering region 12 (between the
+        // last run and the first): the middle one has one crossing and two contours.
+        let runs = vec![
+            vec![w(0, 12, 20), w(1, 20, 10)],
+            vec![w(2, 10, 11)],
+            vec![w(3, 11, 21), w(4, 21, 12)],
+        ];
+        let links = linked_runs(&runs, Some(12)).unwrap();
+        assert_eq!(links, vec![(0, 1, RegionPair::new(10, 12)), (1, 2, RegionPair::new(11, 12))]);
+        // Two junctions: one contour between the regions on either side.
+        let two = vec![vec![w(0, 1, 2), w(1, 2, 3)], vec![w(2, 3, 4), w(3, 4, 1)]];
+        assert_eq!(linked_runs(&two, None), Some(vec![(0, 1, RegionPair::new(3, 1))]));
+        // A junction of one crossing and one contour is not one.
+        let thin = vec![vec![w(0, 1, 2)], vec![w(1, 2, 3), w(2, 3, 1)]];
+        assert_eq!(linked_runs(&thin, None), None);
+    }
+
+    #[test]
+    fn runs_need_every_cluster_in_one_piece() {
+        let ring: Vec<usize> = (0..6).collect();
+        let c = |v: [usize; 6]| v.map(Some).to_vec();
+        let r = runs(&ring, &c([0, 0, 1, 1, 2, 2])).unwrap();
+        assert_eq!(r.len(), 3);
+        // A run wrapping round the ring's start is one run.
+        assert_eq!(runs(&ring, &c([0, 1, 1, 2, 2, 0])).unwrap().len(), 3);
+        // Interleaved clusters are not runs.
+        assert_eq!(runs(&ring, &c([0, 1, 0, 1, 2, 2])), None);
+    }
 }
