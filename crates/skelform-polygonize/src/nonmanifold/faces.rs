@@ -60,7 +60,7 @@ struct End {
 
 /// Crossings left unpaired on a face, split into the junctions they run to (see
 /// [`Run::junctions`]): each group with the point its contours were followed to, when known,
-/// and the contour joining two groups, when there is one.
+/// and the contours joining groups (group, group, pair).
 struct Junctions {
     groups: Vec<(Vec<Walked>, Option<DVec3>)>,
     links: Vec<(usize, usize, RegionPair)>,
@@ -363,15 +363,20 @@ impl Run<'_> {
     /// spurious pieces with a wrong label.
     ///
     /// With three crossings or fewer (one junction: the usual case) nothing is followed.
-    /// Otherwise the contour from every crossing is followed to its junction, and crossings
-    /// whose contours end within [`JUNCTION`] fine triangles of each other share one. A
+    /// With four, the region the first contour meets says which two junctions there can be
+    /// (see below), and one contour of the other is followed; otherwise the contour from
+    /// every crossing is followed to its junction. Crossings whose contours end within
+    /// [`JUNCTION`] fine triangles of each other share one. A
     /// junction whose crossings are consecutive round the face and enclose one region
     /// (before the first and after the last) is separate: it is taken out, and what is left
     /// paired off again (a line may then join crossings that it separated). What is left at
-    /// the end is one junction, or two when it falls into two consecutive runs: then a
-    /// contour runs between them, of the regions on either side of the runs' ends.
-    /// Anything else (a contour that cannot be followed, junctions interleaved round the
-    /// face) keeps one face vertex for what is left, as the chapter does.
+    /// the end is one junction, or several when it falls into consecutive runs, one per
+    /// junction: then contours join them (`linked_runs`: one between two, the sides of a
+    /// polygon or a path between three or more). Anything else (a contour that cannot be
+    /// followed, junctions interleaved round the face) keeps one face vertex for what is
+    /// left, as the chapter does. One face vertex for three junctions had fused the three
+    /// points where three walls cross a face near their common point into one of seven
+    /// regions, and left a spurious short curve there.
     fn junctions(
         &mut self,
         corners: [Key; 3],
