@@ -164,11 +164,12 @@ fn four_cells_meeting_at_a_point_give_four_whole_curves() {
 /// four octants meet) from the point. One face vertex per face fused the two junctions of a
 /// face that two half-axes cross, and left a spurious piece of curve, 0.02 to 0.04 long, with
 /// a label of three octants that meet nowhere along a curve, at every cell tried. With a face
-/// vertex per junction it is gone at these cells; at 0.1 and 0.06 one such piece remains,
-/// where all three planes cross a face within a fraction of a cell of the corner.
+/// vertex per junction it was gone at 0.08 and 0.04, but at 0.1 and 0.06 one such piece
+/// remained, where all three planes cross a face near the point: three junctions on one face,
+/// now joined as a triangle of contours round the octant they enclose.
 #[test]
 fn three_planes_through_a_point_give_six_curves_and_no_short_pieces() {
-    for cell in [0.08, 0.04] {
+    for cell in [0.1, 0.08, 0.06, 0.04] {
         let (m, s) = run(&octants(O), cell);
         let lines = polylines(&m);
         print("octants", &s, &lines);

@@ -48,12 +48,22 @@ impl FaceInfo {
     }
 }
 
+/// Where the contour follower got to ([`Run::follow`]): the face vertex's place, whether a
+/// third region was already at the crossing's first triangle, and the region foreign to
+/// the contour that it met there.
+#[derive(Clone, Copy, Debug)]
+struct End {
+    at: DVec3,
+    at_crossing: bool,
+    foreign: u32,
+}
+
 /// Crossings left unpaired on a face, split into the junctions they run to (see
 /// [`Run::junctions`]): each group with the point its contours were followed to, when known,
-/// and the contour joining two groups, when there is one.
+/// and the contours joining groups (group, group, pair).
 struct Junctions {
     groups: Vec<(Vec<Walked>, Option<DVec3>)>,
-    link: Option<(usize, usize, RegionPair)>,
+    links: Vec<(usize, usize, RegionPair)>,
 }
 
 impl Run<'_> {
@@ -90,24 +100,22 @@ impl Run<'_> {
         }
         if !unmatched.is_empty() {
             let split = self.junctions(sorted, unmatched, &mut info.lines);
-            // A group gets a face vertex when one of its contours (or the contour to the
-            // other group) is of interest.
-            let link_interesting = split.link.is_some_and(|(_, _, p)| self.interesting(p));
+            // A group gets a face vertex when one of its contours (or a contour to another
+            // group) is of interest.
             let mut vertex_of: Vec<Option<u32>> = Vec::with_capacity(split.groups.len());
             for (gi, (group, end)) in split.groups.iter().enumerate() {
-                let linked = split.link.is_some_and(|(a, b, _)| a == gi || b == gi);
+                let links: Vec<RegionPair> =
+                    split.links.iter().filter(|l| l.0 == gi || l.1 == gi).map(|l| l.2).collect();
                 let interesting: Vec<&Walked> = group
                     .iter()
                     .filter(|w| self.interesting(RegionPair::new(w.from, w.to)))
                     .collect();
-                if interesting.is_empty() && !(linked && link_interesting) {
+                if interesting.is_empty() && !links.iter().any(|&p| self.interesting(p)) {
                     vertex_of.push(None);
                     continue;
                 }
                 let mut regions: Vec<u32> = group.iter().flat_map(|w| [w.from, w.to]).collect();
-                if linked && let Some((_, _, p)) = split.link {
-                    regions.extend([p.0, p.1]);
-                }
+                regions.extend(links.iter().flat_map(|p| [p.0, p.1]));
                 regions.sort_unstable();
                 regions.dedup();
                 let p = match end {
@@ -135,10 +143,10 @@ impl Run<'_> {
                     regions,
                 });
             }
-            if let Some((a, b, pair)) = split.link
-                && let (Some(u), Some(v)) = (vertex_of[a], vertex_of[b])
-            {
-                info.lines.push((u, v, pair));
+            for &(a, b, pair) in &split.links {
+                if let (Some(u), Some(v)) = (vertex_of[a], vertex_of[b]) {
+                    info.lines.push((u, v, pair));
+                }
             }
         }
         let kept = info.clone();
@@ -234,9 +242,9 @@ impl Run<'_> {
     ) -> DVec3 {
         for pass in [false, true] {
             for s in starts {
-                if let Some((p, at_crossing)) = self.follow(corners, s, pass) {
-                    self.stats.face_vertices_at_crossing += usize::from(at_crossing);
-                    return p;
+                if let Some(end) = self.follow(corners, s, pass) {
+                    self.stats.face_vertices_at_crossing += usize::from(end.at_crossing);
+                    return end.at;
                 }
             }
         }
@@ -249,7 +257,7 @@ impl Run<'_> {
     /// face (`back` false) or the other way, to where it meets a foreign region, moved at
     /// least 2ε into the face, and whether a third region was already at the first
     /// triangle; `None` when the walk does not get there.
-    fn follow(&mut self, corners: [Key; 3], s: &Walked, back: bool) -> Option<(DVec3, bool)> {
+    fn follow(&mut self, corners: [Key; 3], s: &Walked, back: bool) -> Option<End> {
         let [a, b, c] = corners.map(|k| self.point(k));
         let n = (b - a).cross(c - a);
         let area2 = n.length_squared();
@@ -308,7 +316,8 @@ impl Run<'_> {
             // The first triangle already has a corner in a third region (the crossing is
             // within 2ε of it along the edge): it is the final triangle.
             let apex = mid + w * side * 3f64.sqrt() * 0.5;
-            return Some((clamp((px + py + apex) / 3.0), true));
+            let foreign = if rx == x || rx == y { ry } else { rx };
+            return Some(End { at: clamp((px + py + apex) / 3.0), at_crossing: true, foreign });
         }
         if !(rx == x && ry == y) {
             if !(rx == y && ry == x) {
@@ -319,10 +328,10 @@ impl Run<'_> {
         // Into the face, the coarse stride first; the fine strip from the crossing
         // when that fails, and for the other way (a few triangles at most).
         if !back
-            && let Some(p) =
+            && let Some((p, foreign)) =
                 self.coarse_then_fine(v, edge_dir, w, (x, y), side, max_steps, &outside)
         {
-            return Some((clamp(p), false));
+            return Some(End { at: clamp(p), at_crossing: false, foreign });
         }
         let mut apex = mid + w * side * 3f64.sqrt() * 0.5;
         // The strip may run up to two triangles beyond the face: where the regions meet
@@ -334,7 +343,11 @@ impl Run<'_> {
             }
             let r = self.region_at(apex);
             if !flip_strip(r, x, y, &mut px, &mut py, &mut apex) {
-                return Some((clamp((px + py + apex) / 3.0), false));
+                return Some(End {
+                    at: clamp((px + py + apex) / 3.0),
+                    at_crossing: false,
+                    foreign: r,
+                });
             }
         }
         None
@@ -350,76 +363,77 @@ impl Run<'_> {
     /// spurious pieces with a wrong label.
     ///
     /// With three crossings or fewer (one junction: the usual case) nothing is followed.
-    /// Otherwise the contour from every crossing is followed to its junction, and crossings
-    /// whose contours end within [`JUNCTION`] fine triangles of each other share one. A
+    /// With four, the region the first contour meets says which two junctions there can be
+    /// (see below), and one contour of the other is followed; otherwise the contour from
+    /// every crossing is followed to its junction. Crossings whose contours end within
+    /// [`JUNCTION`] fine triangles of each other share one. A
     /// junction whose crossings are consecutive round the face and enclose one region
     /// (before the first and after the last) is separate: it is taken out, and what is left
     /// paired off again (a line may then join crossings that it separated). What is left at
-    /// the end is one junction, or two when it falls into two consecutive runs: then a
-    /// contour runs between them, of the regions on either side of the runs' ends.
-    /// Anything else (a contour that cannot be followed, junctions interleaved round the
-    /// face) keeps one face vertex for what is left, as the chapter does.
+    /// the end is one junction, or several when it falls into consecutive runs, one per
+    /// junction: then contours join them (`linked_runs`: one between two, the sides of a
+    /// polygon or a path between three or more). Anything else (a contour that cannot be
+    /// followed, junctions interleaved round the face) keeps one face vertex for what is
+    /// left, as the chapter does. One face vertex for three junctions had fused the three
+    /// points where three walls cross a face near their common point into one of seven
+    /// regions, and left a spurious short curve there.
     fn junctions(
         &mut self,
         corners: [Key; 3],
-        unmatched: Vec<Walked>,
+        mut unmatched: Vec<Walked>,
         lines: &mut Vec<(u32, u32, RegionPair)>,
     ) -> Junctions {
         let any_interest =
             unmatched.iter().any(|w| self.interesting(RegionPair::new(w.from, w.to)));
         if unmatched.len() < 4 || !any_interest || !self.opts.junctions {
-            return Junctions { groups: vec![(unmatched, None)], link: None };
+            return Junctions { groups: vec![(unmatched, None)], links: Vec::new() };
         }
         let n = unmatched.len();
         let near = JUNCTION * 4.0 * self.eps;
+        // From a crossing of interest: where there is one junction, its vertex is where
+        // that contour ends.
+        let first = (0..n)
+            .find(|&i| self.interesting(RegionPair::new(unmatched[i].from, unmatched[i].to)))
+            .unwrap_or(0);
+        unmatched.rotate_left(first);
         let follow = |run: &mut Self, i: usize| match run.follow(corners, &unmatched[i], false) {
             Some(p) => Some(p),
             None => run.follow(corners, &unmatched[i], true),
         };
-        // Four crossings split only into two runs of two junctions of three regions each.
-        // Where the first contour ends, a ring of samples half the junction distance round
-        // it that meets all four regions says it is one junction (two closer than that
-        // share a vertex anyway), and the other three need not be followed.
-        let mut found: Vec<Option<(DVec3, bool)>> = vec![None; n];
+        let mut found: Vec<Option<End>> = vec![None; n];
         found[0] = follow(self, 0);
-        let one = match found[0] {
-            Some((p, _)) if n == 4 => {
-                let [a, b, c] = corners.map(|k| self.point(k));
-                let u = (b - a).normalize();
-                let v = (b - a).cross(c - a).cross(b - a).normalize();
-                let ring: Vec<DVec3> = (0..8)
-                    .map(|k| {
-                        let t = k as f64 * std::f64::consts::FRAC_PI_4;
-                        p + (u * t.cos() + v * t.sin()) * (0.5 * near)
-                    })
-                    .collect();
-                let seen = self.regions_of(&ring);
-                unmatched.iter().all(|w| seen.contains(&w.from))
-            }
-            _ => false,
+        // Four crossings, of four regions r0..r3 round the face, meet at one junction or at
+        // two: (r0, r1, r2) and (r2, r3, r0), or (r3, r0, r1) and (r1, r2, r3). The region
+        // the first contour (r0 | r1) meets says which pair it is, so the contour of the
+        // other junction is the only other one followed: its end is the second vertex, or
+        // the same point when all four meet there.
+        let to = |i: usize| unmatched[i % n].to;
+        let from = |i: usize| unmatched[i % n].from;
+        let pairing = match found[0] {
+            Some(e) if n == 4 && e.foreign == to(1) => Some(0),
+            Some(e) if n == 4 && e.foreign == from(3) => Some(3),
+            _ => None,
         };
-        let close = |a: Option<(DVec3, bool)>, b: Option<(DVec3, bool)>| matches!((a, b), (Some((p, _)), Some((q, _))) if p.distance(q) < near);
-        if n == 4 && !one {
-            // Two runs of two: the second crossing runs with the first (then the fourth
-            // with the third) or the fourth does (then the third with the second).
-            found[1] = follow(self, 1);
-            if close(found[0], found[1]) {
-                found[2] = follow(self, 2);
-                found[3] = found[2];
+        let mut followed = vec![true; n];
+        if let Some(j) = pairing {
+            // The crossings j and j + 1 (0 and its partner p) meet at found[0]; q = j + 2
+            // and j + 3 where the contour of q ends, which must meet the region after j + 3.
+            let (p, q) = (if j == 0 { 1 } else { 3 }, (j + 2) % 4);
+            found[p] = found[0];
+            found[q] = follow(self, q);
+            if found[q].is_some_and(|e| e.foreign == to(q + 1)) {
+                found[(q + 1) % 4] = found[q];
             } else {
-                found[3] = follow(self, 3);
-                if close(found[3], found[0]) {
-                    found[2] = found[1];
-                } else {
-                    found[2] = follow(self, 2);
-                }
-            }
-        } else if !one {
-            for (i, f) in found.iter_mut().enumerate().skip(1) {
-                *f = follow(self, i);
+                found[(q + 1) % 4] = follow(self, (q + 1) % 4);
+                followed[p] = false;
             }
         }
-        let ends: Vec<Option<DVec3>> = found.iter().map(|f| f.map(|(p, _)| p)).collect();
+        for i in 1..n {
+            if pairing.is_none() || !followed[i] {
+                found[i] = follow(self, i);
+            }
+        }
+        let ends: Vec<Option<DVec3>> = found.iter().map(|f| f.map(|e| e.at)).collect();
         // Single linkage of the ends closer than JUNCTION fine triangles.
         let mut cluster: Vec<usize> = (0..n).collect();
         for i in 0..n {
@@ -451,19 +465,25 @@ impl Run<'_> {
             ring.retain(|&i| left.iter().any(|w| w.vertex == unmatched[i].vertex));
         }
         if ring.is_empty() {
-            return Junctions { groups, link: None };
+            return Junctions { groups, links: Vec::new() };
         }
-        // What is left: two consecutive runs of one junction each, or one junction.
-        if let Some(split) = two_runs(&ring, &cluster) {
-            let [a, b] = split.map(|run| run.iter().map(|&k| ring[k]).collect::<Vec<usize>>());
-            let (first, last) = (unmatched[a[0]], unmatched[a[a.len() - 1]]);
-            if first.from != last.to {
-                let pair = RegionPair::new(first.from, last.to);
-                let (ga, gb) = (groups.len(), groups.len() + 1);
-                for m in [a, b] {
-                    groups.push((m.iter().map(|&i| unmatched[i]).collect(), Some(mean(&m))));
+        // What is left: junctions each of one run of consecutive crossings, joined by
+        // contours (see `linked_runs`), or one junction.
+        if let Some(runs) = runs(&ring, &cluster) {
+            let members: Vec<Vec<usize>> =
+                runs.iter().map(|run| run.iter().map(|&k| ring[k]).collect()).collect();
+            let centre = (members.len() > 2)
+                .then(|| members.iter().map(|m| mean(m)).sum::<DVec3>() / members.len() as f64);
+            let inside = centre.map(|c| self.region_at(c));
+            let walked: Vec<Vec<Walked>> =
+                members.iter().map(|m| m.iter().map(|&i| unmatched[i]).collect()).collect();
+            if let Some(links) = linked_runs(&walked, inside) {
+                let base = groups.len();
+                for (m, w) in members.iter().zip(walked) {
+                    groups.push((w, Some(mean(m))));
                 }
-                return Junctions { groups, link: Some((ga, gb, pair)) };
+                let links = links.into_iter().map(|(a, b, p)| (base + a, base + b, p)).collect();
+                return Junctions { groups, links };
             }
         }
         // One junction: its vertex where the first contour of interest that was followed
@@ -475,11 +495,13 @@ impl Run<'_> {
                 self.interesting(RegionPair::new(w.from, w.to))
             })
             .find_map(|&i| found[i]);
-        if let Some((_, true)) = end {
+        if let Some(e) = end
+            && e.at_crossing
+        {
             self.stats.face_vertices_at_crossing += 1;
         }
-        groups.push((ring.iter().map(|&i| unmatched[i]).collect(), end.map(|(p, _)| p)));
-        Junctions { groups, link: None }
+        groups.push((ring.iter().map(|&i| unmatched[i]).collect(), end.map(|e| e.at)));
+        Junctions { groups, links: Vec::new() }
     }
 }
 
@@ -516,24 +538,66 @@ fn closed_run(ring: &[usize], cluster: &[Option<usize>], walked: &[Walked]) -> O
     None
 }
 
-/// The ring (positions) as two consecutive runs of two clusters, each of at least two
-/// crossings, every crossing's contour followed.
-fn two_runs(ring: &[usize], cluster: &[Option<usize>]) -> Option<[Vec<usize>; 2]> {
+/// The ring (positions) as two or more consecutive runs, one per cluster, every crossing's
+/// contour followed.
+fn runs(ring: &[usize], cluster: &[Option<usize>]) -> Option<Vec<Vec<usize>>> {
     let len = ring.len();
-    if len < 4 || ring.iter().any(|&i| cluster[i].is_none()) {
+    if len < 2 || ring.iter().any(|&i| cluster[i].is_none()) {
         return None;
     }
     // The first position whose predecessor is in another cluster.
     let start = (0..len).find(|&k| cluster[ring[k]] != cluster[ring[(k + len - 1) % len]])?;
-    let c0 = cluster[ring[start]];
-    let a: Vec<usize> =
-        (0..len).map(|k| (start + k) % len).take_while(|&k| cluster[ring[k]] == c0).collect();
-    let b: Vec<usize> = (a.len()..len).map(|k| (start + k) % len).collect();
-    let c1 = cluster[ring[b[0]]];
-    if a.len() < 2 || b.len() < 2 || b.iter().any(|&k| cluster[ring[k]] != c1) {
-        return None;
+    let mut runs: Vec<Vec<usize>> = Vec::new();
+    for k in (0..len).map(|k| (start + k) % len) {
+        match runs.last_mut() {
+            Some(run) if cluster[ring[run[0]]] == cluster[ring[k]] => run.push(k),
+            _ => runs.push(vec![k]),
+        }
     }
-    Some([a, b])
+    let mut seen: Vec<Option<usize>> = runs.iter().map(|r| cluster[ring[r[0]]]).collect();
+    seen.sort_unstable();
+    seen.dedup();
+    (seen.len() == runs.len()).then_some(runs)
+}
+
+/// The contours joining junctions that each hold one run of consecutive crossings round a
+/// face (`runs`, in ring order), as (run, run, pair); `None` when the runs do not make such
+/// a picture. Between the last crossing of a run and the first of the next lies a region
+/// that touches the face's side there; inside the face it is bounded by a contour between
+/// the two junctions. Two junctions: one contour, between the regions on either side.
+/// Three or more: the junctions are the corners of a polygon of contours round the region
+/// `inside` (asked at their centre). Where that is a region of none of the crossings (an
+/// enclosed region, as where three walls cross near a face), every side of the polygon is a
+/// contour between it and the region outside that side; where it is the region between two
+/// runs (the junctions lie on a path), that side is missing and the others border it. Each
+/// junction must have three contours at least.
+fn linked_runs(
+    runs: &[Vec<Walked>],
+    inside: Option<u32>,
+) -> Option<Vec<(usize, usize, RegionPair)>> {
+    let k = runs.len();
+    // The region after each run, which is the one before the next.
+    let after: Vec<u32> = runs.iter().map(|r| r[r.len() - 1].to).collect();
+    let links: Vec<(usize, usize, RegionPair)> = match inside {
+        None if k == 2 && after[0] != after[1] => {
+            vec![(0, 1, RegionPair::new(after[0], after[1]))]
+        }
+        Some(c) if k > 2 => {
+            let on_side = after.iter().filter(|&&a| a == c).count();
+            let elsewhere =
+                runs.iter().flatten().any(|w| (w.from == c || w.to == c) && !after.contains(&c));
+            if on_side > 1 || elsewhere {
+                return None;
+            }
+            (0..k)
+                .filter(|&i| after[i] != c)
+                .map(|i| (i, (i + 1) % k, RegionPair::new(after[i], c)))
+                .collect()
+        }
+        _ => return None,
+    };
+    let degree = |i: usize| runs[i].len() + links.iter().filter(|l| l.0 == i || l.1 == i).count();
+    (0..k).all(|i| degree(i) >= 3).then_some(links)
 }
 
 /// How many times longer the sides of the contour follower's coarse triangles are than
@@ -567,7 +631,7 @@ impl Run<'_> {
         side: f64,
         max_steps: usize,
         outside: &dyn Fn(DVec3) -> f64,
-    ) -> Option<DVec3> {
+    ) -> Option<(DVec3, u32)> {
         // The fine strip's lattice: its first triangle is (o, o + e1, o + e2). The coarse
         // triangles are made of its points (four fine sides to a coarse one), the first with
         // its base along the face side through the crossing, so the fine walk resumed on a
@@ -622,7 +686,7 @@ impl Run<'_> {
                 }
                 let r = self.region_at(apex);
                 if !flip_strip(r, x, y, &mut px, &mut py, &mut apex) {
-                    return Some((px + py + apex) / 3.0);
+                    return Some(((px + py + apex) / 3.0, r));
                 }
             }
             return None;
@@ -696,5 +760,58 @@ mod tests {
         let left = pair_off(&[w(0, 1, 2), w(1, 2, 3), w(2, 3, 1)], &mut lines);
         assert_eq!(left.len(), 3);
         assert!(lines.is_empty());
+    }
+
+    #[test]
+    fn three_junctions_round_an_enclosed_region_are_joined_as_a_triangle() {
+        // Three walls crossing near a face: each junction has two crossings, the regions
+        // 10, 11, 12 lie between the runs, 20, 21, 22 in them, and 7 is enclosed.
+        let runs = vec![
+            vec![w(0, 10, 20), w(1, 20, 11)],
+            vec![w(2, 11, 21), w(3, 21, 12)],
+            vec![w(4, 12, 22), w(5, 22, 10)],
+        ];
+        let links = linked_runs(&runs, Some(7)).unwrap();
+        assert_eq!(
+            links,
+            vec![
+                (0, 1, RegionPair::new(11, 7)),
+                (1, 2, RegionPair::new(12, 7)),
+                (2, 0, RegionPair::new(10, 7))
+            ]
+        );
+        // The centre in a region of a run's own crossings: no such picture.
+        assert_eq!(linked_runs(&runs, Some(21)), None);
+    }
+
+    #[test]
+    fn junctions_on_a_path_miss_the_side_across_the_region_they_border() {
+        // Three junctions of three regions on a path, all bordering region 12 (between the
+        // last run and the first): the middle one has one crossing and two contours.
+        let runs = vec![
+            vec![w(0, 12, 20), w(1, 20, 10)],
+            vec![w(2, 10, 11)],
+            vec![w(3, 11, 21), w(4, 21, 12)],
+        ];
+        let links = linked_runs(&runs, Some(12)).unwrap();
+        assert_eq!(links, vec![(0, 1, RegionPair::new(10, 12)), (1, 2, RegionPair::new(11, 12))]);
+        // Two junctions: one contour between the regions on either side.
+        let two = vec![vec![w(0, 1, 2), w(1, 2, 3)], vec![w(2, 3, 4), w(3, 4, 1)]];
+        assert_eq!(linked_runs(&two, None), Some(vec![(0, 1, RegionPair::new(3, 1))]));
+        // A junction of one crossing and one contour is not one.
+        let thin = vec![vec![w(0, 1, 2)], vec![w(1, 2, 3), w(2, 3, 1)]];
+        assert_eq!(linked_runs(&thin, None), None);
+    }
+
+    #[test]
+    fn runs_need_every_cluster_in_one_piece() {
+        let ring: Vec<usize> = (0..6).collect();
+        let c = |v: [usize; 6]| v.map(Some).to_vec();
+        let r = runs(&ring, &c([0, 0, 1, 1, 2, 2])).unwrap();
+        assert_eq!(r.len(), 3);
+        // A run wrapping round the ring's start is one run.
+        assert_eq!(runs(&ring, &c([0, 1, 1, 2, 2, 0])).unwrap().len(), 3);
+        // Interleaved clusters are not runs.
+        assert_eq!(runs(&ring, &c([0, 1, 0, 1, 2, 2])), None);
     }
 }
