@@ -268,9 +268,9 @@ fn retype<A, B>(v: Vec<A>) -> Vec<B> {
 
 impl Vertex {
     #[inline(always)]
-    fn make<L: Level>(grid: &Grid, v: GridVertex, _: [f32; 2], near: &Near<'_, L>) -> Self {
+    fn make<L: Level>(grid: &Grid, v: GridVertex, ends: [f32; 2], near: &Near<'_, L>) -> Self {
         let position = v.position(grid).as_vec3().to_array();
-        let g = match edge_gradient(grid, &v, position, near) {
+        let g = match edge_gradient(grid, &v, position, ends, near) {
             Some(g) => g,
             None => {
                 // From the stored position, so that a vertex at a node is treated as one.
@@ -310,12 +310,15 @@ fn node_gradient<L: Level>(near: &Near<'_, L>, n: [usize; 3]) -> [f64; 3] {
 /// volume is at hand (`None` otherwise): nearly every vertex, and most of the cost of the
 /// vertices' normals. The same bits as [`gradient_at`] (the same fraction, from the stored
 /// position; a difference halved is the difference divided by 2), without its general
-/// cases: central differences from flat indices.
+/// cases: central differences from flat indices. `ends` are the samples at the edge's two
+/// ends (as the extractor passes them): each end's difference along the edge reaches the
+/// other end, so those two of its twelve samples are not read again.
 #[inline(always)]
 fn edge_gradient<L: Level>(
     grid: &Grid,
     v: &GridVertex,
     position: [f32; 3],
+    ends: [f32; 2],
     near: &Near<'_, L>,
 ) -> Option<[f64; 3]> {
     let Place::Edge { dir, .. } = v.place else { return None };
@@ -361,17 +364,26 @@ fn edge_gradient<L: Level>(
     if !(within(0) && within(1) && within(2)) || tip + stride[2] >= values.len() {
         return None;
     }
-    // (Spelled out: closures called six times each are left as calls.)
-    let g0 = [
-        central(values, level, at, stride[0]),
-        central(values, level, at, stride[1]),
-        central(values, level, at, stride[2]),
-    ];
-    let g1 = [
-        central(values, level, tip, stride[0]),
-        central(values, level, tip, stride[1]),
-        central(values, level, tip, stride[2]),
-    ];
+    // (Spelled out: closures called six times each are left as calls. `axis` is a constant
+    // where this is inlined into the extractor's loop over one axis's edges, so the
+    // indexing by it is resolved there.)
+    let mut g0 = [0.0; 3];
+    let mut g1 = [0.0; 3];
+    for m in 0..3 {
+        if m != axis {
+            g0[m] = central(values, level, at, stride[m]);
+            g1[m] = central(values, level, tip, stride[m]);
+        }
+    }
+    // Along the edge: `at + stride` is the tip and `tip − stride` is `at`, samples in hand.
+    debug_assert_eq!(ends.map(f32::to_bits), [at, tip].map(|n| level.sample(values[n]).to_bits()));
+    let s = stride[axis];
+    // SAFETY: `at − s` and `tip + s` are lattice samples below `values.len()`: checked above
+    // (`within` on the edge's axis, and `tip + stride[2]` bounds every `tip + stride[m]`).
+    let (below, beyond) =
+        unsafe { (*values.get_unchecked(at - s), *values.get_unchecked(tip + s)) };
+    g0[axis] = (f64::from(ends[1]) - f64::from(level.sample(below))) * 0.5;
+    g1[axis] = (f64::from(level.sample(beyond)) - f64::from(ends[0])) * 0.5;
     let (w0, w1) = (1.0 - t, t);
     let mut g = [0.0; 3];
     for m in 0..3 {
