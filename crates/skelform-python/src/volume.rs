@@ -344,10 +344,12 @@ fn edge_gradient<L: Level>(
             return None;
         }
     }
-    let qa = q(axis);
-    let c = (qa.floor().max(0.0) as usize).min(dims[axis] - 2);
-    let t = (qa - c as f64).clamp(0.0, 1.0);
-    if c != b[axis] || !(t > 0.0 && t < 1.0) {
+    // Along it, `gradient_at` finds the cube of `floor(qa)` and the fraction `qa − c`: the
+    // edge's own base and a fraction strictly inside exactly when `qa − b` is strictly
+    // between 0 and 1 (a rounded difference is monotone in `qa`, and `b + 1 − b` is 1), so
+    // that one subtraction is the whole test, and the fraction too.
+    let t = q(axis) - b[axis] as f64;
+    if !(t > 0.0 && t < 1.0) {
         return None;
     }
     // Both ends a step or more from the border: 1 <= b[m] <= dims[m] - 2 on the axes
