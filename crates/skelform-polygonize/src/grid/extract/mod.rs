@@ -619,8 +619,13 @@ fn extract_slab<V: SlabVertex, L: Level>(
         };
         for_each_mixed_cube(below, above, nx, ny, fetch, |i, j, case| {
             let base = nx * j + layer * (k - z0) + i;
+            // One bounds check for the cube's eight samples rather than one each.
+            let cube = &vals[base..=base + offsets[7]];
             // Spelled out: an array `map` stays a call here, in the loop over every cube.
-            let at = |c: usize| level.sample(vals[base + offsets[c]]);
+            // SAFETY: each corner's offset is a sum of some of 1, nx and nx·ny (its
+            // coordinates are 0 or 1), the far corner's of all three: at most `offsets[7]`,
+            // within `cube`.
+            let at = |c: usize| level.sample(unsafe { *cube.get_unchecked(offsets[c]) });
             let v: [f32; 8] = [at(0), at(1), at(2), at(3), at(4), at(5), at(6), at(7)];
             sink.at = [i, j, k];
             let outcome = polygonize_case(case, &v, &mut sink);
