@@ -270,7 +270,17 @@ impl Vertex {
     #[inline(always)]
     fn make<L: Level>(grid: &Grid, v: GridVertex, ends: [f32; 2], near: &Near<'_, L>) -> Self {
         let position = v.position(grid).as_vec3().to_array();
-        let g = match edge_gradient(grid, &v, position, ends, near) {
+        // A cell of 1 (a step of 1, the usual call) is a path of its own, where the stored
+        // coordinates are read without the division by the cell that the general path makes
+        // (three a vertex, computed and discarded when the choice is made per coordinate,
+        // on the divider that the vertex's crossing and normal need too). The branch goes
+        // the same way for the whole call.
+        let edge = if grid.cell == 1.0 {
+            edge_gradient::<true, L>(grid, &v, position, ends, near)
+        } else {
+            edge_gradient::<false, L>(grid, &v, position, ends, near)
+        };
+        let g = match edge {
             Some(g) => g,
             None => {
                 // From the stored position, so that a vertex at a node is treated as one.
@@ -314,7 +324,7 @@ fn node_gradient<L: Level>(near: &Near<'_, L>, n: [usize; 3]) -> [f64; 3] {
 /// ends (as the extractor passes them): each end's difference along the edge reaches the
 /// other end, so those two of its twelve samples are not read again.
 #[inline(always)]
-fn edge_gradient<L: Level>(
+fn edge_gradient<const UNIT_CELL: bool, L: Level>(
     grid: &Grid,
     v: &GridVertex,
     position: [f32; 3],
@@ -336,8 +346,8 @@ fn edge_gradient<L: Level>(
     let cell = grid.cell;
     let q = |m: usize| {
         let p = f64::from(position[m]);
-        // Dividing by a cell of 1, the usual one, changes nothing.
-        if cell == 1.0 { p } else { p / cell }
+        // Dividing by a cell of 1 changes nothing (`UNIT_CELL`: the cell is 1).
+        if UNIT_CELL { p } else { p / cell }
     };
     for (m, &bm) in b.iter().enumerate() {
         if m != axis && q(m) != bm as f64 {
