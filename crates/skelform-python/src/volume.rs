@@ -717,6 +717,28 @@ fn install<R: Send>(
     }
 }
 
+/// The vertices of a block into their rows of the flat arrays, every element of each row
+/// written; with the axes in reverse order when `REVERSED` (the array's axis order is
+/// z, y, x: a C-ordered volume).
+#[inline(always)]
+fn copy_block<const REVERSED: bool>(
+    pos: &mut [std::mem::MaybeUninit<f32>],
+    normal: &mut [std::mem::MaybeUninit<f32>],
+    value: &mut [std::mem::MaybeUninit<f32>],
+    vertices: &[Vertex],
+) {
+    let order = |a: [f32; 3]| if REVERSED { [a[2], a[1], a[0]] } else { a };
+    let outs = pos.chunks_exact_mut(3).zip(normal.chunks_exact_mut(3)).zip(value);
+    for (((pos, normal), value), v) in outs.zip(vertices) {
+        let (p, n) = (order(v.position), order(v.normal));
+        for m in 0..3 {
+            pos[m].write(p[m]);
+            normal[m].write(n[m]);
+        }
+        value.write(v.value);
+    }
+}
+
 /// Flat arrays in scikit-image's conventions: vertices and normals in array axis order,
 /// the gradient size as the value, and the faces, which the extractor wound already. The
 /// vertex arrays are written once, in blocks on the pool's threads, into memory that is not
@@ -734,18 +756,18 @@ fn conventions(layout: &Layout, ex: Extracted) -> (Flat, Vec<Vertex>) {
         .zip(values.spare_capacity_mut()[..n].par_chunks_mut(BLOCK))
         .zip(ex.vertices.par_chunks(BLOCK))
         .for_each(|(((pos, normal), value), vertices)| {
-            let outs = pos.chunks_exact_mut(3).zip(normal.chunks_exact_mut(3)).zip(value);
-            for (((pos, normal), value), v) in outs.zip(vertices) {
-                for (m, &axis) in layout.axis_of.iter().enumerate() {
-                    pos[axis].write(v.position[m]);
-                    normal[axis].write(v.normal[m]);
-                }
-                value.write(v.value);
+            // The two layouts there are, each a loop of its own with the order fixed (an
+            // order looked up per coordinate costs about twice the copy).
+            if layout.axis_of == [2, 1, 0] {
+                copy_block::<true>(pos, normal, value, vertices);
+            } else {
+                debug_assert_eq!(layout.axis_of, [0, 1, 2]);
+                copy_block::<false>(pos, normal, value, vertices);
             }
         });
     // SAFETY: the blocks above cover the first 3·n (n) elements of each array, block `b`
     // of each with vertices `b·BLOCK..` of the n, and every vertex writes all of its
-    // elements: `axis_of` is a permutation of 0, 1, 2 ([0, 1, 2] or [2, 1, 0]).
+    // elements (`copy_block`).
     unsafe {
         positions.set_len(3 * n);
         normals.set_len(3 * n);
