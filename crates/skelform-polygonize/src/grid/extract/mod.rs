@@ -660,7 +660,7 @@ struct SlabSink<'a, 's, V, L> {
 /// two) lies among a [`SlabSink`]'s numbered edges: the segment, and the offsets from the
 /// cube's corner along x and y of the lattice edge in that segment's rows; in one table so
 /// that finding an edge's number takes no branch on the edge (which cubes visit in an
-/// order the surface decides, and a branch on it would be mispredicted half the time).
+/// order the surface decides, so that a branch on it is hard to predict).
 const EDGE_ROWS: [(usize, usize, usize); 16] = {
     let mut t = [(0, 0, 0); 16];
     let mut e = 0;
