@@ -268,9 +268,19 @@ fn retype<A, B>(v: Vec<A>) -> Vec<B> {
 
 impl Vertex {
     #[inline(always)]
-    fn make<L: Level>(grid: &Grid, v: GridVertex, _: [f32; 2], near: &Near<'_, L>) -> Self {
+    fn make<L: Level>(grid: &Grid, v: GridVertex, ends: [f32; 2], near: &Near<'_, L>) -> Self {
         let position = v.position(grid).as_vec3().to_array();
-        let g = match edge_gradient(grid, &v, position, near) {
+        // A cell of 1 (a step of 1, the usual call) is a path of its own, where the stored
+        // coordinates are read without the division by the cell that the general path makes
+        // (three a vertex, computed and discarded when the choice is made per coordinate,
+        // on the divider that the vertex's crossing and normal need too). The branch goes
+        // the same way for the whole call.
+        let edge = if grid.cell == 1.0 {
+            edge_gradient::<true, L>(grid, &v, position, ends, near)
+        } else {
+            edge_gradient::<false, L>(grid, &v, position, ends, near)
+        };
+        let g = match edge {
             Some(g) => g,
             None => {
                 // From the stored position, so that a vertex at a node is treated as one.
@@ -310,12 +320,15 @@ fn node_gradient<L: Level>(near: &Near<'_, L>, n: [usize; 3]) -> [f64; 3] {
 /// volume is at hand (`None` otherwise): nearly every vertex, and most of the cost of the
 /// vertices' normals. The same bits as [`gradient_at`] (the same fraction, from the stored
 /// position; a difference halved is the difference divided by 2), without its general
-/// cases: central differences from flat indices.
+/// cases: central differences from flat indices. `ends` are the samples at the edge's two
+/// ends (as the extractor passes them): each end's difference along the edge reaches the
+/// other end, so those two of its twelve samples are not read again.
 #[inline(always)]
-fn edge_gradient<L: Level>(
+fn edge_gradient<const UNIT_CELL: bool, L: Level>(
     grid: &Grid,
     v: &GridVertex,
     position: [f32; 3],
+    ends: [f32; 2],
     near: &Near<'_, L>,
 ) -> Option<[f64; 3]> {
     let Place::Edge { dir, .. } = v.place else { return None };
@@ -333,18 +346,20 @@ fn edge_gradient<L: Level>(
     let cell = grid.cell;
     let q = |m: usize| {
         let p = f64::from(position[m]);
-        // Dividing by a cell of 1, the usual one, changes nothing.
-        if cell == 1.0 { p } else { p / cell }
+        // Dividing by a cell of 1 changes nothing (`UNIT_CELL`: the cell is 1).
+        if UNIT_CELL { p } else { p / cell }
     };
     for (m, &bm) in b.iter().enumerate() {
         if m != axis && q(m) != bm as f64 {
             return None;
         }
     }
-    let qa = q(axis);
-    let c = (qa.floor().max(0.0) as usize).min(dims[axis] - 2);
-    let t = (qa - c as f64).clamp(0.0, 1.0);
-    if c != b[axis] || !(t > 0.0 && t < 1.0) {
+    // Along it, `gradient_at` finds the cube of `floor(qa)` and the fraction `qa − c`: the
+    // edge's own base and a fraction strictly inside exactly when `qa − b` is strictly
+    // between 0 and 1 (a rounded difference is monotone in `qa`, and `b + 1 − b` is 1), so
+    // that one subtraction is the whole test, and the fraction too.
+    let t = q(axis) - b[axis] as f64;
+    if !(t > 0.0 && t < 1.0) {
         return None;
     }
     // Both ends a step or more from the border: 1 <= b[m] <= dims[m] - 2 on the axes
@@ -361,17 +376,26 @@ fn edge_gradient<L: Level>(
     if !(within(0) && within(1) && within(2)) || tip + stride[2] >= values.len() {
         return None;
     }
-    // (Spelled out: closures called six times each are left as calls.)
-    let g0 = [
-        central(values, level, at, stride[0]),
-        central(values, level, at, stride[1]),
-        central(values, level, at, stride[2]),
-    ];
-    let g1 = [
-        central(values, level, tip, stride[0]),
-        central(values, level, tip, stride[1]),
-        central(values, level, tip, stride[2]),
-    ];
+    // (Spelled out: closures called six times each are left as calls. `axis` is a constant
+    // where this is inlined into the extractor's loop over one axis's edges, so the
+    // indexing by it is resolved there.)
+    let mut g0 = [0.0; 3];
+    let mut g1 = [0.0; 3];
+    for m in 0..3 {
+        if m != axis {
+            g0[m] = central(values, level, at, stride[m]);
+            g1[m] = central(values, level, tip, stride[m]);
+        }
+    }
+    // Along the edge: `at + stride` is the tip and `tip − stride` is `at`, samples in hand.
+    debug_assert_eq!(ends.map(f32::to_bits), [at, tip].map(|n| level.sample(values[n]).to_bits()));
+    let s = stride[axis];
+    // SAFETY: `at − s` and `tip + s` are lattice samples below `values.len()`: checked above
+    // (`within` on the edge's axis, and `tip + stride[2]` bounds every `tip + stride[m]`).
+    let (below, beyond) =
+        unsafe { (*values.get_unchecked(at - s), *values.get_unchecked(tip + s)) };
+    g0[axis] = (f64::from(ends[1]) - f64::from(level.sample(below))) * 0.5;
+    g1[axis] = (f64::from(level.sample(beyond)) - f64::from(ends[0])) * 0.5;
     let (w0, w1) = (1.0 - t, t);
     let mut g = [0.0; 3];
     for m in 0..3 {
@@ -693,6 +717,28 @@ fn install<R: Send>(
     }
 }
 
+/// The vertices of a block into their rows of the flat arrays, every element of each row
+/// written; with the axes in reverse order when `REVERSED` (the array's axis order is
+/// z, y, x: a C-ordered volume).
+#[inline(always)]
+fn copy_block<const REVERSED: bool>(
+    pos: &mut [std::mem::MaybeUninit<f32>],
+    normal: &mut [std::mem::MaybeUninit<f32>],
+    value: &mut [std::mem::MaybeUninit<f32>],
+    vertices: &[Vertex],
+) {
+    let order = |a: [f32; 3]| if REVERSED { [a[2], a[1], a[0]] } else { a };
+    let outs = pos.chunks_exact_mut(3).zip(normal.chunks_exact_mut(3)).zip(value);
+    for (((pos, normal), value), v) in outs.zip(vertices) {
+        let (p, n) = (order(v.position), order(v.normal));
+        for m in 0..3 {
+            pos[m].write(p[m]);
+            normal[m].write(n[m]);
+        }
+        value.write(v.value);
+    }
+}
+
 /// Flat arrays in scikit-image's conventions: vertices and normals in array axis order,
 /// the gradient size as the value, and the faces, which the extractor wound already. The
 /// vertex arrays are written once, in blocks on the pool's threads, into memory that is not
@@ -710,18 +756,18 @@ fn conventions(layout: &Layout, ex: Extracted) -> (Flat, Vec<Vertex>) {
         .zip(values.spare_capacity_mut()[..n].par_chunks_mut(BLOCK))
         .zip(ex.vertices.par_chunks(BLOCK))
         .for_each(|(((pos, normal), value), vertices)| {
-            let outs = pos.chunks_exact_mut(3).zip(normal.chunks_exact_mut(3)).zip(value);
-            for (((pos, normal), value), v) in outs.zip(vertices) {
-                for (m, &axis) in layout.axis_of.iter().enumerate() {
-                    pos[axis].write(v.position[m]);
-                    normal[axis].write(v.normal[m]);
-                }
-                value.write(v.value);
+            // The two layouts there are, each a loop of its own with the order fixed (an
+            // order looked up per coordinate costs about twice the copy).
+            if layout.axis_of == [2, 1, 0] {
+                copy_block::<true>(pos, normal, value, vertices);
+            } else {
+                debug_assert_eq!(layout.axis_of, [0, 1, 2]);
+                copy_block::<false>(pos, normal, value, vertices);
             }
         });
     // SAFETY: the blocks above cover the first 3·n (n) elements of each array, block `b`
     // of each with vertices `b·BLOCK..` of the n, and every vertex writes all of its
-    // elements: `axis_of` is a permutation of 0, 1, 2 ([0, 1, 2] or [2, 1, 0]).
+    // elements (`copy_block`).
     unsafe {
         positions.set_len(3 * n);
         normals.set_len(3 * n);

@@ -8,7 +8,7 @@
 use super::cube::{EDGES, FACES, edge_point};
 use super::extract::Slide;
 use super::interior::{onto_level, trilinear_gradient, tunnel};
-use super::table::{CENTER, table};
+use super::table::{CENTER, Entry, table};
 
 /// Where the surface crosses edges whose end values have opposite signs is never closer
 /// than this (in cells) to a lattice point, so that a sample that is exactly zero never
@@ -105,24 +105,56 @@ pub fn polygonize_cube(v: &[f32; 8], sink: &mut impl CubeSink) -> CubeOutcome {
 
 /// [`polygonize_cube`] for a caller that already has the sign configuration
 /// ([`case_of`]`(v)`, e.g. from sign bits kept per row).
+///
+/// Inlined into the extractor's loop over cubes, with the rare cubes whose configuration
+/// can hold a tube (two or three loops) handed to [`polygonize_loops`] out of line: the
+/// common path is the table lookup, the edge vertices and the triangles, and stays small.
+#[inline]
 pub fn polygonize_case(case: usize, v: &[f32; 8], sink: &mut impl CubeSink) -> CubeOutcome {
     debug_assert_eq!(case, case_of(v));
     if case == 0 || case == 255 {
         return CubeOutcome::default();
     }
     let t = table();
-    let amb = t.ambiguous[case];
+    let amb = t.ambiguous[case & 255];
     let decisions = face_decisions(v, amb);
-    let entry = t.entry(case, decisions as usize);
-    let mut outcome = CubeOutcome { ambiguous_faces: amb.count_ones(), tunnel: false };
-    // Vertices for every crossing edge of the cube, in loop order.
-    let mut local = [0u32; 13];
-    for l in 0..entry.loop_count as usize {
-        for &e in t.loop_edges(entry, l) {
-            let [c0, c1] = EDGES[e as usize];
-            local[e as usize] = sink.edge_vertex(e as usize, [v[c0], v[c1]]);
-        }
+    let entry = t.entry(case & 255, decisions as usize);
+    let outcome = CubeOutcome { ambiguous_faces: amb.count_ones(), tunnel: false };
+    // Vertices for every crossing edge of the cube, in loop order: the loops lie one after
+    // another in the table, so this is one run of edges. (Sixteen slots, indexed by an edge
+    // masked to four bits, so that reading them needs no bounds check.)
+    let mut local = [0u32; 16];
+    let count = entry.loop_len.iter().map(|&l| usize::from(l)).sum::<usize>();
+    let start = entry.loop_start as usize;
+    for &e in &t.loop_edges[start..start + count] {
+        let [c0, c1] = EDGES[usize::from(e)];
+        local[usize::from(e) & 15] = sink.edge_vertex(usize::from(e), [v[c0], v[c1]]);
     }
+    if entry.loop_count >= 2 {
+        return polygonize_loops(v, entry, &mut local, outcome, sink);
+    }
+    if let Some(l) = entry.center_loop {
+        local[CENTER as usize] = fan_centre(v, t.loop_edges(entry, l as usize), sink);
+    }
+    for tri in t.triangles(entry) {
+        sink.triangle(tri.map(|e| local[usize::from(e) & 15]));
+    }
+    outcome
+}
+
+/// The rest of [`polygonize_case`] for a configuration of several loops, whose edge
+/// vertices are in `local`: a tube through the interior where the interpolant has one,
+/// else the table's triangles.
+#[cold]
+#[inline(never)]
+fn polygonize_loops(
+    v: &[f32; 8],
+    entry: &Entry,
+    local: &mut [u32; 16],
+    mut outcome: CubeOutcome,
+    sink: &mut impl CubeSink,
+) -> CubeOutcome {
+    let t = table();
     // A tube through the interior, if the interpolant has one: its saddle and the two loops
     // it joins. Two loops join when a saddle joins the caps' side (MC33 4.1.2, 6.1.2, 7.4.2,
     // 10.1.2, 12.1.2); three loops whose corner groups form a path join the two loops
@@ -144,12 +176,12 @@ pub fn polygonize_case(case: usize, v: &[f32; 8], sink: &mut impl CubeSink) -> C
             local[CENTER as usize] = fan_centre(v, t.loop_edges(entry, l as usize), sink);
         }
         for tri in t.triangles(entry) {
-            sink.triangle(tri.map(|e| local[e as usize]));
+            sink.triangle(tri.map(|e| local[usize::from(e) & 15]));
         }
         return outcome;
     };
     outcome.tunnel = true;
-    let at = |e: &u8| (local[*e as usize], cube_point(*e, v));
+    let at = |e: &u8| (local[usize::from(*e) & 15], cube_point(*e, v));
     let a: Vec<(u32, [f64; 3])> = t.loop_edges(entry, la).iter().map(at).collect();
     let b: Vec<(u32, [f64; 3])> = t.loop_edges(entry, lb).iter().map(at).collect();
     // The tube runs a → ring → b round the saddle, so every rung has one end that only this
@@ -169,7 +201,7 @@ pub fn polygonize_case(case: usize, v: &[f32; 8], sink: &mut impl CubeSink) -> C
         }
         for tri in t.triangles(entry) {
             if !tri.iter().any(|&e| on_tube[e as usize]) {
-                sink.triangle(tri.map(|e| local[e as usize]));
+                sink.triangle(tri.map(|e| local[usize::from(e) & 15]));
             }
         }
     }

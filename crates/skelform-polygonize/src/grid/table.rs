@@ -65,11 +65,13 @@ impl CaseTable {
         &self.entries[case * 64 + decisions]
     }
 
+    #[inline]
     pub fn triangles(&self, e: &Entry) -> &[[u8; 3]] {
         &self.tris[e.tri_start as usize..e.tri_start as usize + e.tri_count as usize]
     }
 
     /// Loop `i` of an entry, as cube edges in order.
+    #[inline]
     pub fn loop_edges(&self, e: &Entry, i: usize) -> &[u8] {
         let start =
             e.loop_start as usize + e.loop_len[..i].iter().map(|&l| l as usize).sum::<usize>();
@@ -339,7 +341,9 @@ impl CaseTable {
     }
 }
 
-/// The table, built on first use.
+/// The table, built on first use. (Inlined: it is looked up for every cube, and the check
+/// that it is built is one load and compare.)
+#[inline]
 pub fn table() -> &'static CaseTable {
     static TABLE: std::sync::OnceLock<CaseTable> = std::sync::OnceLock::new();
     TABLE.get_or_init(CaseTable::build)

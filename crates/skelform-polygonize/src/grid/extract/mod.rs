@@ -35,7 +35,7 @@ pub use streaming::{
     LayerSource, StreamError, StreamStats, Streamed, extract_streamed, extract_streamed_with,
 };
 
-use numbering::{LayerNumbering, ZNumbering};
+use numbering::{Counted, LayerNumbering, ZNumbering};
 use signs::{for_each_mixed_cube, layer_signs, prefetch};
 use slabs::{SlabStore, run_slabs};
 
@@ -593,9 +593,9 @@ fn extract_slab<V: SlabVertex, L: Level>(
         z.emit(grid, local(k), local(k + 1), near, k, store);
         let mut sink = SlabSink {
             store: &mut *store,
-            lower: &*lower,
-            upper: &*upper,
-            z: &*z,
+            segments: [&lower.x, &upper.x, &lower.y, &upper.y, &z.edges],
+            offsets: [lower.offset, upper.offset, lower.offset, upper.offset, z.offset],
+            words: z.words,
             grid,
             near,
             at: [0, 0, k],
@@ -620,8 +620,13 @@ fn extract_slab<V: SlabVertex, L: Level>(
         };
         for_each_mixed_cube(below, above, nx, ny, fetch, |i, j, case| {
             let base = nx * j + layer * (k - z0) + i;
+            // One bounds check for the cube's eight samples rather than one each.
+            let cube = &vals[base..=base + offsets[7]];
             // Spelled out: an array `map` stays a call here, in the loop over every cube.
-            let at = |c: usize| level.sample(vals[base + offsets[c]]);
+            // SAFETY: each corner's offset is a sum of some of 1, nx and nx·ny (its
+            // coordinates are 0 or 1), the far corner's of all three: at most `offsets[7]`,
+            // within `cube`.
+            let at = |c: usize| level.sample(unsafe { *cube.get_unchecked(offsets[c]) });
             let v: [f32; 8] = [at(0), at(1), at(2), at(3), at(4), at(5), at(6), at(7)];
             sink.at = [i, j, k];
             let outcome = polygonize_case(case, &v, &mut sink);
@@ -638,28 +643,50 @@ fn extract_slab<V: SlabVertex, L: Level>(
 /// The slab's side of [`CubeSink`]: a cube's edge vertices by their numbers.
 struct SlabSink<'a, 's, V, L> {
     store: &'a mut SlabStore<'s, V>,
-    /// The numbered edges of the sample layers below and above the cube, and between them.
-    lower: &'a LayerNumbering,
-    upper: &'a LayerNumbering,
-    z: &'a ZNumbering,
+    /// The numbered edges a cube's edges lie in, by [`EDGE_ROWS`]' segment: the x-edges of
+    /// the sample layers below and above the cube, their y-edges, the z-edges between them.
+    segments: [&'a [Counted]; 5],
+    /// The output number of each segment's first vertex (`BORROWED` for a layer the next
+    /// slab makes).
+    offsets: [u32; 5],
+    /// Sign words per row (the same in every segment).
+    words: usize,
     grid: &'a Grid,
     near: &'a Near<'a, L>,
     at: [usize; 3],
     _vertex: std::marker::PhantomData<V>,
 }
 
+/// Where cube edge `e` (`4·a + u + 2·v`: along axis `a` at offsets `u`, `v` on the other
+/// two) lies among a [`SlabSink`]'s numbered edges: the segment, and the offsets from the
+/// cube's corner along x and y of the lattice edge in that segment's rows; in one table so
+/// that finding an edge's number takes no branch on the edge (which cubes visit in an
+/// order the surface decides, so that a branch on it is hard to predict).
+const EDGE_ROWS: [(usize, usize, usize); 16] = {
+    let mut t = [(0, 0, 0); 16];
+    let mut e = 0;
+    while e < 12 {
+        let (u, v) = (e & 1, (e >> 1) & 1);
+        t[e] = match e >> 2 {
+            // An x-edge of the lower (v = 0) or upper layer, in row j + u.
+            0 => (v, 0, u),
+            // A y-edge of the lower or upper layer, from sample i + u.
+            1 => (2 + v, u, 0),
+            // A z-edge from sample (i + u, j + v).
+            _ => (4, u, v),
+        };
+        e += 1;
+    }
+    t
+};
+
 impl<V: SlabVertex, L: Level> CubeSink for SlabSink<'_, '_, V, L> {
     #[inline]
     fn edge_vertex(&mut self, e: usize, _: [f32; 2]) -> u32 {
-        // Edge 4·a + u + 2·v runs along axis a at offsets u, v on the other two axes.
         let [i, j, _] = self.at;
-        let (u, v) = (e & 1, (e >> 1) & 1);
-        let side = if v == 0 { self.lower } else { self.upper };
-        match e >> 2 {
-            0 => side.id(0, i, j + u),
-            1 => side.id(1, i + u, j),
-            _ => self.z.id(i + u, j + v),
-        }
+        let (segment, di, dj) = EDGE_ROWS[e & 15];
+        let (i, j) = (i + di, j + dj);
+        self.offsets[segment] + self.segments[segment][j * self.words + i / 64].number(i)
     }
 
     fn cell_vertex(&mut self, offset: [f64; 3], slide: Slide) -> u32 {

@@ -72,13 +72,6 @@ impl LayerNumbering {
         self.total = count;
     }
 
-    /// The output number (or `BORROWED |` number) of the crossed x (`axis` 0) or y edge
-    /// from sample `(i, j)`.
-    #[inline]
-    pub(super) fn id(&self, axis: usize, i: usize, j: usize) -> u32 {
-        self.offset + self.number(axis, i, j)
-    }
-
     /// Makes the layer's vertices in the order of their numbers, from the layer's raw values
     /// (`nx·ny`, x fastest) read through `near`'s level; `k` is the layer's index.
     pub(super) fn emit<V: SlabVertex, L: Level>(
@@ -107,8 +100,9 @@ impl LayerNumbering {
         }
     }
 
-    /// The number of the crossed x (`axis` 0) or y edge from sample `(i, j)`.
-    #[inline]
+    /// The number of the crossed x (`axis` 0) or y edge from sample `(i, j)`. (Cubes find
+    /// their edges' numbers through `SlabSink`, which indexes the rows itself.)
+    #[cfg(test)]
     pub(super) fn number(&self, axis: usize, i: usize, j: usize) -> u32 {
         let words = if axis == 0 { &self.x } else { &self.y };
         words[j * self.words + i / 64].number(i)
@@ -135,11 +129,6 @@ impl ZNumbering {
         for ((a, b), out) in rows.zip(self.edges.chunks_exact_mut(words)) {
             count_across(a, b, last, out, &mut count);
         }
-    }
-
-    #[inline]
-    pub(super) fn id(&self, i: usize, j: usize) -> u32 {
-        self.offset + self.edges[j * self.words + i / 64].number(i)
     }
 
     /// Makes the vertices in the order of their numbers; `lower` and `upper` are the two

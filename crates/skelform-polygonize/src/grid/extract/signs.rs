@@ -1,8 +1,9 @@
 //! Sign bits: one bit per sample (`f < 0`), 64 samples to a word, so that the cubes the
 //! surface passes through (corners of both signs) are found 64 at a time by a few word
 //! operations, and only those are visited. The sign pass reads every sample of the volume,
-//! so it uses SIMD compares (SSE2 always on x86-64, AVX2 where the CPU has it); all of the
-//! extraction's `unsafe` for speed is here, each block with the reason it is sound.
+//! so it uses SIMD compares (SSE2 always on x86-64, AVX2 where the CPU has it); the
+//! extraction's `unsafe` for speed is here, each block with the reason it is sound (but for
+//! one unchecked read of a cube's corners in `extract_slab`, with its own).
 
 use rayon::prelude::*;
 use skelform_field::grid::Volume;
