@@ -222,10 +222,35 @@ impl Taper {
     }
 }
 
+/// Whether the rectangle `lo..hi` may meet the polygon `flat` (both in the polygon's plane):
+/// its centre is inside the polygon or within half its diagonal (and a hair) of an edge. A
+/// rectangle that meets the polygon passes (if its centre is outside, the way from the
+/// centre to a common point crosses an edge inside the rectangle); some that do not pass
+/// too, which only costs a box.
+fn meets_polygon(flat: &[DVec2], lo: DVec2, hi: DVec2) -> bool {
+    let c = (lo + hi) * 0.5;
+    let reach = (hi - lo).length() * 0.5 * (1.0 + 1e-9) + 1e-12;
+    let mut inside = false;
+    for (k, &a) in flat.iter().enumerate() {
+        let b = flat[(k + 1) % flat.len()];
+        let ab = b - a;
+        let t = ((c - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0);
+        if !t.is_finite() || (a + ab * t - c).length() <= reach {
+            return true;
+        }
+        if (a.y > c.y) != (b.y > c.y) && c.x < a.x + (c.y - a.y) / (b.y - a.y) * ab.x {
+            inside = !inside;
+        }
+    }
+    inside
+}
+
 #[derive(Clone, Debug)]
 struct Item {
     lo: DVec3,
     hi: DVec3,
+    /// How far from its shape the element reaches (its box is the shape's grown by this).
+    reach: f64,
     shape: Shape,
     radius: f64,
     strength: f64,
@@ -530,15 +555,18 @@ impl SkeletonField {
         })
     }
 
-    /// Where this field's values may differ from `old`'s: the boxes of influence (old and
+    /// Where this field's values may differ from `old`'s: boxes covering the reach (old and
     /// new) of every element that was moved, reshaped, given another radius, strength or
     /// group, added or removed; empty when the fields are the same. Outside these boxes the
     /// two fields are equal **bit for bit**, which is what incremental re-meshing relies
-    /// on. Why that holds: a point's value is the elements whose boxes hold it, summed (or
-    /// blended) in element order within each clique, then the least clique; an element
-    /// outside its box is skipped, never added as zero, so an unchanged sequence of
-    /// elements around a point gives the same value. It needs the same cliques, blend and
-    /// iso value; otherwise (or with junctions, whose density couples their limbs) the
+    /// on. Why that holds: a point's value is the elements whose boxes of influence hold
+    /// it, summed (or blended) in element order within each clique, then the least clique;
+    /// an element outside its box is skipped, never added as zero, so an unchanged
+    /// sequence of elements around a point gives the same value. Where an element's
+    /// contribution is exactly zero beyond its reach (see `reach_boxes`), its box is
+    /// replaced by smaller boxes round pieces of its shape: inside its box but beyond its
+    /// reach it adds `+0` or `−0`, which changes no sum started at `+0`. It needs the same cliques, blend
+    /// and iso value; otherwise (or with junctions, whose density couples their limbs) the
     /// answer is the [`GlobalChange`] that breaks it.
     ///
     /// Elements are matched by position in the list when the count is the same; otherwise
@@ -564,13 +592,12 @@ impl SkeletonField {
             return Err(GlobalChange::Groups);
         }
         let (a, b) = (&old.source.elements, &self.source.elements);
-        let boxed = |it: &Item| Aabb { min: it.lo, max: it.hi };
         let mut boxes = Vec::new();
         if a.len() == b.len() {
             for (i, (x, y)) in a.iter().zip(b).enumerate() {
                 if x != y {
-                    boxes.push(boxed(&old.items[i]));
-                    boxes.push(boxed(&self.items[i]));
+                    old.reach_boxes(i, &mut boxes);
+                    self.reach_boxes(i, &mut boxes);
                 }
             }
         } else {
@@ -578,10 +605,88 @@ impl SkeletonField {
             let rest = a.len().min(b.len()) - head;
             let tail = a.iter().rev().zip(b.iter().rev()).take(rest).take_while(|(x, y)| x == y);
             let tail = tail.count();
-            boxes.extend(old.items[head..a.len() - tail].iter().map(boxed));
-            boxes.extend(self.items[head..b.len() - tail].iter().map(boxed));
+            for i in head..a.len() - tail {
+                old.reach_boxes(i, &mut boxes);
+            }
+            for i in head..b.len() - tail {
+                self.reach_boxes(i, &mut boxes);
+            }
         }
         Ok(boxes)
+    }
+
+    /// Boxes that together hold every point where element `i` may add anything but zero:
+    /// its box of influence, or, where the element's contribution is exactly zero farther
+    /// than its reach from its shape, boxes round pieces of the shape (a segment's pieces,
+    /// cells of a rectangle round a polygon in its plane), each grown by the reach (and a
+    /// hair, against rounding). Why: a finger's bones lie askew, so the boxes round their
+    /// whole shapes hold far more lattice points than their reach does, and an edit samples
+    /// every point in them again (the hand's finger bend: 42 700 points before).
+    ///
+    /// Exactly zero beyond the reach: convolution with the Wyvill or triweight kernel
+    /// (polynomials that vanish at their support, whose line and wedge integrals skip every
+    /// part beyond it: a point's value depends on its distances to the shape's points only),
+    /// not separable (the separable approximation's support is a cylinder with flat ends,
+    /// whose rims reach farther), and polygons in closed form (not rasterised). Anything
+    /// else keeps the whole box, whose outside the field skips.
+    fn reach_boxes(&self, i: usize, out: &mut Vec<Aabb>) {
+        let it = &self.items[i];
+        let whole = Aabb { min: it.lo, max: it.hi };
+        let exact = matches!(self.blend, Blend::Convolution(Kernel::Wyvill | Kernel::Triweight))
+            && !self.separable
+            && !matches!(it.conv, Prepared::Image(_));
+        if !(exact && it.reach > 0.0 && it.reach.is_finite()) {
+            out.push(whole);
+            return;
+        }
+        let reach = it.reach * (1.0 + 1e-9);
+        // Pieces at most half a reach long (at most 32 along a side): finer pieces hug a
+        // skewed shape more closely, each box being a piece's grown by the whole reach.
+        let pieces = |length: f64| ((2.0 * length / reach).ceil() as usize).clamp(1, 32);
+        let grown = |points: &[DVec3]| {
+            let lo = points.iter().fold(DVec3::INFINITY, |m, p| m.min(*p));
+            let hi = points.iter().fold(DVec3::NEG_INFINITY, |m, p| m.max(*p));
+            let hair = DVec3::splat(reach + 1e-9 * (1.0 + lo.abs().max(hi.abs()).max_element()));
+            // Never larger than the whole box (which holds every piece).
+            Aabb { min: (lo - hair).max(whole.min), max: (hi + hair).min(whole.max) }
+        };
+        match &it.shape {
+            Shape::Point(_) => out.push(whole),
+            Shape::Segment(s) => {
+                let (a, b) = (s.a(), s.b());
+                let n = pieces((b - a).length());
+                let at = |k: usize| if k == n { b } else { a.lerp(b, k as f64 / n as f64) };
+                out.extend((0..n).map(|k| grown(&[at(k), at(k + 1)])));
+            }
+            Shape::Polygon(p) => {
+                let (e1, e2, _) = p.frame();
+                let o = p.origin();
+                let flat = p.flat_vertices();
+                let lo = flat.iter().fold(DVec2::INFINITY, |m, v| m.min(*v));
+                let hi = flat.iter().fold(DVec2::NEG_INFINITY, |m, v| m.max(*v));
+                let (nx, ny) = (pieces(hi.x - lo.x), pieces(hi.y - lo.y));
+                let x = |k: usize| {
+                    if k == nx { hi.x } else { lo.x + (hi.x - lo.x) * k as f64 / nx as f64 }
+                };
+                let y = |k: usize| {
+                    if k == ny { hi.y } else { lo.y + (hi.y - lo.y) * k as f64 / ny as f64 }
+                };
+                let at = |i: usize, j: usize| o + e1 * x(i) + e2 * y(j);
+                for j in 0..ny {
+                    for i in 0..nx {
+                        let (c0, c1) = (DVec2::new(x(i), y(j)), DVec2::new(x(i + 1), y(j + 1)));
+                        if meets_polygon(flat, c0, c1) {
+                            out.push(grown(&[
+                                at(i, j),
+                                at(i + 1, j),
+                                at(i, j + 1),
+                                at(i + 1, j + 1),
+                            ]));
+                        }
+                    }
+                }
+            }
+        }
     }
 
     fn item(e: &Element, blend: Blend) -> Item {
@@ -648,6 +753,7 @@ impl SkeletonField {
         Item {
             lo: lo - DVec3::splat(reach),
             hi: hi + DVec3::splat(reach),
+            reach,
             shape: e.shape.clone(),
             radius: ra,
             strength: wa,
@@ -1672,6 +1778,74 @@ mod tests {
         s.add_point(c, 0.2, GroupId::DEFAULT).unwrap();
         let grouped = SkeletonField::new(&s, blend).unwrap();
         assert_eq!(grouped.changes_since(&old), Err(GlobalChange::Groups));
+    }
+
+    /// An element's reach boxes hold every point where it changes the field (a skeleton with
+    /// it against one without it, bit for bit), for a skewed segment, a tapered one and a
+    /// skewed triangle, with the Wyvill and triweight kernels; together they hold well under
+    /// its box of influence (under two thirds of it); and with a kernel whose contribution is not cut
+    /// at the reach (the Gaussian's segments) the box of influence is kept.
+    #[test]
+    fn reach_boxes_hold_every_point_an_element_changes_and_are_tighter_than_its_box() {
+        let base = DVec3::new(0.05, -0.1, 0.02);
+        let shapes = |s: &mut Skeleton, k: usize| match k {
+            0 => s.add_segment(base, base + DVec3::new(0.9, 0.7, 0.5), 0.1, GroupId::DEFAULT),
+            1 => s.add_tapered_segment(
+                base,
+                base + DVec3::new(-0.6, 0.8, 0.4),
+                (0.05, 0.12),
+                GroupId::DEFAULT,
+            ),
+            _ => s.add_polygon(
+                vec![base, base + DVec3::new(0.8, 0.1, 0.6), base + DVec3::new(0.1, 0.9, 0.3)],
+                0.1,
+                GroupId::DEFAULT,
+            ),
+        };
+        let mut rng = Rng(7);
+        for kernel in [Kernel::Wyvill, Kernel::Triweight] {
+            for k in 0..3 {
+                let mut with = Skeleton::new();
+                with.add_point(DVec3::new(0.3, 0.2, 0.1), 0.3, GroupId::DEFAULT).unwrap();
+                let without = SkeletonField::new(&with, Blend::Convolution(kernel)).unwrap();
+                shapes(&mut with, k).unwrap();
+                let with = SkeletonField::new(&with, Blend::Convolution(kernel)).unwrap();
+                let boxes = with.changes_since(&without).unwrap();
+                let whole = Aabb { min: with.items[1].lo, max: with.items[1].hi };
+                assert!(boxes.len() > 1, "{kernel:?} {k}: split");
+                let (mut changed, mut inside_whole, mut inside_boxes) = (0, 0, 0);
+                for _ in 0..40_000 {
+                    let p = DVec3::new(
+                        rng.range(whole.min.x, whole.max.x),
+                        rng.range(whole.min.y, whole.max.y),
+                        rng.range(whole.min.z, whole.max.z),
+                    );
+                    inside_whole += 1;
+                    let held = boxes.iter().any(|b| b.contains(p));
+                    inside_boxes += usize::from(held);
+                    let (mut a, mut b) = ([0.0], [0.0]);
+                    let (mut ga, mut gb) = ([DVec3::ZERO], [DVec3::ZERO]);
+                    with.eval_grad_many(&[p], &mut a, &mut ga);
+                    without.eval_grad_many(&[p], &mut b, &mut gb);
+                    if a[0].to_bits() != b[0].to_bits() || ga[0] != gb[0] {
+                        changed += 1;
+                        assert!(held, "{kernel:?} {k}: {p} changed outside every box");
+                    }
+                }
+                assert!(changed > 1000, "{kernel:?} {k}: {changed} changed");
+                assert!(
+                    inside_boxes * 3 < inside_whole * 2,
+                    "{kernel:?} {k}: the boxes hold {inside_boxes} of {inside_whole}"
+                );
+            }
+        }
+        let mut s = Skeleton::new();
+        s.add_segment(base, base + DVec3::new(0.9, 0.7, 0.5), 0.1, GroupId::DEFAULT).unwrap();
+        let gauss = SkeletonField::new(&s, Blend::Convolution(Kernel::Gaussian)).unwrap();
+        let mut t = Skeleton::new();
+        t.add_segment(base, base + DVec3::new(0.9, 0.7, 0.6), 0.1, GroupId::DEFAULT).unwrap();
+        let moved = SkeletonField::new(&t, Blend::Convolution(Kernel::Gaussian)).unwrap();
+        assert_eq!(moved.changes_since(&gauss).unwrap().len(), 2);
     }
 
     /// A small deterministic generator (xorshift64*), so the random skeletons are the same on

@@ -478,36 +478,41 @@ fn piece_integral(c: &[f64; 7], d2: f64, a: f64, b: f64) -> (f64, f64) {
         (0.0, 0.0, 0.0)
     };
     let h = b - a;
-    // bⁿ − aⁿ without cancellation, as (b − a)·Σ b^i a^{n−1−i}.
-    let p3 = h * (b * b + a * b + a * a);
-    let p5 = h * (b.powi(4) + b.powi(3) * a + b * b * a * a + b * a.powi(3) + a.powi(4));
-    let p7 = h * (0..7).map(|i| b.powi(i) * a.powi(6 - i)).sum::<f64>();
+    // bⁿ − aⁿ without cancellation, as (b − a)·Sₙ with Sₙ = Σ b^i a^{n−1−i}, by
+    // Sₙ₊₁ = b·Sₙ + aⁿ (all terms ≥ 0 here, as 0 ≤ a < b): a few products instead of
+    // fourteen integer powers per call, on every polygon edge's gradient and every segment.
+    let a2 = a * a;
+    let s3 = b * b + a * b + a2;
+    let s4 = b * s3 + a2 * a;
+    let s5 = b * s4 + a2 * a2;
+    let s6 = b * s5 + a2 * a2 * a;
+    let s7 = b * s6 + a2 * a2 * a2;
+    let (p3, p5, p7) = (h * s3, h * s5, h * s7);
     let dlg = |m: f64| if d2 > 0.0 { m * lg } else { 0.0 };
-    let j = |n: i32| -> f64 {
-        match n {
-            -1 => lg,
-            0 => h,
-            1 => 0.5 * (b * sb - a * sa + dlg(d2)),
-            2 => d2 * h + p3 / 3.0,
-            3 => {
-                (b * sb * (2.0 * b * b + 5.0 * d2) - a * sa * (2.0 * a * a + 5.0 * d2)) / 8.0
-                    + dlg(0.375 * d2 * d2)
-            }
-            4 => d2 * d2 * h + 2.0 / 3.0 * d2 * p3 + p5 / 5.0,
-            6 => d2 * d2 * d2 * h + d2 * d2 * p3 + 0.6 * d2 * p5 + p7 / 7.0,
-            _ => unreachable!("kernels have no s^{n} term"),
-        }
-    };
+    // j(n) = ∫ sⁿ dt for n = −1..=6, each once, at index n + 1 (kernels have no s⁵ term):
+    // a few operations each, where a closure called for each term (the derivative's
+    // j(n − 2) again) cost more.
+    let j = [
+        lg,
+        h,
+        0.5 * (b * sb - a * sa + dlg(d2)),
+        d2 * h + p3 / 3.0,
+        (b * sb * (2.0 * b * b + 5.0 * d2) - a * sa * (2.0 * a * a + 5.0 * d2)) / 8.0
+            + dlg(0.375 * d2 * d2),
+        d2 * d2 * h + 2.0 / 3.0 * d2 * p3 + p5 / 5.0,
+        0.0,
+        d2 * d2 * d2 * h + d2 * d2 * p3 + 0.6 * d2 * p5 + p7 / 7.0,
+    ];
     let mut v = 0.0;
     let mut dv = 0.0;
     for (n, &cn) in c.iter().enumerate() {
         if cn == 0.0 {
             continue;
         }
-        let n = n as i32;
-        v += cn * j(n);
+        debug_assert!(n != 5, "kernels have no s^5 term");
+        v += cn * j[n + 1];
         if n >= 1 {
-            dv += cn * 0.5 * n as f64 * j(n - 2);
+            dv += cn * 0.5 * n as f64 * j[n - 1];
         }
     }
     (v, dv)

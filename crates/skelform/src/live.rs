@@ -19,9 +19,10 @@ use crate::{Error, Meshed, Overrides, Scene, Stats};
 /// It keeps the last run's lattice samples, vertices and normals. When the next scene's
 /// skeleton differs from the last one's only in some elements (moved, radius or strength
 /// changed, a joint turned, which moves every element after it, an element added or
-/// removed), it samples again only within the old and new boxes of influence of those
-/// elements (grown by two cells), places again only the vertices there, and runs the
-/// extraction over the held samples ([`skelform_polygonize::incremental`]). Anything else
+/// removed), it samples again only within the old and new reach of those elements (boxes
+/// from [`SkeletonField::changes_since`], grown by two cells), places again only the
+/// vertices there, and runs the extraction over the held samples
+/// ([`skelform_polygonize::incremental`]). Anything else
 /// runs from scratch: another method than the grid, another lattice (domain, resolution),
 /// root finding or normals setting, a scene whose field is not its skeleton alone (a
 /// formula combined with it), or a change that every point depends on (blend, iso value,
@@ -196,9 +197,12 @@ impl Live {
         let (old_colors, boxes) = kept_colors;
         let boxes: Vec<_> =
             boxes.iter().map(|b| b.inflate(1e-9 * (1.0 + b.size().max_element()))).collect();
+        // Their union's box first: most vertices are far from an edit, and an edit can give
+        // hundreds of boxes (see `SkeletonField::changes_since`).
+        let all = boxes.iter().copied().reduce(|a, b| a.union(&b));
         scene.paint_with(&mut mesh, method, o, |p| {
             let at = DVec3::from_array(p.map(f64::from));
-            if boxes.iter().any(|b| b.contains(at)) {
+            if all.is_some_and(|u| u.contains(at)) && boxes.iter().any(|b| b.contains(at)) {
                 return None;
             }
             old_colors.get(&key(p)).copied()
