@@ -1586,7 +1586,7 @@ impl Band<'_, '_> {
     fn fold(&self, a: [u32; 3], b: [u32; 3]) -> f64 {
         match self.cos(a, b) {
             None => 6.0,
-            Some(c) => (-c).max(0.0) + 5.0 * ((-c - SHARP_COS) / (1.0 + SHARP_COS)).max(0.0),
+            Some(c) => (-c).max(0.0) + 5.0 * ((SHARP_COS - c) / (1.0 + SHARP_COS)).max(0.0),
         }
     }
 
