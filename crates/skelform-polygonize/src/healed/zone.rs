@@ -29,6 +29,9 @@
 //!    shortest network paths, back-and-forth moves removed except at the ends of curves, where
 //!    a sheet folds round as on the Whitney umbrella) and the band between the trace and that
 //!    walk is triangulated by zipping the two. A loop round a cone apex is fanned to it.
+//!    A band whose zip folds (consecutive triangles turned back, or slivers) is zipped again
+//!    by the order that keeps its triangles facing as the field's gradient at the trace
+//!    does (`Band::rezip`).
 //! 4. The zone is accepted only if every network edge in it gets exactly four triangles (two
 //!    sheets crossing), every trace was explained, and every cone was fanned. Otherwise its
 //!    marching-cubes triangles are kept and the zone is reported: never worse than marching
