@@ -29,6 +29,9 @@
 //!    shortest network paths, back-and-forth moves removed except at the ends of curves, where
 //!    a sheet folds round as on the Whitney umbrella) and the band between the trace and that
 //!    walk is triangulated by zipping the two. A loop round a cone apex is fanned to it.
+//!    A band whose zip folds (consecutive triangles turned back, or slivers) is zipped again
+//!    by the order that keeps its triangles facing as the field's gradient at the trace
+//!    does (`Band::rezip`).
 //! 4. The zone is accepted only if every network edge in it gets exactly four triangles (two
 //!    sheets crossing), every trace was explained, and every cone was fanned. Otherwise its
 //!    marching-cubes triangles are kept and the zone is reported: never worse than marching
@@ -1025,7 +1028,7 @@ fn heal_component(
         } else if walk.iter().any(|&n| net.nodes[n as usize].kind == NodeKind::Cone) {
             return Err("a trace runs through a cone apex".into());
         }
-        let (steps, tris) = zip_band(inp, trace, &walk, &w);
+        let (steps, tris) = zip_band(inp, trace, &walk, &w, *closed, probe);
         for t in tris {
             bands.triangles.push(t);
             bands.band_of.push(band);
@@ -1415,7 +1418,14 @@ fn extend_to_exits(inp: &Input, trace: &[u32], walk: &mut Vec<u32>, w: &mut [usi
 /// Zips a trace piece (marching-cubes vertices) with its walk (network nodes) into a band:
 /// a sequence of steps, each one triangle, `true` for a step along the trace. Returns the
 /// steps and the triangles (node `k` numbered `mc_vertices + k`).
-fn zip_band(inp: &Input, trace: &[u32], walk: &[u32], w: &[usize]) -> (Vec<bool>, Vec<[u32; 3]>) {
+fn zip_band(
+    inp: &Input,
+    trace: &[u32],
+    walk: &[u32],
+    w: &[usize],
+    closed: bool,
+    probe: &mut Probe,
+) -> (Vec<bool>, Vec<[u32; 3]>) {
     let net = inp.net;
     let n_mc = inp.vertices.len() as u32;
     let pos = |v: u32| inp.positions[v as usize];
@@ -1507,8 +1517,277 @@ fn zip_band(inp: &Input, trace: &[u32], walk: &[u32], w: &[usize]) -> (Vec<bool>
             }
         }
     }
+    let band = Band { inp, trace, walk, closed };
+    let (before, bad) = band.folding(&tris);
+    if bad && let Some(better) = band.rezip(w, &steps, probe) {
+        let t2 = emit(&better);
+        if band.folding(&t2).0 < before {
+            tris = t2;
+            steps = better;
+        }
+    }
     (steps, tris)
 }
+
+/// Below this cosine (about 160°) between the normals of two band triangles that share a
+/// rung, the band folds there: well short of the 175° at which `skelform check` counts a
+/// folded edge, so that the float rounding of the output cannot push one over.
+const BAND_FOLD_COS: f64 = -0.94;
+
+/// The cosine of 170°: past it a fold in a band is sharp (see `Band::fold`).
+const SHARP_COS: f64 = -0.984_807_753;
+
+/// A band being zipped: its trace piece and walk, for the re-zip of a folded band.
+struct Band<'a, 'i> {
+    inp: &'a Input<'i>,
+    trace: &'a [u32],
+    walk: &'a [u32],
+    closed: bool,
+}
+
+impl Band<'_, '_> {
+    /// Where vertex `v` of a band triangle is (marching-cubes vertex or network node).
+    fn place(&self, v: u32) -> DVec3 {
+        let n_mc = self.inp.vertices.len() as u32;
+        if v < n_mc {
+            self.inp.positions[v as usize]
+        } else {
+            self.inp.net.nodes[(v - n_mc) as usize].p
+        }
+    }
+
+    /// Twice the area times the unit normal.
+    fn normal(&self, t: [u32; 3]) -> DVec3 {
+        let q = t.map(|v| self.place(v));
+        (q[1] - q[0]).cross(q[2] - q[0])
+    }
+
+    /// Whether triangle `t` is too thin for its normal to mean anything (its points nearly on
+    /// a line: twice its area under a thousandth of its longest side squared).
+    fn degenerate(&self, t: [u32; 3]) -> bool {
+        let q = t.map(|v| self.place(v));
+        let longest = (q[1] - q[0])
+            .length_squared()
+            .max((q[2] - q[1]).length_squared())
+            .max((q[0] - q[2]).length_squared());
+        self.normal(t).length() <= 1e-3 * longest
+    }
+
+    /// The cosine between the normals of two triangles; `None` when either is degenerate
+    /// (its normal, once the positions are rounded to `f32`, could point either way).
+    fn cos(&self, a: [u32; 3], b: [u32; 3]) -> Option<f64> {
+        (!self.degenerate(a) && !self.degenerate(b))
+            .then(|| self.normal(a).normalize_or_zero().dot(self.normal(b).normalize_or_zero()))
+    }
+
+    /// How far two triangles that share a rung fold onto each other: 0 while their normals
+    /// are within 90°, 1 when they are 170° apart, up to 6 at 180° or when either is
+    /// degenerate. Steep past 170° because that is where a fold gets near the 175° at which
+    /// `skelform check` counts it, and a sheet that folds round a pinch point on the domain
+    /// box has a crest sharper than any triangle, so some fold there is unavoidable and only
+    /// its angle can be chosen.
+    fn fold(&self, a: [u32; 3], b: [u32; 3]) -> f64 {
+        match self.cos(a, b) {
+            None => 6.0,
+            Some(c) => (-c).max(0.0) + 5.0 * ((SHARP_COS - c) / (1.0 + SHARP_COS)).max(0.0),
+        }
+    }
+
+    /// How much the band folds: the sum of [`Band::fold`] over consecutive triangles (sharing
+    /// a rung, round the seam of a loop too), and whether any of them is degenerate or folds
+    /// by more than [`BAND_FOLD_COS`].
+    fn folding(&self, tris: &[[u32; 3]]) -> (f64, bool) {
+        let mut pairs: Vec<([u32; 3], [u32; 3])> = tris.windows(2).map(|p| (p[0], p[1])).collect();
+        if self.wraps()
+            && let (Some(&a), Some(&b)) = (tris.last(), tris.first())
+            && tris.len() > 2
+        {
+            pairs.push((a, b));
+        }
+        let mut bad = tris.iter().any(|&t| self.degenerate(t));
+        let mut sum = 0.0;
+        for (a, b) in pairs {
+            sum += self.fold(a, b);
+            bad |= self.cos(a, b).is_none_or(|c| c < BAND_FOLD_COS);
+        }
+        (sum, bad)
+    }
+
+    /// Whether the band is a closed loop whose last triangle meets its first on the rung
+    /// from the first trace vertex to the first walk node.
+    fn wraps(&self) -> bool {
+        self.closed
+            && self.trace.first() == self.trace.last()
+            && self.walk.first() == self.walk.last()
+    }
+
+    /// A zip of the band without folds where the greedy one folds: the steps that minimise,
+    /// over all zips that keep each trace vertex within [`REZIP_REACH`] walk steps of its
+    /// node, how far each triangle turns from the surface's normal at its trace vertices, how
+    /// much consecutive triangles fold, and (to break ties) the rungs' lengths; `None` when
+    /// the field cannot be evaluated.
+    ///
+    /// Why: the greedy zip pairs each trace vertex with its nearest node, which fails where
+    /// the trace runs straight away from a node: a trace in the lattice plane that a curve
+    /// crosses at that node (next to a pinch point, where the zone is wide below the plane
+    /// and narrow above it), whose vertices all have that node nearest, so the band fans
+    /// them from it, a fan of slivers as flat as the trace is straight, which fold at random;
+    /// and a trace that passes within a cell of a pinch point, where the order of the nearest
+    /// nodes does not follow the trace's. Along such a trace the sheet runs from the trace
+    /// down the curve, so its vertices are zipped with the nodes a few steps on, and the
+    /// triangles' normals, compared with the field's gradient at the trace (which is the
+    /// sheet's normal, however small, on a point of one sheet), say which zip lies in the
+    /// sheet. `greedy` is the zip along the nearest nodes.
+    fn rezip(&self, w: &[usize], greedy: &[bool], probe: &mut Probe) -> Option<Vec<bool>> {
+        let (trace, walk) = (self.trace, self.walk);
+        let (nt, nw) = (trace.len() - 1, walk.len() - 1);
+        let n_mc = self.inp.vertices.len() as u32;
+        let h = self.inp.grid.cell;
+        let pts: Vec<DVec3> = trace.iter().map(|&v| self.place(v)).collect();
+        let (_, grads) = probe.grads(&pts)?;
+        let g: Vec<DVec3> = grads.iter().map(|g| g.normalize_or_zero()).collect();
+        let tri_trace = |i: usize, j: usize| [trace[i], trace[i + 1], n_mc + walk[j]];
+        let tri_walk = |i: usize, j: usize| [trace[i], n_mc + walk[j + 1], n_mc + walk[j]];
+        // Which way the band's triangles face the gradient: as most of the band's area does
+        // in the zip along the nearest nodes (a sheet's pieces all face `f > 0` or all away).
+        let mut facing = 0.0;
+        let (mut i, mut j) = (0, 0);
+        for &along_trace in greedy {
+            if along_trace {
+                facing += self.normal(tri_trace(i, j)).dot(g[i] + g[i + 1]);
+                i += 1;
+            } else {
+                facing += self.normal(tri_walk(i, j)).dot(g[i]);
+                j += 1;
+            }
+        }
+        let s = if facing < 0.0 { -1.0 } else { 1.0 };
+        let cost = |t: [u32; 3], gt: DVec3, rung: f64| -> f64 {
+            let turn = if self.degenerate(t) {
+                1.0
+            } else {
+                0.5 * (1.0 - s * self.normal(t).normalize_or_zero().dot(gt.normalize_or_zero()))
+            };
+            turn + REZIP_RUNG * rung / h
+        };
+        // The walk positions a state at trace vertex `i` may be at.
+        let lo = |i: usize| if i == 0 { 0 } else { w[i].saturating_sub(REZIP_REACH) };
+        let hi = |i: usize| if i == nt { nw } else { (w[i + 1] + REZIP_REACH).min(nw) };
+        let allowed = |i: usize, j: usize| lo(i) <= j && j <= hi(i);
+        // Costs by state (trace position, walk position, last step: 0 trace, 1 walk), and the
+        // step that led there.
+        let idx = |i: usize, j: usize, l: usize| (i * (nw + 1) + j) * 2 + l;
+        let size = (nt + 1).checked_mul(nw + 1)?.checked_mul(2)?;
+        let mut best_steps: Option<(f64, Vec<bool>)> = None;
+        let firsts: &[bool] = if self.wraps() { &[true, false] } else { &[true] };
+        for &first_forced in firsts {
+            let mut best = vec![f64::INFINITY; size];
+            let mut from: Vec<u8> = vec![u8::MAX; size];
+            let prev_tri = |i: usize, j: usize, l: usize| {
+                if l == 0 { tri_trace(i - 1, j) } else { tri_walk(i, j - 1) }
+            };
+            // The first step, with or without the wrap round the seam in mind.
+            let starts: Vec<bool> =
+                if self.wraps() { vec![first_forced] } else { vec![true, false] };
+            for step_trace in starts {
+                if step_trace && nt > 0 && allowed(1, 0) {
+                    let t = tri_trace(0, 0);
+                    let c = cost(t, g[0] + g[1], (pts[1] - self.place(n_mc + walk[0])).length());
+                    best[idx(1, 0, 0)] = c;
+                    from[idx(1, 0, 0)] = 2;
+                }
+                if !step_trace && nw > 0 && allowed(0, 1) {
+                    let t = tri_walk(0, 0);
+                    let c = cost(t, g[0], (pts[0] - self.place(n_mc + walk[1])).length());
+                    best[idx(0, 1, 1)] = c;
+                    from[idx(0, 1, 1)] = 2;
+                }
+            }
+            for i in 0..=nt {
+                for j in lo(i)..=hi(i) {
+                    for l in 0..2 {
+                        let here = best[idx(i, j, l)];
+                        if !here.is_finite() {
+                            continue;
+                        }
+                        let prev = prev_tri(i, j, l);
+                        if i < nt && allowed(i + 1, j) {
+                            let t = tri_trace(i, j);
+                            let rung = (pts[i + 1] - self.place(n_mc + walk[j])).length();
+                            let c = here
+                                + cost(t, g[i] + g[i + 1], rung)
+                                + REZIP_FOLD * self.fold(prev, t);
+                            let k = idx(i + 1, j, 0);
+                            if c < best[k] {
+                                best[k] = c;
+                                from[k] = l as u8;
+                            }
+                        }
+                        // Round the end of a curve the walk comes straight back: two walk steps
+                        // in a row there would be one triangle twice.
+                        let turn = l == 1 && j >= 1 && j < nw && walk[j + 1] == walk[j - 1];
+                        if j < nw && allowed(i, j + 1) && !turn {
+                            let t = tri_walk(i, j);
+                            let rung = (pts[i] - self.place(n_mc + walk[j + 1])).length();
+                            let c = here + cost(t, g[i], rung) + REZIP_FOLD * self.fold(prev, t);
+                            let k = idx(i, j + 1, 1);
+                            if c < best[k] {
+                                best[k] = c;
+                                from[k] = l as u8;
+                            }
+                        }
+                    }
+                }
+            }
+            for l in 0..2 {
+                let mut total = best[idx(nt, nw, l)];
+                if !total.is_finite() {
+                    continue;
+                }
+                // Walk back to the start.
+                let mut steps = Vec::with_capacity(nt + nw);
+                let (mut i, mut j, mut ll) = (nt, nw, l);
+                loop {
+                    let f = from[idx(i, j, ll)];
+                    steps.push(ll == 0);
+                    if ll == 0 {
+                        i -= 1
+                    } else {
+                        j -= 1
+                    }
+                    if f == 2 {
+                        break;
+                    }
+                    ll = f as usize;
+                }
+                steps.reverse();
+                if self.wraps() {
+                    let last = prev_tri(nt, nw, l);
+                    let first = if steps[0] { tri_trace(0, 0) } else { tri_walk(0, 0) };
+                    total += REZIP_FOLD * self.fold(last, first);
+                }
+                if best_steps.as_ref().is_none_or(|b| total < b.0) {
+                    best_steps = Some((total, steps));
+                }
+            }
+        }
+        best_steps.map(|b| b.1)
+    }
+}
+
+/// How many walk steps beyond the ones between its nearest nodes a trace vertex may be
+/// zipped with in [`Band::rezip`]: the curve's nodes are about a cell apart (one per lattice
+/// face it crosses), and a trace that runs straight away from a node next to a pinch point
+/// needs the nodes down to the pinch.
+const REZIP_REACH: usize = 3;
+
+/// The weight of a fold between consecutive triangles in [`Band::rezip`], against at most 1
+/// for a triangle turned away from the surface's normal.
+const REZIP_FOLD: f64 = 4.0;
+
+/// The weight of a rung's length (in cells) in [`Band::rezip`]: small, only to choose among
+/// zips that lie in the sheet equally well.
+const REZIP_RUNG: f64 = 0.02;
 
 /// The zone's acceptance test: two sheets cross along every curve, so each network edge in
 /// the zone carries four bands (then it goes into `bands.edges`), and every cone apex in it
