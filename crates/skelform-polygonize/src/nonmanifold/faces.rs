@@ -118,8 +118,8 @@ impl Run<'_> {
                 regions.extend(links.iter().flat_map(|p| [p.0, p.1]));
                 regions.sort_unstable();
                 regions.dedup();
-                let (p, followed) = match end {
-                    Some(p) => (*p, None),
+                let p = match end {
+                    Some(p) => *p,
                     None => {
                         let starts = if interesting.is_empty() {
                             group.iter().collect()
@@ -129,56 +129,6 @@ impl Run<'_> {
                         self.face_vertex(sorted, group, &starts)
                     }
                 };
-                let split_four = followed
-                    .filter(|_| split.groups.len() == 1)
-                    .and_then(|(s, foreign)| Self::four_region_split(group, s, foreign));
-                if let Some((mine, other, short)) = split_four {
-                    let centre = |run: &Self, ws: &[Walked; 2]| {
-                        ws.iter().map(|w| run.positions[w.vertex as usize]).sum::<DVec3>() * 0.5
-                    };
-                    let towards = (centre(self, &other) - centre(self, &mine)).normalize_or_zero();
-                    let mut hub = |run: &mut Self, at: DVec3, ws: &[Walked; 2]| {
-                        run.positions.push(at);
-                        run.crossing.push(None);
-                        run.stats.face_vertices += 1;
-                        let v = run.positions.len() as u32 - 1;
-                        let mut regions: Vec<u32> =
-                            ws.iter().flat_map(|w| [w.from, w.to]).collect();
-                        regions.extend([short.0, short.1]);
-                        regions.sort_unstable();
-                        regions.dedup();
-                        info.hubs.push(Hub {
-                            vertex: v,
-                            spokes: ws
-                                .iter()
-                                .map(|w| (w.vertex, RegionPair::new(w.from, w.to)))
-                                .collect(),
-                            regions,
-                        });
-                        v
-                    };
-                    let a = hub(self, p - towards * self.eps, &mine);
-                    let b = hub(self, p + towards * self.eps, &other);
-                    info.lines.push((a, b, short));
-                    // The cap's triangles have no edge vertex of their pair to be wound
-                    // by: give its first vertex the direction across the short contour,
-                    // from one of its regions to the other, as an edge vertex has.
-                    // Region r_k touches the face's sides between crossings k - 1 and k.
-                    let side = |run: &Self, r: u32| {
-                        let k = group.iter().position(|w| w.from == r).unwrap_or(0);
-                        let before = group[(k + 3) % 4];
-                        (run.positions[before.vertex as usize]
-                            + run.positions[group[k].vertex as usize])
-                            * 0.5
-                    };
-                    let along = (self.positions[b as usize] - self.positions[a as usize])
-                        .normalize_or_zero();
-                    let across = side(self, short.1) - side(self, short.0);
-                    let dir = across - along * across.dot(along);
-                    self.crossing[a as usize] = Some((dir, short.0, short.1));
-                    vertex_of.push(Some(a));
-                    continue;
-                }
                 self.positions.push(p);
                 self.crossing.push(None);
                 self.stats.face_vertices += 1;
@@ -289,60 +239,18 @@ impl Run<'_> {
         corners: [Key; 3],
         crossings: &[Walked],
         starts: &[&Walked],
-    ) -> (DVec3, Option<(Walked, u32)>) {
+    ) -> DVec3 {
         for pass in [false, true] {
             for s in starts {
                 if let Some(end) = self.follow(corners, s, pass) {
                     self.stats.face_vertices_at_crossing += usize::from(end.at_crossing);
-                    return (end.at, Some((**s, end.foreign)));
+                    return end.at;
                 }
             }
         }
         self.stats.face_vertex_fallbacks += 1;
         let n = crossings.len() as f64;
-        (crossings.iter().map(|w| self.positions[w.vertex as usize]).sum::<DVec3>() / n, None)
-    }
-
-    /// The two junctions of a face vertex of four regions, without following another
-    /// contour: four regions r0..r3 round the face (crossing k from r_k to r_k+1) never
-    /// meet at one point generically, but at two junctions joined by a short contour,
-    /// (r0, r1, r2) and (r2, r3, r0) or (r3, r0, r1) and (r1, r2, r3). The contour that was
-    /// followed, from crossing `s`, met `foreign`, which says which: `s` and its neighbour
-    /// towards `foreign` end at one junction, the other two crossings at the other. Returns
-    /// the two groups of crossings (the first with `s`) and the short contour's pair, or
-    /// `None` when the crossings do not go round four regions.
-    ///
-    /// Why: with one face vertex for all four, the two sheets on either side of a thin
-    /// slab (where a leaf's vein reaches the margin, a few hundredths of a cell thick)
-    /// ended at the same point on both faces of a tetrahedron and met along one line at a
-    /// hairline angle, folded (issue 18). Two vertices ε either side of the followed end,
-    /// towards the crossings of each, give the slab a cap, the short contour's sheet, which
-    /// the sheets meet at an angle; the junctions' true distance is not sought, since that
-    /// takes another walk along a contour (evaluations, issue 18's cost limit).
-    fn four_region_split(
-        group: &[Walked],
-        s: Walked,
-        foreign: u32,
-    ) -> Option<([Walked; 2], [Walked; 2], RegionPair)> {
-        if group.len() != 4 || (0..4).any(|k| group[k].to != group[(k + 1) % 4].from) {
-            return None;
-        }
-        let mut regions: Vec<u32> = group.iter().map(|w| w.from).collect();
-        regions.sort_unstable();
-        regions.dedup();
-        if regions.len() != 4 {
-            return None;
-        }
-        let i = group.iter().position(|w| *w == s)?;
-        let g = |k: usize| group[k % 4];
-        let r = |k: usize| group[k % 4].from;
-        if foreign == r(i + 2) {
-            Some(([g(i), g(i + 1)], [g(i + 2), g(i + 3)], RegionPair::new(r(i), r(i + 2))))
-        } else if foreign == r(i + 3) {
-            Some(([g(i), g(i + 3)], [g(i + 1), g(i + 2)], RegionPair::new(r(i + 3), r(i + 1))))
-        } else {
-            None
-        }
+        crossings.iter().map(|w| self.positions[w.vertex as usize]).sum::<DVec3>() / n
     }
 
     /// One try of [`Run::face_vertex`]: the contour from the crossing `s` followed into the
