@@ -441,3 +441,56 @@ fn a_symmetric_foam_has_no_coincident_or_folded_faces() {
         assert_eq!(stats.face_vertex_fallbacks, 0, "cell {cell}");
     }
 }
+
+/// A vein ending in a blade, as on the three-lobed leaf: region 1 a wedge between 2 above
+/// and 3 below the plane `z = h`, thinning to its tip along a slanted line, with 0 beyond
+/// a curved margin; `h` a small fraction of a cell off the lattice plane `z = 0`.
+fn wedge_end(h: f64, k: f64) -> impl RegionField {
+    FnRegions(move |p: DVec3| {
+        let tip = 0.31 + 0.13 * p.x;
+        if p.y > 0.36 + 0.07 * p.x + 0.1 * p.x * p.x {
+            return 0;
+        }
+        let half = (k * (tip - p.y)).min(0.03);
+        if p.y < tip && (p.z - h).abs() < half {
+            1
+        } else if p.z > h {
+            2
+        } else {
+            3
+        }
+    })
+}
+
+#[test]
+fn a_wedge_ending_a_hair_off_a_lattice_plane_has_no_folded_faces() {
+    // The wedge's tip curve (1, 2, 3) runs within a few thousandths of a cell of the
+    // lattice plane, clipping the corners of the tetrahedra below or above it, beside the
+    // margin's curve (0, 2, 3). With one internal vertex per tetrahedron at the mean of
+    // its face vertices, the sheet between a crossing and two face vertices close together
+    // was fanned to a centre far off and folded onto itself.
+    let cell = 0.1;
+    for offset in [-0.005, 0.002, 0.005] {
+        for k in [0.05, 0.1] {
+            let regions = wedge_end(offset * cell, k);
+            let opts = Options {
+                lattice: lattice(Aabb::cube(1.0), cell),
+                full_grid: true,
+                ..Options::default()
+            };
+            let (mesh, stats) = polygonize(&regions, &opts).unwrap();
+            let report = check(&mesh);
+            assert_eq!(report.folded_edges, 0, "offset {offset} cell, slope {k}");
+            assert_eq!(report.coincident_faces, 0, "offset {offset} cell, slope {k}");
+            assert_eq!(report.inconsistent_edges, 0, "offset {offset} cell, slope {k}");
+            let welded = skelform_mesh::check::check_welded(&mesh, 0.0);
+            assert_eq!(welded.folded_edges, 0, "offset {offset} cell, slope {k}, welded");
+            // The wedge, the blade and the margin are all there.
+            let pairs: BTreeSet<RegionPair> =
+                stats.triangles_per_pair.iter().map(|p| p.0).collect();
+            for p in [(1, 2), (1, 3), (2, 3), (0, 2), (0, 3)] {
+                assert!(pairs.contains(&RegionPair(p.0, p.1)), "offset {offset}, slope {k}");
+            }
+        }
+    }
+}

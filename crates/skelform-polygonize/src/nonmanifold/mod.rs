@@ -48,10 +48,12 @@
 //! one run of consecutive crossings round the face: the sides of a polygon round the
 //! region asked at their centre, or of a path along it, see `linked_runs`). With four
 //! crossings the region the first contour meets says which two junctions there can be, so
-//! two contours are followed, not all four; a
+//! two contours are followed, not all four. Always (it costs no evaluations), a
 //! tetrahedron's contours are split into the components they make on its surface, a
 //! component without face vertices is polygonized on its own, and a curve passing through
-//! (two face vertices where the same regions meet) gets its own internal vertex. Always, where a
+//! (two face vertices where the same regions meet) gets its own internal vertex: one
+//! vertex at the mean of every face vertex folded the sheets of a curve clipping a corner
+//! of the tetrahedron (see `Run::tetrahedron`). Always, where a
 //! curve runs straight into a tetrahedron and straight out at an angle, its internal vertex
 //! is moved to where the two lines meet, so the corner is kept instead of bevelled
 //! (`Stats::sharpened_corners`).
@@ -127,12 +129,12 @@ pub struct Options {
     pub loops: bool,
     /// Stop propagating after visiting this many cubes (then `Stats::reached_budget`).
     pub max_cells: u64,
-    /// Beyond the chapter: a face vertex per junction of a face and an internal vertex per
-    /// curve and per contour component of a tetrahedron (the module's "Beyond one vertex").
-    /// Off by default: following the contours of faces with four or more crossings costs
-    /// about 1.5% more evaluations on the leaves (2.01 times a conventional polygonizer's
-    /// on the three-lobed leaf), and the joins between internal vertices leave a few
-    /// triangles there wound against their neighbours.
+    /// Beyond the chapter: a face vertex per junction of a face (the module's "Beyond one
+    /// vertex"; an internal vertex per curve and per contour component of a tetrahedron is
+    /// made either way). Off by default: following the contours of faces with four or
+    /// more crossings costs about 1.5% more evaluations on the leaves (2.01 times a
+    /// conventional polygonizer's on the three-lobed leaf), and with it a few triangles
+    /// there come out wound against their neighbours.
     pub junctions: bool,
 }
 

@@ -27,6 +27,14 @@ impl Run<'_> {
     /// between two curves), and the joins of one sheet that go round three or more internal
     /// vertices are closed by a fan. One internal vertex for everything had joined separate
     /// sheets at it and fused curves passing one tetrahedron into a false meeting point.
+    ///
+    /// This is done always, not only with `Options::junctions` (which adds face vertices,
+    /// at a cost in evaluations; this costs none): with the chapter's one vertex at the mean
+    /// of all face vertices, a curve clipping a tetrahedron's corner (two face vertices a
+    /// few hundredths of a cell apart) was fanned to a centre pulled far away by another
+    /// curve's face vertices, so the sheet's two triangles from its crossing to the two
+    /// face vertices lay on top of each other (folded edges, issue 18), as where the
+    /// three-lobed leaf's vein ends in a sheet within a hair of a lattice plane.
     pub(super) fn tetrahedron(&mut self, t: [Key; 4]) {
         let mut faces: Vec<FaceInfo> = Vec::with_capacity(4);
         for f in tets::FACES {
@@ -59,14 +67,29 @@ impl Run<'_> {
             self.walk_polygons(&lines);
             return;
         }
-        if !self.opts.junctions {
+        let mark = Mark::of(self);
+        self.several_centres(&faces, &hubs, &edges, t);
+        if self.coincident_since(&mark) {
+            // Two sheets of a lens thinner than the follower's triangles, pinched between
+            // the same two curves, joined their internal vertices by the same triangle
+            // (coincident faces): the chapter's one centre does not make that triangle.
+            mark.roll_back(self);
             self.one_centre(&hubs, &edges, t);
-            return;
         }
+    }
+
+    /// [`Run::tetrahedron`] with face vertices: internal vertices per curve and component.
+    fn several_centres(
+        &mut self,
+        faces: &[FaceInfo],
+        hubs: &[(u32, usize, Vec<u32>)],
+        edges: &[(u32, u32, RegionPair)],
+        t: [Key; 4],
+    ) {
         // Components of the contours on the tetrahedron's surface.
         let mut index: FxHashMap<u32, usize> = FxHashMap::default();
         let mut parent: Vec<usize> = Vec::new();
-        for &(u, v, _) in &edges {
+        for &(u, v, _) in edges {
             for x in [u, v] {
                 index.entry(x).or_insert_with(|| {
                     parent.push(parent.len());
@@ -113,7 +136,7 @@ impl Run<'_> {
                 centres.push(v);
             }
         }
-        for (h, _, regions) in &hubs {
+        for (h, _, regions) in hubs {
             let c = internal[h];
             if c != *h && regions.len() >= 5 {
                 // Five or more regions at one face vertex: junctions too close on the face to
@@ -138,7 +161,7 @@ impl Run<'_> {
         if centres.len() == 1 && !hub_free.contains(&true) {
             // The chapter's case: every contour fanned to the one internal vertex.
             let centre = centres[0];
-            for &(u, v, pair) in &edges {
+            for &(u, v, pair) in edges {
                 if u != centre && v != centre {
                     self.triangles.push([u, v, centre]);
                     self.labels.push(pair);
@@ -158,7 +181,7 @@ impl Run<'_> {
         if !free.is_empty() {
             self.walk_polygons(&free);
         }
-        self.fan_paths(&edges, &hub_free, &internal);
+        self.fan_paths(edges, &hub_free, &internal);
     }
 
     /// The chapter's tetrahedron with face vertices: one internal vertex (the face vertex
@@ -199,6 +222,20 @@ impl Run<'_> {
                 self.labels.push(pair);
             }
         }
+    }
+
+    /// Whether two triangles made since `mark` have the same three vertices.
+    fn coincident_since(&self, mark: &Mark) -> bool {
+        let mut keys: Vec<[u32; 3]> = self.triangles[mark.triangles..]
+            .iter()
+            .map(|t| {
+                let mut k = *t;
+                k.sort_unstable();
+                k
+            })
+            .collect();
+        keys.sort_unstable();
+        keys.windows(2).any(|w| w[0] == w[1])
     }
 
     /// A new vertex inside a tetrahedron.
@@ -401,6 +438,41 @@ impl Run<'_> {
         open.sort_unstable();
         open.dedup();
         open
+    }
+}
+
+/// How much of the run's output existed before a tetrahedron was polygonized, so that
+/// what it made can be taken back ([`Run::tetrahedron`]).
+struct Mark {
+    positions: usize,
+    internal_vertices: usize,
+    triangles: usize,
+    curves: usize,
+    through: usize,
+    fused: usize,
+}
+
+impl Mark {
+    fn of(run: &Run<'_>) -> Mark {
+        Mark {
+            positions: run.positions.len(),
+            internal_vertices: run.stats.internal_vertices,
+            triangles: run.triangles.len(),
+            curves: run.curves.len(),
+            through: run.through.len(),
+            fused: run.fused.len(),
+        }
+    }
+
+    fn roll_back(&self, run: &mut Run<'_>) {
+        run.positions.truncate(self.positions);
+        run.crossing.truncate(self.positions);
+        run.stats.internal_vertices = self.internal_vertices;
+        run.triangles.truncate(self.triangles);
+        run.labels.truncate(self.triangles);
+        run.curves.truncate(self.curves);
+        run.through.truncate(self.through);
+        run.fused.truncate(self.fused);
     }
 }
 
