@@ -25,7 +25,19 @@ function record(list, entry) {
 
 // --- three.js -------------------------------------------------------------------------
 const view = $('view');
-const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+// A software renderer (no GPU: SwiftShader, llvmpipe) draws on the cores the server meshes
+// on, and there a multisampled frame of the hand costs about four times a plain one: such a
+// page is drawn without antialiasing. A GPU draws with it.
+function softwareRenderer() {
+    const gl = document.createElement('canvas').getContext('webgl2');
+    if (!gl) return false;
+    const info = gl.getExtension('WEBGL_debug_renderer_info');
+    const name = String(gl.getParameter(info ? info.UNMASKED_RENDERER_WEBGL : gl.RENDERER));
+    gl.getExtension('WEBGL_lose_context')?.loseContext();
+    return /swiftshader|llvmpipe|softpipe|software/i.test(name);
+}
+studio.software = softwareRenderer();
+const renderer = new THREE.WebGLRenderer({ antialias: !studio.software, preserveDrawingBuffer: true });
 renderer.setPixelRatio(window.devicePixelRatio);
 view.appendChild(renderer.domElement);
 const scene = new THREE.Scene();
@@ -61,11 +73,16 @@ const selectedMaterial = new THREE.MeshBasicMaterial({ color: 0xe03010, depthTes
 const jointMaterial = new THREE.MeshBasicMaterial({ color: 0x20a040, depthTest: false, transparent: true });
 const lineMaterial = new THREE.LineBasicMaterial({ color: 0x1040a0, depthTest: false, transparent: true, opacity: 0.7 });
 
-// Drawn only when something changed: the view, the gizmo, a message from the server, a
-// pointer or key on the page. A picture drawn every frame kept a core busy (with a software
+// Drawn only when something changed: the view, the gizmo, the selection, a state, surface
+// or slice from the server. A picture drawn every frame kept a core busy (with a software
 // renderer, all of it) that the server's meshing and this page's messages were waiting for.
+// A state's skeleton is drawn with its revision's surface: while that surface is on its
+// way (at most HOLD ms), nothing is drawn, so that a frame the next message replaces does
+// not take the cores from the meshing of it.
 let stale = true;
 const redraw = () => { stale = true; };
+const HOLD = 100;
+let awaiting = null; // {revision, since}: a state whose surface has not arrived
 function resize() {
     const w = view.clientWidth, h = view.clientHeight;
     renderer.setSize(w, h, false);
@@ -79,12 +96,11 @@ window.addEventListener('resize', resize);
 resize();
 orbit.addEventListener('change', redraw);
 gizmo.addEventListener('change', redraw);
-for (const e of ['pointerdown', 'pointermove', 'pointerup', 'wheel', 'keydown']) {
-    window.addEventListener(e, redraw, { passive: true });
-}
 renderer.setAnimationLoop(() => {
     orbit.update();
     if (!stale) return;
+    if (awaiting && performance.now() - awaiting.since < HOLD) return;
+    awaiting = null;
     stale = false;
     const start = performance.now();
     renderer.render(scene, camera);
@@ -132,9 +148,9 @@ function connect() {
     socket.onopen = () => { $('status').textContent = 'connected'; };
     socket.onclose = () => { $('status').textContent = 'disconnected: restart the studio and reload'; };
     socket.onmessage = (e) => {
-        redraw();
+        // Text messages redraw only when they change the view (a state); reports do not.
         if (typeof e.data === 'string') onText(JSON.parse(e.data));
-        else if (new TextDecoder().decode(new Uint8Array(e.data, 0, 4)) === 'SKSL') onSlice(e.data);
+        else if (new TextDecoder().decode(new Uint8Array(e.data, 0, 4)) === 'SKSL') { onSlice(e.data); redraw(); }
         else {
             const start = performance.now();
             onFrame(e.data);
@@ -150,6 +166,9 @@ function onText(m) {
             record(studio.stateTimings, { seq: m.seq, revision: m.revision, ms: start - sentAt.get(m.seq) });
         }
         onState(m);
+        redraw();
+        // A checked scene is meshed: hold its skeleton for its surface.
+        if (!m.error && m.revision > studio.frameRevision) awaiting = { revision: m.revision, since: start };
         record(studio.handling, { kind: 'state', revision: m.revision, ms: performance.now() - start });
     }
     else if (m.type === 'error') message(m.message);
@@ -179,6 +198,7 @@ function onFrame(buffer) {
     // A stale surface never replaces a newer one.
     if (revision < studio.frameRevision || (revision === studio.frameRevision && level < studio.level)) return;
     let at = 32;
+    // The arrays are views of the message, which is this page's alone: nothing is copied.
     const positions = new Float32Array(buffer, at, nv * 3); at += nv * 12;
     let normals = null;
     if (flags & 1) { normals = new Float32Array(buffer, at, nv * 3); at += nv * 12; }
@@ -186,9 +206,9 @@ function onFrame(buffer) {
     let labels = null;
     if (flags & 2) { labels = new Uint32Array(buffer, at, nt * 2); }
     let geometry = new THREE.BufferGeometry();
-    geometry.setAttribute('position', new THREE.BufferAttribute(positions.slice(), 3));
-    if (normals) geometry.setAttribute('normal', new THREE.BufferAttribute(normals.slice(), 3));
-    geometry.setIndex(new THREE.BufferAttribute(indices.slice(), 1));
+    geometry.setAttribute('position', new THREE.BufferAttribute(positions, 3));
+    if (normals) geometry.setAttribute('normal', new THREE.BufferAttribute(normals, 3));
+    geometry.setIndex(new THREE.BufferAttribute(indices, 1));
     let material = surfaceMaterial;
     if (labels) {
         // One colour a region pair: triangles are split apart so each keeps its own.
@@ -207,6 +227,8 @@ function onFrame(buffer) {
     surface = new THREE.Mesh(geometry, material);
     scene.add(surface);
     Object.assign(studio, { frameRevision: revision, level, vertices: nv, triangles: nt });
+    if (awaiting && revision >= awaiting.revision) awaiting = null;
+    redraw();
     const s = revisionSeq.get(revision);
     if (s !== undefined && sentAt.has(s)) {
         const ms = performance.now() - sentAt.get(s);
@@ -308,19 +330,36 @@ function fillSelect(select, names, current) {
     if (current != null) select.value = current;
 }
 
+// What the drawn skeleton is made of (elements, their points, joints, the selection): while
+// an edit only moves points, the handles and lines are moved where they are, not made anew.
+let skeletonShape = null;
+let skeletonLines = [];
+let jointHandles = [];
+const closedKind = (kind) => kind === 'triangle' || kind === 'polygon';
+
 function drawSkeleton(sk) {
+    redraw();
+    const shape = JSON.stringify([
+        sk.elements.map((el) => [el.kind, el.index, el.points.map((p) => p.path)]),
+        sk.joints.map((j) => [j.name, !!j.at]), selected,
+    ]);
+    if (shape === skeletonShape) { moveSkeleton(sk); return; }
+    skeletonShape = shape;
     gizmo.detach();
+    for (const c of skeletonGroup.children) if (c.isLine) c.geometry.dispose();
     skeletonGroup.clear();
     studio.handles = [];
+    skeletonLines = [];
+    jointHandles = [];
     for (const el of sk.elements) {
         const pts = el.points.map((p) => new THREE.Vector3(...p.at));
         const isSel = selected && selected.kind === el.kind && selected.index === el.index;
         if (pts.length > 1) {
-            const closed = el.kind === 'triangle' || el.kind === 'polygon';
-            const geo = new THREE.BufferGeometry().setFromPoints(closed ? [...pts, pts[0]] : pts);
+            const geo = new THREE.BufferGeometry().setFromPoints(closedKind(el.kind) ? [...pts, pts[0]] : pts);
             const line = new THREE.Line(geo, lineMaterial);
             line.renderOrder = 1;
             skeletonGroup.add(line);
+            skeletonLines.push(line);
         }
         el.points.forEach((p, k) => {
             const h = new THREE.Mesh(handleGeometry, isSel ? selectedMaterial : handleMaterial);
@@ -344,7 +383,25 @@ function drawSkeleton(sk) {
         h.renderOrder = 2;
         h.userData = { joint: j.name };
         skeletonGroup.add(h);
+        jointHandles.push(h);
     }
+}
+
+/** The skeleton drawn moved to the positions of `sk`, whose shape is the one drawn. */
+function moveSkeleton(sk) {
+    let h = 0, l = 0, jh = 0;
+    for (const el of sk.elements) {
+        if (el.points.length > 1) {
+            const geo = skeletonLines[l++].geometry;
+            const attr = geo.getAttribute('position');
+            el.points.forEach((p, k) => attr.setXYZ(k, ...p.at));
+            if (closedKind(el.kind)) attr.setXYZ(el.points.length, ...el.points[0].at);
+            attr.needsUpdate = true;
+            geo.computeBoundingSphere();
+        }
+        for (const p of el.points) studio.handles[h++].position.set(...p.at);
+    }
+    for (const j of sk.joints) if (j.at) jointHandles[jh++].position.set(...j.at);
 }
 
 // Where a handle is on the screen, in CSS pixels of the page (for tests).
@@ -396,9 +453,13 @@ renderer.domElement.addEventListener('pointerup', (e) => {
 });
 
 // --- the side panel ---------------------------------------------------------------------
+let panelShown = null; // what the panel shows, to be rebuilt only when it changes
 function drawPanel(sk) {
     const box = $('selection');
     const el = selected && sk.elements.find((e) => e.kind === selected.kind && e.index === selected.index);
+    const shown = JSON.stringify(el ? [el.kind, el.index, el.joint, el.radius, el.strength, el.group] : null);
+    if (shown === panelShown) return;
+    panelShown = shown;
     const parts = [Object.assign(document.createElement('h2'), { textContent: 'Selection' })];
     if (!el) {
         parts.push(Object.assign(document.createElement('p'), { className: 'hint', textContent: 'Click a handle to select its element; drag the gizmo to move it.' }));
@@ -434,9 +495,13 @@ function drawPanel(sk) {
     box.replaceChildren(...parts);
 }
 
+let jointsShown = null; // what the sliders show, to be rebuilt only when it changes
 function drawJoints(joints) {
     const box = $('joints');
     if (box.contains(document.activeElement) && document.activeElement.type === 'range') return;
+    const shown = JSON.stringify([studio.state.pose, joints.map((j) => [j.name, j.axes, j.angles])]);
+    if (shown === jointsShown) return;
+    jointsShown = shown;
     const parts = [Object.assign(document.createElement('h2'), { textContent: joints.length ? `Joints (pose ${studio.state.pose})` : 'Joints: none' })];
     for (const j of joints) {
         const div = Object.assign(document.createElement('div'), { className: 'joint', id: `joint-${j.name}` });
