@@ -78,7 +78,9 @@ const lineMaterial = new THREE.LineBasicMaterial({ color: 0x1040a0, depthTest: f
 // renderer, all of it) that the server's meshing and this page's messages were waiting for.
 // A state's skeleton is drawn with its revision's surface: while that surface is on its
 // way (at most HOLD ms), nothing is drawn, so that a frame the next message replaces does
-// not take the cores from the meshing of it.
+// not take the cores from the meshing of it. With a software renderer, whose frames cost
+// the hand's coarse meshing several times over, the hold starts when an edit is sent: the
+// gizmo dragged is then drawn with the surface it made.
 let stale = true;
 const redraw = () => { stale = true; };
 const HOLD = 100;
@@ -132,7 +134,10 @@ function send(msg) {
     sentAt.set(msg.seq, performance.now());
     if (sentAt.size > KEPT) sentAt.delete(sentAt.keys().next().value);
     socket.send(JSON.stringify(msg));
+    if (studio.software && !QUIET.has(msg.op)) awaiting = { revision: studio.revision + 1, since: sentAt.get(msg.seq) };
 }
+// The edits that make no new surface.
+const QUIET = new Set(['save', 'export', 'state', 'slice']);
 studio.send = send;
 
 function message(text, info = false) {
@@ -168,10 +173,10 @@ function onText(m) {
         onState(m);
         redraw();
         // A checked scene is meshed: hold its skeleton for its surface.
-        if (!m.error && m.revision > studio.frameRevision) awaiting = { revision: m.revision, since: start };
+        if (!m.error && m.revision > studio.frameRevision) awaiting = { revision: m.revision, since: awaiting?.since ?? start };
         record(studio.handling, { kind: 'state', revision: m.revision, ms: performance.now() - start });
     }
-    else if (m.type === 'error') message(m.message);
+    else if (m.type === 'error') { message(m.message); awaiting = null; redraw(); }
     else if (m.type === 'saved') message(`saved ${m.file}`, true);
     else if (m.type === 'exported') message(`wrote ${m.file}`, true);
     else if (m.type === 'meshed') {

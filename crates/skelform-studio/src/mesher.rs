@@ -197,8 +197,8 @@ pub fn start(
     Ok(Mesher { coarse: spawn(Level::Coarse)?, full: spawn(Level::Full)? })
 }
 
-/// The full level is the dissertation's refinement in idle time: its threads run at a lower
-/// priority, so that while both levels are at work (the first moments after every edit of
+/// The full level is the dissertation's refinement in idle time: its threads (its pool's and
+/// the one that encodes its frames) run at a lower priority, so that while both levels are at work (the first moments after every edit of
 /// a drag) the cores go to the coarse surface the designer is waiting for. Alone, the full
 /// level still has every core.
 #[cfg(target_os = "linux")]
@@ -230,6 +230,10 @@ fn worker(
     pool: &rayon::ThreadPool,
     publish: &(impl Fn(Outcome) + ?Sized),
 ) {
+    // The full level's own thread encodes its megabyte frames: at its pool's priority too.
+    if level == Level::Full {
+        yield_to_the_coarse_level();
+    }
     // The incremental re-mesher of this level: it keeps the lattice of its own resolution.
     let mut live = skelform::Live::default();
     while let Ok(mut job) = rx.recv() {

@@ -133,7 +133,7 @@ impl Studio {
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_else(|| shown.clone());
-        let (scene, error) = match check(&text, &origin_name, None, &place.dir) {
+        let (scene, error) = match check(&text, &doc, &origin_name, None, &place.dir) {
             Ok(s) => (Some(s), None),
             Err(e) => (None, Some(e.to_string())),
         };
@@ -243,16 +243,18 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 }
 
 /// Checks scene text as the library does, in the pose shown, and the lattice it would
-/// mesh on (so that a cell too fine for memory is refused as an edit).
+/// mesh on (so that a cell too fine for memory is refused as an edit). `doc` is the text
+/// as a document (already parsed by every caller: it is not parsed again here).
 /// Relative paths in the text are taken from the scene's folder `dir`, and only files in it
 /// may be read: a path that leads out of it is refused before anything is opened.
 fn check(
     text: &str,
+    doc: &DocumentMut,
     origin: &str,
     pose: Option<&str>,
     dir: &Path,
 ) -> Result<skelform::Scene, skelform::Error> {
-    confine(text, dir)
+    confine(doc, dir)
         .map_err(|message| skelform::Error::Invalid { origin: origin.to_string(), message })?;
     let scene = skelform::Scene::parse_in(text, origin, dir)?;
     let overrides = Overrides { pose: pose.map(str::to_string), ..Overrides::default() };
@@ -263,10 +265,8 @@ fn check(
 /// Refuses a file the scene names (every key of [`skelform::FILE_KEYS`]: a sweep's
 /// `section_image`, a polygon's `weight_image`, wherever it stands in the document) unless
 /// it lies in `dir`: a plain relative path without `..`, and, when it exists, not a link to
-/// elsewhere. Text that is not TOML passes here and is refused by the parse with its
-/// position.
-fn confine(text: &str, dir: &Path) -> Result<(), String> {
-    let Ok(doc) = text.parse::<DocumentMut>() else { return Ok(()) };
+/// elsewhere.
+fn confine(doc: &DocumentMut, dir: &Path) -> Result<(), String> {
     let mut named = Vec::new();
     files_in_table(doc.as_table(), &mut named);
     for (key, name) in named {
@@ -758,7 +758,8 @@ impl State {
             // undo step.
             return Ok(None);
         }
-        let scene = match check(&text, &self.origin_name, g.pose.as_deref(), &self.place.dir) {
+        let scene = match check(&text, &doc, &self.origin_name, g.pose.as_deref(), &self.place.dir)
+        {
             Ok(s) => Some(s),
             // A document that did not check when opened takes edits that do not fix it yet.
             Err(err) if g.scene.is_none() => {
@@ -846,7 +847,7 @@ impl State {
         };
         let doc: DocumentMut =
             text.parse().map_err(|e: toml_edit::TomlError| StudioError::Edit(e.to_string()))?;
-        let scene = check(&text, &self.origin_name, g.pose.as_deref(), &self.place.dir);
+        let scene = check(&text, &doc, &self.origin_name, g.pose.as_deref(), &self.place.dir);
         let old = std::mem::replace(&mut g.text, text);
         if undo {
             g.redo.push(old)
