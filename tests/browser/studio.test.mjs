@@ -75,6 +75,15 @@ test('the hand in the studio: drag a handle, bend a joint, undo, save', async ()
     const opened = await fullAfter(page, 0);
     assert.ok(opened.vertices > 1000, `the hand has ${opened.vertices} vertices`);
 
+    // Headless Chromium draws WebGL with SwiftShader, on the cores the server meshes on: the
+    // page knows it renders in software and draws without antialiasing there (a multisampled
+    // frame of the hand cost about four times a plain one).
+    const drawing = await page.evaluate(() => ({
+        software: window.studio.software,
+        antialias: document.querySelector('#view canvas').getContext('webgl2').getContextAttributes().antialias,
+    }));
+    assert.deepEqual(drawing, { software: true, antialias: false }, 'a software renderer draws without antialiasing');
+
     // The issue's timing goals are for a 128-samples cell (the domain's longest side / 127):
     // set through the page's samples box, as a user would.
     await page.evaluate(() => {

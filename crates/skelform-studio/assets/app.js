@@ -67,7 +67,9 @@ const labelMaterial = new THREE.MeshStandardMaterial({
 let surface = null;
 const skeletonGroup = new THREE.Group();
 scene.add(skeletonGroup);
-const handleGeometry = new THREE.SphereGeometry(1, 12, 8);
+// Handles are a few pixels across: 8×6 segments look as round as 12×8, and the hand has 254
+// of them, more vertices than its coarse surface (a software renderer pays for each).
+const handleGeometry = new THREE.SphereGeometry(1, 8, 6);
 const handleMaterial = new THREE.MeshBasicMaterial({ color: 0x1060d0, depthTest: false, transparent: true, opacity: 0.85 });
 const selectedMaterial = new THREE.MeshBasicMaterial({ color: 0xe03010, depthTest: false, transparent: true });
 const jointMaterial = new THREE.MeshBasicMaterial({ color: 0x20a040, depthTest: false, transparent: true });
@@ -172,8 +174,10 @@ function onText(m) {
         }
         onState(m);
         redraw();
-        // A checked scene is meshed: hold its skeleton for its surface.
-        if (!m.error && m.revision > studio.frameRevision) awaiting = { revision: m.revision, since: awaiting?.since ?? start };
+        // A checked scene is meshed: hold its skeleton for its surface (a scene with an error
+        // has none coming).
+        if (m.error) awaiting = null;
+        else if (m.revision > studio.frameRevision) awaiting = { revision: m.revision, since: awaiting?.since ?? start };
         record(studio.handling, { kind: 'state', revision: m.revision, ms: performance.now() - start });
     }
     else if (m.type === 'error') { message(m.message); awaiting = null; redraw(); }
