@@ -31,10 +31,16 @@ const view = $('view');
 function softwareRenderer() {
     const gl = document.createElement('canvas').getContext('webgl2');
     if (!gl) return false;
-    const info = gl.getExtension('WEBGL_debug_renderer_info');
-    const name = String(gl.getParameter(info ? info.UNMASKED_RENDERER_WEBGL : gl.RENDERER));
+    const software = /swiftshader|llvmpipe|softpipe|software/i;
+    let name = String(gl.getParameter(gl.RENDERER));
+    // Chromium names only itself there; its unmasked name is behind an extension (which
+    // other browsers, naming the renderer plainly, warn about).
+    if (/^webkit/i.test(name)) {
+        const info = gl.getExtension('WEBGL_debug_renderer_info');
+        if (info) name = String(gl.getParameter(info.UNMASKED_RENDERER_WEBGL));
+    }
     gl.getExtension('WEBGL_lose_context')?.loseContext();
-    return /swiftshader|llvmpipe|softpipe|software/i.test(name);
+    return software.test(name);
 }
 studio.software = softwareRenderer();
 const renderer = new THREE.WebGLRenderer({ antialias: !studio.software, preserveDrawingBuffer: true });
