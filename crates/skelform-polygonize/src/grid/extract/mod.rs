@@ -842,7 +842,12 @@ mod tests {
                     }
                 }
                 let mut visited = Vec::new();
-                numbers.for_each_edge(ny, |axis, i, j| visited.push((axis, i, j)));
+                numbers.for_each_edge(
+                    ny,
+                    &mut visited,
+                    |v, i, j| v.push((0, i, j)),
+                    |v, i, j| v.push((1, i, j)),
+                );
                 assert_eq!(visited, expected, "nx {nx}, pattern {p}");
                 for (n, &(axis, i, j)) in expected.iter().enumerate() {
                     assert_eq!(numbers.number(axis, i, j), n as u32, "edge {axis} ({i}, {j})");

@@ -102,25 +102,40 @@ impl LayerNumbering {
         store: &mut SlabStore<'_, V>,
     ) {
         let [nx, ny, _] = grid.dims;
-        self.for_each_edge(ny, |axis, i, j| {
-            let at = i + nx * j;
-            // (`axis` is a constant in each of the two loops this is inlined into.)
-            let step = if axis == 0 { 1 } else { nx };
-            let ends = [near.level.sample(vals[at]), near.level.sample(vals[at + step])];
-            store.push_vertex(edge_record(grid, [i, j, k], axis, ends, near));
-        });
+        // Two closures, one per axis, so that each loop makes its records with the axis a
+        // constant (one closure taking the axis is left as a call, the axis unknown in it).
+        self.for_each_edge(
+            ny,
+            store,
+            |store, i, j| {
+                let at = i + nx * j;
+                let ends = [near.level.sample(vals[at]), near.level.sample(vals[at + 1])];
+                store.push_vertex(edge_record(grid, [i, j, k], 0, ends, near));
+            },
+            |store, i, j| {
+                let at = i + nx * j;
+                let ends = [near.level.sample(vals[at]), near.level.sample(vals[at + nx])];
+                store.push_vertex(edge_record(grid, [i, j, k], 1, ends, near));
+            },
+        );
     }
 
-    /// Calls `f(axis, i, j)` for each crossed x-edge (`axis` 0) and y-edge (1) of the layer
+    /// Calls `x(state, i, j)` or `y(state, i, j)` for each crossed x- or y-edge of the layer
     /// (of `ny` rows) from sample `(i, j)`, in the order of their numbers.
     #[inline(always)]
-    pub(super) fn for_each_edge(&self, ny: usize, mut f: impl FnMut(usize, usize, usize)) {
+    pub(super) fn for_each_edge<S>(
+        &self,
+        ny: usize,
+        state: &mut S,
+        mut x: impl FnMut(&mut S, usize, usize),
+        mut y: impl FnMut(&mut S, usize, usize),
+    ) {
         for &j in &self.live {
             let j = j as usize;
             let row = j * self.words..(j + 1) * self.words;
-            for_each_bit(&self.x[row.clone()], |i| f(0, i, j));
+            for_each_bit(&self.x[row.clone()], |i| x(state, i, j));
             if j + 1 < ny {
-                for_each_bit(&self.y[row], |i| f(1, i, j));
+                for_each_bit(&self.y[row], |i| y(state, i, j));
             }
         }
     }

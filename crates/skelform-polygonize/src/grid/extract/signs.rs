@@ -76,6 +76,7 @@ mod wide {
     ///
     /// # Safety
     /// The CPU must support AVX2 ([`available`]).
+    #[inline]
     #[target_feature(enable = "avx2")]
     unsafe fn signs64(chunk: &[f32], threshold: f32) -> u64 {
         use std::arch::x86_64::{
@@ -122,9 +123,18 @@ mod wide {
         out: &mut [u64],
         threshold: f32,
     ) {
+        // The loop spelled out here rather than through `row_signs` with a closure: a
+        // closure is compiled without AVX2, and `signs64` is then a call per word with
+        // its constants set up each time.
+        let whole = nx / 64;
         for (row, o) in layer.chunks(nx).zip(out.chunks_mut(words)) {
-            // SAFETY: AVX2 is there: the caller's promise.
-            super::row_signs(row, o, threshold, |c| unsafe { signs64(c, threshold) });
+            for (w, o) in o[..whole].iter_mut().enumerate() {
+                // SAFETY: AVX2 is there: the caller's promise.
+                *o = unsafe { signs64(&row[64 * w..64 * w + 64], threshold) };
+            }
+            if whole < words {
+                o[whole] = super::signs_scalar(&row[64 * whole..], threshold);
+            }
         }
     }
 }
