@@ -818,7 +818,8 @@ mod tests {
                 numbers.build(&signs, &classes, nx, ny, words);
                 let inside = |i: usize, j: usize| values[i + nx * j] < 0.0;
                 let mut expected = Vec::new();
-                for j in 0..ny {
+                assert_eq!(classes.len(), ny);
+                for (j, &got) in classes.iter().enumerate() {
                     let all: Vec<bool> = (0..nx).map(|i| inside(i, j)).collect();
                     let class = if all.iter().all(|&b| b) {
                         signs::ROW_IN
@@ -827,7 +828,7 @@ mod tests {
                     } else {
                         signs::ROW_OUT
                     };
-                    assert_eq!(classes[j], class, "class of row {j}, nx {nx}");
+                    assert_eq!(got, class, "class of row {j}, nx {nx}");
                     for i in 0..nx - 1 {
                         if inside(i, j) != inside(i + 1, j) {
                             expected.push((0, i, j));
@@ -901,9 +902,14 @@ mod tests {
             let mut visited = Vec::new();
             let below_layer = (&below.0[..], &below.1[..]);
             let above_layer = (&upper_layer.0[..], &upper_layer.1[..]);
-            signs::for_each_mixed_cube(below_layer, above_layer, nx, ny, |_| {}, |i, j, case| {
-                visited.push((i, j, case))
-            });
+            signs::for_each_mixed_cube(
+                below_layer,
+                above_layer,
+                nx,
+                ny,
+                |_| {},
+                |i, j, case| visited.push((i, j, case)),
+            );
             let inside = |i: usize, j: usize, z: usize| {
                 (if z == 0 { &lower } else { &upper })[i + nx * j] < 0.0
             };

@@ -80,10 +80,9 @@ mod wide {
     #[target_feature(enable = "avx2")]
     unsafe fn signs64(chunk: &[f32], threshold: f32) -> u64 {
         use std::arch::x86_64::{
-            _CMP_LT_OQ, _mm256_castps_si256, _mm256_cmp_ps, _mm256_loadu_ps,
-            _mm256_movemask_epi8, _mm256_packs_epi16, _mm256_packs_epi32,
-            _mm256_permutevar8x32_epi32, _mm256_set1_ps, _mm256_setr_epi32,
-            _mm256_setzero_si256,
+            _CMP_LT_OQ, _mm256_castps_si256, _mm256_cmp_ps, _mm256_loadu_ps, _mm256_movemask_epi8,
+            _mm256_packs_epi16, _mm256_packs_epi32, _mm256_permutevar8x32_epi32, _mm256_set1_ps,
+            _mm256_setr_epi32, _mm256_setzero_si256,
         };
         assert_eq!(chunk.len(), 64);
         let t = _mm256_set1_ps(threshold);
