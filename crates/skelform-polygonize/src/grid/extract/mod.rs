@@ -36,7 +36,7 @@ pub use streaming::{
 };
 
 use numbering::{Counted, LayerNumbering, ZNumbering};
-use signs::{for_each_mixed_cube, layer_signs, prefetch};
+use signs::{for_each_mixed_cube, layer_signs, prefetch, row_classes};
 use slabs::{SlabStore, run_slabs};
 
 /// Cube layers per slab. A constant, so that results never depend on the thread count.
@@ -303,6 +303,9 @@ struct Scratch {
     /// Sign words of the sample layers below and above the current layer of cubes.
     below: Vec<u64>,
     above: Vec<u64>,
+    /// The classes of those layers' rows (all outside, all inside, mixed).
+    below_classes: Vec<u8>,
+    above_classes: Vec<u8>,
     /// The numbered x/y-edges of those two layers, and the z-edges between them.
     lower: LayerNumbering,
     upper: LayerNumbering,
@@ -320,6 +323,8 @@ impl Scratch {
         Scratch {
             below: vec![0; ny * words],
             above: vec![0; ny * words],
+            below_classes: Vec::with_capacity(ny),
+            above_classes: Vec::with_capacity(ny),
             lower: LayerNumbering::default(),
             upper: LayerNumbering::default(),
             z: ZNumbering::default(),
@@ -548,7 +553,7 @@ fn extract_slab<V: SlabVertex, L: Level>(
     let [nx, ny, nz] = grid.dims;
     let layer = nx * ny;
     let last = z1 == nz - 1;
-    let Scratch { below, above, lower, upper, z, .. } = scratch;
+    let Scratch { below, above, below_classes, above_classes, lower, upper, z, .. } = scratch;
     let level = near.level;
     let vals = &near.values[(z0 - near.first) * layer..];
     let local = |k: usize| &vals[(k - z0) * layer..(k - z0 + 1) * layer];
@@ -559,7 +564,8 @@ fn extract_slab<V: SlabVertex, L: Level>(
     let words = nx.div_ceil(64);
     let threshold = level.threshold();
     layer_signs(local(z0), nx, words, below, threshold);
-    lower.build(below, nx, ny, words);
+    row_classes(below, nx, words, below_classes);
+    lower.build(below, below_classes, nx, ny, words);
     store.begin();
     if V::READS_NEAR {
         // The records of the first layer of cubes read the layers from z0 − 1 to z0 + 2;
@@ -578,7 +584,8 @@ fn extract_slab<V: SlabVertex, L: Level>(
             return Err(Cancelled);
         }
         layer_signs(local(k + 1), nx, words, above, threshold);
-        upper.build(above, nx, ny, words);
+        row_classes(above, nx, words, above_classes);
+        upper.build(above, above_classes, nx, ny, words);
         // The x- and y-edges on the slab's top layer belong to the slab above (except for
         // the last slab, which owns the volume's top): refer to them by number.
         if k + 1 == z1 && !last {
@@ -588,7 +595,7 @@ fn extract_slab<V: SlabVertex, L: Level>(
             upper.offset = store.made();
             upper.emit(grid, local(k + 1), near, k + 1, store);
         }
-        z.build(below, above, nx, words);
+        z.build((below, below_classes), (above, above_classes), nx, words);
         z.offset = store.made();
         z.emit(grid, local(k), local(k + 1), near, k, store);
         let mut sink = SlabSink {
@@ -618,7 +625,8 @@ fn extract_slab<V: SlabVertex, L: Level>(
                 near.prefetch_rows(k + 3, j..end);
             }
         };
-        for_each_mixed_cube(below, above, nx, ny, fetch, |i, j, case| {
+        let layers = ((&below[..], &below_classes[..]), (&above[..], &above_classes[..]));
+        for_each_mixed_cube(layers.0, layers.1, nx, ny, fetch, |i, j, case| {
             let base = nx * j + layer * (k - z0) + i;
             // One bounds check for the cube's eight samples rather than one each.
             let cube = &vals[base..=base + offsets[7]];
@@ -634,6 +642,7 @@ fn extract_slab<V: SlabVertex, L: Level>(
             tunnels += outcome.tunnel as u64;
         });
         std::mem::swap(below, above);
+        std::mem::swap(below_classes, above_classes);
         std::mem::swap(lower, upper);
     }
     store.finish();
@@ -761,35 +770,163 @@ mod tests {
         }
     }
 
-    #[test]
-    fn layer_numbers_are_the_crossed_edges_in_row_order() {
-        let (nx, ny) = (70, 5);
-        let values = noise(nx * ny, 7);
-        let words = nx.div_ceil(64);
-        let mut signs = vec![0; ny * words];
-        layer_signs(&values, nx, words, &mut signs, 0.0);
-        let mut numbers = LayerNumbering::default();
-        numbers.build(&signs, nx, ny, words);
-        let inside = |i: usize, j: usize| values[i + nx * j] < 0.0;
-        let mut expected = 0;
-        for j in 0..ny {
-            for i in 0..nx - 1 {
-                if inside(i, j) != inside(i + 1, j) {
-                    assert_eq!(numbers.number(0, i, j), expected, "x-edge ({i}, {j})");
-                    expected += 1;
-                }
-            }
-            if j + 1 == ny {
-                continue;
-            }
-            for i in 0..nx {
-                if inside(i, j) != inside(i, j + 1) {
-                    assert_eq!(numbers.number(1, i, j), expected, "y-edge ({i}, {j})");
-                    expected += 1;
-                }
+    /// A layer of `ny` rows of `nx` samples whose rows are, by `pattern` (cycled): `b'o'` all
+    /// outside, `b'i'` all inside, `b'n'` noise (both signs, some exact zeros).
+    fn patterned(nx: usize, ny: usize, pattern: &[u8], seed: u64) -> Vec<f32> {
+        let mut values = noise(nx * ny, seed);
+        for (j, row) in values.chunks_mut(nx).enumerate() {
+            match pattern[j % pattern.len()] {
+                b'o' => row.iter_mut().for_each(|v| *v = 0.5),
+                b'i' => row.iter_mut().for_each(|v| *v = -0.5),
+                _ => {}
             }
         }
-        assert_eq!(numbers.total, expected);
+        values
+    }
+
+    /// Sign words and row classes of a layer.
+    fn signs_of(values: &[f32], nx: usize) -> (Vec<u64>, Vec<u8>) {
+        let words = nx.div_ceil(64);
+        let mut signs = vec![0; values.len() / nx * words];
+        layer_signs(values, nx, words, &mut signs, 0.0);
+        let mut classes = Vec::new();
+        row_classes(&signs, nx, words, &mut classes);
+        (signs, classes)
+    }
+
+    /// Rows of every kind next to every kind, for rows that end mid-word and rows of whole
+    /// words (where the "all inside" test must not look past the row).
+    const PATTERNS: [&[u8]; 2] = [b"ooiinoinnniioion", b"ionnoooiii"];
+
+    /// The numbers of a layer's crossed x- and y-edges are their ranks in row order, and the
+    /// emit order visits exactly the crossed edges in that order, also when the numbering
+    /// held an earlier layer's edges (rows with no crossed edge are passed over, their
+    /// words left stale) and rows are all inside or all outside.
+    #[test]
+    fn layer_numbers_are_the_crossed_edges_in_row_order() {
+        let ny = 19;
+        for nx in [70usize, 128, 3] {
+            for (p, pattern) in PATTERNS.iter().enumerate() {
+                let words = nx.div_ceil(64);
+                let mut numbers = LayerNumbering::default();
+                // First a layer of noise everywhere, whose words the next build leaves
+                // where its rows have no crossed edge.
+                let (stale, stale_classes) = signs_of(&noise(nx * ny, 11), nx);
+                numbers.build(&stale, &stale_classes, nx, ny, words);
+                let values = patterned(nx, ny, pattern, 7 + p as u64);
+                let (signs, classes) = signs_of(&values, nx);
+                numbers.build(&signs, &classes, nx, ny, words);
+                let inside = |i: usize, j: usize| values[i + nx * j] < 0.0;
+                let mut expected = Vec::new();
+                assert_eq!(classes.len(), ny);
+                for (j, &got) in classes.iter().enumerate() {
+                    let all: Vec<bool> = (0..nx).map(|i| inside(i, j)).collect();
+                    let class = if all.iter().all(|&b| b) {
+                        signs::ROW_IN
+                    } else if all.iter().any(|&b| b) {
+                        signs::ROW_MIXED
+                    } else {
+                        signs::ROW_OUT
+                    };
+                    assert_eq!(got, class, "class of row {j}, nx {nx}");
+                    for i in 0..nx - 1 {
+                        if inside(i, j) != inside(i + 1, j) {
+                            expected.push((0, i, j));
+                        }
+                    }
+                    if j + 1 < ny {
+                        for i in 0..nx {
+                            if inside(i, j) != inside(i, j + 1) {
+                                expected.push((1, i, j));
+                            }
+                        }
+                    }
+                }
+                let mut visited = Vec::new();
+                numbers.for_each_edge(
+                    ny,
+                    &mut visited,
+                    |v, i, j| v.push((0, i, j)),
+                    |v, i, j| v.push((1, i, j)),
+                );
+                assert_eq!(visited, expected, "nx {nx}, pattern {p}");
+                for (n, &(axis, i, j)) in expected.iter().enumerate() {
+                    assert_eq!(numbers.number(axis, i, j), n as u32, "edge {axis} ({i}, {j})");
+                }
+                assert_eq!(numbers.total as usize, expected.len());
+            }
+        }
+    }
+
+    /// The z-edges between two layers with rows all inside or all outside in one or both:
+    /// numbered and visited in row order, over stale words of an earlier pair of layers.
+    #[test]
+    fn z_numbers_are_the_crossed_edges_in_row_order() {
+        let ny = 23;
+        for nx in [70usize, 128] {
+            let words = nx.div_ceil(64);
+            let mut numbers = ZNumbering::default();
+            let (a, ac) = signs_of(&noise(nx * ny, 1), nx);
+            let (b, bc) = signs_of(&noise(nx * ny, 2), nx);
+            numbers.build((&a, &ac), (&b, &bc), nx, words);
+            let lower = patterned(nx, ny, PATTERNS[0], 3);
+            let upper = patterned(nx, ny, PATTERNS[1], 4);
+            let ((a, ac), (b, bc)) = (signs_of(&lower, nx), signs_of(&upper, nx));
+            numbers.build((&a, &ac), (&b, &bc), nx, words);
+            let mut expected = Vec::new();
+            for j in 0..ny {
+                for i in 0..nx {
+                    if (lower[i + nx * j] < 0.0) != (upper[i + nx * j] < 0.0) {
+                        expected.push((i, j));
+                    }
+                }
+            }
+            let mut visited = Vec::new();
+            numbers.for_each_edge(|i, j| visited.push((i, j)));
+            assert_eq!(visited, expected, "nx {nx}");
+            for (n, &(i, j)) in expected.iter().enumerate() {
+                assert_eq!(numbers.number(i, j), n as u32, "z-edge ({i}, {j})");
+            }
+        }
+    }
+
+    /// The cube loop visits exactly the cubes with corners of both signs, in row order,
+    /// with their corner cases, when whole rows are all inside or all outside.
+    #[test]
+    fn mixed_cubes_are_found_past_uniform_rows() {
+        let ny = 21;
+        for nx in [70usize, 128, 2] {
+            let lower = patterned(nx, ny, PATTERNS[0], 5);
+            let upper = patterned(nx, ny, PATTERNS[1], 6);
+            let (below, upper_layer) = (signs_of(&lower, nx), signs_of(&upper, nx));
+            let mut visited = Vec::new();
+            let below_layer = (&below.0[..], &below.1[..]);
+            let above_layer = (&upper_layer.0[..], &upper_layer.1[..]);
+            signs::for_each_mixed_cube(
+                below_layer,
+                above_layer,
+                nx,
+                ny,
+                |_| {},
+                |i, j, case| visited.push((i, j, case)),
+            );
+            let inside = |i: usize, j: usize, z: usize| {
+                (if z == 0 { &lower } else { &upper })[i + nx * j] < 0.0
+            };
+            let mut expected = Vec::new();
+            for j in 0..ny - 1 {
+                for i in 0..nx - 1 {
+                    let case = (0..8usize).fold(0usize, |c, b| {
+                        c | (inside(i + (b & 1), j + (b >> 1 & 1), b >> 2) as usize) << b
+                    });
+                    if case != 0 && case != 255 {
+                        expected.push((i, j, case));
+                    }
+                }
+            }
+            assert!(!expected.is_empty());
+            assert_eq!(visited, expected, "nx {nx}");
+        }
     }
 
     /// Slabs of very different sizes (empty ones, then dense noise) finish out of order on

@@ -6,7 +6,7 @@
 
 use skelform_field::grid::{Grid, Level};
 
-use super::signs::word_mask;
+use super::signs::{ROW_MIXED, same_uniform, word_mask};
 use super::slabs::SlabStore;
 use super::{GridVertex, Near, Place, SlabVertex};
 use crate::grid::cell::crossing;
@@ -36,8 +36,12 @@ impl Counted {
 pub(super) struct LayerNumbering {
     pub(super) words: usize,
     /// Per row and word, the crossed x- and y-edges.
+    /// Words of rows with no crossed edge (not in `live`) are left as an earlier layer
+    /// had them: nothing reads them, since a cube asks only for its crossed edges' numbers.
     pub(super) x: Vec<Counted>,
     pub(super) y: Vec<Counted>,
+    /// The rows with crossed x-edges, or y-edges to the next row, in order.
+    live: Vec<u32>,
     pub(super) total: u32,
     /// The number of the layer's first vertex in its slab's output, or [`BORROWED`] when
     /// the layer's vertices are the next slab's.
@@ -45,14 +49,29 @@ pub(super) struct LayerNumbering {
 }
 
 impl LayerNumbering {
-    /// Numbers the edges of a layer of `ny` rows of sign words (see [`layer_signs`]).
-    pub(super) fn build(&mut self, signs: &[u64], nx: usize, ny: usize, words: usize) {
+    /// Numbers the edges of a layer of `ny` rows of sign words (see [`layer_signs`]), whose
+    /// rows' classes are `classes` ([`row_classes`](super::signs::row_classes)): a row all inside or all outside, like
+    /// the next row, has no crossed edge and is passed over.
+    pub(super) fn build(
+        &mut self,
+        signs: &[u64],
+        classes: &[u8],
+        nx: usize,
+        ny: usize,
+        words: usize,
+    ) {
         self.words = words;
         self.x.resize(ny * words, Counted::default());
         self.y.resize(ny * words, Counted::default());
+        self.live.clear();
         let (x_last, y_last) = (word_mask(words - 1, nx - 1), word_mask(words - 1, nx));
         let mut count = 0u32;
         for j in 0..ny {
+            let c = classes[j];
+            if c != ROW_MIXED && (j + 1 == ny || same_uniform(c, classes[j + 1])) {
+                continue;
+            }
+            self.live.push(j as u32);
             let row = &signs[j * words..][..words];
             let xs = &mut self.x[j * words..][..words];
             for w in 0..words {
@@ -83,19 +102,40 @@ impl LayerNumbering {
         store: &mut SlabStore<'_, V>,
     ) {
         let [nx, ny, _] = grid.dims;
-        for j in 0..ny {
-            let row = j * self.words..(j + 1) * self.words;
-            for_each_bit(&self.x[row.clone()], |i| {
+        // Two closures, one per axis, so that each loop makes its records with the axis a
+        // constant (one closure taking the axis is left as a call, the axis unknown in it).
+        self.for_each_edge(
+            ny,
+            store,
+            |store, i, j| {
                 let at = i + nx * j;
                 let ends = [near.level.sample(vals[at]), near.level.sample(vals[at + 1])];
                 store.push_vertex(edge_record(grid, [i, j, k], 0, ends, near));
-            });
+            },
+            |store, i, j| {
+                let at = i + nx * j;
+                let ends = [near.level.sample(vals[at]), near.level.sample(vals[at + nx])];
+                store.push_vertex(edge_record(grid, [i, j, k], 1, ends, near));
+            },
+        );
+    }
+
+    /// Calls `x(state, i, j)` or `y(state, i, j)` for each crossed x- or y-edge of the layer
+    /// (of `ny` rows) from sample `(i, j)`, in the order of their numbers.
+    #[inline(always)]
+    pub(super) fn for_each_edge<S>(
+        &self,
+        ny: usize,
+        state: &mut S,
+        mut x: impl FnMut(&mut S, usize, usize),
+        mut y: impl FnMut(&mut S, usize, usize),
+    ) {
+        for &j in &self.live {
+            let j = j as usize;
+            let row = j * self.words..(j + 1) * self.words;
+            for_each_bit(&self.x[row.clone()], |i| x(state, i, j));
             if j + 1 < ny {
-                for_each_bit(&self.y[row], |i| {
-                    let at = i + nx * j;
-                    let ends = [near.level.sample(vals[at]), near.level.sample(vals[at + nx])];
-                    store.push_vertex(edge_record(grid, [i, j, k], 1, ends, near));
-                });
+                for_each_bit(&self.y[row], |i| y(state, i, j));
             }
         }
     }
@@ -114,19 +154,38 @@ impl LayerNumbering {
 #[derive(Default)]
 pub(super) struct ZNumbering {
     pub(super) words: usize,
+    /// As in [`LayerNumbering`], the words of rows not in `live` are stale and unread.
     pub(super) edges: Vec<Counted>,
+    /// The rows with crossed z-edges, in order.
+    live: Vec<u32>,
     /// The output number of the first of them.
     pub(super) offset: u32,
 }
 
 impl ZNumbering {
-    pub(super) fn build(&mut self, lower: &[u64], upper: &[u64], nx: usize, words: usize) {
+    /// Numbers the z-edges between two layers of sign words, given their rows' classes
+    /// ([`row_classes`](super::signs::row_classes)): a row all inside, or all outside, in both layers is passed over.
+    pub(super) fn build(
+        &mut self,
+        (lower, lower_classes): (&[u64], &[u8]),
+        (upper, upper_classes): (&[u64], &[u8]),
+        nx: usize,
+        words: usize,
+    ) {
         self.words = words;
         self.edges.resize(lower.len(), Counted::default());
+        self.live.clear();
         let last = word_mask(words - 1, nx);
         let mut count = 0u32;
         let rows = lower.chunks_exact(words).zip(upper.chunks_exact(words));
-        for ((a, b), out) in rows.zip(self.edges.chunks_exact_mut(words)) {
+        let classes = lower_classes.iter().zip(upper_classes);
+        for (j, (((a, b), out), (&ca, &cb))) in
+            rows.zip(self.edges.chunks_exact_mut(words)).zip(classes).enumerate()
+        {
+            if same_uniform(ca, cb) {
+                continue;
+            }
+            self.live.push(j as u32);
             count_across(a, b, last, out, &mut count);
         }
     }
@@ -143,13 +202,27 @@ impl ZNumbering {
         store: &mut SlabStore<'_, V>,
     ) {
         let nx = grid.dims[0];
-        for (j, row) in self.edges.chunks(self.words).enumerate() {
-            for_each_bit(row, |i| {
-                let at = i + nx * j;
-                let ends = [near.level.sample(lower[at]), near.level.sample(upper[at])];
-                store.push_vertex(edge_record(grid, [i, j, k], 2, ends, near));
-            });
+        self.for_each_edge(|i, j| {
+            let at = i + nx * j;
+            let ends = [near.level.sample(lower[at]), near.level.sample(upper[at])];
+            store.push_vertex(edge_record(grid, [i, j, k], 2, ends, near));
+        });
+    }
+
+    /// Calls `f(i, j)` for each crossed z-edge from sample `(i, j)`, in the order of their
+    /// numbers.
+    #[inline(always)]
+    pub(super) fn for_each_edge(&self, mut f: impl FnMut(usize, usize)) {
+        for &j in &self.live {
+            let j = j as usize;
+            for_each_bit(&self.edges[j * self.words..][..self.words], |i| f(i, j));
         }
+    }
+
+    /// The number of the crossed z-edge from sample `(i, j)`.
+    #[cfg(test)]
+    pub(super) fn number(&self, i: usize, j: usize) -> u32 {
+        self.edges[j * self.words + i / 64].number(i)
     }
 }
 
