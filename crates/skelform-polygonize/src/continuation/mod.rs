@@ -297,11 +297,12 @@ fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats)
     run.finish()
 }
 
-/// The fewest points in a parallel batch of corners. A wave from one seed is small (the
-/// hand at 128 samples: 17 803 cubes, 35 321 corners, in waves of the surface's breadth
-/// in cubes), so that with at least 128 a batch most waves were one batch on one thread;
-/// with 32 each wave is several. The batches' overhead: 2% more instructions on the hand.
-const MIN_BATCH: usize = 32;
+/// The fewest points in a parallel batch of corners. A wave from one seed is small, so that
+/// most of the hand's waves are one batch on one thread. 32 was tried: on one thread it
+/// cost 2% more instructions on the hand (callgrind, 1.196 → 1.219 billion) and 10% more on
+/// random-1000 at 256 samples (5.388 → 5.923 billion: the culling's per-cell groups get
+/// small), and the two-thread gain could not be measured on the loaded machine.
+const MIN_BATCH: usize = 128;
 
 struct Run<'a> {
     field: &'a dyn Field,
@@ -370,7 +371,7 @@ impl<'a> Run<'a> {
     /// The batches' size depends on the number of points only, never on the thread count:
     /// a value is its point's alone (the [`Field`] contract), and even a field whose batch
     /// values depended on the batch would then still give the same mesh on any thread count.
-    /// Batches are small enough (a 16th of the points, at least [`MIN_BATCH`]) that a wave is
+    /// Batches are small enough (a 16th of the points, at least [`MIN_BATCH`]) that a large wave is
     /// shared among the threads, and large enough that a field which sorts a batch by region
     /// (the skeletons cull elements by cell) keeps its advantage.
     fn evaluate_corners(&mut self, cubes: &[[u32; 3]]) {
