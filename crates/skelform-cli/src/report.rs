@@ -36,6 +36,10 @@ pub fn print(
             s.triangles
         );
     }
+    if !meshed.painting.is_zero() {
+        // Outside the method's phases: colours are blended at the finished vertices.
+        outln!("painting      {:.3}s (vertex colours)", meshed.painting.as_secs_f64());
+    }
     outln!("writing       {:.3}s (total {:.3}s)", writing.as_secs_f64(), total.as_secs_f64());
     Ok(())
 }
@@ -68,6 +72,7 @@ pub fn json(
     }
     j["seconds"] = json!({
         "polygonize": meshed.elapsed.as_secs_f64(),
+        "painting": meshed.painting.as_secs_f64(),
         "writing": writing.as_secs_f64(),
         "total": total.as_secs_f64(),
     });

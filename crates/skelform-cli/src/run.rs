@@ -72,6 +72,8 @@ pub enum RootArg {
     RegulaFalsi,
     /// Bisection: the dissertation's, a fixed number of halvings.
     Bisection,
+    /// Continuation with an exact gradient: each vertex at the root of its edge's cubic from the corners' values and gradients, no evaluation (fewer than 3 evaluations per vertex; less accurate where a kernel ends inside an edge). Elsewhere regula falsi.
+    Hermite,
 }
 
 impl From<RootArg> for RootMethod {
@@ -79,6 +81,7 @@ impl From<RootArg> for RootMethod {
         match r {
             RootArg::RegulaFalsi => RootMethod::RegulaFalsi,
             RootArg::Bisection => RootMethod::Bisection,
+            RootArg::Hermite => RootMethod::Hermite,
         }
     }
 }

@@ -91,7 +91,7 @@ fn seed_problems_are_clear() {
     assert_eq!(r.status.code(), Some(2));
     assert!(
         text(&r.stderr).contains(
-            "invalid value 'newton' for '--root <ROOT>' [possible values: regula-falsi, bisection]"
+            "invalid value 'newton' for '--root <ROOT>' [possible values: regula-falsi, bisection, hermite]"
         ),
         "{}",
         text(&r.stderr)

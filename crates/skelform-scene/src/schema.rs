@@ -129,7 +129,7 @@ struct MeshSection {
     tolerance: Option<Spanned<f64>>,
     /// Continuation: points on or near the surface to start from.
     seeds: Option<Spanned<Vec<[f64; 3]>>>,
-    /// Continuation: root finder, "regula-falsi" (default) or "bisection".
+    /// Continuation: root finder, "regula-falsi" (default), "bisection" or "hermite".
     root: Option<Spanned<String>>,
     /// Continuation: most cubes to visit.
     max_cells: Option<Spanned<i64>>,
@@ -507,10 +507,13 @@ fn continuation_settings(
         c.root = match r.get_ref().as_str() {
             "regula-falsi" => RootMethod::RegulaFalsi,
             "bisection" => RootMethod::Bisection,
+            "hermite" => RootMethod::Hermite,
             other => {
                 return Err(cx.at(
                     r.span().start,
-                    format!("unknown root finder '{other}'; expected regula-falsi or bisection"),
+                    format!(
+                        "unknown root finder '{other}'; expected regula-falsi, bisection or hermite"
+                    ),
                 ));
             }
         };

@@ -200,6 +200,7 @@ impl Live {
         // Their union's box first: most vertices are far from an edit, and an edit can give
         // hundreds of boxes (see `SkeletonField::changes_since`).
         let all = boxes.iter().copied().reduce(|a, b| a.union(&b));
+        let painted = Instant::now();
         scene.paint_with(&mut mesh, method, o, |p| {
             let at = DVec3::from_array(p.map(f64::from));
             if all.is_some_and(|u| u.contains(at)) && boxes.iter().any(|b| b.contains(at)) {
@@ -207,10 +208,12 @@ impl Live {
             }
             old_colors.get(&key(p)).copied()
         });
+        let painting = painted.elapsed();
         let colors = mesh.positions.iter().map(key).zip(mesh.colors.iter().copied()).collect();
         self.last = Some(Last { skeleton, state, colors });
         self.run = Some(run);
-        Ok(Meshed { mesh, stats: Stats::Grid(stats), method, elapsed: started.elapsed() })
+        let elapsed = started.elapsed();
+        Ok(Meshed { mesh, stats: Stats::Grid(stats), method, elapsed, painting })
     }
 
     /// Progressive results (DIS §3.7: refinement during idle time): meshes `scene` at

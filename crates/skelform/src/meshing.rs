@@ -26,8 +26,11 @@ pub struct Meshed {
     pub stats: Stats,
     /// The method that ran (the scene's, or the override).
     pub method: Method,
-    /// Wall time of the polygonizer call.
+    /// Wall time of the polygonizer call, painting included.
     pub elapsed: Duration,
+    /// Of `elapsed`, the wall time of painting the vertices (element colours blended at
+    /// each vertex, texture coordinates): zero for a scene without colours or sweeps.
+    pub painting: Duration,
 }
 
 impl Meshed {
@@ -264,8 +267,10 @@ impl Scene {
         };
         let (mut mesh, stats) =
             result.map_err(|source| Error::Polygonize { origin: self.origin.clone(), source })?;
+        let painted = Instant::now();
         self.paint(&mut mesh, method, o);
-        Ok(Meshed { mesh, stats, method, elapsed: started.elapsed() })
+        let painting = painted.elapsed();
+        Ok(Meshed { mesh, stats, method, elapsed: started.elapsed(), painting })
     }
 
     /// Element colours blended at the vertices (DIS ch. 6), and texture coordinates from the
