@@ -7,14 +7,16 @@
 //! outside which the field did not change (bit for bit: the caller's promise, e.g.
 //! `SkeletonField::changes_since` in skelform-skeleton for skeletons), and
 //!
-//! 1. samples again only the lattice points within two cells of those boxes;
-//! 2. runs marching cubes again over the extraction slabs whose sample layers hold such a
-//!    point (a slab reads its own layers and nothing else) and splices them between the
+//! 1. samples again only the lattice points in those boxes (grown by a rounding guard);
+//! 2. runs marching cubes again over the extraction slabs whose sample layers hold a point
+//!    within a cell of them (a slab reads its own layers and nothing else; the changed
+//!    samples are among those points) and splices them between the
 //!    last run's slabs below and above, which gives the fresh run's vertices and triangles,
 //!    in its order, since the volume is now the fresh run's volume;
-//! 3. takes each vertex whose lattice edge has both ends outside the re-sampled points from
-//!    the last run (root finding along that edge evaluated the field only where it did not
-//!    change, from the same end samples, so it would find the same root), and places the
+//! 3. takes each vertex whose lattice edge has both ends farther than a cell from the boxes
+//!    from the last run (the edge misses them: root finding along it evaluated the field only
+//!    where it did not change, from the same end samples, so it would find the same root),
+//!    and places the
 //!    others (root finding, gradient normals) as a fresh run does.
 //!
 //! Why the result is the fresh run's mesh, bit for bit: the samples are the same (the
@@ -40,9 +42,16 @@ use crate::refine::{
     Bracket, RootOptions, fill_from_faces, refine_roots, refine_roots_until, unit_gradients,
 };
 
-/// Cells of margin around a changed box: one so that every lattice edge that meets the box
-/// has both ends re-sampled, one more against rounding in the conversion to indices.
-const MARGIN: f64 = 2.0;
+/// Cells of margin around a changed box for the points sampled again: the field changed only
+/// inside the box, so only a guard against rounding in the conversion to indices (the boxes
+/// are grown by a hair already).
+const SAMPLE_MARGIN: f64 = 0.01;
+
+/// Cells of margin around a changed box for the vertices placed again: root finding along a
+/// lattice edge evaluates the field between its ends, so a vertex is taken from the last run
+/// only when its edge misses every box, which holds when an end lies farther than a cell
+/// from each (an edge spans at most a cell along each axis), plus the rounding guard.
+const EDGE_MARGIN: f64 = 1.0 + SAMPLE_MARGIN;
 
 /// What the last grid run keeps for the next (see the module documentation).
 #[derive(Clone, Debug)]
@@ -307,7 +316,7 @@ impl GridState {
                     Vec::new()
                 };
                 reused = n - added;
-                let inside = |p: [u32; 3]| dirty.get(p);
+                let inside = |p: [u32; 3]| dirty.near(p);
                 let clean = |v: &GridVertex| match v.tip() {
                     Some(tip) => !inside(v.base) && !inside(tip),
                     None => false,
@@ -456,13 +465,18 @@ impl GridState {
     }
 }
 
-/// The lattice points sampled again: those within [`MARGIN`] cells of a changed box, as
-/// one bit per lattice point (boxes of neighbouring elements overlap, and their bounding box
-/// would hold far more points than they do).
+/// The lattice points sampled again (those in a changed box, [`SAMPLE_MARGIN`]) and the
+/// points near the change (within [`EDGE_MARGIN`] cells of a box: a vertex whose edge has
+/// an end among them is placed again), each as one bit per lattice point (boxes of
+/// neighbouring elements overlap, and their bounding box would hold far more points than
+/// they do).
 struct Dirty {
     dims: [usize; 3],
-    bits: Vec<u64>,
-    /// The lowest and highest sample layer with a marked point.
+    /// The points sampled again.
+    sampled: Vec<u64>,
+    /// The points near the change (a superset of `sampled`).
+    near: Vec<u64>,
+    /// The lowest and highest sample layer with a point near the change.
     layers: Option<(usize, usize)>,
 }
 
@@ -470,69 +484,61 @@ impl Dirty {
     fn new(grid: &Grid, changed: &[Aabb]) -> Dirty {
         let dims = grid.dims;
         let count = dims[0] * dims[1] * dims[2];
-        let mut d = Dirty { dims, bits: vec![0; count.div_ceil(64)], layers: None };
+        let words = count.div_ceil(64);
+        let mut d = Dirty { dims, sampled: vec![0; words], near: vec![0; words], layers: None };
         let top = dims.map(|n| n.saturating_sub(1));
-        for c in changed {
-            let lo = (c.min - grid.origin) / grid.cell - DVec3::splat(MARGIN);
-            let hi = (c.max - grid.origin) / grid.cell + DVec3::splat(MARGIN);
-            let (a, b): ([usize; 3], [usize; 3]) = if lo.is_finite() && hi.is_finite() {
-                if (0..3).any(|i| hi[i] < 0.0 || lo[i] > top[i] as f64) {
-                    continue;
-                }
-                (
-                    std::array::from_fn(|i| lo[i].floor().max(0.0) as usize),
-                    std::array::from_fn(|i| hi[i].ceil().min(top[i] as f64) as usize),
-                )
-            } else {
+        // The points within `margin` cells of `c`, as the lowest and highest index along
+        // each axis; `None` when there are none.
+        let span = |c: &Aabb, margin: f64| -> Option<([usize; 3], [usize; 3])> {
+            let lo = (c.min - grid.origin) / grid.cell - DVec3::splat(margin);
+            let hi = (c.max - grid.origin) / grid.cell + DVec3::splat(margin);
+            if !(lo.is_finite() && hi.is_finite()) {
                 // A box that is not finite covers everything.
-                ([0; 3], top)
+                return Some(([0; 3], top));
+            }
+            if (0..3).any(|i| hi[i] < 0.0 || lo[i] > top[i] as f64) {
+                return None;
+            }
+            let a: [usize; 3] = std::array::from_fn(|i| lo[i].ceil().max(0.0) as usize);
+            let b: [usize; 3] = std::array::from_fn(|i| hi[i].floor().min(top[i] as f64) as usize);
+            (0..3).all(|i| a[i] <= b[i]).then_some((a, b))
+        };
+        for c in changed {
+            let Some((a, b)) = span(c, EDGE_MARGIN) else {
+                continue;
             };
             d.layers = Some(d.layers.map_or((a[2], b[2]), |(lo, hi)| (lo.min(a[2]), hi.max(b[2]))));
-            for k in a[2]..=b[2] {
-                for j in a[1]..=b[1] {
-                    let row = dims[0] * (j + dims[1] * k);
-                    d.mark(row + a[0], row + b[0]);
-                }
+            mark_box(&mut d.near, dims, a, b);
+            if let Some((a, b)) = span(c, SAMPLE_MARGIN) {
+                mark_box(&mut d.sampled, dims, a, b);
             }
         }
         d
     }
 
-    /// Marks the points `first..=last` (of one row), a word at a time. Why: an edit of
-    /// skewed elements gives many small overlapping boxes (`changes_since` covers an
-    /// element's reach piece by piece), and marking them a bit at a time cost more than the
-    /// points they spared.
-    fn mark(&mut self, first: usize, last: usize) {
-        let (w0, w1) = (first / 64, last / 64);
-        let from = u64::MAX << (first % 64);
-        let to = u64::MAX >> (63 - last % 64);
-        if w0 == w1 {
-            self.bits[w0] |= from & to;
-            return;
-        }
-        self.bits[w0] |= from;
-        for w in &mut self.bits[w0 + 1..w1] {
-            *w = u64::MAX;
-        }
-        self.bits[w1] |= to;
-    }
-
-    /// The lowest and highest sample layer sampled again, if any.
+    /// The lowest and highest sample layer with a point near the change, if any.
     fn layers(&self) -> Option<(usize, usize)> {
         self.layers
     }
 
-    /// Whether lattice point `p` is sampled again.
-    fn get(&self, p: [u32; 3]) -> bool {
+    /// Whether lattice point `p` is near the change (a vertex on an edge from it is placed
+    /// again).
+    fn near(&self, p: [u32; 3]) -> bool {
         let [i, j, k] = p.map(|x| x as usize);
         let n = i + self.dims[0] * (j + self.dims[1] * k);
-        self.bits[n / 64] >> (n % 64) & 1 == 1
+        self.near[n / 64] >> (n % 64) & 1 == 1
     }
 
     /// The indices of the points sampled again, ascending.
     fn points(&self) -> Vec<usize> {
         let mut out = Vec::new();
-        for (w, &bits) in self.bits.iter().enumerate() {
+        // Only the words of the layers near the change can hold one.
+        let layer = self.dims[0] * self.dims[1];
+        let words = match self.layers {
+            Some((lo, hi)) => lo * layer / 64..((hi + 1) * layer).div_ceil(64),
+            None => 0..0,
+        };
+        for (w, &bits) in self.sampled.iter().enumerate().skip(words.start).take(words.len()) {
             let mut b = bits;
             while b != 0 {
                 out.push(w * 64 + b.trailing_zeros() as usize);
@@ -541,6 +547,34 @@ impl Dirty {
         }
         out
     }
+}
+
+/// Marks the points of the box `a..=b` (lattice indices) in `bits`, a row at a time.
+fn mark_box(bits: &mut [u64], dims: [usize; 3], a: [usize; 3], b: [usize; 3]) {
+    for k in a[2]..=b[2] {
+        for j in a[1]..=b[1] {
+            let row = dims[0] * (j + dims[1] * k);
+            mark(bits, row + a[0], row + b[0]);
+        }
+    }
+}
+
+/// Marks the points `first..=last` (of one row), a word at a time. Why: an edit of skewed
+/// elements gives many small overlapping boxes (`changes_since` covers an element's reach
+/// piece by piece), and marking them a bit at a time cost more than the points they spared.
+fn mark(bits: &mut [u64], first: usize, last: usize) {
+    let (w0, w1) = (first / 64, last / 64);
+    let from = u64::MAX << (first % 64);
+    let to = u64::MAX >> (63 - last % 64);
+    if w0 == w1 {
+        bits[w0] |= from & to;
+        return;
+    }
+    bits[w0] |= from;
+    for w in &mut bits[w0 + 1..w1] {
+        *w = u64::MAX;
+    }
+    bits[w1] |= to;
 }
 
 #[cfg(test)]
@@ -552,10 +586,10 @@ mod tests {
     #[test]
     fn marking_a_row_sets_exactly_its_points() {
         for (first, last) in [(0, 0), (3, 9), (0, 63), (63, 64), (5, 200), (64, 127), (70, 250)] {
-            let mut d = Dirty { dims: [256, 1, 1], bits: vec![0; 4], layers: None };
-            d.mark(first, last);
+            let mut bits = vec![0; 4];
+            mark(&mut bits, first, last);
             for n in 0..256 {
-                let set = d.bits[n / 64] >> (n % 64) & 1 == 1;
+                let set = bits[n / 64] >> (n % 64) & 1 == 1;
                 assert_eq!(set, (first..=last).contains(&n), "{first}..={last}: point {n}");
             }
         }
