@@ -62,6 +62,11 @@ pub struct GridState {
     /// Unit gradient normals, zero where the gradient vanished (empty without normals).
     gradients: Vec<[f32; 3]>,
     triangles: Vec<[u32; 3]>,
+    /// The vertices inside a cell (placed again by every run), ascending.
+    cells: Vec<u32>,
+    /// How the last update's vertices relate to the run's before it (`None` after a run from
+    /// scratch).
+    map: Option<VertexMap>,
     /// What each extraction slab made, in slab order (the vertices and triangles above are
     /// the slabs' one after the other).
     slabs: Vec<SlabCounts>,
@@ -77,6 +82,18 @@ pub struct GridState {
     refine: bool,
     tolerance: f64,
     normals: bool,
+}
+
+/// How an update's vertices relate to the last run's: the vertices below `start` kept their
+/// numbers, those from `start + added` on are the last run's from `start + removed` on, and
+/// `kept` lists the vertices of the range between that were taken from the last run, as
+/// (new number, old number), ascending.
+#[derive(Clone, Debug, Default)]
+struct VertexMap {
+    start: usize,
+    removed: usize,
+    added: usize,
+    kept: Vec<(u32, u32)>,
 }
 
 /// What an update reused and what it redid.
@@ -124,6 +141,8 @@ pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats, 
             positions: Vec::new(),
             gradients: Vec::new(),
             triangles: Vec::new(),
+            cells: Vec::new(),
+            map: None,
             slabs: Vec::new(),
             whole: true,
             pending: Vec::new(),
@@ -148,6 +167,26 @@ impl GridState {
     /// The lattice the state was sampled on.
     pub fn grid(&self) -> &Grid {
         &self.volume.grid
+    }
+
+    /// After an update that re-meshed only the changed part: the number, in the run before,
+    /// of this run's vertex `i` when it was taken from that run, at the same place and with
+    /// the same normal, on a lattice edge that misses every changed box (so anything
+    /// computed from its position alone, outside those boxes, is unchanged too); `None` for
+    /// a vertex placed again, and for every vertex after a run from scratch.
+    pub fn previous_vertex(&self, i: usize) -> Option<usize> {
+        let m = self.map.as_ref()?;
+        if i >= self.vertices.len() || self.cells.binary_search(&(i as u32)).is_ok() {
+            return None;
+        }
+        if i < m.start {
+            Some(i)
+        } else if i >= m.start + m.added {
+            Some(i - m.added + m.removed)
+        } else {
+            let k = m.kept.binary_search_by_key(&(i as u32), |&(new, _)| new).ok()?;
+            Some(m.kept[k].1 as usize)
+        }
     }
 
     /// Whether a run with `options` can update this state (the same lattice, root finding
@@ -299,6 +338,18 @@ impl GridState {
         // The vertices placed here.
         let mut fresh: Vec<usize> = Vec::new();
         let mut reused = 0;
+        // The vertices inside a cell: the last run's below and above the range (renumbered)
+        // and the range's own, without a pass over every vertex.
+        let old_cells = std::mem::take(&mut self.cells);
+        let cells: Vec<usize> = if full {
+            (0..n).filter(|&i| key(&vertices[i]).is_none()).collect()
+        } else {
+            let below = old_cells.iter().take_while(|&&i| (i as usize) < v0).map(|&i| i as usize);
+            let range = (v0..).zip(&new_vertices).filter(|(_, v)| key(v).is_none()).map(|(i, _)| i);
+            let above = old_cells.iter().filter(|&&i| i as usize >= v1).map(|&i| shift(i) as usize);
+            below.chain(range).chain(above).collect()
+        };
+        let mut vertex_map = None;
         match dirty {
             _ if full => {
                 positions = vertices.iter().map(|v| v.position(&grid)).collect();
@@ -322,6 +373,7 @@ impl GridState {
                     None => false,
                 };
                 let old = &old;
+                let mut kept: Vec<(u32, u32)> = Vec::new();
                 let mut j = 0;
                 let mut map: Option<rustc_hash::FxHashMap<([u32; 3], u8), usize>> = None;
                 for (i, v) in (v0..).zip(&new_vertices) {
@@ -357,6 +409,7 @@ impl GridState {
                     };
                     match found {
                         Some(o) => {
+                            kept.push((i as u32, (v0 + o) as u32));
                             positions[i] = old_positions[o];
                             if want_normals {
                                 gradients[i] = old_gradients[o];
@@ -366,13 +419,13 @@ impl GridState {
                         None => fresh.push(i),
                     }
                 }
+                vertex_map = Some(VertexMap { start: v0, removed: v1 - v0, added, kept });
             }
         }
 
         // Root finding for the fresh edge vertices; every cell vertex is placed again, as a
         // fresh run places it (after the edge vertices: whether a ring moves depends on
         // their positions, and the second try's Newton steps stop per batch).
-        let cells: Vec<usize> = (0..n).filter(|&i| key(&vertices[i]).is_none()).collect();
         if lattice.refine {
             let roots = RootOptions {
                 tolerance: lattice.tolerance,
@@ -459,6 +512,8 @@ impl GridState {
         self.positions = positions;
         self.gradients = gradients;
         self.triangles = triangles;
+        self.cells = cells.iter().map(|&i| i as u32).collect();
+        self.map = vertex_map;
         self.slabs = slab_counts;
         self.whole = true;
         Ok((mesh, reused))
