@@ -57,19 +57,16 @@ const EDGE_MARGIN: f64 = 1.0 + SAMPLE_MARGIN;
 #[derive(Clone, Debug)]
 pub struct GridState {
     volume: Volume,
-    vertices: Vec<GridVertex>,
-    positions: Vec<DVec3>,
-    /// Unit gradient normals, zero where the gradient vanished (empty without normals).
-    gradients: Vec<[f32; 3]>,
-    triangles: Vec<[u32; 3]>,
+    /// What each extraction slab made, in slab order (the mesh's vertices and triangles are
+    /// the slabs' one after the other).
+    slabs: Vec<Slab>,
+    /// The vertices of all slabs.
+    vertex_count: usize,
     /// The vertices inside a cell (placed again by every run), ascending.
     cells: Vec<u32>,
     /// How the last update's vertices relate to the run's before it (`None` after a run from
     /// scratch).
     map: Option<VertexMap>,
-    /// What each extraction slab made, in slab order (the vertices and triangles above are
-    /// the slabs' one after the other).
-    slabs: Vec<SlabCounts>,
     /// False while an update replaces vertices: one that failed there leaves a state the
     /// next update must not trust.
     whole: bool,
@@ -82,6 +79,19 @@ pub struct GridState {
     refine: bool,
     tolerance: f64,
     normals: bool,
+}
+
+/// What one extraction slab made: its vertices (lattice places, positions, gradients) and
+/// triangles, which number the vertices from the slab's first (those past its own are the
+/// next slab's first ones: the layer they share).
+#[derive(Clone, Debug)]
+struct Slab {
+    counts: SlabCounts,
+    vertices: Vec<GridVertex>,
+    positions: Vec<DVec3>,
+    /// Unit gradient normals, zero where the gradient vanished (empty without normals).
+    gradients: Vec<[f32; 3]>,
+    triangles: Vec<[u32; 3]>,
 }
 
 /// How an update's vertices relate to the last run's: the vertices below `start` kept their
@@ -137,13 +147,10 @@ pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats, 
         (stats.min_sample, stats.max_sample) = volume.value_range();
         let mut state = GridState {
             volume,
-            vertices: Vec::new(),
-            positions: Vec::new(),
-            gradients: Vec::new(),
-            triangles: Vec::new(),
+            slabs: Vec::new(),
+            vertex_count: 0,
             cells: Vec::new(),
             map: None,
-            slabs: Vec::new(),
             whole: true,
             pending: Vec::new(),
             refine: lattice.refine,
@@ -176,7 +183,7 @@ impl GridState {
     /// a vertex placed again, and for every vertex after a run from scratch.
     pub fn previous_vertex(&self, i: usize) -> Option<usize> {
         let m = self.map.as_ref()?;
-        if i >= self.vertices.len() || self.cells.binary_search(&(i as u32)).is_ok() {
+        if i >= self.vertex_count || self.cells.binary_search(&(i as u32)).is_ok() {
             return None;
         }
         if i < m.start {
@@ -214,7 +221,7 @@ impl GridState {
     ) -> Result<(Mesh, Stats, Reuse), Error> {
         if !self.matches(options) {
             let (mesh, stats, state) = polygonize(field, options)?;
-            let placed = state.vertices.len();
+            let placed = state.vertex_count;
             *self = state;
             let reuse = Reuse {
                 resampled: stats.samples,
@@ -265,6 +272,10 @@ impl GridState {
     /// Extraction over the held volume, vertex placement (reusing the old vertices outside
     /// `dirty` when given), normals; the state takes the new vertices. Returns the mesh and
     /// how many vertices were reused.
+    ///
+    /// The state is held slab by slab, so an update replaces the slabs it extracted again
+    /// and leaves the others where they are: what it does in proportion to the whole mesh is
+    /// writing the mesh it returns (positions, normals, triangles renumbered).
     fn finish(
         &mut self,
         field: &dyn Field,
@@ -275,14 +286,17 @@ impl GridState {
         let lattice = &options.lattice;
         let workspace = options.workspace.as_deref().unwrap_or(grid::Workspace::shared());
         let grid = self.volume.grid;
-        let slabs = slab_count(&grid);
-        // The slabs to extract: all, or those whose sample layers hold a re-sampled point
-        // (slab `s` reads layers `s·SLAB ..= (s + 1)·SLAB`). The others are the last run's.
-        let full = dirty.is_none() || self.slabs.len() != slabs;
+        let slab_total = slab_count(&grid);
+        // The slabs to extract: all, or those whose sample layers hold a point near the
+        // change (slab `s` reads layers `s·SLAB ..= (s + 1)·SLAB`). The others are the last
+        // run's.
+        let full = dirty.is_none() || self.slabs.len() != slab_total;
         let range = match dirty.map(Dirty::layers) {
-            _ if full => 0..slabs,
+            _ if full => 0..slab_total,
             None | Some(None) => 0..0,
-            Some(Some((lo, hi))) => lo.div_ceil(SLAB).saturating_sub(1)..(hi / SLAB + 1).min(slabs),
+            Some(Some((lo, hi))) => {
+                lo.div_ceil(SLAB).saturating_sub(1)..(hi / SLAB + 1).min(slab_total)
+            }
         };
         let t = Instant::now();
         let (new_vertices, new_triangles, counts) = extract_slabs::<GridVertex, _>(
@@ -294,79 +308,87 @@ impl GridState {
             range.clone(),
             Default::default(),
         )?;
-        // Splice: the slabs below the range, the range, the slabs above it (their vertex
-        // numbers shifted by what the range gained or lost).
-        let before = |n: usize| {
-            self.slabs[..n].iter().fold([0, 0], |[v, t], c| [v + c.vertices, t + c.triangles])
-        };
-        let [v0, t0] = before(range.start);
-        let [v1, t1] = if range.end == slabs {
-            [self.vertices.len(), self.triangles.len()]
-        } else {
-            before(range.end)
-        };
-        // In place: only what lies above the range moves, and only when its size changed.
+        // The new slabs, each numbering its triangles from its own first vertex (a slab refers
+        // to nothing below it; its references to the layer above land past its own vertices,
+        // on the next slab's first ones, which is what they are in the held slabs too).
+        let mut pieces = Vec::with_capacity(counts.len());
+        let (mut vo, mut to) = (0, 0);
+        for c in &counts {
+            let first = vo as u32;
+            pieces.push(Slab {
+                counts: *c,
+                vertices: new_vertices[vo..vo + c.vertices].to_vec(),
+                positions: Vec::new(),
+                gradients: Vec::new(),
+                triangles: new_triangles[to..to + c.triangles]
+                    .iter()
+                    .map(|t| t.map(|i| i - first))
+                    .collect(),
+            });
+            vo += c.vertices;
+            to += c.triangles;
+        }
+        drop(new_triangles);
+        // Where the range starts, and what it held.
+        let v0: usize =
+            self.slabs[..range.start.min(self.slabs.len())].iter().map(|s| s.counts.vertices).sum();
         let added = new_vertices.len();
-        let shift = |i: u32| (i as i64 + added as i64 - (v1 - v0) as i64) as u32;
-        // From here on the vertex lists are being replaced: not to be trusted until done.
+        // From here on the slabs are being replaced: not to be trusted until done.
         self.whole = false;
-        let mut vertices = std::mem::take(&mut self.vertices);
-        let old: Vec<GridVertex> = vertices.splice(v0..v1, new_vertices.iter().copied()).collect();
-        let mut triangles = std::mem::take(&mut self.triangles);
-        let end = t0 + new_triangles.len();
-        triangles.splice(t0..t1, new_triangles.iter().map(|t| t.map(|i| i + v0 as u32)));
-        if added != v1 - v0 {
-            for t in &mut triangles[end..] {
-                *t = t.map(shift);
-            }
-        }
-        let mut slab_counts = std::mem::take(&mut self.slabs);
-        if full {
-            slab_counts = counts;
+        let old_pieces: Vec<Slab> = if full {
+            self.slabs = pieces;
+            Vec::new()
         } else {
-            slab_counts.splice(range.clone(), counts);
+            self.slabs.splice(range.clone(), pieces).collect()
+        };
+        let removed: usize = old_pieces.iter().map(|s| s.counts.vertices).sum();
+        let v1 = v0 + removed;
+        let shift = |i: u32| (i as i64 + added as i64 - removed as i64) as u32;
+        // The first vertex of each slab, and the number of vertices.
+        let mut starts = Vec::with_capacity(self.slabs.len() + 1);
+        let mut n = 0;
+        for s in &self.slabs {
+            starts.push(n);
+            n += s.counts.vertices;
         }
+        starts.push(n);
         stats.extraction = t.elapsed();
-        stats.ambiguous_faces = slab_counts.iter().map(|c| c.ambiguous_faces).sum();
-        stats.tunnels = slab_counts.iter().map(|c| c.tunnels).sum();
+        stats.ambiguous_faces = self.slabs.iter().map(|c| c.counts.ambiguous_faces).sum();
+        stats.tunnels = self.slabs.iter().map(|c| c.counts.tunnels).sum();
 
         let t = Instant::now();
-        let n = vertices.len();
         let want_normals = lattice.normals;
-        let mut positions = std::mem::take(&mut self.positions);
-        let mut gradients = std::mem::take(&mut self.gradients);
-        // The vertices placed here.
+        // The range's positions and gradients (the others are the held slabs'), by vertex
+        // number from `v0`.
+        let mut positions: Vec<DVec3> = new_vertices.iter().map(|v| v.position(&grid)).collect();
+        let mut gradients = vec![[0f32; 3]; if want_normals { added } else { 0 }];
+        // The range's vertices placed here, numbered from `v0`.
         let mut fresh: Vec<usize> = Vec::new();
         let mut reused = 0;
         // The vertices inside a cell: the last run's below and above the range (renumbered)
         // and the range's own, without a pass over every vertex.
         let old_cells = std::mem::take(&mut self.cells);
+        let range_cells =
+            (v0..).zip(&new_vertices).filter(|(_, v)| key(v).is_none()).map(|(i, _)| i);
         let cells: Vec<usize> = if full {
-            (0..n).filter(|&i| key(&vertices[i]).is_none()).collect()
+            range_cells.collect()
         } else {
             let below = old_cells.iter().take_while(|&&i| (i as usize) < v0).map(|&i| i as usize);
-            let range = (v0..).zip(&new_vertices).filter(|(_, v)| key(v).is_none()).map(|(i, _)| i);
             let above = old_cells.iter().filter(|&&i| i as usize >= v1).map(|&i| shift(i) as usize);
-            below.chain(range).chain(above).collect()
+            below.chain(range_cells).chain(above).collect()
         };
         let mut vertex_map = None;
         match dirty {
-            _ if full => {
-                positions = vertices.iter().map(|v| v.position(&grid)).collect();
-                gradients = vec![[0f32; 3]; if want_normals { n } else { 0 }];
-                fresh.extend(0..n);
-            }
+            _ if full => fresh.extend(0..added),
             None => unreachable!("a run without an old state extracts every slab"),
             Some(dirty) => {
                 // Outside the range: the last run's vertices, in the same order.
-                let placed = new_vertices.iter().map(|v| v.position(&grid));
-                let old_positions: Vec<DVec3> = positions.splice(v0..v1, placed).collect();
-                let old_gradients: Vec<[f32; 3]> = if want_normals {
-                    gradients.splice(v0..v1, std::iter::repeat_n([0.0; 3], added)).collect()
-                } else {
-                    Vec::new()
-                };
                 reused = n - added;
+                let old: Vec<&GridVertex> = old_pieces.iter().flat_map(|s| &s.vertices).collect();
+                let old_positions: Vec<&DVec3> =
+                    old_pieces.iter().flat_map(|s| &s.positions).collect();
+                let old_gradients: Vec<&[f32; 3]> =
+                    old_pieces.iter().flat_map(|s| &s.gradients).collect();
                 let inside = |p: [u32; 3]| dirty.near(p);
                 let clean = |v: &GridVertex| match v.tip() {
                     Some(tip) => !inside(v.base) && !inside(tip),
@@ -376,9 +398,9 @@ impl GridState {
                 let mut kept: Vec<(u32, u32)> = Vec::new();
                 let mut j = 0;
                 let mut map: Option<rustc_hash::FxHashMap<([u32; 3], u8), usize>> = None;
-                for (i, v) in (v0..).zip(&new_vertices) {
+                for (r, v) in new_vertices.iter().enumerate() {
                     if !clean(v) {
-                        fresh.push(i);
+                        fresh.push(r);
                         continue;
                     }
                     let k = key(v);
@@ -388,10 +410,10 @@ impl GridState {
                     let found = if let Some(m) = &map {
                         k.and_then(|k| m.get(&k).copied())
                     } else {
-                        while j < old.len() && !clean(&old[j]) {
+                        while j < old.len() && !clean(old[j]) {
                             j += 1;
                         }
-                        if j < old.len() && key(&old[j]) == k {
+                        if j < old.len() && key(old[j]) == k {
                             j += 1;
                             Some(j - 1)
                         } else {
@@ -409,19 +431,50 @@ impl GridState {
                     };
                     match found {
                         Some(o) => {
-                            kept.push((i as u32, (v0 + o) as u32));
-                            positions[i] = old_positions[o];
+                            kept.push(((v0 + r) as u32, (v0 + o) as u32));
+                            positions[r] = *old_positions[o];
                             if want_normals {
-                                gradients[i] = old_gradients[o];
+                                gradients[r] = *old_gradients[o];
                             }
                             reused += 1;
                         }
-                        None => fresh.push(i),
+                        None => fresh.push(r),
                     }
                 }
-                vertex_map = Some(VertexMap { start: v0, removed: v1 - v0, added, kept });
+                vertex_map = Some(VertexMap { start: v0, removed, added, kept });
             }
         }
+        drop(old_pieces);
+        // The slab and place in it of vertex `i` outside the range.
+        let slab_of = |i: usize| {
+            let s = starts.partition_point(|&x| x <= i) - 1;
+            (s, i - starts[s])
+        };
+        let in_range = |i: usize| (v0..v0 + added).contains(&i);
+
+        // Every triangle, numbered over the whole mesh: the mesh's own, and what cell
+        // placement and the face-normal fallback read.
+        let triangle_count: usize = self.slabs.iter().map(|s| s.counts.triangles).sum();
+        let mut triangles = Vec::with_capacity(triangle_count);
+        for (s, &first) in self.slabs.iter().zip(&starts) {
+            let first = first as u32;
+            triangles.extend(s.triangles.iter().map(|t| t.map(|i| i + first)));
+        }
+        // Every position, over the whole mesh, when something reads the positions around a
+        // vertex (cell placement, the face-normal fallback): rare.
+        let flat_positions = |range_positions: &[DVec3], slabs: &[Slab]| -> Vec<DVec3> {
+            let mut all = Vec::with_capacity(n);
+            for (s, slab) in slabs.iter().enumerate() {
+                if range.contains(&s) {
+                    if s == range.start {
+                        all.extend_from_slice(range_positions);
+                    }
+                } else {
+                    all.extend_from_slice(&slab.positions);
+                }
+            }
+            all
+        };
 
         // Root finding for the fresh edge vertices; every cell vertex is placed again, as a
         // fresh run places it (after the edge vertices: whether a ring moves depends on
@@ -436,11 +489,11 @@ impl GridState {
             let value =
                 |p: [u32; 3]| self.volume.get(p[0] as usize, p[1] as usize, p[2] as usize) as f64;
             let edges: Vec<usize> =
-                fresh.iter().copied().filter(|&i| key(&vertices[i]).is_some()).collect();
+                fresh.iter().copied().filter(|&r| key(&new_vertices[r]).is_some()).collect();
             let mut brackets: Vec<Bracket> = edges
                 .iter()
-                .map(|&i| {
-                    let v = &vertices[i];
+                .map(|&r| {
+                    let v = &new_vertices[r];
                     let (tip, t) = match (v.tip(), v.place) {
                         (Some(tip), Place::Edge { t, .. }) => (tip, t),
                         _ => unreachable!("edge vertices have a tip"),
@@ -453,21 +506,41 @@ impl GridState {
                 refine_roots_until(field, &mut brackets, &roots, &lattice.control)
                     .ok_or(Error::Cancelled)?
             } else {
-                // An update goes on: it has begun to replace the vertex lists.
+                // An update goes on: it has begun to replace the slabs.
                 refine_roots(field, &mut brackets, &roots)
             };
-            for (&i, b) in edges.iter().zip(&brackets) {
-                positions[i] = b.p0.lerp(b.p1, b.t);
+            for (&r, b) in edges.iter().zip(&brackets) {
+                positions[r] = b.p0.lerp(b.p1, b.t);
             }
-            stats.refine_evaluations += grid::place_cells(
-                field,
-                &grid,
-                &cells,
-                |i| &vertices[i],
-                &mut positions,
-                &triangles,
-                lattice.tolerance,
-            );
+            if !cells.is_empty() {
+                let mut all = flat_positions(&positions, &self.slabs);
+                let slabs = &self.slabs;
+                let record = |i: usize| -> &GridVertex {
+                    if in_range(i) {
+                        &new_vertices[i - v0]
+                    } else {
+                        let (s, k) = slab_of(i);
+                        &slabs[s].vertices[k]
+                    }
+                };
+                stats.refine_evaluations += grid::place_cells(
+                    field,
+                    &grid,
+                    &cells,
+                    record,
+                    &mut all,
+                    &triangles,
+                    lattice.tolerance,
+                );
+                for &i in &cells {
+                    if in_range(i) {
+                        positions[i - v0] = all[i];
+                    } else {
+                        let (s, k) = slab_of(i);
+                        self.slabs[s].positions[k] = all[i];
+                    }
+                }
+            }
         }
         stats.refinement = t.elapsed();
         // An update goes on to the end from here: what is left is proportional to the
@@ -479,42 +552,69 @@ impl GridState {
         let t = Instant::now();
         if want_normals {
             // Cell vertices were placed again: their gradients too.
-            let mut again = fresh.clone();
+            let mut again: Vec<usize> = fresh.iter().map(|&r| v0 + r).collect();
             if dirty.is_some() {
                 again.extend(cells.iter().copied());
                 again.sort_unstable();
                 again.dedup();
             }
-            let pts: Vec<DVec3> = again.iter().map(|&i| positions[i]).collect();
+            let pts: Vec<DVec3> = again
+                .iter()
+                .map(|&i| {
+                    if in_range(i) {
+                        positions[i - v0]
+                    } else {
+                        let (s, k) = slab_of(i);
+                        self.slabs[s].positions[k]
+                    }
+                })
+                .collect();
             let normals = unit_gradients(field, &pts);
             for (&i, g) in again.iter().zip(normals) {
-                gradients[i] = g;
+                if in_range(i) {
+                    gradients[i - v0] = g;
+                } else {
+                    let (s, k) = slab_of(i);
+                    self.slabs[s].gradients[k] = g;
+                }
             }
             stats.normal_evaluations = again.len() as u64;
         }
+        // The range's positions and gradients go to its slabs.
+        {
+            let (mut p, mut g) = (positions.into_iter(), gradients.into_iter());
+            for s in &mut self.slabs[range.clone()] {
+                s.positions = p.by_ref().take(s.counts.vertices).collect();
+                if want_normals {
+                    s.gradients = g.by_ref().take(s.counts.vertices).collect();
+                }
+            }
+        }
+        let mut mesh_positions = Vec::with_capacity(n);
+        for s in &self.slabs {
+            mesh_positions.extend(s.positions.iter().map(|p| p.as_vec3().to_array()));
+        }
         let normals = if want_normals && !triangles.is_empty() {
-            let mut normals = gradients.clone();
-            fill_from_faces(&mut normals, &positions, &triangles);
+            let mut normals = Vec::with_capacity(n);
+            for s in &self.slabs {
+                normals.extend_from_slice(&s.gradients);
+            }
+            if normals.contains(&[0.0; 3]) {
+                let all: Vec<DVec3> =
+                    self.slabs.iter().flat_map(|s| s.positions.iter().copied()).collect();
+                fill_from_faces(&mut normals, &all, &triangles);
+            }
             normals
         } else {
             Vec::new()
         };
         stats.normals = t.elapsed();
-        let mesh = Mesh {
-            positions: positions.iter().map(|p| p.as_vec3().to_array()).collect(),
-            normals,
-            triangles: triangles.clone(),
-            ..Mesh::default()
-        };
+        let mesh = Mesh { positions: mesh_positions, normals, triangles, ..Mesh::default() };
         stats.vertices = mesh.vertex_count();
         stats.triangles = mesh.triangle_count();
-        self.vertices = vertices;
-        self.positions = positions;
-        self.gradients = gradients;
-        self.triangles = triangles;
+        self.vertex_count = n;
         self.cells = cells.iter().map(|&i| i as u32).collect();
         self.map = vertex_map;
-        self.slabs = slab_counts;
         self.whole = true;
         Ok((mesh, reused))
     }
