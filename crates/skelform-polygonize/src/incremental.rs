@@ -31,6 +31,7 @@
 use std::time::Instant;
 
 use glam::DVec3;
+use rayon::prelude::*;
 use skelform_field::grid::{Grid, Relative, Volume, resample_points, sample};
 use skelform_field::{Aabb, Field};
 use skelform_mesh::Mesh;
@@ -454,12 +455,16 @@ impl GridState {
 
         // Every triangle, numbered over the whole mesh: the mesh's own, and what cell
         // placement and the face-normal fallback read.
-        let triangle_count: usize = self.slabs.iter().map(|s| s.counts.triangles).sum();
-        let mut triangles = Vec::with_capacity(triangle_count);
-        for (s, &first) in self.slabs.iter().zip(&starts) {
-            let first = first as u32;
-            triangles.extend(s.triangles.iter().map(|t| t.map(|i| i + first)));
-        }
+        let triangles = gather(
+            &self.slabs,
+            |s| s.triangles.len(),
+            |k, s, out| {
+                let first = starts[k] as u32;
+                for (o, t) in out.iter_mut().zip(&s.triangles) {
+                    *o = t.map(|i| i + first);
+                }
+            },
+        );
         // Every position, over the whole mesh, when something reads the positions around a
         // vertex (cell placement, the face-normal fallback): rare.
         let flat_positions = |range_positions: &[DVec3], slabs: &[Slab]| -> Vec<DVec3> {
@@ -590,15 +595,21 @@ impl GridState {
                 }
             }
         }
-        let mut mesh_positions = Vec::with_capacity(n);
-        for s in &self.slabs {
-            mesh_positions.extend(s.positions.iter().map(|p| p.as_vec3().to_array()));
-        }
+        let mesh_positions = gather(
+            &self.slabs,
+            |s| s.positions.len(),
+            |_, s, out| {
+                for (o, p) in out.iter_mut().zip(&s.positions) {
+                    *o = p.as_vec3().to_array();
+                }
+            },
+        );
         let normals = if want_normals && !triangles.is_empty() {
-            let mut normals = Vec::with_capacity(n);
-            for s in &self.slabs {
-                normals.extend_from_slice(&s.gradients);
-            }
+            let mut normals = gather(
+                &self.slabs,
+                |s| s.gradients.len(),
+                |_, s, out| out.copy_from_slice(&s.gradients),
+            );
             if normals.contains(&[0.0; 3]) {
                 let all: Vec<DVec3> =
                     self.slabs.iter().flat_map(|s| s.positions.iter().copied()).collect();
@@ -702,6 +713,27 @@ impl Dirty {
         }
         out
     }
+}
+
+/// The slabs' items in slab order, in one array: each slab's part (`len` items) written by
+/// `fill(slab number, slab, part)`, the slabs on the pool's threads (each part its own, so
+/// the array is the same on any number of threads).
+fn gather<U: Copy + Default + Send + Sync>(
+    slabs: &[Slab],
+    len: impl Fn(&Slab) -> usize,
+    fill: impl Fn(usize, &Slab, &mut [U]) + Sync + Send,
+) -> Vec<U> {
+    let total = slabs.iter().map(&len).sum();
+    let mut out = vec![U::default(); total];
+    let mut parts = Vec::with_capacity(slabs.len());
+    let mut rest = out.as_mut_slice();
+    for (k, s) in slabs.iter().enumerate() {
+        let (part, more) = rest.split_at_mut(len(s));
+        parts.push((k, s, part));
+        rest = more;
+    }
+    parts.into_par_iter().for_each(|(k, s, part)| fill(k, s, part));
+    out
 }
 
 /// Marks the points of the box `a..=b` (lattice indices) in `bits`, a row at a time.
