@@ -18,8 +18,9 @@ use crate::{Error, Meshed, Overrides, Scene, Stats};
 /// skeleton differs from the last one's only in some elements (moved, radius or strength
 /// changed, a joint turned, which moves every element after it, an element added or
 /// removed), it samples again only within the old and new reach of those elements (boxes
-/// from [`SkeletonField::changes_since`], grown by two cells), places again only the
-/// vertices there, and runs the extraction over the held samples
+/// from [`SkeletonField::changes_since`]), places again only the vertices on lattice edges
+/// within a cell of them (and takes the others' colours from the last run), and runs the
+/// extraction again over the slabs of held samples there
 /// ([`skelform_polygonize::incremental`]). Anything else
 /// runs from scratch: another method than the grid, another lattice (domain, resolution),
 /// root finding or normals setting, a scene whose field is not its skeleton alone (a
