@@ -7,14 +7,16 @@
 //! outside which the field did not change (bit for bit: the caller's promise, e.g.
 //! `SkeletonField::changes_since` in skelform-skeleton for skeletons), and
 //!
-//! 1. samples again only the lattice points within two cells of those boxes;
-//! 2. runs marching cubes again over the extraction slabs whose sample layers hold such a
-//!    point (a slab reads its own layers and nothing else) and splices them between the
+//! 1. samples again only the lattice points in those boxes (grown by a rounding guard);
+//! 2. runs marching cubes again over the extraction slabs whose sample layers hold a point
+//!    within a cell of them (a slab reads its own layers and nothing else; the changed
+//!    samples are among those points) and splices them between the
 //!    last run's slabs below and above, which gives the fresh run's vertices and triangles,
 //!    in its order, since the volume is now the fresh run's volume;
-//! 3. takes each vertex whose lattice edge has both ends outside the re-sampled points from
-//!    the last run (root finding along that edge evaluated the field only where it did not
-//!    change, from the same end samples, so it would find the same root), and places the
+//! 3. takes each vertex whose lattice edge has both ends farther than a cell from the boxes
+//!    from the last run (the edge misses them: root finding along it evaluated the field only
+//!    where it did not change, from the same end samples, so it would find the same root),
+//!    and places the
 //!    others (root finding, gradient normals) as a fresh run does.
 //!
 //! Why the result is the fresh run's mesh, bit for bit: the samples are the same (the
@@ -29,6 +31,7 @@
 use std::time::Instant;
 
 use glam::DVec3;
+use rayon::prelude::*;
 use skelform_field::grid::{Grid, Relative, Volume, resample_points, sample};
 use skelform_field::{Aabb, Field};
 use skelform_mesh::Mesh;
@@ -40,22 +43,31 @@ use crate::refine::{
     Bracket, RootOptions, fill_from_faces, refine_roots, refine_roots_until, unit_gradients,
 };
 
-/// Cells of margin around a changed box: one so that every lattice edge that meets the box
-/// has both ends re-sampled, one more against rounding in the conversion to indices.
-const MARGIN: f64 = 2.0;
+/// Cells of margin around a changed box for the points sampled again: the field changed only
+/// inside the box, so only a guard against rounding in the conversion to indices (the boxes
+/// are grown by a hair already).
+const SAMPLE_MARGIN: f64 = 0.01;
+
+/// Cells of margin around a changed box for the vertices placed again: root finding along a
+/// lattice edge evaluates the field between its ends, so a vertex is taken from the last run
+/// only when its edge misses every box, which holds when an end lies farther than a cell
+/// from each (an edge spans at most a cell along each axis), plus the rounding guard.
+const EDGE_MARGIN: f64 = 1.0 + SAMPLE_MARGIN;
 
 /// What the last grid run keeps for the next (see the module documentation).
 #[derive(Clone, Debug)]
 pub struct GridState {
     volume: Volume,
-    vertices: Vec<GridVertex>,
-    positions: Vec<DVec3>,
-    /// Unit gradient normals, zero where the gradient vanished (empty without normals).
-    gradients: Vec<[f32; 3]>,
-    triangles: Vec<[u32; 3]>,
-    /// What each extraction slab made, in slab order (the vertices and triangles above are
+    /// What each extraction slab made, in slab order (the mesh's vertices and triangles are
     /// the slabs' one after the other).
-    slabs: Vec<SlabCounts>,
+    slabs: Vec<Slab>,
+    /// The vertices of all slabs.
+    vertex_count: usize,
+    /// The vertices inside a cell (placed again by every run), ascending.
+    cells: Vec<u32>,
+    /// How the last update's vertices relate to the run's before it (`None` after a run from
+    /// scratch).
+    map: Option<VertexMap>,
     /// False while an update replaces vertices: one that failed there leaves a state the
     /// next update must not trust.
     whole: bool,
@@ -68,6 +80,31 @@ pub struct GridState {
     refine: bool,
     tolerance: f64,
     normals: bool,
+}
+
+/// What one extraction slab made: its vertices (lattice places, positions, gradients) and
+/// triangles, which number the vertices from the slab's first (those past its own are the
+/// next slab's first ones: the layer they share).
+#[derive(Clone, Debug)]
+struct Slab {
+    counts: SlabCounts,
+    vertices: Vec<GridVertex>,
+    positions: Vec<DVec3>,
+    /// Unit gradient normals, zero where the gradient vanished (empty without normals).
+    gradients: Vec<[f32; 3]>,
+    triangles: Vec<[u32; 3]>,
+}
+
+/// How an update's vertices relate to the last run's: the vertices below `start` kept their
+/// numbers, those from `start + added` on are the last run's from `start + removed` on, and
+/// `kept` lists the vertices of the range between that were taken from the last run, as
+/// (new number, old number), ascending.
+#[derive(Clone, Debug, Default)]
+struct VertexMap {
+    start: usize,
+    removed: usize,
+    added: usize,
+    kept: Vec<(u32, u32)>,
 }
 
 /// What an update reused and what it redid.
@@ -111,11 +148,10 @@ pub fn polygonize(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats, 
         (stats.min_sample, stats.max_sample) = volume.value_range();
         let mut state = GridState {
             volume,
-            vertices: Vec::new(),
-            positions: Vec::new(),
-            gradients: Vec::new(),
-            triangles: Vec::new(),
             slabs: Vec::new(),
+            vertex_count: 0,
+            cells: Vec::new(),
+            map: None,
             whole: true,
             pending: Vec::new(),
             refine: lattice.refine,
@@ -139,6 +175,26 @@ impl GridState {
     /// The lattice the state was sampled on.
     pub fn grid(&self) -> &Grid {
         &self.volume.grid
+    }
+
+    /// After an update that re-meshed only the changed part: the number, in the run before,
+    /// of this run's vertex `i` when it was taken from that run, at the same place and with
+    /// the same normal, on a lattice edge that misses every changed box (so anything
+    /// computed from its position alone, outside those boxes, is unchanged too); `None` for
+    /// a vertex placed again, and for every vertex after a run from scratch.
+    pub fn previous_vertex(&self, i: usize) -> Option<usize> {
+        let m = self.map.as_ref()?;
+        if i >= self.vertex_count || self.cells.binary_search(&(i as u32)).is_ok() {
+            return None;
+        }
+        if i < m.start {
+            Some(i)
+        } else if i >= m.start + m.added {
+            Some(i - m.added + m.removed)
+        } else {
+            let k = m.kept.binary_search_by_key(&(i as u32), |&(new, _)| new).ok()?;
+            Some(m.kept[k].1 as usize)
+        }
     }
 
     /// Whether a run with `options` can update this state (the same lattice, root finding
@@ -166,7 +222,7 @@ impl GridState {
     ) -> Result<(Mesh, Stats, Reuse), Error> {
         if !self.matches(options) {
             let (mesh, stats, state) = polygonize(field, options)?;
-            let placed = state.vertices.len();
+            let placed = state.vertex_count;
             *self = state;
             let reuse = Reuse {
                 resampled: stats.samples,
@@ -217,6 +273,10 @@ impl GridState {
     /// Extraction over the held volume, vertex placement (reusing the old vertices outside
     /// `dirty` when given), normals; the state takes the new vertices. Returns the mesh and
     /// how many vertices were reused.
+    ///
+    /// The state is held slab by slab, so an update replaces the slabs it extracted again
+    /// and leaves the others where they are: what it does in proportion to the whole mesh is
+    /// writing the mesh it returns (positions, normals, triangles renumbered).
     fn finish(
         &mut self,
         field: &dyn Field,
@@ -227,14 +287,17 @@ impl GridState {
         let lattice = &options.lattice;
         let workspace = options.workspace.as_deref().unwrap_or(grid::Workspace::shared());
         let grid = self.volume.grid;
-        let slabs = slab_count(&grid);
-        // The slabs to extract: all, or those whose sample layers hold a re-sampled point
-        // (slab `s` reads layers `s·SLAB ..= (s + 1)·SLAB`). The others are the last run's.
-        let full = dirty.is_none() || self.slabs.len() != slabs;
+        let slab_total = slab_count(&grid);
+        // The slabs to extract: all, or those whose sample layers hold a point near the
+        // change (slab `s` reads layers `s·SLAB ..= (s + 1)·SLAB`). The others are the last
+        // run's.
+        let full = dirty.is_none() || self.slabs.len() != slab_total;
         let range = match dirty.map(Dirty::layers) {
-            _ if full => 0..slabs,
+            _ if full => 0..slab_total,
             None | Some(None) => 0..0,
-            Some(Some((lo, hi))) => lo.div_ceil(SLAB).saturating_sub(1)..(hi / SLAB + 1).min(slabs),
+            Some(Some((lo, hi))) => {
+                lo.div_ceil(SLAB).saturating_sub(1)..(hi / SLAB + 1).min(slab_total)
+            }
         };
         let t = Instant::now();
         let (new_vertices, new_triangles, counts) = extract_slabs::<GridVertex, _>(
@@ -246,78 +309,99 @@ impl GridState {
             range.clone(),
             Default::default(),
         )?;
-        // Splice: the slabs below the range, the range, the slabs above it (their vertex
-        // numbers shifted by what the range gained or lost).
-        let before = |n: usize| {
-            self.slabs[..n].iter().fold([0, 0], |[v, t], c| [v + c.vertices, t + c.triangles])
-        };
-        let [v0, t0] = before(range.start);
-        let [v1, t1] = if range.end == slabs {
-            [self.vertices.len(), self.triangles.len()]
-        } else {
-            before(range.end)
-        };
-        // In place: only what lies above the range moves, and only when its size changed.
+        // The new slabs, each numbering its triangles from its own first vertex (a slab refers
+        // to nothing below it; its references to the layer above land past its own vertices,
+        // on the next slab's first ones, which is what they are in the held slabs too).
+        let mut pieces = Vec::with_capacity(counts.len());
+        let (mut vo, mut to) = (0, 0);
+        for c in &counts {
+            let first = vo as u32;
+            pieces.push(Slab {
+                counts: *c,
+                vertices: new_vertices[vo..vo + c.vertices].to_vec(),
+                positions: Vec::new(),
+                gradients: Vec::new(),
+                triangles: new_triangles[to..to + c.triangles]
+                    .iter()
+                    .map(|t| t.map(|i| i - first))
+                    .collect(),
+            });
+            vo += c.vertices;
+            to += c.triangles;
+        }
+        drop(new_triangles);
+        // Where the range starts, and what it held.
+        let v0: usize =
+            self.slabs[..range.start.min(self.slabs.len())].iter().map(|s| s.counts.vertices).sum();
         let added = new_vertices.len();
-        let shift = |i: u32| (i as i64 + added as i64 - (v1 - v0) as i64) as u32;
-        // From here on the vertex lists are being replaced: not to be trusted until done.
+        // From here on the slabs are being replaced: not to be trusted until done.
         self.whole = false;
-        let mut vertices = std::mem::take(&mut self.vertices);
-        let old: Vec<GridVertex> = vertices.splice(v0..v1, new_vertices.iter().copied()).collect();
-        let mut triangles = std::mem::take(&mut self.triangles);
-        let end = t0 + new_triangles.len();
-        triangles.splice(t0..t1, new_triangles.iter().map(|t| t.map(|i| i + v0 as u32)));
-        if added != v1 - v0 {
-            for t in &mut triangles[end..] {
-                *t = t.map(shift);
-            }
-        }
-        let mut slab_counts = std::mem::take(&mut self.slabs);
-        if full {
-            slab_counts = counts;
+        let old_pieces: Vec<Slab> = if full {
+            self.slabs = pieces;
+            Vec::new()
         } else {
-            slab_counts.splice(range.clone(), counts);
+            self.slabs.splice(range.clone(), pieces).collect()
+        };
+        let removed: usize = old_pieces.iter().map(|s| s.counts.vertices).sum();
+        let v1 = v0 + removed;
+        let shift = |i: u32| (i as i64 + added as i64 - removed as i64) as u32;
+        // The first vertex of each slab, and the number of vertices.
+        let mut starts = Vec::with_capacity(self.slabs.len() + 1);
+        let mut n = 0;
+        for s in &self.slabs {
+            starts.push(n);
+            n += s.counts.vertices;
         }
+        starts.push(n);
         stats.extraction = t.elapsed();
-        stats.ambiguous_faces = slab_counts.iter().map(|c| c.ambiguous_faces).sum();
-        stats.tunnels = slab_counts.iter().map(|c| c.tunnels).sum();
+        stats.ambiguous_faces = self.slabs.iter().map(|c| c.counts.ambiguous_faces).sum();
+        stats.tunnels = self.slabs.iter().map(|c| c.counts.tunnels).sum();
 
         let t = Instant::now();
-        let n = vertices.len();
         let want_normals = lattice.normals;
-        let mut positions = std::mem::take(&mut self.positions);
-        let mut gradients = std::mem::take(&mut self.gradients);
-        // The vertices placed here.
+        // The range's positions and gradients (the others are the held slabs'), by vertex
+        // number from `v0`.
+        let mut positions: Vec<DVec3> = new_vertices.iter().map(|v| v.position(&grid)).collect();
+        let mut gradients = vec![[0f32; 3]; if want_normals { added } else { 0 }];
+        // The range's vertices placed here, numbered from `v0`.
         let mut fresh: Vec<usize> = Vec::new();
         let mut reused = 0;
+        // The vertices inside a cell: the last run's below and above the range (renumbered)
+        // and the range's own, without a pass over every vertex.
+        let old_cells = std::mem::take(&mut self.cells);
+        let range_cells =
+            (v0..).zip(&new_vertices).filter(|(_, v)| key(v).is_none()).map(|(i, _)| i);
+        let cells: Vec<usize> = if full {
+            range_cells.collect()
+        } else {
+            let below = old_cells.iter().take_while(|&&i| (i as usize) < v0).map(|&i| i as usize);
+            let above = old_cells.iter().filter(|&&i| i as usize >= v1).map(|&i| shift(i) as usize);
+            below.chain(range_cells).chain(above).collect()
+        };
+        let mut vertex_map = None;
         match dirty {
-            _ if full => {
-                positions = vertices.iter().map(|v| v.position(&grid)).collect();
-                gradients = vec![[0f32; 3]; if want_normals { n } else { 0 }];
-                fresh.extend(0..n);
-            }
+            _ if full => fresh.extend(0..added),
             None => unreachable!("a run without an old state extracts every slab"),
             Some(dirty) => {
                 // Outside the range: the last run's vertices, in the same order.
-                let placed = new_vertices.iter().map(|v| v.position(&grid));
-                let old_positions: Vec<DVec3> = positions.splice(v0..v1, placed).collect();
-                let old_gradients: Vec<[f32; 3]> = if want_normals {
-                    gradients.splice(v0..v1, std::iter::repeat_n([0.0; 3], added)).collect()
-                } else {
-                    Vec::new()
-                };
                 reused = n - added;
-                let inside = |p: [u32; 3]| dirty.get(p);
+                let old: Vec<&GridVertex> = old_pieces.iter().flat_map(|s| &s.vertices).collect();
+                let old_positions: Vec<&DVec3> =
+                    old_pieces.iter().flat_map(|s| &s.positions).collect();
+                let old_gradients: Vec<&[f32; 3]> =
+                    old_pieces.iter().flat_map(|s| &s.gradients).collect();
+                let inside = |p: [u32; 3]| dirty.near(p);
                 let clean = |v: &GridVertex| match v.tip() {
                     Some(tip) => !inside(v.base) && !inside(tip),
                     None => false,
                 };
                 let old = &old;
+                let mut kept: Vec<(u32, u32)> = Vec::new();
                 let mut j = 0;
                 let mut map: Option<rustc_hash::FxHashMap<([u32; 3], u8), usize>> = None;
-                for (i, v) in (v0..).zip(&new_vertices) {
+                for (r, v) in new_vertices.iter().enumerate() {
                     if !clean(v) {
-                        fresh.push(i);
+                        fresh.push(r);
                         continue;
                     }
                     let k = key(v);
@@ -327,10 +411,10 @@ impl GridState {
                     let found = if let Some(m) = &map {
                         k.and_then(|k| m.get(&k).copied())
                     } else {
-                        while j < old.len() && !clean(&old[j]) {
+                        while j < old.len() && !clean(old[j]) {
                             j += 1;
                         }
-                        if j < old.len() && key(&old[j]) == k {
+                        if j < old.len() && key(old[j]) == k {
                             j += 1;
                             Some(j - 1)
                         } else {
@@ -348,22 +432,58 @@ impl GridState {
                     };
                     match found {
                         Some(o) => {
-                            positions[i] = old_positions[o];
+                            kept.push(((v0 + r) as u32, (v0 + o) as u32));
+                            positions[r] = *old_positions[o];
                             if want_normals {
-                                gradients[i] = old_gradients[o];
+                                gradients[r] = *old_gradients[o];
                             }
                             reused += 1;
                         }
-                        None => fresh.push(i),
+                        None => fresh.push(r),
                     }
                 }
+                vertex_map = Some(VertexMap { start: v0, removed, added, kept });
             }
         }
+        drop(old_pieces);
+        // The slab and place in it of vertex `i` outside the range.
+        let slab_of = |i: usize| {
+            let s = starts.partition_point(|&x| x <= i) - 1;
+            (s, i - starts[s])
+        };
+        let in_range = |i: usize| (v0..v0 + added).contains(&i);
+
+        // Every triangle, numbered over the whole mesh: the mesh's own, and what cell
+        // placement and the face-normal fallback read.
+        let triangles = gather(
+            &self.slabs,
+            |s| s.triangles.len(),
+            |k, s, out| {
+                let first = starts[k] as u32;
+                for (o, t) in out.iter_mut().zip(&s.triangles) {
+                    *o = t.map(|i| i + first);
+                }
+            },
+        );
+        // Every position, over the whole mesh, when something reads the positions around a
+        // vertex (cell placement, the face-normal fallback): rare.
+        let flat_positions = |range_positions: &[DVec3], slabs: &[Slab]| -> Vec<DVec3> {
+            let mut all = Vec::with_capacity(n);
+            for (s, slab) in slabs.iter().enumerate() {
+                if range.contains(&s) {
+                    if s == range.start {
+                        all.extend_from_slice(range_positions);
+                    }
+                } else {
+                    all.extend_from_slice(&slab.positions);
+                }
+            }
+            all
+        };
 
         // Root finding for the fresh edge vertices; every cell vertex is placed again, as a
         // fresh run places it (after the edge vertices: whether a ring moves depends on
         // their positions, and the second try's Newton steps stop per batch).
-        let cells: Vec<usize> = (0..n).filter(|&i| key(&vertices[i]).is_none()).collect();
         if lattice.refine {
             let roots = RootOptions {
                 tolerance: lattice.tolerance,
@@ -374,11 +494,11 @@ impl GridState {
             let value =
                 |p: [u32; 3]| self.volume.get(p[0] as usize, p[1] as usize, p[2] as usize) as f64;
             let edges: Vec<usize> =
-                fresh.iter().copied().filter(|&i| key(&vertices[i]).is_some()).collect();
+                fresh.iter().copied().filter(|&r| key(&new_vertices[r]).is_some()).collect();
             let mut brackets: Vec<Bracket> = edges
                 .iter()
-                .map(|&i| {
-                    let v = &vertices[i];
+                .map(|&r| {
+                    let v = &new_vertices[r];
                     let (tip, t) = match (v.tip(), v.place) {
                         (Some(tip), Place::Edge { t, .. }) => (tip, t),
                         _ => unreachable!("edge vertices have a tip"),
@@ -391,21 +511,41 @@ impl GridState {
                 refine_roots_until(field, &mut brackets, &roots, &lattice.control)
                     .ok_or(Error::Cancelled)?
             } else {
-                // An update goes on: it has begun to replace the vertex lists.
+                // An update goes on: it has begun to replace the slabs.
                 refine_roots(field, &mut brackets, &roots)
             };
-            for (&i, b) in edges.iter().zip(&brackets) {
-                positions[i] = b.p0.lerp(b.p1, b.t);
+            for (&r, b) in edges.iter().zip(&brackets) {
+                positions[r] = b.p0.lerp(b.p1, b.t);
             }
-            stats.refine_evaluations += grid::place_cells(
-                field,
-                &grid,
-                &cells,
-                |i| &vertices[i],
-                &mut positions,
-                &triangles,
-                lattice.tolerance,
-            );
+            if !cells.is_empty() {
+                let mut all = flat_positions(&positions, &self.slabs);
+                let slabs = &self.slabs;
+                let record = |i: usize| -> &GridVertex {
+                    if in_range(i) {
+                        &new_vertices[i - v0]
+                    } else {
+                        let (s, k) = slab_of(i);
+                        &slabs[s].vertices[k]
+                    }
+                };
+                stats.refine_evaluations += grid::place_cells(
+                    field,
+                    &grid,
+                    &cells,
+                    record,
+                    &mut all,
+                    &triangles,
+                    lattice.tolerance,
+                );
+                for &i in &cells {
+                    if in_range(i) {
+                        positions[i - v0] = all[i];
+                    } else {
+                        let (s, k) = slab_of(i);
+                        self.slabs[s].positions[k] = all[i];
+                    }
+                }
+            }
         }
         stats.refinement = t.elapsed();
         // An update goes on to the end from here: what is left is proportional to the
@@ -417,52 +557,92 @@ impl GridState {
         let t = Instant::now();
         if want_normals {
             // Cell vertices were placed again: their gradients too.
-            let mut again = fresh.clone();
+            let mut again: Vec<usize> = fresh.iter().map(|&r| v0 + r).collect();
             if dirty.is_some() {
                 again.extend(cells.iter().copied());
                 again.sort_unstable();
                 again.dedup();
             }
-            let pts: Vec<DVec3> = again.iter().map(|&i| positions[i]).collect();
+            let pts: Vec<DVec3> = again
+                .iter()
+                .map(|&i| {
+                    if in_range(i) {
+                        positions[i - v0]
+                    } else {
+                        let (s, k) = slab_of(i);
+                        self.slabs[s].positions[k]
+                    }
+                })
+                .collect();
             let normals = unit_gradients(field, &pts);
             for (&i, g) in again.iter().zip(normals) {
-                gradients[i] = g;
+                if in_range(i) {
+                    gradients[i - v0] = g;
+                } else {
+                    let (s, k) = slab_of(i);
+                    self.slabs[s].gradients[k] = g;
+                }
             }
             stats.normal_evaluations = again.len() as u64;
         }
+        // The range's positions and gradients go to its slabs.
+        {
+            let (mut p, mut g) = (positions.into_iter(), gradients.into_iter());
+            for s in &mut self.slabs[range.clone()] {
+                s.positions = p.by_ref().take(s.counts.vertices).collect();
+                if want_normals {
+                    s.gradients = g.by_ref().take(s.counts.vertices).collect();
+                }
+            }
+        }
+        let mesh_positions = gather(
+            &self.slabs,
+            |s| s.positions.len(),
+            |_, s, out| {
+                for (o, p) in out.iter_mut().zip(&s.positions) {
+                    *o = p.as_vec3().to_array();
+                }
+            },
+        );
         let normals = if want_normals && !triangles.is_empty() {
-            let mut normals = gradients.clone();
-            fill_from_faces(&mut normals, &positions, &triangles);
+            let mut normals = gather(
+                &self.slabs,
+                |s| s.gradients.len(),
+                |_, s, out| out.copy_from_slice(&s.gradients),
+            );
+            if normals.contains(&[0.0; 3]) {
+                let all: Vec<DVec3> =
+                    self.slabs.iter().flat_map(|s| s.positions.iter().copied()).collect();
+                fill_from_faces(&mut normals, &all, &triangles);
+            }
             normals
         } else {
             Vec::new()
         };
         stats.normals = t.elapsed();
-        let mesh = Mesh {
-            positions: positions.iter().map(|p| p.as_vec3().to_array()).collect(),
-            normals,
-            triangles: triangles.clone(),
-            ..Mesh::default()
-        };
+        let mesh = Mesh { positions: mesh_positions, normals, triangles, ..Mesh::default() };
         stats.vertices = mesh.vertex_count();
         stats.triangles = mesh.triangle_count();
-        self.vertices = vertices;
-        self.positions = positions;
-        self.gradients = gradients;
-        self.triangles = triangles;
-        self.slabs = slab_counts;
+        self.vertex_count = n;
+        self.cells = cells.iter().map(|&i| i as u32).collect();
+        self.map = vertex_map;
         self.whole = true;
         Ok((mesh, reused))
     }
 }
 
-/// The lattice points sampled again: those within [`MARGIN`] cells of a changed box, as
-/// one bit per lattice point (boxes of neighbouring elements overlap, and their bounding box
-/// would hold far more points than they do).
+/// The lattice points sampled again (those in a changed box, [`SAMPLE_MARGIN`]) and the
+/// points near the change (within [`EDGE_MARGIN`] cells of a box: a vertex whose edge has
+/// an end among them is placed again), each as one bit per lattice point (boxes of
+/// neighbouring elements overlap, and their bounding box would hold far more points than
+/// they do).
 struct Dirty {
     dims: [usize; 3],
-    bits: Vec<u64>,
-    /// The lowest and highest sample layer with a marked point.
+    /// The points sampled again.
+    sampled: Vec<u64>,
+    /// The points near the change (a superset of `sampled`).
+    near: Vec<u64>,
+    /// The lowest and highest sample layer with a point near the change.
     layers: Option<(usize, usize)>,
 }
 
@@ -470,69 +650,61 @@ impl Dirty {
     fn new(grid: &Grid, changed: &[Aabb]) -> Dirty {
         let dims = grid.dims;
         let count = dims[0] * dims[1] * dims[2];
-        let mut d = Dirty { dims, bits: vec![0; count.div_ceil(64)], layers: None };
+        let words = count.div_ceil(64);
+        let mut d = Dirty { dims, sampled: vec![0; words], near: vec![0; words], layers: None };
         let top = dims.map(|n| n.saturating_sub(1));
-        for c in changed {
-            let lo = (c.min - grid.origin) / grid.cell - DVec3::splat(MARGIN);
-            let hi = (c.max - grid.origin) / grid.cell + DVec3::splat(MARGIN);
-            let (a, b): ([usize; 3], [usize; 3]) = if lo.is_finite() && hi.is_finite() {
-                if (0..3).any(|i| hi[i] < 0.0 || lo[i] > top[i] as f64) {
-                    continue;
-                }
-                (
-                    std::array::from_fn(|i| lo[i].floor().max(0.0) as usize),
-                    std::array::from_fn(|i| hi[i].ceil().min(top[i] as f64) as usize),
-                )
-            } else {
+        // The points within `margin` cells of `c`, as the lowest and highest index along
+        // each axis; `None` when there are none.
+        let span = |c: &Aabb, margin: f64| -> Option<([usize; 3], [usize; 3])> {
+            let lo = (c.min - grid.origin) / grid.cell - DVec3::splat(margin);
+            let hi = (c.max - grid.origin) / grid.cell + DVec3::splat(margin);
+            if !(lo.is_finite() && hi.is_finite()) {
                 // A box that is not finite covers everything.
-                ([0; 3], top)
+                return Some(([0; 3], top));
+            }
+            if (0..3).any(|i| hi[i] < 0.0 || lo[i] > top[i] as f64) {
+                return None;
+            }
+            let a: [usize; 3] = std::array::from_fn(|i| lo[i].ceil().max(0.0) as usize);
+            let b: [usize; 3] = std::array::from_fn(|i| hi[i].floor().min(top[i] as f64) as usize);
+            (0..3).all(|i| a[i] <= b[i]).then_some((a, b))
+        };
+        for c in changed {
+            let Some((a, b)) = span(c, EDGE_MARGIN) else {
+                continue;
             };
             d.layers = Some(d.layers.map_or((a[2], b[2]), |(lo, hi)| (lo.min(a[2]), hi.max(b[2]))));
-            for k in a[2]..=b[2] {
-                for j in a[1]..=b[1] {
-                    let row = dims[0] * (j + dims[1] * k);
-                    d.mark(row + a[0], row + b[0]);
-                }
+            mark_box(&mut d.near, dims, a, b);
+            if let Some((a, b)) = span(c, SAMPLE_MARGIN) {
+                mark_box(&mut d.sampled, dims, a, b);
             }
         }
         d
     }
 
-    /// Marks the points `first..=last` (of one row), a word at a time. Why: an edit of
-    /// skewed elements gives many small overlapping boxes (`changes_since` covers an
-    /// element's reach piece by piece), and marking them a bit at a time cost more than the
-    /// points they spared.
-    fn mark(&mut self, first: usize, last: usize) {
-        let (w0, w1) = (first / 64, last / 64);
-        let from = u64::MAX << (first % 64);
-        let to = u64::MAX >> (63 - last % 64);
-        if w0 == w1 {
-            self.bits[w0] |= from & to;
-            return;
-        }
-        self.bits[w0] |= from;
-        for w in &mut self.bits[w0 + 1..w1] {
-            *w = u64::MAX;
-        }
-        self.bits[w1] |= to;
-    }
-
-    /// The lowest and highest sample layer sampled again, if any.
+    /// The lowest and highest sample layer with a point near the change, if any.
     fn layers(&self) -> Option<(usize, usize)> {
         self.layers
     }
 
-    /// Whether lattice point `p` is sampled again.
-    fn get(&self, p: [u32; 3]) -> bool {
+    /// Whether lattice point `p` is near the change (a vertex on an edge from it is placed
+    /// again).
+    fn near(&self, p: [u32; 3]) -> bool {
         let [i, j, k] = p.map(|x| x as usize);
         let n = i + self.dims[0] * (j + self.dims[1] * k);
-        self.bits[n / 64] >> (n % 64) & 1 == 1
+        self.near[n / 64] >> (n % 64) & 1 == 1
     }
 
     /// The indices of the points sampled again, ascending.
     fn points(&self) -> Vec<usize> {
         let mut out = Vec::new();
-        for (w, &bits) in self.bits.iter().enumerate() {
+        // Only the words of the layers near the change can hold one.
+        let layer = self.dims[0] * self.dims[1];
+        let words = match self.layers {
+            Some((lo, hi)) => lo * layer / 64..((hi + 1) * layer).div_ceil(64),
+            None => 0..0,
+        };
+        for (w, &bits) in self.sampled.iter().enumerate().skip(words.start).take(words.len()) {
             let mut b = bits;
             while b != 0 {
                 out.push(w * 64 + b.trailing_zeros() as usize);
@@ -541,6 +713,55 @@ impl Dirty {
         }
         out
     }
+}
+
+/// The slabs' items in slab order, in one array: each slab's part (`len` items) written by
+/// `fill(slab number, slab, part)`, the slabs on the pool's threads (each part its own, so
+/// the array is the same on any number of threads).
+fn gather<U: Copy + Default + Send + Sync>(
+    slabs: &[Slab],
+    len: impl Fn(&Slab) -> usize,
+    fill: impl Fn(usize, &Slab, &mut [U]) + Sync + Send,
+) -> Vec<U> {
+    let total = slabs.iter().map(&len).sum();
+    let mut out = vec![U::default(); total];
+    let mut parts = Vec::with_capacity(slabs.len());
+    let mut rest = out.as_mut_slice();
+    for (k, s) in slabs.iter().enumerate() {
+        let (part, more) = rest.split_at_mut(len(s));
+        parts.push((k, s, part));
+        rest = more;
+    }
+    parts.into_par_iter().for_each(|(k, s, part)| fill(k, s, part));
+    out
+}
+
+/// Marks the points of the box `a..=b` (lattice indices) in `bits`, a row at a time.
+fn mark_box(bits: &mut [u64], dims: [usize; 3], a: [usize; 3], b: [usize; 3]) {
+    for k in a[2]..=b[2] {
+        for j in a[1]..=b[1] {
+            let row = dims[0] * (j + dims[1] * k);
+            mark(bits, row + a[0], row + b[0]);
+        }
+    }
+}
+
+/// Marks the points `first..=last` (of one row), a word at a time. Why: an edit of skewed
+/// elements gives many small overlapping boxes (`changes_since` covers an element's reach
+/// piece by piece), and marking them a bit at a time cost more than the points they spared.
+fn mark(bits: &mut [u64], first: usize, last: usize) {
+    let (w0, w1) = (first / 64, last / 64);
+    let from = u64::MAX << (first % 64);
+    let to = u64::MAX >> (63 - last % 64);
+    if w0 == w1 {
+        bits[w0] |= from & to;
+        return;
+    }
+    bits[w0] |= from;
+    for w in &mut bits[w0 + 1..w1] {
+        *w = u64::MAX;
+    }
+    bits[w1] |= to;
 }
 
 #[cfg(test)]
@@ -552,10 +773,10 @@ mod tests {
     #[test]
     fn marking_a_row_sets_exactly_its_points() {
         for (first, last) in [(0, 0), (3, 9), (0, 63), (63, 64), (5, 200), (64, 127), (70, 250)] {
-            let mut d = Dirty { dims: [256, 1, 1], bits: vec![0; 4], layers: None };
-            d.mark(first, last);
+            let mut bits = vec![0; 4];
+            mark(&mut bits, first, last);
             for n in 0..256 {
-                let set = d.bits[n / 64] >> (n % 64) & 1 == 1;
+                let set = bits[n / 64] >> (n % 64) & 1 == 1;
                 assert_eq!(set, (first..=last).contains(&n), "{first}..={last}: point {n}");
             }
         }

@@ -1,11 +1,9 @@
 //! [`Live`]: meshing a scene again and again as it is edited, redoing only what an edit
 //! changed.
 
-use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::Instant;
 
-use skelform_field::DVec3;
 use skelform_polygonize::Resolution;
 use skelform_polygonize::incremental::{self, GridState, Reuse};
 use skelform_skeleton::SkeletonField;
@@ -20,8 +18,9 @@ use crate::{Error, Meshed, Overrides, Scene, Stats};
 /// skeleton differs from the last one's only in some elements (moved, radius or strength
 /// changed, a joint turned, which moves every element after it, an element added or
 /// removed), it samples again only within the old and new reach of those elements (boxes
-/// from [`SkeletonField::changes_since`], grown by two cells), places again only the
-/// vertices there, and runs the extraction over the held samples
+/// from [`SkeletonField::changes_since`]), places again only the vertices on lattice edges
+/// within a cell of them (and takes the others' colours from the last run), and runs the
+/// extraction again over the slabs of held samples there
 /// ([`skelform_polygonize::incremental`]). Anything else
 /// runs from scratch: another method than the grid, another lattice (domain, resolution),
 /// root finding or normals setting, a scene whose field is not its skeleton alone (a
@@ -58,13 +57,8 @@ pub struct Live {
 struct Last {
     skeleton: Arc<SkeletonField>,
     state: GridState,
-    /// The vertex colours it painted, by position (empty without colours).
-    colors: HashMap<[u32; 3], [f32; 3]>,
-}
-
-/// A vertex position as a key: its bits.
-fn key(p: &[f32; 3]) -> [u32; 3] {
-    p.map(f32::to_bits)
+    /// The vertex colours it painted, by vertex (empty without colours).
+    colors: Vec<[f32; 3]>,
 }
 
 /// How [`Live`]'s last run went.
@@ -144,8 +138,8 @@ impl Live {
             }
             Some(l) => skeleton.changes_since(&l.skeleton).map_err(|g| g.to_string()),
         };
-        // The colours of the last run, and where an edit may have changed them.
-        let mut kept_colors = (HashMap::new(), Vec::new());
+        // The colours of the last run, when an edit left them valid where it did not reach.
+        let mut old_colors = Vec::new();
         let (mut mesh, stats, state, run) = match (changes, last) {
             (Ok(boxes), Some(mut l)) => {
                 let (mesh, stats, reuse) =
@@ -164,7 +158,7 @@ impl Live {
                 // Colours are per element and not among the changes: an edit that
                 // recoloured, added or removed an element paints every vertex again.
                 if !reuse.full && l.skeleton.element_colors() == skeleton.element_colors() {
-                    kept_colors = (std::mem::take(&mut l.colors), boxes);
+                    old_colors = std::mem::take(&mut l.colors);
                 }
                 (mesh, stats, l.state, run)
             }
@@ -190,26 +184,19 @@ impl Live {
                 }
             }
         };
-        // A vertex at the same place as one of the last run and outside every changed
-        // element's old and new box has the same colour, bit for bit: those elements are
-        // skipped there, before as after (the same reason its position is unchanged). The
-        // boxes are widened by a hair, as a guard on the comparison.
-        let (old_colors, boxes) = kept_colors;
-        let boxes: Vec<_> =
-            boxes.iter().map(|b| b.inflate(1e-9 * (1.0 + b.size().max_element()))).collect();
-        // Their union's box first: most vertices are far from an edit, and an edit can give
-        // hundreds of boxes (see `SkeletonField::changes_since`).
-        let all = boxes.iter().copied().reduce(|a, b| a.union(&b));
+        // A vertex taken from the last run is at the same place, on a lattice edge that misses
+        // every changed element's old and new box: its colour is the same, bit for bit (those
+        // elements are skipped there, before as after: the same reason its position is
+        // unchanged). Found by its number, not its position: no map of every vertex.
         let painted = Instant::now();
-        scene.paint_with(&mut mesh, method, o, |p| {
-            let at = DVec3::from_array(p.map(f64::from));
-            if all.is_some_and(|u| u.contains(at)) && boxes.iter().any(|b| b.contains(at)) {
+        scene.paint_with(&mut mesh, method, o, |i, _| {
+            if old_colors.is_empty() {
                 return None;
             }
-            old_colors.get(&key(p)).copied()
+            state.previous_vertex(i).and_then(|o| old_colors.get(o).copied())
         });
         let painting = painted.elapsed();
-        let colors = mesh.positions.iter().map(key).zip(mesh.colors.iter().copied()).collect();
+        let colors = mesh.colors.clone();
         self.last = Some(Last { skeleton, state, colors });
         self.run = Some(run);
         let elapsed = started.elapsed();

@@ -278,24 +278,26 @@ impl Scene {
     /// non-manifold method's surfaces are labelled by region instead. Every path that makes
     /// a mesh of the scene ([`Scene::mesh`], [`crate::Live`]) calls this, so they agree.
     pub(crate) fn paint(&self, mesh: &mut Mesh, method: Method, overrides: &Overrides) {
-        self.paint_with(mesh, method, overrides, |_| None);
+        self.paint_with(mesh, method, overrides, |_, _| None);
     }
 
-    /// [`Scene::paint`], taking the colour of each vertex for which `known` has one
-    /// instead of computing it ([`crate::Live`]: vertices an edit did not reach).
+    /// [`Scene::paint`], taking the colour of each vertex (by its number and position) for
+    /// which `known` has one instead of computing it ([`crate::Live`]: vertices an edit did
+    /// not reach).
     pub(crate) fn paint_with(
         &self,
         mesh: &mut Mesh,
         method: Method,
         overrides: &Overrides,
-        known: impl Fn(&[f32; 3]) -> Option<[f32; 3]> + Sync,
+        known: impl Fn(usize, &[f32; 3]) -> Option<[f32; 3]> + Sync,
     ) {
         if method != Method::NonManifold
             && overrides.colors != Some(false)
             && let Some(skeleton) = &self.skeleton
             && skeleton.colors(&[]).is_some()
         {
-            let known: Vec<Option<[f32; 3]>> = mesh.positions.par_iter().map(&known).collect();
+            let known: Vec<Option<[f32; 3]>> =
+                mesh.positions.par_iter().enumerate().map(|(i, p)| known(i, p)).collect();
             let points: Vec<DVec3> = mesh
                 .positions
                 .iter()
@@ -321,8 +323,9 @@ impl Scene {
             mesh.colors = mesh
                 .positions
                 .par_iter()
-                .map(|p| {
-                    known(p)
+                .enumerate()
+                .map(|(i, p)| {
+                    known(i, p)
                         .or_else(|| leaf.colour(DVec3::from_array(p.map(f64::from))))
                         .unwrap_or_default()
                 })
