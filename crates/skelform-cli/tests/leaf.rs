@@ -183,9 +183,14 @@ fn the_leaves_have_no_folded_or_coincident_faces_within_a_sheet() {
         assert_eq!(plain["coincident_faces"], 0, "{scene} {extra:?}");
         assert_eq!(plain["duplicate_faces"], 0, "{scene} {extra:?}");
         assert_eq!(plain["consistently_oriented"], true, "{scene} {extra:?}");
-        // Welded, sheets of different pairs meet: none of their triangles coincide either
-        // (the thin wedges where a vein meets the margin still fold, see SCENES.md).
+        // Welded, sheets of different pairs meet: none of their triangles coincide either.
         assert_eq!(welded["coincident_faces"], 0, "{scene} {extra:?}");
         assert_eq!(welded["duplicate_faces"], 0, "{scene} {extra:?}");
+        // Where the three-lobed leaf's veins reach the margin as slabs a few hundredths of
+        // a cell thick, the vein's two sheets met at one face vertex of four regions and
+        // folded against each other (9 folded edges welded); the slab now gets a cap.
+        if scene.contains("three-lobes") {
+            assert_eq!(welded["folded_edges"], 0, "{scene} {extra:?}");
+        }
     }
 }
