@@ -175,6 +175,7 @@ fn the_leaves_have_no_folded_or_coincident_faces_within_a_sheet() {
     // coincident triangles of a lens's two sheets instead (the five-lobed leaf at 24).
     for (scene, extra) in [
         ("nonmanifold/leaf-three-lobes.toml", &[][..]),
+        ("nonmanifold/leaf.toml", &[][..]),
         ("nonmanifold/leaf.toml", &["--resolution", "24"][..]),
         ("nonmanifold/leaf-three-lobes.toml", &["--resolution", "24"][..]),
     ] {
@@ -183,9 +184,17 @@ fn the_leaves_have_no_folded_or_coincident_faces_within_a_sheet() {
         assert_eq!(plain["coincident_faces"], 0, "{scene} {extra:?}");
         assert_eq!(plain["duplicate_faces"], 0, "{scene} {extra:?}");
         assert_eq!(plain["consistently_oriented"], true, "{scene} {extra:?}");
-        // Welded, sheets of different pairs meet: none of their triangles coincide either
-        // (the thin wedges where a vein meets the margin still fold, see SCENES.md).
+        // Welded, sheets of different pairs meet: none of their triangles coincide either.
         assert_eq!(welded["coincident_faces"], 0, "{scene} {extra:?}");
         assert_eq!(welded["duplicate_faces"], 0, "{scene} {extra:?}");
+        // Where a vein reaches the margin as a slab a few hundredths of a cell thick, its
+        // two sides met at one face vertex of the four regions and folded against each
+        // other (welded: 9 folded edges on the three-lobed leaf, 5 on leaf.toml, 4 and 8 at
+        // 24 samples); the face vertex is now two junctions joined by the slab's cap. Left:
+        // at 24 samples, two thin wedges where leaf.toml's petiole (0, 1) leaves a vein's
+        // side at the margin (not a slab's end; they were there before).
+        let folds = welded["folded_edges"].as_u64().unwrap();
+        let left = if scene.ends_with("/leaf.toml") && !extra.is_empty() { 2 } else { 0 };
+        assert!(folds <= left, "{scene} {extra:?}: {folds} folded edges welded");
     }
 }

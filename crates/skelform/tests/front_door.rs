@@ -251,9 +251,6 @@ fn nonmanifold_examples_place_their_face_vertices_by_following_the_contours() {
         );
         let r = check(&m.mesh);
         assert_eq!(r.coincident_faces, 0, "{path:?}");
-        // The three-lobed leaf's three folded edges are not ties (it has them unperturbed).
-        if !path.ends_with("leaf-three-lobes.toml") {
-            assert_eq!(r.folded_edges, 0, "{path:?}");
-        }
+        assert_eq!(r.folded_edges, 0, "{path:?}");
     }
 }

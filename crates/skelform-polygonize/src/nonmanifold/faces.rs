@@ -118,8 +118,8 @@ impl Run<'_> {
                 regions.extend(links.iter().flat_map(|p| [p.0, p.1]));
                 regions.sort_unstable();
                 regions.dedup();
-                let p = match end {
-                    Some(p) => *p,
+                let (p, followed) = match end {
+                    Some(p) => (*p, None),
                     None => {
                         let starts = if interesting.is_empty() {
                             group.iter().collect()
@@ -129,6 +129,58 @@ impl Run<'_> {
                         self.face_vertex(sorted, group, &starts)
                     }
                 };
+                let split_four = if split.groups.len() == 1 {
+                    self.four_region_split(group, followed)
+                } else {
+                    None
+                };
+                if let Some((mine, other, short)) = split_four {
+                    let centre = |run: &Self, ws: &[Walked; 2]| {
+                        ws.iter().map(|w| run.positions[w.vertex as usize]).sum::<DVec3>() * 0.5
+                    };
+                    let towards = (centre(self, &other) - centre(self, &mine)).normalize_or_zero();
+                    let mut hub = |run: &mut Self, at: DVec3, ws: &[Walked; 2]| {
+                        run.positions.push(at);
+                        run.crossing.push(None);
+                        run.stats.face_vertices += 1;
+                        let v = run.positions.len() as u32 - 1;
+                        let mut regions: Vec<u32> =
+                            ws.iter().flat_map(|w| [w.from, w.to]).collect();
+                        regions.extend([short.0, short.1]);
+                        regions.sort_unstable();
+                        regions.dedup();
+                        info.hubs.push(Hub {
+                            vertex: v,
+                            spokes: ws
+                                .iter()
+                                .map(|w| (w.vertex, RegionPair::new(w.from, w.to)))
+                                .collect(),
+                            regions,
+                        });
+                        v
+                    };
+                    let a = hub(self, p - towards * self.eps, &mine);
+                    let b = hub(self, p + towards * self.eps, &other);
+                    info.lines.push((a, b, short));
+                    // The cap's triangles have no edge vertex of their pair to be wound
+                    // by: give its first vertex the direction across the short contour,
+                    // from one of its regions to the other, as an edge vertex has.
+                    // Region r_k touches the face's sides between crossings k - 1 and k.
+                    let side = |run: &Self, r: u32| {
+                        let k = group.iter().position(|w| w.from == r).unwrap_or(0);
+                        let before = group[(k + 3) % 4];
+                        (run.positions[before.vertex as usize]
+                            + run.positions[group[k].vertex as usize])
+                            * 0.5
+                    };
+                    let along = (self.positions[b as usize] - self.positions[a as usize])
+                        .normalize_or_zero();
+                    let across = side(self, short.1) - side(self, short.0);
+                    let dir = across - along * across.dot(along);
+                    self.crossing[a as usize] = Some((dir, short.0, short.1));
+                    vertex_of.push(Some(a));
+                    continue;
+                }
                 self.positions.push(p);
                 self.crossing.push(None);
                 self.stats.face_vertices += 1;
@@ -239,18 +291,97 @@ impl Run<'_> {
         corners: [Key; 3],
         crossings: &[Walked],
         starts: &[&Walked],
-    ) -> DVec3 {
+    ) -> (DVec3, Option<(Walked, u32)>) {
         for pass in [false, true] {
             for s in starts {
                 if let Some(end) = self.follow(corners, s, pass) {
                     self.stats.face_vertices_at_crossing += usize::from(end.at_crossing);
-                    return end.at;
+                    return (end.at, Some((**s, end.foreign)));
                 }
             }
         }
         self.stats.face_vertex_fallbacks += 1;
         let n = crossings.len() as f64;
-        crossings.iter().map(|w| self.positions[w.vertex as usize]).sum::<DVec3>() / n
+        (crossings.iter().map(|w| self.positions[w.vertex as usize]).sum::<DVec3>() / n, None)
+    }
+
+    /// The two junctions of a face vertex of four regions, without following another
+    /// contour: four regions r0..r3 round the face (crossing k from r_k to r_k+1) never
+    /// meet at one point generically, but at two junctions joined by a short contour,
+    /// (r0, r1, r2) and (r2, r3, r0) or (r3, r0, r1) and (r1, r2, r3). The contour that was
+    /// followed (`followed`: from crossing `s`, it met `foreign`) says which: `s` and its
+    /// neighbour towards `foreign` end at one junction, the other two crossings at the
+    /// other. Only a way whose short contour is a cap (drawn, between two drawn sheets) is
+    /// made; where the contour says the other way, or none was followed, the cap is made
+    /// when it is the only way that is one. Returns the two groups of crossings (the first
+    /// with `s`) and the short contour's pair, or `None` when the crossings do not go round
+    /// four regions or no cap is made.
+    ///
+    /// Why: with one face vertex for all four, the two sheets on either side of a thin
+    /// slab (where a leaf's vein reaches the margin, a few hundredths of a cell thick)
+    /// ended at the same point on both faces of a tetrahedron and met along one line at a
+    /// hairline angle, folded (issue 18). Two vertices ε either side of the followed end,
+    /// towards the crossings of each, give the slab a cap, the short contour's sheet, which
+    /// the sheets meet at an angle; the junctions' true distance is not sought, since that
+    /// takes another walk along a contour (evaluations, issue 18's cost limit).
+    fn four_region_split(
+        &self,
+        group: &[Walked],
+        followed: Option<(Walked, u32)>,
+    ) -> Option<([Walked; 2], [Walked; 2], RegionPair)> {
+        if group.len() != 4 || (0..4).any(|k| group[k].to != group[(k + 1) % 4].from) {
+            return None;
+        }
+        let mut regions: Vec<u32> = group.iter().map(|w| w.from).collect();
+        regions.sort_unstable();
+        regions.dedup();
+        if regions.len() != 4 {
+            return None;
+        }
+        let g = |k: usize| group[k % 4];
+        let r = |k: usize| group[k % 4].from;
+        // The two ways: (r0, r1, r2) and (r2, r3, r0) joined by (r0 | r2), or (r3, r0, r1)
+        // and (r1, r2, r3) joined by (r3 | r1).
+        let ways = [
+            ([g(0), g(1)], [g(2), g(3)], RegionPair::new(r(0), r(2))),
+            ([g(3), g(0)], [g(1), g(2)], RegionPair::new(r(3), r(1))),
+        ];
+        // A cap: the short contour is drawn and each junction keeps a drawn sheet beside
+        // it, so the cap joins two sheets (the sides of a slab). Otherwise one junction
+        // would end a lone sheet (a margin, a boundary where there was none), or the two
+        // would be left apart with nothing between them (a slit).
+        let drawn = |w: &Walked| self.interesting(RegionPair::new(w.from, w.to));
+        let caps = ways.map(|(mine, other, short)| {
+            self.interesting(short) && mine.iter().any(drawn) && other.iter().any(drawn)
+        });
+        // The way the followed contour says: from crossing i, meeting r_(i+2) it ends at
+        // (r_i, r_i+1, r_i+2), meeting r_(i+3) at (r_i+3, r_i, r_i+1).
+        let said = followed.and_then(|(s, foreign)| {
+            let i = group.iter().position(|w| *w == s)?;
+            if foreign == r(i + 2) {
+                Some(i % 2)
+            } else if foreign == r(i + 3) {
+                Some((i + 1) % 2)
+            } else {
+                None
+            }
+        });
+        // Where the contour says the way that is no cap, the cap is made all the same:
+        // the junctions then lie closer than the follower's triangles can tell apart or
+        // the slab pinches off on this face, and one face vertex for the four (as the
+        // chapter has it) folds the slab's two sides onto each other.
+        let way = match said {
+            Some(w) if caps[w] => w,
+            _ => (0..2).find(|&w| caps[w] && !caps[1 - w])?,
+        };
+        let (mut mine, mut other, short) = ways[way];
+        // The first group holds the followed crossing (its junction is where it ended).
+        if let Some((s, _)) = followed
+            && other.contains(&s)
+        {
+            std::mem::swap(&mut mine, &mut other);
+        }
+        Some((mine, other, short))
     }
 
     /// One try of [`Run::face_vertex`]: the contour from the crossing `s` followed into the

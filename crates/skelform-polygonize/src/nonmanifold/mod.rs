@@ -48,7 +48,11 @@
 //! one run of consecutive crossings round the face: the sides of a polygon round the
 //! region asked at their centre, or of a path along it, see `linked_runs`). With four
 //! crossings the region the first contour meets says which two junctions there can be, so
-//! two contours are followed, not all four. Always (it costs no evaluations), a
+//! two contours are followed, not all four. Always (it costs no evaluations), a face
+//! vertex of four regions becomes two, ε either side of the followed end and joined by the
+//! short contour between the two junctions, where that contour is a cap (drawn, with a
+//! drawn sheet beside it at each end: a vein's slab reaching the leaf's margin, whose two
+//! sides one vertex folded onto each other; see `Run::four_region_split`). Always, a
 //! tetrahedron's contours are split into the components they make on its surface, a
 //! component without face vertices is polygonized on its own, and a curve passing through
 //! (two face vertices where the same regions meet) gets its own internal vertex: one
