@@ -156,7 +156,7 @@ impl Default for Options {
             close_factor: 1.0,
             loops: false,
             max_cells: 5_000_000,
-            junctions: false,
+            junctions: true,
         }
     }
 }
@@ -254,6 +254,15 @@ struct Run<'a> {
     interest: Option<FxHashSet<RegionPair>>,
     point_region: FxHashMap<Key, u32>,
     edges: FxHashMap<(Key, Key), Vec<Crossing>>,
+    /// Every crossing bisected on a segment (looped ones included), as (parameter along
+    /// lo → hi, region before, region after): what the segment's samples say about the
+    /// regions along it ([`Run::known_region`]).
+    samples: FxHashMap<(Key, Key), Vec<(f64, u32, u32)>>,
+    /// Lines between two face vertices (a contour joining two junctions of a face), keyed
+    /// by their vertices (lesser first): a direction across the line within the face, the
+    /// region it points into, and the line's pair. The sheet's triangles on such a line
+    /// have no edge vertex of their pair to be wound by ([`Run::orient`]).
+    link_sides: FxHashMap<(u32, u32), (DVec3, u32, RegionPair)>,
     faces: FxHashMap<[Key; 3], FaceInfo>,
     positions: Vec<DVec3>,
     /// The lattice segment of each edge vertex.
@@ -337,6 +346,8 @@ fn polygonize_here(regions: &dyn RegionField, options: &Options) -> Result<(Mesh
             .then(|| options.interest.iter().copied().collect()),
         point_region: FxHashMap::default(),
         edges: FxHashMap::default(),
+        samples: FxHashMap::default(),
+        link_sides: FxHashMap::default(),
         faces: FxHashMap::default(),
         positions: Vec::new(),
         on_edge: FxHashMap::default(),
@@ -438,6 +449,8 @@ impl Run<'_> {
             + size_of::<RegionPair>()) as u64;
         map_bytes(&self.point_region)
             + map_bytes(&self.edges)
+            + map_bytes(&self.samples)
+            + map_bytes(&self.link_sides)
             + map_bytes(&self.faces)
             + self.inner_bytes
             + vec_bytes(&self.positions)
