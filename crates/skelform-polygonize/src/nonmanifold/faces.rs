@@ -489,12 +489,30 @@ impl Run<'_> {
             if let Some(links) = linked_runs(&walked, inside) {
                 // The region a link's first run is followed by touches the face's sides
                 // between that run's last crossing and the next run's first: the link has it
-                // on the side of their midpoint, and on the other side the region across
-                // (the other gap between two runs, or the polygon's inside at its centre).
+                // on the side of a point of the boundary between them (their midpoint when
+                // they lie on one side of the face, else the corner that ends the first
+                // one's side), and on the other side the region across (the other gap
+                // between two runs, or the polygon's inside at its centre).
+                let [ca, cb, cc] = corners.map(|k| self.point(k));
+                let walk = [(ca, cb), (cb, cc), (cc, ca)];
+                let off = |p: DVec3, i: usize| {
+                    let (q0, q1) = walk[i];
+                    (p - q0).cross((q1 - q0).normalize()).length()
+                };
+                let side_of =
+                    |p: DVec3| (0..3).min_by(|&i, &j| off(p, i).total_cmp(&off(p, j))).unwrap_or(0);
                 let at = |i: usize| self.positions[unmatched[i].vertex as usize];
                 let gap = |i: usize, j: usize| {
                     let (last, first) = (members[i][members[i].len() - 1], members[j][0]);
-                    ((at(last) + at(first)) * 0.5, unmatched[last].to)
+                    let (p0, p1) = (at(last), at(first));
+                    let s0 = side_of(p0);
+                    let (q0, q1) = walk[s0];
+                    let between = if s0 == side_of(p1) && (p1 - p0).dot(q1 - q0) > 0.0 {
+                        (p0 + p1) * 0.5
+                    } else {
+                        q1
+                    };
+                    (between, unmatched[last].to)
                 };
                 let sides = links
                     .iter()
