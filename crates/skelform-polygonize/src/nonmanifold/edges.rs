@@ -119,12 +119,15 @@ impl Run<'_> {
 
     /// The region at `p`, a point of the lattice segment that holds the edge vertex `at`, as
     /// the segment's sampling already says, without evaluating: the region between the
-    /// crossings bisected on it (looped ones included) where `p` lies more than 1.5ε from every
-    /// one of them (a bracket reaches ε either side). `None` where it does not say (`p` off the segment
-    /// or near a crossing, `at` not an edge vertex). What the sampling missed between its
-    /// samples (a region poking through between two of them) the contour follower's own
-    /// evaluation would see; for the follower's points next to a crossing, within a few ε of
-    /// the bisection's last samples, that is a sliver thinner than ε.
+    /// crossings bisected on it (looped ones included) where `p` lies more than 1.5ε from
+    /// every one of them (a bracket reaches ε either side). `None` where it does not say
+    /// (`p` off the segment or near a crossing, `at` not an edge vertex). What the sampling
+    /// missed between its samples (a region poking through between two of them) the
+    /// contour follower's own evaluation would see; for the follower's first triangle, 2ε
+    /// from the crossing beside the bisection's last samples, that is a sliver thinner than
+    /// ε. Farther out it is not: taking the coarse strip's base (8ε out) from the samples
+    /// too moved face vertices next to a sheet a hair off a lattice plane on the three-lobed
+    /// leaf, and folded it there.
     pub(super) fn known_region(&self, at: u32, p: DVec3) -> Option<u32> {
         let &(lo, hi) = self.on_edge.get(&at)?;
         let (pa, pb) = (self.point(lo), self.point(hi));

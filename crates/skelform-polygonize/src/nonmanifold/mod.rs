@@ -37,19 +37,23 @@
 //! there is a looped pair it drops (none was kept on any example; a wedge of two other
 //! regions across such a segment, thinner than the cell, is missed); and the contour
 //! follower strides in triangles four times larger before its small ones
-//! (`Run::coarse_then_fine`).
+//! (`Run::coarse_then_fine`), its first triangle's base taking its regions from the
+//! samples the edge's bisection already took beside the crossing (`Run::known_region`).
 //!
 //! Beyond one vertex (issue 18): the chapter allows one face vertex per face and one
 //! internal vertex per tetrahedron, and names more as future work. With
-//! `Options::junctions`, a face whose
+//! `Options::junctions` (the default), a face whose
 //! unpaired crossings run to separate junctions (their contours followed to where they end)
 //! gets a face vertex for each, joined by a line when a contour runs between them (two
 //! junctions: the contour between the regions on either side; three or more, each holding
 //! one run of consecutive crossings round the face: the sides of a polygon round the
 //! region asked at their centre, or of a path along it, see `linked_runs`). With four
 //! crossings the region the first contour meets says which two junctions there can be, so
-//! two contours are followed, not all four. Always (it costs no evaluations), a
-//! tetrahedron's contours are split into the components they make on its surface, a
+//! two contours are followed, not all four. A sheet crossing a face as such a line between
+//! two face vertices (a slab's end thinner than the cell) can have no edge vertex of its
+//! pair in the tetrahedra on either side to be wound by: its triangles are wound by where
+//! the line's two regions touch the face's sides (`Run::orient`). Always (it costs no
+//! evaluations), a tetrahedron's contours are split into the components they make on its surface, a
 //! component without face vertices is polygonized on its own, and a curve passing through
 //! (two face vertices where the same regions meet) gets its own internal vertex: one
 //! vertex at the mean of every face vertex folded the sheets of a curve clipping a corner
@@ -131,10 +135,11 @@ pub struct Options {
     pub max_cells: u64,
     /// Beyond the chapter: a face vertex per junction of a face (the module's "Beyond one
     /// vertex"; an internal vertex per curve and per contour component of a tetrahedron is
-    /// made either way). Off by default: following the contours of faces with four or
-    /// more crossings costs about 1.5% more evaluations on the leaves (2.01 times a
-    /// conventional polygonizer's on the three-lobed leaf), and with it a few triangles
-    /// there come out wound against their neighbours.
+    /// made either way). On by default: following the contours of faces with four or more
+    /// crossings costs about 1.5% more evaluations on the leaves (1.95 times a conventional
+    /// polygonizer's on the three-lobed leaf; 1.98 without it before the follower's first
+    /// triangle reused the edge's samples). Off: the chapter's one face vertex per face,
+    /// which fuses junctions on one face into one vertex.
     pub junctions: bool,
 }
 
