@@ -248,6 +248,10 @@ pub struct Stats {
     pub time: Duration,
 }
 
+/// The crossings bisected on one segment, in order: (parameter along it, region before,
+/// region after).
+type Bisected = Vec<(f64, u32, u32)>;
+
 struct Run<'a> {
     regions: &'a dyn RegionField,
     grid: Grid,
@@ -262,7 +266,7 @@ struct Run<'a> {
     /// Every crossing bisected on a segment (looped ones included), as (parameter along
     /// lo → hi, region before, region after): what the segment's samples say about the
     /// regions along it ([`Run::known_region`]).
-    samples: FxHashMap<(Key, Key), Vec<(f64, u32, u32)>>,
+    samples: FxHashMap<(Key, Key), Bisected>,
     /// Lines between two face vertices (a contour joining two junctions of a face), keyed
     /// by their vertices (lesser first): a direction across the line within the face, the
     /// region it points into, and the line's pair. The sheet's triangles on such a line
