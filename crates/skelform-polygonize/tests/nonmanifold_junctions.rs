@@ -218,3 +218,43 @@ fn a_square_border_keeps_its_corners() {
     }
     assert!(sharpened >= 4 && close >= 4, "{sharpened} sharpened, {close} corners within 0.1 cell");
 }
+
+/// A vein's slab reaching a leaf's margin: region 1 between `|z - h| < t` (2 above, 3
+/// below), cut off by 0 beyond the curved margin. Where the slab is thinner than the
+/// lattice resolves, its end (the sheet (0, 1)) crosses faces between two junctions, (0, 1,
+/// 2) and (0, 1, 3), with no edge vertex of its own pair.
+fn slab_end(h: f64, t: f64) -> impl RegionField {
+    FnRegions(move |p: DVec3| {
+        if p.y > 0.36 + 0.07 * p.x + 0.1 * p.x * p.x {
+            0
+        } else if (p.z - h).abs() < t {
+            1
+        } else if p.z > h {
+            2
+        } else {
+            3
+        }
+    })
+}
+
+/// With `Options::junctions`. A slab's end thinner than a cell crosses faces as a line
+/// between two face vertices: its triangles had no edge vertex of their pair to be wound
+/// by, and none of their neighbours had either, so they kept the winding they were made
+/// with (18 inconsistent edges at `t` = 0.02 cell, as on the leaves: 41 and 45). They are
+/// wound by which region lies on which side of the line in the face.
+#[test]
+fn a_slab_ending_between_two_junctions_is_wound_like_its_neighbours() {
+    let cell = 0.1;
+    for (h, t) in [(0.0137, 0.002), (0.0431, 0.002), (0.0137, 0.003), (-0.0291, 0.0025)] {
+        let (mesh, stats) = run(&slab_end(h, t), cell);
+        let pairs: Vec<[u32; 2]> =
+            stats.triangles_per_pair.iter().map(|p| [p.0.0, p.0.1]).collect();
+        assert!(pairs.contains(&[0, 1]), "h {h}, t {t}: the slab's end is drawn: {pairs:?}");
+        assert_eq!(stats.unoriented_triangles, 0, "h {h}, t {t}");
+        let report = skelform_mesh::check::check(&mesh);
+        assert_eq!(report.inconsistent_edges, 0, "h {h}, t {t}");
+        assert_eq!(report.folded_edges, 0, "h {h}, t {t}");
+        assert_eq!(report.coincident_faces, 0, "h {h}, t {t}");
+        assert_eq!(report.duplicate_faces, 0, "h {h}, t {t}");
+    }
+}

@@ -84,6 +84,10 @@ impl Run<'_> {
         } else if ra != rb {
             self.sections(pa, pb, [0, n], [ra, rb], tol, &mut found);
         }
+        if !found.is_empty() {
+            self.inner_bytes += crate::lattice::memory::vec_bytes(&found);
+            self.samples.insert((lo, hi), found.clone());
+        }
         // Looped pairs: a crossing (x, y) followed by (y, x) enters and leaves along this edge.
         let mut kept: Vec<(f64, u32, u32)> = Vec::new();
         for c in found {
@@ -111,6 +115,49 @@ impl Run<'_> {
                 Crossing { from, to, vertex: self.positions.len() as u32 - 1 }
             })
             .collect()
+    }
+
+    /// The region at `p`, a point of the lattice segment that holds the edge vertex `at`, as
+    /// the segment's sampling already says, without evaluating: the region between the
+    /// crossings bisected on it (looped ones included) where `p` lies more than 1.5ε from
+    /// every one of them (a bracket reaches ε either side). `None` where it does not say
+    /// (`p` off the segment or near a crossing, `at` not an edge vertex). What the sampling
+    /// missed between its samples (a region poking through between two of them) the
+    /// contour follower's own evaluation would see; for the follower's first triangle, 2ε
+    /// from the crossing beside the bisection's last samples, that is a sliver thinner than
+    /// ε. Farther out it is not: taking the coarse strip's base (8ε out) from the samples
+    /// too moved face vertices next to a sheet a hair off a lattice plane on the three-lobed
+    /// leaf, and folded it there.
+    pub(super) fn known_region(&self, at: u32, p: DVec3) -> Option<u32> {
+        let &(lo, hi) = self.on_edge.get(&at)?;
+        let (pa, pb) = (self.point(lo), self.point(hi));
+        let d = pb - pa;
+        let len2 = d.length_squared();
+        let t = (p - pa).dot(d) / len2;
+        let len = len2.sqrt();
+        if !(0.0..=1.0).contains(&t) || (p - pa.lerp(pb, t)).length() > 1e-9 * len {
+            return None;
+        }
+        let margin = 1.5 * self.eps / len;
+        let mut region = *self.point_region.get(&lo)?;
+        for &(tc, _, to) in self.samples.get(&(lo, hi))? {
+            if (t - tc).abs() <= margin {
+                return None;
+            }
+            if tc < t {
+                region = to;
+            }
+        }
+        Some(region)
+    }
+
+    /// The region at a point next to the edge vertex `at` on its segment: known from the
+    /// segment's sampling where it says ([`Run::known_region`]), else evaluated.
+    pub(super) fn region_beside(&mut self, at: u32, p: DVec3) -> u32 {
+        match self.known_region(at, p) {
+            Some(r) => r,
+            None => self.region_at(p),
+        }
     }
 
     /// The section changes between section points `i[0] < i[1]` (regions `r[0] != r[1]`),

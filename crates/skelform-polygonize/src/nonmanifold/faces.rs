@@ -64,6 +64,10 @@ struct End {
 struct Junctions {
     groups: Vec<(Vec<Walked>, Option<DVec3>)>,
     links: Vec<(usize, usize, RegionPair)>,
+    /// For each link, which side of it lies which region: a direction across it within the
+    /// face, from a point of the face on one side towards one on the other, and the region
+    /// it points into ([`Run::orient`] winds the sheet's triangles on the link by it).
+    sides: Vec<(DVec3, u32)>,
 }
 
 impl Run<'_> {
@@ -195,9 +199,10 @@ impl Run<'_> {
                     regions,
                 });
             }
-            for &(a, b, pair) in &split.links {
+            for (&(a, b, pair), &(across, region)) in split.links.iter().zip(&split.sides) {
                 if let (Some(u), Some(v)) = (vertex_of[a], vertex_of[b]) {
                     info.lines.push((u, v, pair));
+                    self.link_sides.insert((u.min(v), u.max(v)), (across, region, pair));
                 }
             }
         }
@@ -441,7 +446,7 @@ impl Run<'_> {
         if inside(mid + w * side) == back {
             w = -w;
         }
-        let (rx, ry) = (self.region_at(px), self.region_at(py));
+        let (rx, ry) = (self.region_beside(s.vertex, px), self.region_beside(s.vertex, py));
         let (x, y) = (s.from, s.to);
         if ![rx, ry].iter().all(|&r| r == x || r == y) {
             // The first triangle already has a corner in a third region (the crossing is
@@ -460,7 +465,7 @@ impl Run<'_> {
         // when that fails, and for the other way (a few triangles at most).
         if !back
             && let Some((p, foreign)) =
-                self.coarse_then_fine(v, edge_dir, w, (x, y), side, max_steps, &outside)
+                self.coarse_then_fine(s.vertex, edge_dir, w, (x, y), side, max_steps, &outside)
         {
             return Some(End { at: clamp(p), at_crossing: false, foreign });
         }
@@ -517,7 +522,11 @@ impl Run<'_> {
         let any_interest =
             unmatched.iter().any(|w| self.interesting(RegionPair::new(w.from, w.to)));
         if unmatched.len() < 4 || !any_interest || !self.opts.junctions {
-            return Junctions { groups: vec![(unmatched, None)], links: Vec::new() };
+            return Junctions {
+                groups: vec![(unmatched, None)],
+                links: Vec::new(),
+                sides: Vec::new(),
+            };
         }
         let n = unmatched.len();
         let near = JUNCTION * 4.0 * self.eps;
@@ -596,7 +605,7 @@ impl Run<'_> {
             ring.retain(|&i| left.iter().any(|w| w.vertex == unmatched[i].vertex));
         }
         if ring.is_empty() {
-            return Junctions { groups, links: Vec::new() };
+            return Junctions { groups, links: Vec::new(), sides: Vec::new() };
         }
         // What is left: junctions each of one run of consecutive crossings, joined by
         // contours (see `linked_runs`), or one junction.
@@ -609,12 +618,50 @@ impl Run<'_> {
             let walked: Vec<Vec<Walked>> =
                 members.iter().map(|m| m.iter().map(|&i| unmatched[i]).collect()).collect();
             if let Some(links) = linked_runs(&walked, inside) {
+                // The region a link's first run is followed by touches the face's sides
+                // between that run's last crossing and the next run's first: the link has it
+                // on the side of a point of the boundary between them (their midpoint when
+                // they lie on one side of the face, else the corner that ends the first
+                // one's side), and on the other side the region across (the other gap
+                // between two runs, or the polygon's inside at its centre).
+                let [ca, cb, cc] = corners.map(|k| self.point(k));
+                let walk = [(ca, cb), (cb, cc), (cc, ca)];
+                let off = |p: DVec3, i: usize| {
+                    let (q0, q1) = walk[i];
+                    (p - q0).cross((q1 - q0).normalize()).length()
+                };
+                let side_of =
+                    |p: DVec3| (0..3).min_by(|&i, &j| off(p, i).total_cmp(&off(p, j))).unwrap_or(0);
+                let at = |i: usize| self.positions[unmatched[i].vertex as usize];
+                let gap = |i: usize, j: usize| {
+                    let (last, first) = (members[i][members[i].len() - 1], members[j][0]);
+                    let (p0, p1) = (at(last), at(first));
+                    let s0 = side_of(p0);
+                    let (q0, q1) = walk[s0];
+                    let between = if s0 == side_of(p1) && (p1 - p0).dot(q1 - q0) > 0.0 {
+                        (p0 + p1) * 0.5
+                    } else {
+                        q1
+                    };
+                    (between, unmatched[last].to)
+                };
+                let sides = links
+                    .iter()
+                    .map(|&(a, b, _)| {
+                        let (p, r) = gap(a, b);
+                        let q = match centre {
+                            Some(c) => c,
+                            None => gap(b, a).0,
+                        };
+                        (p - q, r)
+                    })
+                    .collect();
                 let base = groups.len();
                 for (m, w) in members.iter().zip(walked) {
                     groups.push((w, Some(mean(m))));
                 }
                 let links = links.into_iter().map(|(a, b, p)| (base + a, base + b, p)).collect();
-                return Junctions { groups, links };
+                return Junctions { groups, links, sides };
             }
         }
         // One junction: its vertex where the first contour of interest that was followed
@@ -632,7 +679,7 @@ impl Run<'_> {
             self.stats.face_vertices_at_crossing += 1;
         }
         groups.push((ring.iter().map(|&i| unmatched[i]).collect(), end.map(|e| e.at)));
-        Junctions { groups, links: Vec::new() }
+        Junctions { groups, links: Vec::new(), sides: Vec::new() }
     }
 }
 
@@ -737,7 +784,7 @@ const COARSE: f64 = 4.0;
 
 impl Run<'_> {
     /// The face vertex's contour walk in two strides: a strip of triangles [`COARSE`] times
-    /// the fine side follows the contour (x, y) from the crossing at `v` (on a face side of
+    /// the fine side follows the contour (x, y) from the crossing `at` (on a face side of
     /// direction `d`, the walk heading into the face along `w`) to the first triangle that
     /// meets a foreign region or leaves the face; its base, which straddles the contour,
     /// is bisected down to a fine side and the fine strip walks on from there to the
@@ -755,7 +802,7 @@ impl Run<'_> {
     #[allow(clippy::too_many_arguments)]
     fn coarse_then_fine(
         &mut self,
-        v: DVec3,
+        at: u32,
         d: DVec3,
         w: DVec3,
         (x, y): (u32, u32),
@@ -767,6 +814,7 @@ impl Run<'_> {
         // triangles are made of its points (four fine sides to a coarse one), the first with
         // its base along the face side through the crossing, so the fine walk resumed on a
         // coarse base walks the same fine triangles as the fine walk from the crossing.
+        let v = self.positions[at as usize];
         let (e1, e2) = (d * side, d * side * 0.5 + w * side * 3f64.sqrt() * 0.5);
         let o = v - e1 * 0.5;
         let (mut px, mut py) = (o - e1 * (COARSE * 0.5), o + e1 * (COARSE * 0.5));

@@ -37,23 +37,28 @@
 //! there is a looped pair it drops (none was kept on any example; a wedge of two other
 //! regions across such a segment, thinner than the cell, is missed); and the contour
 //! follower strides in triangles four times larger before its small ones
-//! (`Run::coarse_then_fine`).
+//! (`Run::coarse_then_fine`), its first triangle's base taking its regions from the
+//! samples the edge's bisection already took beside the crossing (`Run::known_region`).
 //!
 //! Beyond one vertex (issue 18): the chapter allows one face vertex per face and one
 //! internal vertex per tetrahedron, and names more as future work. With
-//! `Options::junctions`, a face whose
+//! `Options::junctions` (the default), a face whose
 //! unpaired crossings run to separate junctions (their contours followed to where they end)
 //! gets a face vertex for each, joined by a line when a contour runs between them (two
 //! junctions: the contour between the regions on either side; three or more, each holding
 //! one run of consecutive crossings round the face: the sides of a polygon round the
 //! region asked at their centre, or of a path along it, see `linked_runs`). With four
 //! crossings the region the first contour meets says which two junctions there can be, so
-//! two contours are followed, not all four. Always (it costs no evaluations), a face
-//! vertex of four regions becomes two, ε either side of the followed end and joined by the
-//! short contour between the two junctions, where that contour is a cap (drawn, with a
-//! drawn sheet beside it at each end: a vein's slab reaching the leaf's margin, whose two
-//! sides one vertex folded onto each other; see `Run::four_region_split`). Always, a
-//! tetrahedron's contours are split into the components they make on its surface, a
+//! two contours are followed, not all four. A sheet crossing a face as such a line between
+//! two face vertices (a slab's end thinner than the cell) can have no edge vertex of its
+//! pair in the tetrahedra on either side to be wound by: its triangles are wound by where
+//! the line's two regions touch the face's sides (`Run::orient`). Always (it costs no
+//! evaluations), a face vertex of four regions becomes two, ε either side of the followed
+//! end and joined by the short contour between the two junctions, where that contour is a
+//! cap (drawn, with a drawn sheet beside it at each end: a vein's slab reaching the leaf's
+//! margin, whose two sides one vertex folded onto each other; see
+//! `Run::four_region_split`). Always, a tetrahedron's contours are split into the
+//! components they make on its surface, a
 //! component without face vertices is polygonized on its own, and a curve passing through
 //! (two face vertices where the same regions meet) gets its own internal vertex: one
 //! vertex at the mean of every face vertex folded the sheets of a curve clipping a corner
@@ -135,10 +140,11 @@ pub struct Options {
     pub max_cells: u64,
     /// Beyond the chapter: a face vertex per junction of a face (the module's "Beyond one
     /// vertex"; an internal vertex per curve and per contour component of a tetrahedron is
-    /// made either way). Off by default: following the contours of faces with four or
-    /// more crossings costs about 1.5% more evaluations on the leaves (2.01 times a
-    /// conventional polygonizer's on the three-lobed leaf), and with it a few triangles
-    /// there come out wound against their neighbours.
+    /// made either way). On by default: following the contours of faces with four or more
+    /// crossings costs about 1.5% more evaluations on the leaves (1.95 times a conventional
+    /// polygonizer's on the three-lobed leaf; 1.98 without it before the follower's first
+    /// triangle reused the edge's samples). Off: the chapter's one face vertex per face,
+    /// which fuses junctions on one face into one vertex.
     pub junctions: bool,
 }
 
@@ -160,7 +166,7 @@ impl Default for Options {
             close_factor: 1.0,
             loops: false,
             max_cells: 5_000_000,
-            junctions: false,
+            junctions: true,
         }
     }
 }
@@ -247,6 +253,10 @@ pub struct Stats {
     pub time: Duration,
 }
 
+/// The crossings bisected on one segment, in order: (parameter along it, region before,
+/// region after).
+type Bisected = Vec<(f64, u32, u32)>;
+
 struct Run<'a> {
     regions: &'a dyn RegionField,
     grid: Grid,
@@ -258,6 +268,15 @@ struct Run<'a> {
     interest: Option<FxHashSet<RegionPair>>,
     point_region: FxHashMap<Key, u32>,
     edges: FxHashMap<(Key, Key), Vec<Crossing>>,
+    /// Every crossing bisected on a segment (looped ones included), as (parameter along
+    /// lo → hi, region before, region after): what the segment's samples say about the
+    /// regions along it ([`Run::known_region`]).
+    samples: FxHashMap<(Key, Key), Bisected>,
+    /// Lines between two face vertices (a contour joining two junctions of a face), keyed
+    /// by their vertices (lesser first): a direction across the line within the face, the
+    /// region it points into, and the line's pair. The sheet's triangles on such a line
+    /// have no edge vertex of their pair to be wound by ([`Run::orient`]).
+    link_sides: FxHashMap<(u32, u32), (DVec3, u32, RegionPair)>,
     faces: FxHashMap<[Key; 3], FaceInfo>,
     positions: Vec<DVec3>,
     /// The lattice segment of each edge vertex.
@@ -341,6 +360,8 @@ fn polygonize_here(regions: &dyn RegionField, options: &Options) -> Result<(Mesh
             .then(|| options.interest.iter().copied().collect()),
         point_region: FxHashMap::default(),
         edges: FxHashMap::default(),
+        samples: FxHashMap::default(),
+        link_sides: FxHashMap::default(),
         faces: FxHashMap::default(),
         positions: Vec::new(),
         on_edge: FxHashMap::default(),
@@ -442,6 +463,8 @@ impl Run<'_> {
             + size_of::<RegionPair>()) as u64;
         map_bytes(&self.point_region)
             + map_bytes(&self.edges)
+            + map_bytes(&self.samples)
+            + map_bytes(&self.link_sides)
             + map_bytes(&self.faces)
             + self.inner_bytes
             + vec_bytes(&self.positions)

@@ -11,6 +11,11 @@ use super::Run;
 /// Least turn of a curve (radians, 30°) that [`Run::sharpen`] takes for a corner.
 const CORNER_TURN: f64 = std::f64::consts::PI / 6.0;
 
+/// Least cosine between a triangle's normal and the direction across a face's line that
+/// [`Run::orient`] winds it by: a triangle closer to the face's plane leaves it to its
+/// neighbours.
+const LINK_STEEP: f64 = 0.2;
+
 impl Run<'_> {
     /// Winds every triangle counter-clockwise seen from its lesser region. Each triangle has
     /// an edge vertex of its own pair, whose lattice segment runs from one region into the
@@ -35,7 +40,33 @@ impl Run<'_> {
                         t.swap(1, 2);
                     }
                 }
-                None => unknown.push(i),
+                // A triangle on a line joining two face vertices (a sheet crossing the face
+                // between two junctions, as the end of a vein slab thinner than the cell
+                // crosses it without an edge vertex of its own) is wound by which region
+                // lies on which side of the line in the face, when it leaves the face's
+                // plane steeply enough for that to tell.
+                None => {
+                    let side = (0..3).find_map(|k| {
+                        let (u, v) = (t[k], t[(k + 1) % 3]);
+                        let s = self.link_sides.get(&(u.min(v), u.max(v)))?;
+                        (s.2 == *pair).then_some((u, v, s.0, s.1))
+                    });
+                    let across = side.and_then(|(u, v, dir, region)| {
+                        let e = (self.positions[v as usize] - self.positions[u as usize])
+                            .normalize_or_zero();
+                        let d = (dir - e * dir.dot(e)).normalize_or_zero();
+                        let steep = n.normalize_or_zero().dot(d).abs() >= LINK_STEEP;
+                        steep.then_some(if region == pair.0 { d } else { -d })
+                    });
+                    match across {
+                        Some(towards_lesser) => {
+                            if n.dot(towards_lesser) < 0.0 {
+                                t.swap(1, 2);
+                            }
+                        }
+                        None => unknown.push(i),
+                    }
+                }
             }
         }
         if !unknown.is_empty() {
