@@ -1014,8 +1014,21 @@ impl SkeletonField {
                 return self.nearest_color(colors, clique, p);
             }
         }
+        self.weighted_color(colors, members.iter().copied(), p)
+            .unwrap_or_else(|| self.nearest_color(colors, clique, p))
+    }
+
+    /// The average of the colours of `members` at `p`, each weighted by its element's
+    /// colour weight there (its convolution), every weight taken; `None` where no member
+    /// reaches `p`.
+    fn weighted_color(
+        &self,
+        colors: &[[f32; 3]],
+        members: impl Iterator<Item = usize>,
+        p: DVec3,
+    ) -> Option<[f32; 3]> {
         let (mut sum, mut total) = ([0.0f64; 3], 0.0f64);
-        for &e in &members {
+        for e in members {
             let it = &self.items[e];
             if !it.contains(p) {
                 continue;
@@ -1028,10 +1041,7 @@ impl SkeletonField {
                 }
             }
         }
-        if total > 0.0 {
-            return sum.map(|c| (c / total) as f32);
-        }
-        self.nearest_color(colors, clique, p)
+        (total > 0.0).then(|| sum.map(|c| (c / total) as f32))
     }
 
     /// The colour at a point no element of `clique` reaches: its nearest element's,
@@ -1877,25 +1887,7 @@ mod tests {
         let members = clique.plain.iter().copied().chain(
             clique.junctions.iter().flat_map(|&j| f.junctions[j].limbs.iter().map(|l| l.element)),
         );
-        let (mut sum, mut total) = ([0.0f64; 3], 0.0f64);
-        for e in members {
-            let it = &f.items[e];
-            if !it.contains(p) {
-                continue;
-            }
-            let w = f.color_weight(it, p);
-            if w > 0.0 {
-                total += w;
-                for k in 0..3 {
-                    sum[k] += w * f64::from(colors[e][k]);
-                }
-            }
-        }
-        if total > 0.0 {
-            sum.map(|c| (c / total) as f32)
-        } else {
-            f.nearest_color(colors, clique, p)
-        }
+        f.weighted_color(colors, members, p).unwrap_or_else(|| f.nearest_color(colors, clique, p))
     }
 
     /// A zigzag of skin-coloured segments with two of another colour in it, the colours of
