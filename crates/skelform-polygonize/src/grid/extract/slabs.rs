@@ -153,8 +153,9 @@ type Ran<V, T> = (Output<V>, T);
 /// where [`run_slabs`] on more threads would first copy it into one mesh. Each piece is
 /// numbered from its own first vertex; a reference to the layer above is numbered just past
 /// the piece's own vertices, on the next piece's first ones. Threads claim slabs lowest
-/// first; the buffers come from `reuse` (emptied first; a caller's pieces of its last
-/// extraction, already in memory) while it has some. The pieces do not depend on the
+/// first; slab `k` runs into `reuse[k]` (emptied first) where there is one: a caller's
+/// pieces of its last extraction, already in memory, and of the right size when the volume
+/// is like the last one. The pieces do not depend on the
 /// thread count nor on `reuse`.
 pub(super) fn run_slab_pieces<V, T, E>(
     slabs: usize,
@@ -168,7 +169,7 @@ where
     E: Send,
 {
     let threads = rayon::current_num_threads().clamp(1, slabs.max(1));
-    let spare = Mutex::new(reuse);
+    let spare: Mutex<Vec<Option<Output<V>>>> = Mutex::new(reuse.into_iter().map(Some).collect());
     let done: Mutex<Vec<Option<Ran<V, T>>>> = Mutex::new((0..slabs).map(|_| None).collect());
     let error: Mutex<Option<(usize, E)>> = Mutex::new(None);
     let (next, stop) = (AtomicUsize::new(0), AtomicBool::new(false));
@@ -180,7 +181,8 @@ where
             if k >= slabs {
                 break;
             }
-            let taken = spare.lock().unwrap_or_else(|e| e.into_inner()).pop();
+            let taken =
+                spare.lock().unwrap_or_else(|e| e.into_inner()).get_mut(k).and_then(Option::take);
             let mut out = taken.unwrap_or_default();
             out.vertices.clear();
             out.triangles.clear();
