@@ -16,8 +16,9 @@ use pyo3::prelude::*;
 use rayon::prelude::*;
 use skelform::DVec3;
 use skelform::volume::{
-    Grid, GridVertex, Level, MAX_SAMPLES_PER_AXIS, Near, Place, SlabVertex, Volume, VolumeView,
-    extract_view_records_into, extract_volume_records_into, sanitize_sample,
+    Grid, GridVertex, Level, MAX_SAMPLES_PER_AXIS, Near, Piece, Place, SlabVertex, Volume,
+    VolumeView, extract_view_pieces_into, extract_view_records_into, extract_volume_pieces_into,
+    extract_volume_records_into, sanitize_sample,
 };
 use std::sync::{Mutex, PoisonError};
 
@@ -226,6 +227,12 @@ static RECORDS: Mutex<Vec<Vertex>> = Mutex::new(Vec::new());
 
 /// The most vertex records kept between calls (about 0.9 GiB).
 const KEEP_RECORDS: usize = 1 << 25;
+
+/// The slabs' pieces of the last call on more than one thread, kept for the next (emptied)
+/// as [`RECORDS`] are: there each slab runs into a piece of its own, which is written
+/// straight into the arrays handed to Python ([`join_pieces`]), with no mesh of records
+/// in between.
+static PIECES: Mutex<Vec<Piece<Vertex>>> = Mutex::new(Vec::new());
 
 /// A vertex as the conventions need it, made by the extractor while the samples around it
 /// are in the cache: its position and, from the gradient there, its unit normal (down the
@@ -629,6 +636,62 @@ fn extract<T: Sample>(a: ArrayView3<'_, T>, o: &Options<'_>, run: &Run) -> PyRes
     // the array's axis order is a reflection of them when it is (2, 1, 0).
     let reflected = layout.axis_of == [2, 1, 0];
     let rewound = reflected != o.ascent;
+    // scikit-image's check that a given level lies in the data's range (no error when the
+    // data has NaN, whose comparisons are false). A mesh has a sample below the level (the
+    // shifted sample is negative only then), so only the other end needs looking at; with
+    // no mesh, both do.
+    let check_level = |no_mesh: bool| {
+        if o.level.is_none() {
+            return Ok(());
+        }
+        let in_range = if no_mesh {
+            let (lo, hi) = value_range(&a);
+            !(level < lo || level > hi)
+        } else {
+            reaches(&a, level)
+        };
+        if in_range {
+            Ok(())
+        } else {
+            Err(PyValueError::new_err("Surface level must be within volume data range."))
+        }
+    };
+    let fits = |n: usize| {
+        if i32::try_from(n).is_err() {
+            return Err(PyValueError::new_err(format!(
+                "{n} vertices do not fit the int32 face indices of scikit-image's convention"
+            )));
+        }
+        Ok(())
+    };
+    // On more than one thread, with nothing to drop from the mesh, the slabs' pieces go
+    // straight into the arrays (on one, the slabs write the records themselves).
+    if rayon::current_num_threads() > 1 && o.mask.is_none() && o.allow_degenerate {
+        let kept = std::mem::take(&mut *PIECES.lock().unwrap_or_else(PoisonError::into_inner));
+        let pieces = if rewound {
+            extract_pieces::<true>(&samples, &run.control, kept)
+        } else {
+            extract_pieces::<false>(&samples, &run.control, kept)
+        };
+        if let Samples::Converted(volume) = samples {
+            keep_buffer(volume.values);
+        }
+        let mut pieces = pieces.map_err(|cancelled| polygonize_error(cancelled.into()))?;
+        let nv: usize = pieces.iter().map(|p| p.0.len()).sum();
+        let nt: usize = pieces.iter().map(|p| p.1.len()).sum();
+        check_level(nt == 0)?;
+        fits(nv)?;
+        let flat = join_pieces(&layout, &pieces, nv, nt);
+        let held: usize = pieces.iter().map(|p| p.0.capacity() + p.1.capacity()).sum();
+        if held <= KEEP_RECORDS {
+            pieces.iter_mut().for_each(|p| {
+                p.0.clear();
+                p.1.clear();
+            });
+            *PIECES.lock().unwrap_or_else(PoisonError::into_inner) = pieces;
+        }
+        return Ok(flat);
+    }
     let kept = std::mem::take(&mut *RECORDS.lock().unwrap_or_else(PoisonError::into_inner));
     let kept = (kept, pooled::take_triangles());
     let records = if rewound {
@@ -642,21 +705,7 @@ fn extract<T: Sample>(a: ArrayView3<'_, T>, o: &Options<'_>, run: &Run) -> PyRes
         keep_buffer(volume.values);
     }
     let (vertices, triangles) = records.map_err(|cancelled| polygonize_error(cancelled.into()))?;
-    // scikit-image's check that a given level lies in the data's range (no error when the
-    // data has NaN, whose comparisons are false). A mesh has a sample below the level (the
-    // shifted sample is negative only then), so only the other end needs looking at; with
-    // no mesh, both do.
-    if o.level.is_some() {
-        let in_range = if triangles.is_empty() {
-            let (lo, hi) = value_range(&a);
-            !(level < lo || level > hi)
-        } else {
-            reaches(&a, level)
-        };
-        if !in_range {
-            return Err(PyValueError::new_err("Surface level must be within volume data range."));
-        }
-    }
+    check_level(triangles.is_empty())?;
     let mut ex = Extracted { vertices, triangles };
     if let Some(m) = &o.mask {
         let keep: Vec<bool> = ex
@@ -677,12 +726,7 @@ fn extract<T: Sample>(a: ArrayView3<'_, T>, o: &Options<'_>, run: &Run) -> PyRes
     if !o.allow_degenerate {
         ex.remove_degenerate();
     }
-    if i32::try_from(ex.vertices.len()).is_err() {
-        return Err(PyValueError::new_err(format!(
-            "{} vertices do not fit the int32 face indices of scikit-image's convention",
-            ex.vertices.len()
-        )));
-    }
+    fits(ex.vertices.len())?;
     let (flat, mut vertices) = conventions(&layout, ex);
     vertices.clear();
     if vertices.capacity() <= KEEP_RECORDS {
@@ -704,6 +748,21 @@ fn extract_records<const REWOUND: bool>(
         Samples::Converted(volume) => extract_volume_records_into(volume, control, kept),
     }?;
     Ok((retype(records), triangles))
+}
+
+/// [`extract_records`] with the mesh left in the slabs' pieces, written into those of
+/// `kept` (see [`extract_view_pieces_into`]).
+fn extract_pieces<const REWOUND: bool>(
+    samples: &Samples<'_>,
+    control: &skelform::Control,
+    kept: Vec<Piece<Vertex>>,
+) -> Result<Vec<Piece<Vertex>>, skelform::volume::Cancelled> {
+    let kept = kept.into_iter().map(|(v, t)| (retype::<Vertex, Record<REWOUND>>(v), t)).collect();
+    let pieces = match samples {
+        Samples::InPlace(view) => extract_view_pieces_into(view, control, kept),
+        Samples::Converted(volume) => extract_volume_pieces_into(volume, control, kept),
+    }?;
+    Ok(pieces.into_iter().map(|(v, t)| (retype(v), t)).collect())
 }
 
 /// Runs `op` on `pool`, or on the current (global) pool.
@@ -774,4 +833,83 @@ fn conventions(layout: &Layout, ex: Extracted) -> (Flat, Vec<Vertex>) {
         values.set_len(n);
     }
     ((positions, ex.triangles, normals, values), ex.vertices)
+}
+
+/// [`conventions`] for a mesh in the slabs' pieces (`nv` vertices and `nt` triangles in
+/// all): each piece's vertices go straight into their rows of the flat arrays, and its
+/// triangles, their numbers shifted by the vertices of the pieces before it, into the
+/// faces; in blocks on the pool's threads, into memory that is not zeroed first. The same
+/// arrays as `conventions` makes of the joined mesh.
+fn join_pieces(layout: &Layout, pieces: &[Piece<Vertex>], nv: usize, nt: usize) -> Flat {
+    /// Vertices or triangles per parallel task.
+    const BLOCK: usize = 1 << 13;
+    type Uninit<T> = std::mem::MaybeUninit<T>;
+    let mut positions = pooled::take::<f32>(3 * nv);
+    let mut normals = pooled::take::<f32>(3 * nv);
+    let mut values = pooled::take::<f32>(nv);
+    let mut triangles = pooled::take_triangles();
+    if triangles.capacity() < nt {
+        triangles = Vec::with_capacity(nt);
+        skelform::field::pages::advise_huge(triangles.as_ptr(), nt);
+    }
+    let reversed = layout.axis_of == [2, 1, 0];
+    debug_assert!(reversed || layout.axis_of == [0, 1, 2]);
+    {
+        let mut pos: &mut [Uninit<f32>] = &mut positions.spare_capacity_mut()[..3 * nv];
+        let mut normal: &mut [Uninit<f32>] = &mut normals.spare_capacity_mut()[..3 * nv];
+        let mut value: &mut [Uninit<f32>] = &mut values.spare_capacity_mut()[..nv];
+        let mut faces: &mut [Uninit<[u32; 3]>] = &mut triangles.spare_capacity_mut()[..nt];
+        let mut vertex_tasks = Vec::new();
+        let mut face_tasks = Vec::new();
+        let mut shift = 0u32;
+        for (vertices, tris) in pieces {
+            for block in vertices.chunks(BLOCK) {
+                let (p, rest) = std::mem::take(&mut pos).split_at_mut(3 * block.len());
+                pos = rest;
+                let (n, rest) = std::mem::take(&mut normal).split_at_mut(3 * block.len());
+                normal = rest;
+                let (v, rest) = std::mem::take(&mut value).split_at_mut(block.len());
+                value = rest;
+                vertex_tasks.push((p, n, v, block));
+            }
+            for block in tris.chunks(BLOCK) {
+                let (f, rest) = std::mem::take(&mut faces).split_at_mut(block.len());
+                faces = rest;
+                face_tasks.push((f, block, shift));
+            }
+            // Below 2³¹ in all (checked by the caller), so neither this nor a shifted
+            // number overflows.
+            shift += vertices.len() as u32;
+        }
+        debug_assert!(pos.is_empty() && normal.is_empty() && value.is_empty() && faces.is_empty());
+        rayon::join(
+            || {
+                vertex_tasks.into_par_iter().for_each(|(p, n, v, block)| {
+                    if reversed {
+                        copy_block::<true>(p, n, v, block);
+                    } else {
+                        copy_block::<false>(p, n, v, block);
+                    }
+                });
+            },
+            || {
+                face_tasks.into_par_iter().for_each(|(f, block, shift)| {
+                    for (out, t) in f.iter_mut().zip(block) {
+                        out.write(t.map(|i| i + shift));
+                    }
+                });
+            },
+        );
+    }
+    // SAFETY: the pieces' blocks above cover the first 3·nv (nv) elements of the vertex
+    // arrays and the first nt of the faces, in order and each once (their sizes sum to nv
+    // and nt), every vertex writing all of its elements (`copy_block`) and every triangle
+    // its own.
+    unsafe {
+        positions.set_len(3 * nv);
+        normals.set_len(3 * nv);
+        values.set_len(nv);
+        triangles.set_len(nt);
+    }
+    (positions, triangles, normals, values)
 }

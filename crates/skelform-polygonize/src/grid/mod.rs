@@ -36,10 +36,11 @@ use crate::refine::{
     Bracket, Line, RootOptions, gradient_normals, project_to_surface, refine_roots, roots_on_lines,
 };
 pub use extract::{
-    Cancelled, Extraction, GridVertex, LayerSource, Near, Place, Positions, SLAB, SLIDE_UNIT,
-    SampledVertex, SlabVertex, Slide, StreamError, StreamStats, Streamed, Workspace, dir_vector,
-    extract, extract_positions, extract_streamed, extract_streamed_with, extract_view_positions,
-    extract_view_records, extract_view_records_into, extract_volume_records,
+    Cancelled, Extraction, GridVertex, LayerSource, Near, Piece, Place, Positions, SLAB,
+    SLIDE_UNIT, SampledVertex, SlabVertex, Slide, StreamError, StreamStats, Streamed, Workspace,
+    dir_vector, extract, extract_positions, extract_streamed, extract_streamed_with,
+    extract_view_pieces_into, extract_view_positions, extract_view_records,
+    extract_view_records_into, extract_volume_pieces_into, extract_volume_records,
     extract_volume_records_into, extract_with, surface_cubes,
 };
 

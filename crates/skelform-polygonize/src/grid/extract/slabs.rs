@@ -144,6 +144,86 @@ where
     Ok((vertices, triangles, results))
 }
 
+/// A slab's output and result, as [`run_slab_pieces`] collects them.
+type Ran<V, T> = (Output<V>, T);
+
+/// Runs `slab` on every slab, each into an [`Output`] of its own, and returns them in slab
+/// order with each slab's result, not joined: a caller that converts the vertices anyway
+/// writes each piece straight into its final place (see [`super::extract_view_pieces_into`]),
+/// where [`run_slabs`] on more threads would first copy it into one mesh. Each piece is
+/// numbered from its own first vertex; a reference to the layer above is numbered just past
+/// the piece's own vertices, on the next piece's first ones. Threads claim slabs lowest
+/// first; slab `k` runs into `reuse[k]` (emptied first) where there is one: a caller's
+/// pieces of its last extraction, already in memory, and of the right size when the volume
+/// is like the last one. The pieces do not depend on the
+/// thread count nor on `reuse`.
+pub(super) fn run_slab_pieces<V, T, E>(
+    slabs: usize,
+    [nx, ny]: [usize; 2],
+    reuse: Vec<Output<V>>,
+    slab: impl Fn(usize, &mut Scratch, &mut SlabStore<V>) -> Result<T, E> + Sync,
+) -> Result<(Vec<Output<V>>, Vec<T>), E>
+where
+    V: SlabVertex,
+    T: Send,
+    E: Send,
+{
+    let threads = rayon::current_num_threads().clamp(1, slabs.max(1));
+    let spare: Mutex<Vec<Option<Output<V>>>> = Mutex::new(reuse.into_iter().map(Some).collect());
+    let done: Mutex<Vec<Option<Ran<V, T>>>> = Mutex::new((0..slabs).map(|_| None).collect());
+    let error: Mutex<Option<(usize, E)>> = Mutex::new(None);
+    let (next, stop) = (AtomicUsize::new(0), AtomicBool::new(false));
+    let work = || {
+        let mut scratch = Scratch::new(nx, ny);
+        let mut hint = (0, 0);
+        while !stop.load(Ordering::Relaxed) {
+            let k = next.fetch_add(1, Ordering::Relaxed);
+            if k >= slabs {
+                break;
+            }
+            let taken =
+                spare.lock().unwrap_or_else(|e| e.into_inner()).get_mut(k).and_then(Option::take);
+            let mut out = taken.unwrap_or_default();
+            out.vertices.clear();
+            out.triangles.clear();
+            match slab(k, &mut scratch, &mut SlabStore::tight(&mut out, hint)) {
+                Ok(r) => {
+                    hint = (out.vertices.len(), out.triangles.len());
+                    done.lock().unwrap_or_else(|e| e.into_inner())[k] = Some((out, r));
+                }
+                Err(e) => {
+                    let mut error = error.lock().unwrap_or_else(|e| e.into_inner());
+                    if error.as_ref().is_none_or(|(at, _)| k < *at) {
+                        *error = Some((k, e));
+                    }
+                    stop.store(true, Ordering::Relaxed);
+                    break;
+                }
+            }
+        }
+    };
+    if threads <= 1 {
+        work();
+    } else {
+        rayon::scope(|s| {
+            for _ in 0..threads {
+                s.spawn(|_| work());
+            }
+        });
+    }
+    if let Some((_, e)) = error.into_inner().unwrap_or_else(|e| e.into_inner()) {
+        return Err(e);
+    }
+    let done = done.into_inner().unwrap_or_else(|e| e.into_inner());
+    let (mut pieces, mut results) = (Vec::with_capacity(slabs), Vec::with_capacity(slabs));
+    for d in done {
+        let (out, r) = d.expect("a slab was never run");
+        pieces.push(out);
+        results.push(r);
+    }
+    Ok((pieces, results))
+}
+
 /// Slab buffers kept from one extraction to the next, so that a program that extracts again
 /// (frames of an animation, a benchmark's runs) does not fault in fresh pages for them every
 /// time: memory the size of a few slabs' meshes per thread.
@@ -257,15 +337,28 @@ pub(super) struct SlabStore<'a, V> {
     hint: (usize, usize),
     /// The first triangle that may refer to the layer above.
     borrowing: usize,
+    /// Room made for the hint alone, not for huge pages' worth: a piece of its own per slab
+    /// ([`run_slab_pieces`]), where room ahead in every one would be memory held in each.
+    tight: bool,
 }
 
 impl<'a, V: SlabVertex> SlabStore<'a, V> {
     pub(super) fn new(out: &'a mut Output<V>, hint: (usize, usize)) -> Self {
         let borrowing = usize::MAX;
-        SlabStore { out, hint, borrowing }
+        SlabStore { out, hint, borrowing, tight: false }
+    }
+
+    /// A store that makes room for its hint alone (see `tight`).
+    fn tight(out: &'a mut Output<V>, hint: (usize, usize)) -> Self {
+        SlabStore { tight: true, ..SlabStore::new(out, hint) }
     }
 
     pub(super) fn begin(&mut self) {
+        if self.tight {
+            self.out.vertices.reserve(self.hint.0 + self.hint.0 / 4);
+            self.out.triangles.reserve(self.hint.1 + self.hint.1 / 4);
+            return;
+        }
         make_room(&mut self.out.vertices, 2 * self.hint.0);
         make_room(&mut self.out.triangles, 2 * self.hint.1);
         debug_assert!(self.out.vertices.len() < BORROWED as usize);
