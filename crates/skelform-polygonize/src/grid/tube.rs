@@ -12,16 +12,18 @@
 //! where each meets the interpolant's level set, and the triangles are chosen so that, seen
 //! from `c`, every one turns the same way (`orient(c, p, q, r)` has the tube's sign).
 //! Triangles that all turn one way seen from one point, bounded by the two loops, cover the
-//! annulus of directions once: no ray from `c` meets two of them, so no two cross. Sliding a
-//! ring vertex along its ray (refinement does) turns nothing over.
+//! annulus of directions once, plus the whole sphere once for each extra turn round `c` (the
+//! loops fix the cover only up to whole turns); when their solid angles add up to less than
+//! the sphere there is none: no ray from `c` meets two of them, so no two cross. Sliding a
+//! ring vertex along its ray (refinement does) turns nothing over and changes no solid angle.
 //!
 //! The search: rings on the meridians of an axis (halfway, in angle from the axis, between
 //! where each half-plane through the axis meets the two loops) and rings in a plane through
 //! `c` that separates the loops; axes between the loops' mean directions, along the saddle's
 //! Hessian eigenvector of the odd sign, and between the loops' centroids; each band zipped in
 //! order of angle round whichever axis turns none of its triangles the wrong way. The first
-//! plan with every triangle turned right, every ring vertex on the level set and loop
-//! vertices that can each move [`ENOUGH`] cells before a triangle turns over (refinement
+//! plan with every triangle turned right and no extra turn, every ring vertex on the level
+//! set and loop vertices that can each move [`ENOUGH`] cells before a triangle turns over (refinement
 //! moves them along their cube edges, by a fraction of a cell) is kept, else the best.
 //! (A ring shaped like one loop, zipped by distance, as before, crossed itself in about a
 //! third of random tube cubes: with a thin tube the ring is tiny, and the distances from a
@@ -202,6 +204,15 @@ fn angle(d: DVec3, e1: DVec3, e2: DVec3) -> f64 {
     d.dot(e2).atan2(d.dot(e1))
 }
 
+/// The signed solid angle of the triangle `d` (vertices relative to the viewpoint), positive
+/// where it turns counter-clockwise seen from it (Van Oosterom and Strackee).
+fn solid_angle(d: [DVec3; 3]) -> f64 {
+    let [a, b, c] = d;
+    let (la, lb, lc) = (a.length(), b.length(), c.length());
+    let den = la * lb * lc + a.dot(b) * lc + a.dot(c) * lb + b.dot(c) * la;
+    2.0 * a.dot(b.cross(c)).atan2(den)
+}
+
 /// `x` reduced to `(-π, π]`.
 fn wrap(x: f64) -> f64 {
     use std::f64::consts::{PI, TAU};
@@ -353,7 +364,16 @@ impl Plan {
         let (mut tris, wrong_a, margin_a) = band(&av, &rv);
         let (tris_b, wrong_b, margin_b) = band(&rv, &bv);
         tris.extend(tris_b);
-        let wrong = wrong_a.saturating_add(wrong_b);
+        // Turning the right way is not enough on the sphere of directions: the loops fix
+        // the tube's cover of the annulus between them only up to whole turns round the
+        // sphere, and a tube can wrap once more round `c` (every direction seen twice in the
+        // annulus, once in the caps) with every triangle turning right. Its triangles' solid
+        // angles then add up to more than the whole sphere; a tube that covers the annulus
+        // once adds up to the annulus, less than the sphere by the loops' caps. Ring
+        // vertices sliding along their rays change no triangle's solid angle.
+        let seen: f64 = tris.iter().map(|t| sign * solid_angle(t.map(|x| pos(x) - c))).sum();
+        let wraps = seen >= 4.0 * std::f64::consts::PI;
+        let wrong = wrong_a.saturating_add(wrong_b).saturating_add(usize::from(wraps));
         Plan { centre: c, ring, tris, wrong, off, margin: margin_a.min(margin_b) }
     }
 
