@@ -23,8 +23,9 @@
 //! Hessian eigenvector of the odd sign, and between the loops' centroids; each band zipped in
 //! order of angle round whichever axis turns none of its triangles the wrong way. The first
 //! plan with every triangle turned right and no extra turn, every ring vertex on the level
-//! set and loop vertices that can each move [`ENOUGH`] cells before a triangle turns over (refinement
-//! moves them along their cube edges, by a fraction of a cell) is kept, else the best.
+//! set and loop vertices that can each move [`ENOUGH`] cells before a triangle turns over
+//! (refinement moves them along their cube edges, by a fraction of a cell) is kept, else the
+//! best.
 //! (A ring shaped like one loop, zipped by distance, as before, crossed itself in about a
 //! third of random tube cubes: with a thin tube the ring is tiny, and the distances from a
 //! loop's vertices to it no longer tell which way round it lies.)
