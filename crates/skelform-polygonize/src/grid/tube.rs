@@ -2,7 +2,8 @@
 //! built so that it cannot cross itself.
 //!
 //! Why it is embedded: the tube is a *radial graph* seen from a centre `c` inside the cube
-//! (the saddle, or a point on the saddle's axis still on the tube's side). The two loops lie
+//! (the saddle, or a point on the saddle's axis still on the tube's side; at least [`INSET`]
+//! from every face, the saddle moved in where it lies nearer one). The two loops lie
 //! on the cube's boundary, which is convex with `c` inside, so seen from `c` they are two
 //! disjoint simple closed curves on the sphere of directions (each loop segment, lying in a
 //! face, is seen as an arc of a great circle). Between them lies an annulus of directions in
@@ -11,17 +12,20 @@
 //! where each meets the interpolant's level set, and the triangles are chosen so that, seen
 //! from `c`, every one turns the same way (`orient(c, p, q, r)` has the tube's sign).
 //! Triangles that all turn one way seen from one point, bounded by the two loops, cover the
-//! annulus of directions once: no ray from `c` meets two of them, so no two cross. Sliding a
-//! ring vertex along its ray (refinement does) turns nothing over.
+//! annulus of directions once, plus the whole sphere once for each extra turn round `c` (the
+//! loops fix the cover only up to whole turns); when their solid angles add up to less than
+//! the sphere there is none: no ray from `c` meets two of them, so no two cross. Sliding a
+//! ring vertex along its ray (refinement does) turns nothing over and changes no solid angle.
 //!
 //! The search: rings on the meridians of an axis (halfway, in angle from the axis, between
 //! where each half-plane through the axis meets the two loops) and rings in a plane through
 //! `c` that separates the loops; axes between the loops' mean directions, along the saddle's
 //! Hessian eigenvector of the odd sign, and between the loops' centroids; each band zipped in
 //! order of angle round whichever axis turns none of its triangles the wrong way. The first
-//! plan with every triangle turned right, every ring vertex on the level set and loop
-//! vertices that can each move [`ENOUGH`] cells before a triangle turns over (refinement
-//! moves them along their cube edges, by a fraction of a cell) is kept, else the best.
+//! plan with every triangle turned right and no extra turn, every ring vertex on the level
+//! set and loop vertices that can each move [`ENOUGH`] cells before a triangle turns over
+//! (refinement moves them along their cube edges, by a fraction of a cell) is kept, else the
+//! best.
 //! (A ring shaped like one loop, zipped by distance, as before, crossed itself in about a
 //! third of random tube cubes: with a thin tube the ring is tiny, and the distances from a
 //! loop's vertices to it no longer tell which way round it lies.)
@@ -37,10 +41,20 @@ use super::interior::{level_on_ray, level_on_ray_to, saddle_axis, trilinear};
 /// fields of `tests/interior_vertices.rs` cross after refinement with 0.05.
 const ENOUGH: f64 = 0.1;
 
+/// The least distance (in cells) of a tube's centre from the cube's faces. A saddle on the
+/// cube's boundary (at the level where the face's own saddle is, or on an edge, in cubes
+/// with exactly representable values) sees the loop segments in its face edge on: their
+/// triangles turn neither way, and rays leaving through that face leave at once, so the
+/// ring vertices on them collapse onto the centre; the tube then crossed itself.
+const INSET: f64 = 0.02;
+
 #[cfg(test)]
 thread_local! {
     /// Plans made (rings placed), for tests that count the work per tube.
     pub static PLANS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+    /// Tubes kept with a triangle that does not turn the right way seen from the centre
+    /// (the search found no plan without one; the tube may then cross itself).
+    pub static FLAWED: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
 }
 
 /// The least distance (in cells) of a ring vertex from its tube's centre: where the
@@ -80,11 +94,15 @@ pub fn build(
     }
     let n = pa.len().max(pb.len());
     let mut best: Option<Plan> = None;
+    // The first centre is the saddle, moved [`INSET`] inside the cube if it lies nearer a
+    // face: seen from a point on a face, the loop segments in that face are seen edge on
+    // and the triangles through them turn neither way.
+    let base = sv.clamp(DVec3::splat(INSET), DVec3::splat(1.0 - INSET));
     'search: for step in [0.0, 0.1, -0.1, 0.2, -0.2, 0.3, -0.3] {
-        let c = sv + hessian * step;
+        let c = base + hessian * step;
         if step != 0.0
-            && (c.min_element() < 0.02
-                || c.max_element() > 0.98
+            && (c.min_element() < INSET
+                || c.max_element() > 1.0 - INSET
                 || (trilinear(v, c.to_array()) < 0.0) != inside)
         {
             continue;
@@ -135,6 +153,8 @@ pub fn build(
     let Some(plan) = best else {
         return;
     };
+    #[cfg(test)]
+    FLAWED.with(|f| f.set(f.get() + u64::from(plan.wrong > 0)));
     let ring: Vec<u32> = plan
         .ring
         .iter()
@@ -183,6 +203,15 @@ struct Plan {
 /// The angle of `d` round the axis in the frame `(e1, e2)`.
 fn angle(d: DVec3, e1: DVec3, e2: DVec3) -> f64 {
     d.dot(e2).atan2(d.dot(e1))
+}
+
+/// The signed solid angle of the triangle `d` (vertices relative to the viewpoint), positive
+/// where it turns counter-clockwise seen from it (Van Oosterom and Strackee).
+fn solid_angle(d: [DVec3; 3]) -> f64 {
+    let [a, b, c] = d;
+    let (la, lb, lc) = (a.length(), b.length(), c.length());
+    let den = la * lb * lc + a.dot(b) * lc + a.dot(c) * lb + b.dot(c) * la;
+    2.0 * a.dot(b.cross(c)).atan2(den)
 }
 
 /// `x` reduced to `(-π, π]`.
@@ -336,7 +365,16 @@ impl Plan {
         let (mut tris, wrong_a, margin_a) = band(&av, &rv);
         let (tris_b, wrong_b, margin_b) = band(&rv, &bv);
         tris.extend(tris_b);
-        let wrong = wrong_a.saturating_add(wrong_b);
+        // Turning the right way is not enough on the sphere of directions: the loops fix
+        // the tube's cover of the annulus between them only up to whole turns round the
+        // sphere, and a tube can wrap once more round `c` (every direction seen twice in the
+        // annulus, once in the caps) with every triangle turning right. Its triangles' solid
+        // angles then add up to more than the whole sphere; a tube that covers the annulus
+        // once adds up to the annulus, less than the sphere by the loops' caps. Ring
+        // vertices sliding along their rays change no triangle's solid angle.
+        let seen: f64 = tris.iter().map(|t| sign * solid_angle(t.map(|x| pos(x) - c))).sum();
+        let wraps = seen >= 4.0 * std::f64::consts::PI;
+        let wrong = wrong_a.saturating_add(wrong_b).saturating_add(usize::from(wraps));
         Plan { centre: c, ring, tris, wrong, off, margin: margin_a.min(margin_b) }
     }
 
