@@ -82,52 +82,38 @@ where
     }
     let chain = Mutex::new(Chain::new(slabs));
     let lock = || chain.lock().unwrap_or_else(|e| e.into_inner());
-    let (next, stop) = (AtomicUsize::new(0), AtomicBool::new(false));
     // The mesh goes into the memory of `reuse` where it has some (see `Assembly::from_vec`).
     let reused = [reuse.0.capacity() > 0, reuse.1.capacity() > 0];
     let (vertices, triangles) = (Assembly::from_vec(reuse.0), Assembly::from_vec(reuse.1));
-    let work = || {
-        let mut scratch = Scratch::new(nx, ny);
-        let mut hint = (0, 0);
-        while !stop.load(Ordering::Relaxed) {
-            let k = next.fetch_add(1, Ordering::Relaxed);
-            if k >= slabs {
-                break;
+    claim_slabs(threads, slabs, [nx, ny], |k, scratch, hint| {
+        let spare = lock().spare.pop();
+        let mut out = spare.or_else(|| workspace.take()).unwrap_or_default();
+        out.vertices.clear();
+        out.triangles.clear();
+        let result = slab(k, scratch, &mut SlabStore::new(&mut out, *hint));
+        *hint = (out.vertices.len(), out.triangles.len());
+        let (ready, [nv, nt], placed) = match result {
+            Ok(r) => lock().hand_over(k, r, out),
+            Err(e) => {
+                lock().fail(k, e);
+                return false;
             }
-            let spare = lock().spare.pop();
-            let mut out = spare.or_else(|| workspace.take()).unwrap_or_default();
-            out.vertices.clear();
-            out.triangles.clear();
-            let result = slab(k, &mut scratch, &mut SlabStore::new(&mut out, hint));
-            hint = (out.vertices.len(), out.triangles.len());
-            let (ready, [nv, nt], placed) = match result {
-                Ok(r) => lock().hand_over(k, r, out),
-                Err(e) => {
-                    lock().fail(k, e);
-                    stop.store(true, Ordering::Relaxed);
-                    break;
-                }
-            };
-            if !ready.is_empty() {
-                // Room for the placed slabs, and for the rest if they are like them, with a
-                // margin: growing copies what has been placed, unless the allocator can
-                // remap it.
-                let guess = |n: usize| n + n / placed * (slabs - placed + 1) * 5 / 4;
-                vertices.reserve(nv, guess(nv));
-                triangles.reserve(nt, guess(nt));
-            }
-            for (o, [v0, t0]) in &ready {
-                vertices.place(*v0, &o.vertices, |v| v);
-                let shift = *v0 as u32;
-                triangles.place(*t0, &o.triangles, |t| t.map(|i| i + shift));
-            }
-            lock().spare.extend(ready.into_iter().map(|(o, _)| o));
+        };
+        if !ready.is_empty() {
+            // Room for the placed slabs, and for the rest if they are like them, with a
+            // margin: growing copies what has been placed, unless the allocator can
+            // remap it.
+            let guess = |n: usize| n + n / placed * (slabs - placed + 1) * 5 / 4;
+            vertices.reserve(nv, guess(nv));
+            triangles.reserve(nt, guess(nt));
         }
-    };
-    rayon::scope(|s| {
-        for _ in 0..threads {
-            s.spawn(|_| work());
+        for (o, [v0, t0]) in &ready {
+            vertices.place(*v0, &o.vertices, |v| v);
+            let shift = *v0 as u32;
+            triangles.place(*t0, &o.triangles, |t| t.map(|i| i + shift));
         }
+        lock().spare.extend(ready.into_iter().map(|(o, _)| o));
+        true
     });
     let mut chain = chain.into_inner().unwrap_or_else(|e| e.into_inner());
     workspace.keep(std::mem::take(&mut chain.spare), 2 * threads);
@@ -142,6 +128,42 @@ where
         unsafe { (vertices.into_vec(nv, reused[0]), triangles.into_vec(nt, reused[1])) };
     let results = chain.results.into_iter().flatten().collect();
     Ok((vertices, triangles, results))
+}
+
+/// Runs `each` on slabs `0..slabs` on `threads` workers (the calling thread alone for one),
+/// each with a [`Scratch`] and a size hint of its own, which `each` updates; workers claim
+/// slabs lowest first, so slab k starts no later than any slab above it. `each` returns
+/// false to stop every worker from claiming another slab (an error).
+fn claim_slabs(
+    threads: usize,
+    slabs: usize,
+    [nx, ny]: [usize; 2],
+    each: impl Fn(usize, &mut Scratch, &mut (usize, usize)) -> bool + Sync,
+) {
+    let (next, stop) = (AtomicUsize::new(0), AtomicBool::new(false));
+    let work = || {
+        let mut scratch = Scratch::new(nx, ny);
+        let mut hint = (0, 0);
+        while !stop.load(Ordering::Relaxed) {
+            let k = next.fetch_add(1, Ordering::Relaxed);
+            if k >= slabs {
+                break;
+            }
+            if !each(k, &mut scratch, &mut hint) {
+                stop.store(true, Ordering::Relaxed);
+                break;
+            }
+        }
+    };
+    if threads <= 1 {
+        work();
+    } else {
+        rayon::scope(|s| {
+            for _ in 0..threads {
+                s.spawn(|_| work());
+            }
+        });
+    }
 }
 
 /// A slab's output and result, as [`run_slab_pieces`] collects them.
@@ -172,45 +194,27 @@ where
     let spare: Mutex<Vec<Option<Output<V>>>> = Mutex::new(reuse.into_iter().map(Some).collect());
     let done: Mutex<Vec<Option<Ran<V, T>>>> = Mutex::new((0..slabs).map(|_| None).collect());
     let error: Mutex<Option<(usize, E)>> = Mutex::new(None);
-    let (next, stop) = (AtomicUsize::new(0), AtomicBool::new(false));
-    let work = || {
-        let mut scratch = Scratch::new(nx, ny);
-        let mut hint = (0, 0);
-        while !stop.load(Ordering::Relaxed) {
-            let k = next.fetch_add(1, Ordering::Relaxed);
-            if k >= slabs {
-                break;
+    claim_slabs(threads, slabs, [nx, ny], |k, scratch, hint| {
+        let taken =
+            spare.lock().unwrap_or_else(|e| e.into_inner()).get_mut(k).and_then(Option::take);
+        let mut out = taken.unwrap_or_default();
+        out.vertices.clear();
+        out.triangles.clear();
+        match slab(k, scratch, &mut SlabStore::tight(&mut out, *hint)) {
+            Ok(r) => {
+                *hint = (out.vertices.len(), out.triangles.len());
+                done.lock().unwrap_or_else(|e| e.into_inner())[k] = Some((out, r));
+                true
             }
-            let taken =
-                spare.lock().unwrap_or_else(|e| e.into_inner()).get_mut(k).and_then(Option::take);
-            let mut out = taken.unwrap_or_default();
-            out.vertices.clear();
-            out.triangles.clear();
-            match slab(k, &mut scratch, &mut SlabStore::tight(&mut out, hint)) {
-                Ok(r) => {
-                    hint = (out.vertices.len(), out.triangles.len());
-                    done.lock().unwrap_or_else(|e| e.into_inner())[k] = Some((out, r));
+            Err(e) => {
+                let mut error = error.lock().unwrap_or_else(|e| e.into_inner());
+                if error.as_ref().is_none_or(|(at, _)| k < *at) {
+                    *error = Some((k, e));
                 }
-                Err(e) => {
-                    let mut error = error.lock().unwrap_or_else(|e| e.into_inner());
-                    if error.as_ref().is_none_or(|(at, _)| k < *at) {
-                        *error = Some((k, e));
-                    }
-                    stop.store(true, Ordering::Relaxed);
-                    break;
-                }
+                false
             }
         }
-    };
-    if threads <= 1 {
-        work();
-    } else {
-        rayon::scope(|s| {
-            for _ in 0..threads {
-                s.spawn(|_| work());
-            }
-        });
-    }
+    });
     if let Some((_, e)) = error.into_inner().unwrap_or_else(|e| e.into_inner()) {
         return Err(e);
     }
