@@ -494,3 +494,78 @@ fn cancellation_stops_the_run() {
     };
     assert_eq!(polygonize(&sphere, &opts).unwrap_err(), Error::Cancelled);
 }
+
+/// Statistics without their timings, to compare runs.
+fn untimed(mut s: Stats) -> Stats {
+    use std::time::Duration;
+    (s.search, s.propagation, s.refinement, s.normals) =
+        (Duration::ZERO, Duration::ZERO, Duration::ZERO, Duration::ZERO);
+    s
+}
+
+/// Components propagated on several threads at once (see the continuation's seeds module):
+/// a torus reached from 48 seeds around it (so that threads start on one component from
+/// far apart and all but the first seed's work is thrown away), interleaved with seeds of
+/// 12 small spheres, some seeds outside everything (the 26-direction march) and one seed
+/// that finds nothing. Every thread count, several times over (the threads' timing
+/// differs), gives the one thread's mesh and every one of its statistics but the timings:
+/// components, notes, stops, cells and evaluation counts.
+#[test]
+fn seeds_of_one_component_on_many_threads_give_the_one_thread_mesh_and_counts() {
+    let spheres: Vec<DVec3> = (0..12)
+        .map(|i| {
+            let a = i as f64 * std::f64::consts::TAU / 12.0;
+            DVec3::new(0.9 * a.cos(), 0.9 * a.sin(), 0.0)
+        })
+        .collect();
+    let centres = spheres.clone();
+    let field = FnField(move |p: DVec3| {
+        let torus = ((p.truncate().length() - 0.45).powi(2) + p.z * p.z).sqrt() - 0.12;
+        centres.iter().map(|c| (p - *c).length() - 0.06).fold(torus, f64::min)
+    });
+    let mut seeds = Vec::new();
+    for i in 0..48 {
+        let a = (i * 29 % 48) as f64 * std::f64::consts::TAU / 48.0;
+        seeds.push(DVec3::new(0.45 * a.cos(), 0.45 * a.sin(), 0.0));
+        if i % 4 == 0 {
+            seeds.push(spheres[i / 4] * 1.01);
+        }
+        if i % 16 == 5 {
+            seeds.push(DVec3::new(0.1, 0.05, 0.7));
+        }
+    }
+    let domain = Aabb::new(DVec3::splat(-1.05), DVec3::splat(1.05));
+    for cells in [Cells::Cubes, Cells::Tetrahedra] {
+        let go = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| run(&field, domain, 0.02, &seeds, cells))
+        };
+        let (one, s1) = go(1);
+        assert_eq!(s1.components.len(), 13, "{cells:?}");
+        assert!(s1.seed_notes.len() == seeds.len() - 13, "{:?}", s1.seed_notes);
+        let s1 = untimed(s1);
+        for threads in [2, 3, 4, 8, 2, 4] {
+            let (m, s) = go(threads);
+            assert!(m == one, "{cells:?}, {threads} threads");
+            assert_eq!(untimed(s), s1, "{cells:?}, {threads} threads");
+        }
+    }
+    // The cell budget, reached on several threads, is the one thread's stop.
+    let opts = |threads| Options {
+        lattice: LatticeOptions {
+            domain,
+            resolution: Resolution::Cell(0.02),
+            threads: skelform_polygonize::Threads::Count(threads),
+            ..Default::default()
+        },
+        seeds: seeds.clone(),
+        max_cells: 3000,
+        ..Options::default()
+    };
+    let (one, s1) = polygonize(&field, &opts(1)).unwrap();
+    assert_eq!(s1.stops, vec![Stop::Budget]);
+    for threads in [2, 4] {
+        let (m, s) = polygonize(&field, &opts(threads)).unwrap();
+        assert!(m == one && untimed(s) == untimed(s1.clone()), "{threads} threads");
+    }
+}

@@ -30,6 +30,22 @@ struct Brick {
     /// Field gradient at each point (empty unless the run keeps gradients), allocated when
     /// the brick first gets a gradient.
     grads: Vec<[f32; 3]>,
+    /// The brick's key in `index`.
+    key: u64,
+    /// With tracking: the points evaluated since [`Lattice::take_fresh`], and those of them
+    /// whose value was not finite, a bit each.
+    fresh: Fresh,
+}
+
+/// The points of one brick evaluated in a stretch of a run (see [`Lattice::take_fresh`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Fresh {
+    /// The brick's key.
+    pub key: u64,
+    /// A bit per point of the brick (by slot).
+    pub points: [u64; CELLS / 64],
+    /// The points among them whose value was NaN or infinite.
+    pub bad: [u64; CELLS / 64],
 }
 
 pub struct Lattice {
@@ -46,6 +62,10 @@ pub struct Lattice {
     edge_bricks: u64,
     /// Bricks whose `grads` are allocated.
     grad_bricks: u64,
+    /// Whether evaluated points are noted ([`Lattice::note`]).
+    track: bool,
+    /// Bricks with points noted since [`Lattice::take_fresh`].
+    dirty: Vec<u32>,
 }
 
 #[inline]
@@ -66,7 +86,47 @@ impl Lattice {
             visited: 0,
             edge_bricks: 0,
             grad_bricks: 0,
+            track: false,
+            dirty: Vec::new(),
         }
+    }
+
+    /// Notes the points evaluated from now on ([`Lattice::note`]).
+    pub fn track(&mut self) {
+        self.track = true;
+    }
+
+    /// Whether evaluated points are noted.
+    pub fn tracking(&self) -> bool {
+        self.track
+    }
+
+    /// Notes that the point `p` was evaluated, and whether its value was not finite.
+    #[inline]
+    pub fn note(&mut self, p: [u32; 3], bad: bool) {
+        let i = self.find_or_add(p);
+        let s = slot(p);
+        let fresh = &mut self.bricks[i as usize].fresh;
+        if fresh.points == [0; CELLS / 64] {
+            self.dirty.push(i);
+        }
+        fresh.points[s / 64] |= 1 << (s % 64);
+        fresh.bad[s / 64] |= u64::from(bad) << (s % 64);
+    }
+
+    /// The points noted since the last call, by brick (in the order the bricks were first
+    /// noted); forgets them.
+    pub fn take_fresh(&mut self) -> Vec<Fresh> {
+        let dirty = std::mem::take(&mut self.dirty);
+        dirty
+            .into_iter()
+            .map(|i| {
+                let b = &mut self.bricks[i as usize];
+                let mut f = std::mem::take(&mut b.fresh);
+                f.key = b.key;
+                f
+            })
+            .collect()
     }
 
     #[inline]
@@ -100,6 +160,8 @@ impl Lattice {
             owner: [0; CELLS],
             edges: Vec::new(),
             grads: Vec::new(),
+            key,
+            fresh: Fresh::default(),
         });
         self.index.insert(key, i);
         self.last = Some((key, i));

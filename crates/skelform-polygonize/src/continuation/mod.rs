@@ -26,15 +26,19 @@
 //! Threads: each wave's new corners are evaluated in one parallel batch, and the wave is
 //! then processed in lattice order on one thread, so cubes, vertices and triangles come in
 //! the same order on any thread count; a value depends on its point alone, so the mesh is
-//! the same, byte for byte. Seeds are searched from in parallel, each on its own. (An
-//! evaluation pass walking every component at once, for larger batches where components
-//! are small, was tried: it made the same mesh but cost more in lookups than it saved.)
+//! the same, byte for byte. From seeds, components are also propagated several at once,
+//! each on its thread's own lattice, and gathered in seed order (see [`seeds`] for why the
+//! mesh and the statistics are the one thread's). From the domain search, components are
+//! propagated one after another. (An evaluation pass walking every component at once, for
+//! larger batches where components are small, was tried: it made the same mesh but cost
+//! more in lookups than it saved.)
 //!
 //! Not guaranteed: components without
 //! a seed are found (give seeds, or let the domain search look for them; it can miss
 //! components smaller than its stride).
 
 mod lattice;
+mod seeds;
 pub mod tetra;
 
 use std::time::{Duration, Instant};
@@ -50,7 +54,7 @@ use crate::grid::cube::{CORNERS, EDGES, FACES};
 use crate::grid::{GridVertex, Place, Placement, Slide, place_cells, place_vertices};
 use crate::lattice::cubes::CubeLattice;
 use crate::lattice::memory::vec_bytes;
-use crate::lattice::propagate::{Cubes, Limits, Order, propagate};
+use crate::lattice::propagate::{Cubes, Limits, Order, Stops, propagate};
 use crate::lattice::search::CoarseSearch;
 use crate::refine::{
     GradBracket, RootMethod, RootOptions, fill_from_faces, gradient_normals, hermite_roots,
@@ -264,9 +268,7 @@ fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats)
     let mut run = Run::new(field, grid, options);
     crate::lattice::memory::refuse(memory_need(&grid, options), options.lattice.max_memory, &grid)?;
     if !options.seeds.is_empty() {
-        run.propagate_seeds()?;
-        run.stats.cells_visited = run.lattice.visited();
-        return run.finish();
+        return seeds::propagate(run)?.finish();
     }
     let t = Instant::now();
     let starts = search_domain(&mut run)?;
@@ -318,6 +320,10 @@ struct Run<'a> {
     stats: Stats,
     /// Bytes of the list of starts, held while the components are propagated.
     starts_bytes: u64,
+    /// The corner gradients at the two ends of each vertex's segment, when the vertices
+    /// were gathered from runs on several threads (their lattices are gone by the time
+    /// vertices are placed); empty when they are looked up in `lattice`.
+    end_grads: Vec<[[f32; 3]; 2]>,
     /// Whether corners are evaluated with their gradients, for root finding from the
     /// segment ends' values and slopes ([`refine_roots_with_gradients`]) and normals from
     /// its gradients: for fields with an exact gradient (about as cheap as the value), with
@@ -338,6 +344,7 @@ impl<'a> Run<'a> {
             triangles: Vec::new(),
             stats: Stats { cell: grid.cell, ..Stats::default() },
             starts_bytes: 0,
+            end_grads: Vec::new(),
             gradients: field.has_exact_gradient()
                 && opts.lattice.refine
                 && matches!(opts.root, RootMethod::RegulaFalsi | RootMethod::Hermite),
@@ -407,7 +414,11 @@ impl<'a> Run<'a> {
                 .zip(points.par_chunks(chunk))
                 .for_each(|(o, p)| self.field.eval_many(p, o));
         }
+        let track = self.lattice.tracking();
         for (k, (&p, v)) in todo.iter().zip(out).enumerate() {
+            if track {
+                self.lattice.note(p, !v.is_finite());
+            }
             let v = if v.is_finite() {
                 v.clamp(-f32::MAX as f64, f32::MAX as f64) as f32
             } else {
@@ -422,71 +433,6 @@ impl<'a> Run<'a> {
         points.len() as u64
     }
 
-    /// Propagates from each seed in turn, in the seeds' order (see [`Run::walk`]): a seed
-    /// whose crossing lies in a cube a component visited already is of that component.
-    ///
-    /// Why not the 26-direction march of the domain search's points: seeds are mostly inside
-    /// a component already meshed (one per skeletal element), and a walk along the lattice's
-    /// own points reads the values propagation keeps and keeps the ones it makes, so a seed
-    /// costs a few evaluations, not a hundred (on the hand, search went from 0.56 to a few
-    /// hundredths of an evaluation per vertex), and its crossing names its cube directly.
-    fn propagate_seeds(&mut self) -> Result<(), Error> {
-        let t = Instant::now();
-        let (grid, field, seeds) = (self.grid, self.field, &self.opts.seeds);
-        if let Some(&seed) = seeds.iter().find(|s| !grid.bounds().contains(**s)) {
-            return Err(Error::BadSeed {
-                seed: seed.to_array(),
-                why: "it is outside the domain".into(),
-            });
-        }
-        let mut values = vec![0.0; seeds.len()];
-        field.eval_many(seeds, &mut values);
-        self.stats.search_evaluations += seeds.len() as u64;
-        if let Some((seed, f)) = seeds.iter().zip(&values).find(|(_, f)| !f.is_finite()) {
-            return Err(Error::BadSeed {
-                seed: seed.to_array(),
-                why: format!("the field is {f} there"),
-            });
-        }
-        let mut unfinished = Vec::new();
-        let mut found = false;
-        for (index, &seed) in seeds.iter().enumerate() {
-            let w = Instant::now();
-            let mut hit = self.walk(self.cubes.cube_of_u32(seed));
-            if hit.is_none() {
-                // No crossing on the axes (a seed outside, looking past a small or far
-                // component): the 26-direction march finds the nearest crossing and its cube.
-                let (start, evals) = search_from(field, &grid, &self.cubes, seed)?;
-                self.stats.search_evaluations += evals;
-                if let Some(start) = start {
-                    let near = self.surface_cubes_near(std::iter::once(start.point()));
-                    hit = near[0].map(|cube| (cube, start));
-                }
-            }
-            self.stats.search += w.elapsed();
-            let Some((cube, start)) = hit else {
-                self.stats.seed_notes.push(SeedNote::NoSurface { seed });
-                continue;
-            };
-            found = true;
-            self.start_component(seed, index, cube, start, &mut unfinished)?;
-        }
-        if !found {
-            return Err(Error::BadSeed {
-                seed: seeds[0].to_array(),
-                why: "no surface was found from it (or any other seed) along the lattice's axes or 26 directions within the domain".into(),
-            });
-        }
-        let w = Instant::now();
-        let finished: Vec<(DVec3, u64)> = unfinished.par_iter().map(|b| b.finish(field)).collect();
-        for (c, (p, evals)) in self.stats.components.iter_mut().zip(finished) {
-            c.start = p;
-            self.stats.search_evaluations += evals;
-        }
-        self.stats.search += w.elapsed();
-        self.stats.propagation = t.elapsed().saturating_sub(self.stats.search);
-        Ok(())
-    }
     /// Propagates a component from `cube`, found from seed `seed_index`, unless an earlier
     /// seed's component already holds it (then only noted), records it in the statistics,
     /// and keeps its start's bisection to be finished afterwards (see `Bisection`).
@@ -585,26 +531,17 @@ impl<'a> Run<'a> {
         })
     }
 
-    /// Breadth-first propagation from one cube, in waves processed in lattice order.
+    /// Breadth-first propagation from one cube, in waves processed in lattice order; its
+    /// stops are recorded in the statistics.
     fn propagate(&mut self, start: [u32; 3], seed_index: usize) -> Result<(), Error> {
-        let limits = Limits {
-            max_cells: self.opts.max_cells,
-            limit: self.opts.limit,
-            origin: start,
-            max_memory: self.opts.lattice.max_memory,
-            method: self.method(),
-        };
-        let (lattice, control) = (self.cubes, &self.opts.lattice.control);
-        let mut walk = Walk { run: self, seed: seed_index };
-        let stops = propagate(
-            &mut walk,
-            &lattice,
-            [start],
-            &limits,
-            Order::Lattice,
-            control,
-            "propagating",
-        )?;
+        let stops = self.propagate_with(start, seed_index, None)?;
+        self.record_stops(stops);
+        Ok(())
+    }
+
+    /// Records why a component stopped short of closing, each reason once, in the order
+    /// first met.
+    fn record_stops(&mut self, stops: Stops) {
         let hits = [
             (stops.domain, Stop::Domain),
             (stops.budget, Stop::Budget),
@@ -615,7 +552,26 @@ impl<'a> Run<'a> {
                 self.stats.stops.push(stop);
             }
         }
-        Ok(())
+    }
+
+    /// [`Run::propagate`] returning its stops; with `shared`, one of several runs on their
+    /// own threads (see [`seeds`]).
+    fn propagate_with(
+        &mut self,
+        start: [u32; 3],
+        seed_index: usize,
+        shared: Option<(&seeds::Shared, usize)>,
+    ) -> Result<Stops, Error> {
+        let limits = Limits {
+            max_cells: self.opts.max_cells,
+            limit: self.opts.limit,
+            origin: start,
+            max_memory: self.opts.lattice.max_memory,
+            method: self.method(),
+        };
+        let (lattice, control) = (self.cubes, &self.opts.lattice.control);
+        let mut walk = Walk { run: self, seed: seed_index, shared, abandoned: false };
+        propagate(&mut walk, &lattice, [start], &limits, Order::Lattice, control, "propagating")
     }
 
     /// The method's name, for errors.
@@ -732,14 +688,18 @@ impl Run<'_> {
             match (v.place, v.tip()) {
                 (Place::Edge { t, .. }, Some(tip)) => {
                     let [f0, f1] = self.ends[i].map(f64::from);
+                    let [g0, g1] = match self.end_grads.get(i) {
+                        Some(&g) => g,
+                        None => [self.lattice.grad(v.base), self.lattice.grad(tip)],
+                    };
                     edge.push(i);
                     brackets.push(GradBracket {
                         p0: at(v.base),
                         p1: at(tip),
                         f0,
                         f1,
-                        g0: as_d(self.lattice.grad(v.base)),
-                        g1: as_d(self.lattice.grad(tip)),
+                        g0: as_d(g0),
+                        g1: as_d(g1),
                         t,
                         grad: DVec3::ZERO,
                     });
@@ -796,14 +756,30 @@ impl Run<'_> {
 }
 
 /// One component's propagation: cubes it visits are marked with its seed.
-struct Walk<'r, 'a> {
+struct Walk<'r, 'a, 's> {
     run: &'r mut Run<'a>,
     seed: usize,
+    /// With components propagated on several threads: what the threads share (the cubes'
+    /// claims, the counts for memory and progress), and this thread's number.
+    shared: Option<(&'s seeds::Shared, usize)>,
+    /// A cube of the wave was claimed by an earlier seed's component: this one is the same
+    /// component, propagated by that seed.
+    abandoned: bool,
 }
 
-impl Cubes for Walk<'_, '_> {
+impl Cubes for Walk<'_, '_, '_> {
     fn prepare(&mut self, wave: &[[u32; 3]]) {
+        if let Some((shared, _)) = self.shared
+            && !shared.claim(wave, self.seed)
+        {
+            self.abandoned = true;
+            return;
+        }
         self.run.evaluate_corners(wave);
+    }
+
+    fn abandoned(&self) -> bool {
+        self.abandoned
     }
 
     fn process(&mut self, base: [u32; 3]) -> u8 {
@@ -828,8 +804,18 @@ impl Cubes for Walk<'_, '_> {
         self.run.lattice.visited()
     }
 
+    fn done(&self) -> u64 {
+        match self.shared {
+            Some((shared, _)) => shared.cubes_claimed(),
+            None => self.run.lattice.visited(),
+        }
+    }
+
     fn held(&self) -> u64 {
-        self.run.held()
+        match self.shared {
+            Some((shared, me)) => self.run.held() + shared.held_by_others(me),
+            None => self.run.held(),
+        }
     }
 }
 

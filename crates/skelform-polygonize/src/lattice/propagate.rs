@@ -18,6 +18,12 @@ pub(crate) trait Cubes {
     /// Called with each wave before its cubes are processed (to evaluate their corners in
     /// one parallel batch).
     fn prepare(&mut self, _wave: &[[u32; 3]]) {}
+    /// Whether to give up before processing the wave just prepared: a component propagated
+    /// on several threads at once that met a cube an earlier seed's component holds (see
+    /// the continuation polygonizer's seeds) stops there, its work for nothing.
+    fn abandoned(&self) -> bool {
+        false
+    }
     /// Polygonizes a cube; returns the faces to cross, bit `f` for face `f` (`2 · axis +
     /// side`).
     fn process(&mut self, cube: [u32; 3]) -> u8;
@@ -27,6 +33,11 @@ pub(crate) trait Cubes {
     fn visit(&mut self, cube: [u32; 3]);
     /// Cubes visited so far, by every component: what the budget counts.
     fn visited(&self) -> u64;
+    /// Cubes visited so far, for the progress report: [`Cubes::visited`], unless the
+    /// components are propagated on several threads and the budget counts one thread's.
+    fn done(&self) -> u64 {
+        self.visited()
+    }
     /// Bytes held now (see [`super::memory`]): what the memory limit counts. Called every
     /// [`CHECK_EVERY`] cubes, so it must be cheap (lengths and capacities, not a walk).
     fn held(&self) -> u64;
@@ -66,6 +77,8 @@ pub(crate) struct Stops {
     pub budget: bool,
     /// A face to cross led beyond the distance limit.
     pub limit: bool,
+    /// Propagation gave up ([`Cubes::abandoned`]); the cubes are not all processed.
+    pub abandoned: bool,
 }
 
 /// Propagates from `starts` (those not yet visited), reporting progress as `phase` after each
@@ -96,6 +109,10 @@ pub(crate) fn propagate(
     let mut processed = 0u64;
     while !wave.is_empty() {
         cubes.prepare(&wave);
+        if cubes.abandoned() {
+            stops.abandoned = true;
+            return Ok(stops);
+        }
         let mut next = Vec::new();
         for &cube in &wave {
             processed += 1;
@@ -134,7 +151,7 @@ pub(crate) fn propagate(
         let now = cubes.held() + vec_bytes(&wave) + vec_bytes(&next);
         check(limits.method, now, limits.max_memory, before + processed)?;
         wave = next;
-        let p = Progress { phase, done: cubes.visited(), total: None };
+        let p = Progress { phase, done: cubes.done(), total: None };
         if control.report(p).is_break() {
             return Err(Error::Cancelled);
         }
