@@ -628,7 +628,7 @@ impl<'a> Run<'a> {
     /// statistics (both ways of finishing).
     fn into_mesh(mut self, positions: &[DVec3], normals: Vec<[f32; 3]>) -> (Mesh, Stats) {
         let mesh = Mesh {
-            positions: positions.iter().map(|p| p.as_vec3().to_array()).collect(),
+            positions: positions.par_iter().map(|p| p.as_vec3().to_array()).collect(),
             normals,
             triangles: self.triangles,
             ..Mesh::default()
@@ -682,30 +682,54 @@ impl Run<'_> {
         let grid = self.grid;
         let at = |p: [u32; 3]| grid.point(p[0] as usize, p[1] as usize, p[2] as usize);
         let as_d = |g: [f32; 3]| DVec3::from_array(g.map(f64::from));
-        let mut positions: Vec<DVec3> = self.vertices.iter().map(|v| v.position(&grid)).collect();
-        let (mut edge, mut brackets, mut cell) = (Vec::new(), Vec::new(), Vec::new());
-        for (i, v) in self.vertices.iter().enumerate() {
-            match (v.place, v.tip()) {
-                (Place::Edge { t, .. }, Some(tip)) => {
-                    let [f0, f1] = self.ends[i].map(f64::from);
-                    let [g0, g1] = match self.end_grads.get(i) {
-                        Some(&g) => g,
-                        None => [self.lattice.grad(v.base), self.lattice.grad(tip)],
-                    };
-                    edge.push(i);
-                    brackets.push(GradBracket {
-                        p0: at(v.base),
-                        p1: at(tip),
-                        f0,
-                        f1,
-                        g0: as_d(g0),
-                        g1: as_d(g1),
-                        t,
-                        grad: DVec3::ZERO,
-                    });
-                }
-                _ => cell.push(i),
+        let mut positions: Vec<DVec3> =
+            self.vertices.par_iter().map(|v| v.position(&grid)).collect();
+        let bracket = |i: usize, v: &GridVertex, tip: [u32; 3], [g0, g1]: [[f32; 3]; 2]| {
+            let [f0, f1] = self.ends[i].map(f64::from);
+            let Place::Edge { t, .. } = v.place else { unreachable!("an edge vertex") };
+            GradBracket {
+                p0: at(v.base),
+                p1: at(tip),
+                f0,
+                f1,
+                g0: as_d(g0),
+                g1: as_d(g1),
+                t,
+                grad: DVec3::ZERO,
             }
+        };
+        let on_edge = |v: &GridVertex| match (v.place, v.tip()) {
+            (Place::Edge { .. }, Some(tip)) => Some(tip),
+            _ => None,
+        };
+        let (edge, mut brackets, cell): (Vec<usize>, Vec<GradBracket>, Vec<usize>);
+        if self.end_grads.is_empty() {
+            // The gradients are in the lattice, whose lookups go one at a time.
+            let (mut e, mut b, mut c) = (Vec::new(), Vec::new(), Vec::new());
+            for (i, v) in self.vertices.iter().enumerate() {
+                match on_edge(v) {
+                    Some(tip) => {
+                        e.push(i);
+                        let g = [self.lattice.grad(v.base), self.lattice.grad(tip)];
+                        b.push(bracket(i, v, tip, g));
+                    }
+                    None => c.push(i),
+                }
+            }
+            (edge, brackets, cell) = (e, b, c);
+        } else {
+            // Gathered from several threads, with the gradients alongside: on the threads.
+            let vs = &self.vertices;
+            let is_edge = |&i: &usize| on_edge(&vs[i]).is_some();
+            edge = (0..vs.len()).into_par_iter().filter(is_edge).collect();
+            cell = (0..vs.len()).into_par_iter().filter(|i| !is_edge(i)).collect();
+            brackets = edge
+                .par_iter()
+                .map(|&i| {
+                    let tip = on_edge(&vs[i]).expect("an edge vertex");
+                    bracket(i, &vs[i], tip, self.end_grads[i])
+                })
+                .collect();
         }
         let roots = self.root_options();
         let mut evals = if self.opts.root == RootMethod::Hermite {

@@ -49,7 +49,7 @@ use rustc_hash::FxHashMap;
 use super::lattice::Fresh;
 use super::{Bisection, Component, Run, SeedNote, search_from};
 use crate::Error;
-use crate::grid::Place;
+use crate::grid::{GridVertex, Place};
 use crate::lattice::propagate::Stops;
 
 /// Cubes per side of a brick of the claims table.
@@ -413,37 +413,55 @@ fn recount(known: &mut FxHashMap<u64, [u64; 8]>, fresh: &[Fresh]) -> (u64, u64) 
 }
 
 /// Copies the components' vertices, segment-end values and triangles from the runs that
-/// propagated them into `out`, in seed order, renumbering the triangles' vertices; with
-/// corner gradients, also the gradients at each edge vertex's segment ends, which only the
-/// run's lattice holds.
-fn gather(runs: &mut [Run], parts: &[Part], out: &mut Run) {
+/// propagated them into `out`, in seed order, renumbering the triangles' vertices, and with
+/// corner gradients looks up those at each edge vertex's segment ends; each component on a
+/// thread of its own.
+fn gather(runs: &[Run], parts: &[Part], out: &mut Run) {
     let vertices: usize = parts.iter().map(|p| p.vertices.len()).sum();
     let triangles: usize = parts.iter().map(|p| p.triangles.len()).sum();
-    out.vertices.reserve_exact(vertices);
-    out.ends.reserve_exact(vertices);
-    out.triangles.reserve_exact(triangles);
-    if out.gradients {
-        out.end_grads.reserve_exact(vertices);
-    }
+    let unset = GridVertex { base: [0; 3], place: Place::Edge { dir: 0, t: 0.0 } };
+    let grads = if out.gradients { vertices } else { 0 };
+    out.vertices = vec![unset; vertices];
+    out.ends = vec![[0.0; 2]; vertices];
+    out.triangles = vec![[0; 3]; triangles];
+    out.end_grads = vec![[[0.0; 3]; 2]; grads];
+    let Run { vertices: v, ends: e, triangles: t, end_grads: g, .. } = out;
+    let (mut v, mut e, mut t, mut g) = (&mut v[..], &mut e[..], &mut t[..], &mut g[..]);
+    let mut jobs = Vec::with_capacity(parts.len());
+    let mut base = 0;
     for p in parts {
-        let r = &mut runs[p.run];
-        let base = out.vertices.len() as u32;
-        let from = p.vertices.start as u32;
-        out.vertices.extend_from_slice(&r.vertices[p.vertices.clone()]);
-        out.ends.extend_from_slice(&r.ends[p.vertices.clone()]);
-        out.triangles
-            .extend(r.triangles[p.triangles.clone()].iter().map(|t| t.map(|i| i - from + base)));
-        if out.gradients {
-            for v in &r.vertices[p.vertices.clone()] {
-                out.end_grads.push(match (v.place, v.tip()) {
-                    (Place::Edge { .. }, Some(tip)) => {
-                        [r.lattice.grad(v.base), r.lattice.grad(tip)]
-                    }
-                    _ => [[f32::NAN; 3]; 2],
-                });
+        let n = p.vertices.len();
+        let (pv, rest) = std::mem::take(&mut v).split_at_mut(n);
+        v = rest;
+        let (pe, rest) = std::mem::take(&mut e).split_at_mut(n);
+        e = rest;
+        let (pt, rest) = std::mem::take(&mut t).split_at_mut(p.triangles.len());
+        t = rest;
+        let (pg, rest) = std::mem::take(&mut g).split_at_mut(if grads > 0 { n } else { 0 });
+        g = rest;
+        jobs.push((p, base, pv, pe, pt, pg));
+        base += n as u32;
+    }
+    jobs.into_par_iter().for_each(|(p, base, pv, pe, pt, pg)| {
+        let r = &runs[p.run];
+        pv.copy_from_slice(&r.vertices[p.vertices.clone()]);
+        pe.copy_from_slice(&r.ends[p.vertices.clone()]);
+        // The corner gradients at each edge vertex's segment ends, which only the run's
+        // lattice holds (looked up here, on the threads, not one at a time afterwards).
+        let mut last = None;
+        for (g, v) in pg.iter_mut().zip(&*pv) {
+            if let (Place::Edge { .. }, Some(tip)) = (v.place, v.tip()) {
+                *g = [
+                    r.lattice.grad_shared(v.base, &mut last),
+                    r.lattice.grad_shared(tip, &mut last),
+                ];
             }
         }
-    }
+        let from = p.vertices.start as u32;
+        for (o, t) in pt.iter_mut().zip(&r.triangles[p.triangles.clone()]) {
+            *o = t.map(|i| i - from + base);
+        }
+    });
 }
 
 /// The loop of one thread and what it shares with the others.
