@@ -27,9 +27,9 @@
 //! then processed in lattice order on one thread, so cubes, vertices and triangles come in
 //! the same order on any thread count; a value depends on its point alone, so the mesh is
 //! the same, byte for byte. From seeds, components are also propagated several at once,
-//! each on its thread's own lattice, and gathered in seed order (see [`seeds`] for why the
-//! mesh and the statistics are the one thread's). From the domain search, components are
-//! propagated one after another. (An evaluation pass walking every component at once, for
+//! each on its thread's own lattice, and gathered in seed order (the `seeds` module says
+//! why the mesh and the statistics are the one thread's). From the domain search,
+//! components are propagated one after another. (An evaluation pass walking every component at once, for
 //! larger batches where components are small, was tried: it made the same mesh but cost
 //! more in lookups than it saved.)
 //!
