@@ -262,6 +262,7 @@ impl Kernel {
     /// The line integral `∫_{t1}^{t2} k(√(d² + t²)) dt` and its derivative with respect to
     /// `d²`, `∫ k′(√(d² + t²)) dt` with `k′ = dk/d(s²)`. All lengths in radii; `t1 ≤ t2`
     /// (either may be infinite).
+    #[inline]
     pub fn line_integral(self, d2: f64, t1: f64, t2: f64) -> (f64, f64) {
         if t2 <= t1 {
             return (0.0, 0.0);
@@ -286,6 +287,7 @@ impl Kernel {
     /// [`Kernel::line_integral`]'s value alone, the same to the bit: a polygon's gradient
     /// needs only the edges' line integrals, not their derivatives, whose terms (as many
     /// again) are not computed here.
+    #[inline]
     pub(crate) fn line_integral_value(self, d2: f64, t1: f64, t2: f64) -> f64 {
         if t2 <= t1 {
             return 0.0;
