@@ -748,11 +748,28 @@ impl Run<'_> {
             }
         }
         let roots = self.root_options();
-        let mut evals = if self.opts.root == RootMethod::Hermite {
+        // Colours from root finding's evaluations, where the field has them (a coloured
+        // skeleton): the vertices' colours then cost next to nothing. Hermite roots take no
+        // evaluation, so their colours are left to the caller, as before.
+        let hermite = self.opts.root == RootMethod::Hermite;
+        let mut colors = if self.field.has_colors() && !hermite {
+            vec![[0f32; 3]; positions.len()]
+        } else {
+            Vec::new()
+        };
+        let mut evals = if hermite {
             hermite_roots(&mut brackets, &roots);
             0
+        } else if colors.is_empty() {
+            refine_roots_with_gradients(self.field, &mut brackets, &roots, None)
         } else {
-            refine_roots_with_gradients(self.field, &mut brackets, &roots)
+            let mut shades = vec![[0f32; 3]; brackets.len()];
+            let evals =
+                refine_roots_with_gradients(self.field, &mut brackets, &roots, Some(&mut shades));
+            for (&i, c) in edge.iter().zip(shades) {
+                colors[i] = c;
+            }
+            evals
         };
         let want_normals = self.opts.lattice.normals && !self.triangles.is_empty();
         let mut normals = vec![[0f32; 3]; if want_normals { positions.len() } else { 0 }];
@@ -776,6 +793,16 @@ impl Run<'_> {
                 self.opts.lattice.tolerance,
             );
             let pts: Vec<DVec3> = cell.iter().map(|&i| positions[i]).collect();
+            if !colors.is_empty() {
+                let mut shades = vec![[0f32; 3]; pts.len()];
+                if self.field.colors_many(&pts, &mut shades) {
+                    for (&i, c) in cell.iter().zip(shades) {
+                        colors[i] = c;
+                    }
+                } else {
+                    colors.clear();
+                }
+            }
             if want_normals {
                 let n = unit_gradients(self.field, &pts);
                 self.stats.normal_evaluations = pts.len() as u64;
@@ -791,7 +818,9 @@ impl Run<'_> {
             fill_from_faces(&mut normals, &positions, &self.triangles);
         }
         self.stats.normals = t.elapsed();
-        Ok(self.into_mesh(&positions, normals))
+        let (mut mesh, stats) = self.into_mesh(&positions, normals);
+        mesh.colors = colors;
+        Ok((mesh, stats))
     }
 }
 
