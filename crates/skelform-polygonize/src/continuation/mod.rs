@@ -450,9 +450,21 @@ impl<'a> Run<'a> {
         }
         let mut unfinished = Vec::new();
         let mut found = false;
+        // The first seed's walk alone, then the others' together (see `Run::walk_many`).
+        let mut walked = Vec::new();
         for (index, &seed) in seeds.iter().enumerate() {
             let w = Instant::now();
-            let mut hit = self.walk(self.cubes.cube_of_u32(seed));
+            if index == 1 {
+                let froms: Vec<[u32; 3]> =
+                    seeds[1..].iter().map(|&s| self.cubes.cube_of_u32(s)).collect();
+                walked = self.walk_many(&froms);
+                walked.reverse();
+            }
+            let mut hit = if index == 0 {
+                self.walk(self.cubes.cube_of_u32(seed))
+            } else {
+                walked.pop().flatten()
+            };
             if hit.is_none() {
                 // No crossing on the axes (a seed outside, looking past a small or far
                 // component): the 26-direction march finds the nearest crossing and its cube.
@@ -523,40 +535,68 @@ impl<'a> Run<'a> {
     /// gradients, as corners are): the points next to the surface are corners propagation
     /// needs anyway.
     fn walk(&mut self, from: [u32; 3]) -> Option<([u32; 3], Bisection)> {
+        self.walk_many(&[from]).pop().flatten()
+    }
+
+    /// [`Run::walk`] from each of `froms` (its answer for each), the walks stepping together:
+    /// each step's new points, of every walk, are one parallel batch. A walk's answer
+    /// depends on the values along its axes alone, never on which of them were known, so it
+    /// is the walk's own whatever the others. Why: after the first seed's component, the
+    /// other seeds' walks (89 on the hand, each a few steps of six points) were a few
+    /// batches of six points each, on one thread; the same evaluations in batches of
+    /// hundreds are shared among the threads.
+    fn walk_many(&mut self, froms: &[[u32; 3]]) -> Vec<Option<([u32; 3], Bisection)>> {
+        struct Axes {
+            last: [[u32; 3]; 6],
+            open: [bool; 6],
+            done: bool,
+        }
         let dims = self.grid.dims;
-        let mut last = [from; 6];
-        let mut open = [true; 6];
+        let mut walks: Vec<Axes> =
+            froms.iter().map(|&f| Axes { last: [f; 6], open: [true; 6], done: false }).collect();
+        let mut hits = vec![None; froms.len()];
         let mut todo = Vec::new();
-        let mut step = Vec::with_capacity(6);
-        if self.lattice.queue(from) {
-            todo.push(from);
+        let mut steps: Vec<(usize, usize, [u32; 3])> = Vec::new();
+        for &from in froms {
+            if self.lattice.queue(from) {
+                todo.push(from);
+            }
         }
         loop {
-            step.clear();
-            for d in 0..6 {
-                let (axis, down) = (d / 2, d % 2 == 1);
-                let p = last[d];
-                if !open[d]
-                    || (down && p[axis] == 0)
-                    || (!down && p[axis] as usize + 1 >= dims[axis])
-                {
-                    open[d] = false;
-                    continue;
+            steps.clear();
+            for (w, walk) in walks.iter_mut().enumerate().filter(|(_, w)| !w.done) {
+                let before = steps.len();
+                for d in 0..6 {
+                    let (axis, down) = (d / 2, d % 2 == 1);
+                    let p = walk.last[d];
+                    if !walk.open[d]
+                        || (down && p[axis] == 0)
+                        || (!down && p[axis] as usize + 1 >= dims[axis])
+                    {
+                        walk.open[d] = false;
+                        continue;
+                    }
+                    let mut q = p;
+                    q[axis] = if down { p[axis] - 1 } else { p[axis] + 1 };
+                    if self.lattice.queue(q) {
+                        todo.push(q);
+                    }
+                    steps.push((w, d, q));
                 }
-                let mut q = p;
-                q[axis] = if down { p[axis] - 1 } else { p[axis] + 1 };
-                if self.lattice.queue(q) {
-                    todo.push(q);
-                }
-                step.push((d, q));
+                // Every direction at the domain's boundary: no crossing.
+                walk.done = steps.len() == before;
             }
-            if step.is_empty() {
-                return None;
+            if steps.is_empty() {
+                return hits;
             }
             self.stats.search_evaluations += self.evaluate(&todo);
             todo.clear();
-            for &(d, q) in &step {
-                let p = last[d];
+            // Each walk's directions in order; its first crossing ends it.
+            for &(w, d, q) in &steps {
+                if walks[w].done {
+                    continue;
+                }
+                let p = walks[w].last[d];
                 let (fp, fq) = (self.lattice.value(p), self.lattice.value(q));
                 if (fp < 0.0) != (fq < 0.0) {
                     let axis = d / 2;
@@ -568,9 +608,11 @@ impl<'a> Run<'a> {
                         }
                     }
                     let start = Bisection::new(self.cubes.point(p), fp as f64, self.cubes.point(q));
-                    return Some((cube, start));
+                    hits[w] = Some((cube, start));
+                    walks[w].done = true;
+                    continue;
                 }
-                last[d] = q;
+                walks[w].last[d] = q;
             }
         }
     }
