@@ -1752,8 +1752,8 @@ struct ColorSum {
 impl ColorSum {
     #[inline]
     fn add_color(&mut self, w: f64, c: [f64; 3]) {
-        for k in 0..3 {
-            self.color[k] += w * c[k];
+        for (sum, channel) in self.color.iter_mut().zip(c) {
+            *sum += w * channel;
         }
         self.color[3] += w;
     }
