@@ -70,6 +70,39 @@ pub trait Field: Send + Sync {
         }
     }
 
+    /// Whether the field gives its surface a colour ([`Field::colors_many`]): a skeleton
+    /// whose elements have colours (DIS ch. 6). Polygonizers that evaluate the field next to
+    /// each vertex anyway ask for the colour in the same evaluation
+    /// ([`Field::eval_grad_color_many`]) only where this is true.
+    fn has_colors(&self) -> bool {
+        false
+    }
+
+    /// The surface colour (sRGB in `[0, 1]`) at each point into `colors`, and `true`; or
+    /// `false`, writing nothing, for a field without colours (the default). A point's colour
+    /// is its own, whatever the batch.
+    fn colors_many(&self, points: &[DVec3], colors: &mut [[f32; 3]]) -> bool {
+        let _ = (points, colors);
+        false
+    }
+
+    /// [`Field::eval_grad_many`] and [`Field::colors_many`] at the same points; returns
+    /// whether colours were written. The values and gradients must be
+    /// [`Field::eval_grad_many`]'s, bit for bit, so that asking for colours never moves a
+    /// vertex. Why one call: a skeleton's colour weights are its elements' densities, which
+    /// the value sums anyway, so a field may give the colours for almost nothing (the
+    /// default makes the two calls).
+    fn eval_grad_color_many(
+        &self,
+        points: &[DVec3],
+        values: &mut [f64],
+        grads: &mut [DVec3],
+        colors: &mut [[f32; 3]],
+    ) -> bool {
+        self.eval_grad_many(points, values, grads);
+        self.colors_many(points, colors)
+    }
+
     /// Step for finite-difference gradients. Polygonizers do not change it; fields that
     /// know their own scale may.
     fn gradient_step(&self) -> f64 {
@@ -109,6 +142,21 @@ macro_rules! forward_field {
             }
             fn eval_grad_many(&self, points: &[DVec3], values: &mut [f64], grads: &mut [DVec3]) {
                 (**self).eval_grad_many(points, values, grads)
+            }
+            fn has_colors(&self) -> bool {
+                (**self).has_colors()
+            }
+            fn colors_many(&self, points: &[DVec3], colors: &mut [[f32; 3]]) -> bool {
+                (**self).colors_many(points, colors)
+            }
+            fn eval_grad_color_many(
+                &self,
+                points: &[DVec3],
+                values: &mut [f64],
+                grads: &mut [DVec3],
+                colors: &mut [[f32; 3]],
+            ) -> bool {
+                (**self).eval_grad_color_many(points, values, grads, colors)
             }
             fn gradient_step(&self) -> f64 {
                 (**self).gradient_step()

@@ -276,16 +276,31 @@ fn retype<A, B>(v: Vec<A>) -> Vec<B> {
 impl Vertex {
     #[inline(always)]
     fn make<L: Level>(grid: &Grid, v: GridVertex, ends: [f32; 2], near: &Near<'_, L>) -> Self {
-        let position = v.position(grid).as_vec3().to_array();
+        // Whether the position across an edge vertex's axis is its base exactly (below).
+        let on_base = grid.cell == 1.0 && grid.origin == DVec3::ZERO;
+        let position = match v.place {
+            // On this crate's lattices (at the origin; with a cell of 1 at a step of 1, the
+            // usual call) an edge vertex's position is its base, plus the fraction along the
+            // edge's axis: the bits `GridVertex::position` computes (`0 + b·1` is `b`, and
+            // `0·t` adds `+0`), without its products and sums in three coordinates.
+            Place::Edge { dir, t } if on_base => {
+                let b = v.base.map(f64::from);
+                let along = |m: usize| if dir >> m & 1 == 1 { b[m] + t } else { b[m] };
+                [along(0) as f32, along(1) as f32, along(2) as f32]
+            }
+            _ => v.position(grid).as_vec3().to_array(),
+        };
         // A cell of 1 (a step of 1, the usual call) is a path of its own, where the stored
         // coordinates are read without the division by the cell that the general path makes
         // (three a vertex, computed and discarded when the choice is made per coordinate,
         // on the divider that the vertex's crossing and normal need too). The branch goes
         // the same way for the whole call.
-        let edge = if grid.cell == 1.0 {
-            edge_gradient::<true, L>(grid, &v, position, ends, near)
+        let edge = if on_base {
+            edge_gradient::<true, true, L>(grid, &v, position, ends, near)
+        } else if grid.cell == 1.0 {
+            edge_gradient::<true, false, L>(grid, &v, position, ends, near)
         } else {
-            edge_gradient::<false, L>(grid, &v, position, ends, near)
+            edge_gradient::<false, false, L>(grid, &v, position, ends, near)
         };
         let g = match edge {
             Some(g) => g,
@@ -331,7 +346,7 @@ fn node_gradient<L: Level>(near: &Near<'_, L>, n: [usize; 3]) -> [f64; 3] {
 /// ends (as the extractor passes them): each end's difference along the edge reaches the
 /// other end, so those two of its twelve samples are not read again.
 #[inline(always)]
-fn edge_gradient<const UNIT_CELL: bool, L: Level>(
+fn edge_gradient<const UNIT_CELL: bool, const ON_BASE: bool, L: Level>(
     grid: &Grid,
     v: &GridVertex,
     position: [f32; 3],
@@ -356,11 +371,14 @@ fn edge_gradient<const UNIT_CELL: bool, L: Level>(
         // Dividing by a cell of 1 changes nothing (`UNIT_CELL`: the cell is 1).
         if UNIT_CELL { p } else { p / cell }
     };
+    // (`ON_BASE`: the position was made from the base on a lattice at the origin with a
+    // cell of 1, so across the edge it is the base, below 2¹⁵ and exact in `f32`.)
     for (m, &bm) in b.iter().enumerate() {
-        if m != axis && q(m) != bm as f64 {
+        if !ON_BASE && m != axis && q(m) != bm as f64 {
             return None;
         }
     }
+    debug_assert!((0..3).all(|m| m == axis || q(m) == b[m] as f64));
     // Along it, `gradient_at` finds the cube of `floor(qa)` and the fraction `qa − c`: the
     // edge's own base and a fraction strictly inside exactly when `qa − b` is strictly
     // between 0 and 1 (a rounded difference is monotone in `qa`, and `b + 1 − b` is 1), so

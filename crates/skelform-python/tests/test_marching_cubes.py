@@ -244,6 +244,30 @@ def test_normals_and_values_are_the_sample_gradient(order, dtype):
         np.testing.assert_allclose(values, sizes, rtol=1e-6, atol=1e-7)
 
 
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_non_finite_samples_are_the_largest_finite_ones(dtype):
+    # At level 0 a float32 volume is read in place, and the normals read its values raw
+    # where they are finite: infinities and NaN must still read as the largest finite
+    # samples of their sign (NaN as positive), in the normals and values too, on vertices
+    # whose neighbours they are.
+    rng = np.random.default_rng(11)
+    vol = sphere(30, (14.2, 15.1, 13.7), 10.0) + 0.3 * rng.standard_normal((30, 30, 30))
+    vol = vol.astype(dtype)
+    flat = vol.reshape(-1)
+    flat[::97], flat[13::89], flat[5::101] = np.inf, -np.inf, np.nan
+    big = np.finfo(np.float32).max
+    replaced = np.nan_to_num(vol, nan=big, posinf=big, neginf=-big)
+    for threads in (1, 2):
+        ours = skelform.marching_cubes(vol, 0.0, threads=threads)
+        theirs = skelform.marching_cubes(replaced, 0.0, threads=threads)
+        assert len(ours[1]) > 1000
+        # (Values, the gradient's size, may overflow float32 next to those samples.)
+        assert np.isfinite(ours[0]).all() and np.isfinite(ours[2]).all()
+        assert not np.isnan(ours[3]).any()
+        for a, b in zip(ours, theirs):
+            assert np.array_equal(a, b)
+
+
 def test_arrays_outlive_later_calls():
     """The arrays are over memory that goes back to a pool when NumPy drops them: arrays and
     views a caller keeps are never written by later calls, and dropped ones are reused."""

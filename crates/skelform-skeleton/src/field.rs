@@ -1501,6 +1501,155 @@ impl SkeletonField {
         }
     }
 
+    /// [`SkeletonField::eval_batch`] with gradients and, for the additive blends, each
+    /// point's colour from the densities the value sums anyway ([`Field::eval_grad_color_many`]):
+    /// painting a vertex then costs almost nothing beyond the evaluation root finding makes
+    /// next to it. The points are grouped by culling cell as there; a point's value, gradient
+    /// and colour depend on its cell alone, not on the batch.
+    fn eval_batch_colored(
+        &self,
+        palette: &[[f32; 3]],
+        points: &[DVec3],
+        values: &mut [f64],
+        grads: &mut [DVec3],
+        colors: &mut [[f32; 3]],
+    ) {
+        debug_assert_eq!(points.len(), values.len());
+        let mut scratch = ColorScratch::default();
+        let mut order: Vec<(u32, u32)> =
+            (0..points.len()).map(|i| (self.cull.cell_of(points[i]) as u32, i as u32)).collect();
+        order.sort_unstable();
+        let mut pts = [DVec3::ZERO; CHUNK];
+        let mut vals = [0.0; CHUNK];
+        let mut gs = [DVec3::ZERO; CHUNK];
+        let mut cs = [[0f32; 3]; CHUNK];
+        let mut start = 0;
+        while start < order.len() {
+            let cell = order[start].0;
+            let mut end = start + 1;
+            while end < order.len() && end - start < CHUNK && order[end].0 == cell {
+                end += 1;
+            }
+            let n = end - start;
+            for (p, &(_, i)) in pts.iter_mut().zip(&order[start..end]) {
+                *p = points[i as usize];
+            }
+            let candidates = self.cull.elements(cell as usize);
+            let out = (&mut vals[..n], &mut gs[..n], &mut cs[..n]);
+            self.eval_chunk_colored(palette, &pts[..n], candidates, out, &mut scratch);
+            for (k, &(_, i)) in order[start..end].iter().enumerate() {
+                values[i as usize] = vals[k];
+                grads[i as usize] = gs[k];
+                colors[i as usize] = cs[k];
+            }
+            start = end;
+        }
+    }
+
+    /// [`SkeletonField::eval_chunk_additive`] with gradients, summing each element's colour
+    /// weighted by `max(0, density)` beside its density: the value and gradient are summed
+    /// over the same elements in the same order, so they are that function's bit for bit (a
+    /// test holds the two together), and the colour is [`SkeletonField::colors`]'s (the
+    /// least clique's members, limbs of its junctions included; the nearest element's where
+    /// none reaches), up to the order of its weighted sum.
+    fn eval_chunk_colored(
+        &self,
+        palette: &[[f32; 3]],
+        pts: &[DVec3],
+        candidates: &[u32],
+        (values, grads, colors): (&mut [f64], &mut [DVec3], &mut [[f32; 3]]),
+        scratch: &mut ColorScratch,
+    ) {
+        let n = pts.len();
+        let ColorScratch { group_sums, sums, best, selected } = scratch;
+        let zero = ColorSum::default();
+        let add = |elements: &[usize], sums: &mut [ColorSum]| {
+            for &e in elements {
+                let it = &self.items[e];
+                let c = palette[e].map(f64::from);
+                for (p, s) in pts.iter().zip(sums.iter_mut()) {
+                    if it.contains(*p) {
+                        let (v, g) = self.additive(it, *p, true);
+                        s.v += v;
+                        s.g += g;
+                        if v > 0.0 {
+                            s.add_color(v, c);
+                        }
+                    }
+                }
+            }
+        };
+        if let Some(shared) = &self.shared {
+            group_sums.resize(shared.groups.len(), vec![zero; CHUNK]);
+            for (elements, sums) in shared.groups.iter().zip(group_sums.iter_mut()) {
+                sums[..n].fill(zero);
+                add(select(elements, Some(candidates), selected), &mut sums[..n]);
+            }
+        }
+        sums.resize(CHUNK, zero);
+        best.resize(CHUNK, (f64::INFINITY, 0, zero));
+        let (sums, best) = (&mut sums[..n], &mut best[..n]);
+        best.fill((f64::INFINITY, 0, zero));
+        for (k, clique) in self.cliques.iter().enumerate() {
+            sums.fill(zero);
+            if self.shared.is_some() {
+                for &part in &clique.parts {
+                    for (s, g) in sums.iter_mut().zip(&group_sums[part][..n]) {
+                        s.v += g.v;
+                        s.g += g.g;
+                        for (a, b) in s.color.iter_mut().zip(g.color) {
+                            *a += b;
+                        }
+                    }
+                }
+            } else {
+                add(select(&clique.plain, Some(candidates), selected), sums);
+            }
+            if let Blend::Convolution(kernel) = self.blend {
+                for &j in &clique.junctions {
+                    let junction = &self.junctions[j];
+                    for (p, s) in pts.iter().zip(sums.iter_mut()) {
+                        if junction.contains(*p) {
+                            let (v, g) = self.junction_share(junction, kernel, *p, true);
+                            s.v += v;
+                            s.g += g;
+                        }
+                    }
+                }
+            }
+            for (s, b) in sums.iter().zip(best.iter_mut()) {
+                // `finish` of an additive blend.
+                let f = self.iso - s.v;
+                if f < b.0 {
+                    *b = (f, k, ColorSum { g: -s.g, ..*s });
+                }
+            }
+        }
+        for (i, (f, k, s)) in best.iter_mut().enumerate() {
+            values[i] = *f;
+            grads[i] = s.g;
+            let (p, clique) = (pts[i], &self.cliques[*k]);
+            // The limbs of the clique's junctions weigh in by their own densities.
+            for &j in &clique.junctions {
+                for limb in &self.junctions[j].limbs {
+                    let it = &self.items[limb.element];
+                    if it.contains(p) {
+                        let w = self.additive(it, p, false).0;
+                        if w > 0.0 {
+                            s.add_color(w, palette[limb.element].map(f64::from));
+                        }
+                    }
+                }
+            }
+            let [r, g, b, total] = s.color;
+            colors[i] = if total > 0.0 {
+                [r, g, b].map(|c| (c / total) as f32)
+            } else {
+                self.nearest_color(palette, clique, p)
+            };
+        }
+    }
+
     /// Evaluates at most [`CHUNK`] points. With `candidates` (ascending element indices, a
     /// culling cell's), only those elements are visited: the caller guarantees that every
     /// other element's box misses every point.
@@ -1591,6 +1740,35 @@ impl SkeletonField {
     }
 }
 
+/// One point's running sum for [`SkeletonField::eval_chunk_colored`]: density, its
+/// gradient, and `Σ w·colour` (three channels) with `Σ w` over the positive densities `w`.
+#[derive(Clone, Copy, Default)]
+struct ColorSum {
+    v: f64,
+    g: DVec3,
+    color: [f64; 4],
+}
+
+impl ColorSum {
+    #[inline]
+    fn add_color(&mut self, w: f64, c: [f64; 3]) {
+        for (sum, channel) in self.color.iter_mut().zip(c) {
+            *sum += w * channel;
+        }
+        self.color[3] += w;
+    }
+}
+
+/// Buffers of [`SkeletonField::eval_batch_colored`].
+#[derive(Default)]
+struct ColorScratch {
+    group_sums: Vec<Vec<ColorSum>>,
+    sums: Vec<ColorSum>,
+    /// Each point's least clique value so far, that clique, and its sums.
+    best: Vec<(f64, usize, ColorSum)>,
+    selected: Vec<usize>,
+}
+
 /// Buffers one batch evaluation reuses across its chunks.
 #[derive(Default)]
 struct Scratch {
@@ -1610,6 +1788,16 @@ struct Scratch {
 
 /// The elements of `list` that are also in `candidates` (both ascending), in order; all of
 /// `list` without candidates.
+///
+/// Why not a plain merge: a culling cell lists a few dozen elements, a clique may list
+/// thousands (random-1000's one clique is every element), and walking the whole list for
+/// every chunk of points was a seventh of meshing random-1000. A list that is every
+/// element from 0 on (a distinct ascending list whose last entry is its length less one)
+/// holds every candidate below its length; any other list is searched from each candidate
+/// by galloping (steps doubling, then a binary search), so its long runs between candidates
+/// are skipped in a few steps; a list at most eight times as long as the candidates (the
+/// hand's groups) is merged with them.
+#[inline]
 fn select<'a>(
     list: &'a [usize],
     candidates: Option<&[u32]>,
@@ -1617,17 +1805,45 @@ fn select<'a>(
 ) -> &'a [usize] {
     let Some(cand) = candidates else { return list };
     out.clear();
-    let (mut i, mut j) = (0, 0);
-    while i < list.len() && j < cand.len() {
-        let c = cand[j] as usize;
-        match list[i].cmp(&c) {
-            std::cmp::Ordering::Less => i += 1,
-            std::cmp::Ordering::Greater => j += 1,
-            std::cmp::Ordering::Equal => {
-                out.push(c);
-                i += 1;
-                j += 1;
+    if list.last().is_some_and(|&l| l + 1 == list.len()) {
+        out.extend(cand.iter().map(|&c| c as usize).take_while(|&c| c < list.len()));
+        return out;
+    }
+    let mut i = 0;
+    if list.len() <= 8 * cand.len() {
+        // Short lists (the hand's groups): a plain merge is cheaper than searching.
+        let mut j = 0;
+        while i < list.len() && j < cand.len() {
+            let c = cand[j] as usize;
+            match list[i].cmp(&c) {
+                std::cmp::Ordering::Less => i += 1,
+                std::cmp::Ordering::Greater => j += 1,
+                std::cmp::Ordering::Equal => {
+                    out.push(c);
+                    i += 1;
+                    j += 1;
+                }
             }
+        }
+        return out;
+    }
+    for &c in cand {
+        let c = c as usize;
+        let rest = &list[i..];
+        // rest[..lo] < c; rest[hi] ≥ c or hi is past the end.
+        let mut hi = 1;
+        while hi < rest.len() && rest[hi] < c {
+            hi *= 2;
+        }
+        let lo = hi / 2;
+        let hi = hi.min(rest.len());
+        i += lo + rest[lo..hi].partition_point(|&x| x < c);
+        if i == list.len() {
+            break;
+        }
+        if list[i] == c {
+            out.push(c);
+            i += 1;
         }
     }
     out
@@ -1852,6 +2068,41 @@ impl Field for SkeletonField {
         self.eval_batch(points, values, Some(grads));
     }
 
+    fn has_colors(&self) -> bool {
+        self.colors.is_some()
+    }
+
+    fn colors_many(&self, points: &[DVec3], colors: &mut [[f32; 3]]) -> bool {
+        match self.colors(points) {
+            Some(c) => {
+                colors.copy_from_slice(&c);
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// For the additive blends, the colours from the densities the values sum
+    /// ([`SkeletonField::eval_batch_colored`]); otherwise the two calls.
+    fn eval_grad_color_many(
+        &self,
+        points: &[DVec3],
+        values: &mut [f64],
+        grads: &mut [DVec3],
+        colors: &mut [[f32; 3]],
+    ) -> bool {
+        match (&self.colors, self.blend) {
+            (Some(palette), Blend::Convolution(_) | Blend::Sum(_)) => {
+                self.eval_batch_colored(palette, points, values, grads, colors);
+                true
+            }
+            _ => {
+                self.eval_batch(points, values, Some(grads));
+                self.colors_many(points, colors)
+            }
+        }
+    }
+
     fn gradient_step(&self) -> f64 {
         1e-4 * self.min_radius
     }
@@ -1869,6 +2120,33 @@ impl Field for SkeletonField {
 mod tests {
     use super::*;
     use crate::GroupId;
+
+    /// `select` keeps exactly the candidates in the list, in order: lists that are every
+    /// element from 0 (its shortcut), lists with gaps, short and long, empty lists and
+    /// candidates, candidates beyond the list's end.
+    #[test]
+    fn select_keeps_the_candidates_in_the_list() {
+        let mut seed = 0x1234_5678_9abc_def1_u64;
+        let mut next = |n: u64| {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed % n
+        };
+        let mut out = Vec::new();
+        for case in 0..3000 {
+            let n = next(300) as usize;
+            // Every element below `n`, or each with a chance that varies by case.
+            let keep = if case % 4 == 0 { 100 } else { next(101) };
+            let list: Vec<usize> = (0..n).filter(|_| next(100) < keep).collect();
+            let take = next(101);
+            let cand: Vec<u32> = (0..n as u32 + 20).filter(|_| next(100) < take).collect();
+            let want: Vec<usize> =
+                cand.iter().map(|&c| c as usize).filter(|c| list.contains(c)).collect();
+            assert_eq!(select(&list, Some(&cand), &mut out), &want[..], "{list:?} {cand:?}");
+            assert_eq!(select(&list, None, &mut out), &list[..]);
+        }
+    }
 
     /// The colour the documentation of [`SkeletonField::colors`] defines, every weight
     /// taken: what `color_at` must give, bit for bit, also where it takes a single weight
@@ -1947,6 +2225,78 @@ mod tests {
                 }
             }
             assert!(skin_seen > 100 && mixed_seen > 10, "{blend:?}: {skin_seen} {mixed_seen}");
+        }
+    }
+
+    /// Colours asked for with the values ([`Field::eval_grad_color_many`]) leave the values
+    /// and gradients bit for bit what [`Field::eval_grad_many`] gives (asking for colours
+    /// must never move a vertex), and are [`SkeletonField::colors`]'s (up to the order of
+    /// the weighted sum), for the additive blends (fused) and another (two calls), on the
+    /// zigzag of two cliques with shared sums and mixed colours, in batches of any size.
+    #[test]
+    fn colours_with_the_values_are_the_painted_colours_and_keep_the_values() {
+        let skin = [0.88, 0.67, 0.56];
+        let nail = [0.96, 0.83, 0.8];
+        for blend in [
+            Blend::Convolution(Kernel::Wyvill),
+            Blend::Sum(Kernel::Wyvill),
+            Blend::SuperElliptic { range: 1.0, thumbweight: 2.0, angle_scaled: false },
+        ] {
+            let mut s = Skeleton::new();
+            let palm = s.add_group("palm").unwrap();
+            let fingers = [s.add_group("a").unwrap(), s.add_group("b").unwrap()];
+            for g in fingers {
+                s.blend_groups(palm, g).unwrap();
+            }
+            for i in 0..12 {
+                let x = i as f64 * 0.3;
+                let (a, b) =
+                    (DVec3::new(x, 0.0, 0.0), DVec3::new(x + 0.3, 0.1 * (i % 2) as f64, 0.05));
+                let segment = Shape::Segment(crate::Segment::new(a, b).unwrap());
+                let color = if i == 4 || i == 9 { nail } else { skin };
+                let group = if i < 6 { palm } else { fingers[(i / 3) % 2] };
+                let e = Element::new(segment, 0.17).unwrap().with_color(color).unwrap();
+                s.push(e.in_group(group)).unwrap();
+            }
+            let f = SkeletonField::new(&s, blend).unwrap();
+            assert!(f.has_colors());
+            let additive = matches!(blend, Blend::Convolution(_) | Blend::Sum(_));
+            assert_eq!(f.shared.is_some(), additive, "{blend:?}");
+            let mut rng = Rng(11);
+            let points: Vec<DVec3> = (0..3000)
+                .map(|_| {
+                    DVec3::new(rng.range(-0.5, 4.2), rng.range(-0.6, 0.7), rng.range(-0.3, 0.3))
+                })
+                .collect();
+            let n = points.len();
+            let (mut v, mut g) = (vec![0.0; n], vec![DVec3::ZERO; n]);
+            f.eval_grad_many(&points, &mut v, &mut g);
+            let want = f.colors(&points).unwrap();
+            for size in [1, 7, n] {
+                let (mut vc, mut gc, mut c) =
+                    (vec![0.0; n], vec![DVec3::ZERO; n], vec![[0.0; 3]; n]);
+                for (((p, v), g), c) in points
+                    .chunks(size)
+                    .zip(vc.chunks_mut(size))
+                    .zip(gc.chunks_mut(size))
+                    .zip(c.chunks_mut(size))
+                {
+                    assert!(f.eval_grad_color_many(p, v, g, c));
+                }
+                for i in 0..n {
+                    assert_eq!(v[i].to_bits(), vc[i].to_bits(), "{blend:?} value at {}", points[i]);
+                    assert_eq!(g[i], gc[i], "{blend:?} gradient at {}", points[i]);
+                    for k in 0..3 {
+                        assert!(
+                            (want[i][k] - c[i][k]).abs() <= 1e-6,
+                            "{blend:?} colour at {}",
+                            points[i]
+                        );
+                    }
+                }
+            }
+            let mixed = want.iter().filter(|c| **c != skin.map(|v| v as f32)).count();
+            assert!(mixed > 100, "{blend:?}: {mixed} mixed or nail");
         }
     }
 

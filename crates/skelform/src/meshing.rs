@@ -291,8 +291,21 @@ impl Scene {
         overrides: &Overrides,
         known: impl Fn(usize, &[f32; 3]) -> Option<[f32; 3]> + Sync,
     ) {
+        if overrides.colors == Some(false) {
+            // Colours a polygonizer gave with its evaluations (continuation on a coloured
+            // skeleton), not wanted.
+            mesh.colors.clear();
+        }
+        // A polygonizer that evaluates the field next to every vertex anyway colours the
+        // vertices in those evaluations (`Field::eval_grad_color_many`; continuation with
+        // root finding): the scene's field is then the skeleton itself (with sweeps or
+        // combinations it has no colours to give), so its colours are these, taken at most
+        // a Newton step (a thousandth of a cell or so) from each vertex, and need no second
+        // pass.
+        let coloured = !mesh.colors.is_empty() && mesh.colors.len() == mesh.vertex_count();
         if method != Method::NonManifold
             && overrides.colors != Some(false)
+            && !coloured
             && let Some(skeleton) = &self.skeleton
             && skeleton.colors(&[]).is_some()
         {

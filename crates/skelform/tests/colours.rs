@@ -175,3 +175,34 @@ fn the_leaf_carries_its_tertiary_venation_in_vertex_colours_the_ply_and_the_glb(
         assert_eq!(*uv, m.uvs[at[&q.map(f32::to_bits)]]);
     }
 }
+
+/// Continuation with root finding colours the vertices in its own evaluations, a Newton step
+/// from each vertex: the colours are the skeleton's at the vertices themselves (what painting
+/// gave) to a thousandth, on the hand (several cliques, nails of another colour) and the
+/// colours example; with colours off the mesh has none, and the same positions come out.
+#[test]
+fn continuation_colours_from_root_finding_are_the_painted_colours() {
+    for (name, samples) in [("skeleton/hand.toml", 48), ("skeleton/colours.toml", 64)] {
+        let scene = Scene::load(example(name)).unwrap();
+        let skeleton = scene.skeleton.clone().expect("a skeleton");
+        let o = Overrides {
+            resolution: Some(Resolution::Samples(samples)),
+            method: Some(Method::Continuation),
+            ..Overrides::default()
+        };
+        let m = &scene.mesh(&o).unwrap().mesh;
+        assert_eq!(m.colors.len(), m.positions.len(), "{name}");
+        let points: Vec<skelform::DVec3> =
+            m.positions.iter().map(|p| skelform::DVec3::from_array(p.map(f64::from))).collect();
+        let painted = skeleton.colors(&points).unwrap();
+        let mut mixed = 0;
+        for (c, want) in m.colors.iter().zip(&painted) {
+            assert!(close(*c, *want, 1e-3), "{name}: {c:?} against {want:?}");
+            mixed += usize::from(c != &m.colors[0]);
+        }
+        assert!(mixed > 0, "{name}: one colour everywhere");
+        let off = scene.mesh(&Overrides { colors: Some(false), ..o.clone() }).unwrap().mesh;
+        assert!(off.colors.is_empty(), "{name}");
+        assert_eq!(off.positions, m.positions, "{name}");
+    }
+}

@@ -17,7 +17,9 @@
 //! (`Run::propagate_seeds`), reading and keeping corner values, so a seed costs a few
 //! evaluations. On the hand at 128 samples: 7.02 evaluations per vertex before (corners
 //! 2.06, search 0.56, roots 3.40, normals 1.00), 3.21 after (corners 1.98, search 0.10,
-//! roots 1.13, normals 0).
+//! roots 1.13, normals 0). A field with colours (a coloured skeleton) gives each vertex its
+//! colour in the same evaluations ([`Field::eval_grad_color_many`]), so the mesh comes out
+//! coloured and needs no painting afterwards.
 //!
 //! Guarantees: each lattice corner is evaluated once (values are kept in sparse bricks) and
 //! each edge root is found once and shared; a surface closed inside the domain comes out closed,
@@ -469,40 +471,66 @@ impl<'a> Run<'a> {
     /// gradients, as corners are): the points next to the surface are corners propagation
     /// needs anyway.
     fn walk(&mut self, from: [u32; 3]) -> Option<([u32; 3], Bisection)> {
+        self.walk_many(&[from]).pop().flatten()
+    }
+
+    /// [`Run::walk`] from each of `froms` (its answer for each), the walks stepping together:
+    /// each step's new points, of every walk, are one parallel batch. A walk's answer
+    /// depends on the values along its axes alone, never on which of them were known, so it
+    /// is the walk's own whatever the others. The seeds are now walked each on its own
+    /// thread (see [`seeds`]), one walk per call; the batch stays for callers with several.
+    fn walk_many(&mut self, froms: &[[u32; 3]]) -> Vec<Option<([u32; 3], Bisection)>> {
+        struct Axes {
+            last: [[u32; 3]; 6],
+            open: [bool; 6],
+            done: bool,
+        }
         let dims = self.grid.dims;
-        let mut last = [from; 6];
-        let mut open = [true; 6];
+        let mut walks: Vec<Axes> =
+            froms.iter().map(|&f| Axes { last: [f; 6], open: [true; 6], done: false }).collect();
+        let mut hits = vec![None; froms.len()];
         let mut todo = Vec::new();
-        let mut step = Vec::with_capacity(6);
-        if self.lattice.queue(from) {
-            todo.push(from);
+        let mut steps: Vec<(usize, usize, [u32; 3])> = Vec::new();
+        for &from in froms {
+            if self.lattice.queue(from) {
+                todo.push(from);
+            }
         }
         loop {
-            step.clear();
-            for d in 0..6 {
-                let (axis, down) = (d / 2, d % 2 == 1);
-                let p = last[d];
-                if !open[d]
-                    || (down && p[axis] == 0)
-                    || (!down && p[axis] as usize + 1 >= dims[axis])
-                {
-                    open[d] = false;
-                    continue;
+            steps.clear();
+            for (w, walk) in walks.iter_mut().enumerate().filter(|(_, w)| !w.done) {
+                let before = steps.len();
+                for d in 0..6 {
+                    let (axis, down) = (d / 2, d % 2 == 1);
+                    let p = walk.last[d];
+                    if !walk.open[d]
+                        || (down && p[axis] == 0)
+                        || (!down && p[axis] as usize + 1 >= dims[axis])
+                    {
+                        walk.open[d] = false;
+                        continue;
+                    }
+                    let mut q = p;
+                    q[axis] = if down { p[axis] - 1 } else { p[axis] + 1 };
+                    if self.lattice.queue(q) {
+                        todo.push(q);
+                    }
+                    steps.push((w, d, q));
                 }
-                let mut q = p;
-                q[axis] = if down { p[axis] - 1 } else { p[axis] + 1 };
-                if self.lattice.queue(q) {
-                    todo.push(q);
-                }
-                step.push((d, q));
+                // Every direction at the domain's boundary: no crossing.
+                walk.done = steps.len() == before;
             }
-            if step.is_empty() {
-                return None;
+            if steps.is_empty() {
+                return hits;
             }
             self.stats.search_evaluations += self.evaluate(&todo);
             todo.clear();
-            for &(d, q) in &step {
-                let p = last[d];
+            // Each walk's directions in order; its first crossing ends it.
+            for &(w, d, q) in &steps {
+                if walks[w].done {
+                    continue;
+                }
+                let p = walks[w].last[d];
                 let (fp, fq) = (self.lattice.value(p), self.lattice.value(q));
                 if (fp < 0.0) != (fq < 0.0) {
                     let axis = d / 2;
@@ -514,9 +542,11 @@ impl<'a> Run<'a> {
                         }
                     }
                     let start = Bisection::new(self.cubes.point(p), fp as f64, self.cubes.point(q));
-                    return Some((cube, start));
+                    hits[w] = Some((cube, start));
+                    walks[w].done = true;
+                    continue;
                 }
-                last[d] = q;
+                walks[w].last[d] = q;
             }
         }
     }
@@ -732,11 +762,28 @@ impl Run<'_> {
                 .collect();
         }
         let roots = self.root_options();
-        let mut evals = if self.opts.root == RootMethod::Hermite {
+        // Colours from root finding's evaluations, where the field has them (a coloured
+        // skeleton): the vertices' colours then cost next to nothing. Hermite roots take no
+        // evaluation, so their colours are left to the caller, as before.
+        let hermite = self.opts.root == RootMethod::Hermite;
+        let mut colors = if self.field.has_colors() && !hermite {
+            vec![[0f32; 3]; positions.len()]
+        } else {
+            Vec::new()
+        };
+        let mut evals = if hermite {
             hermite_roots(&mut brackets, &roots);
             0
+        } else if colors.is_empty() {
+            refine_roots_with_gradients(self.field, &mut brackets, &roots, None)
         } else {
-            refine_roots_with_gradients(self.field, &mut brackets, &roots)
+            let mut shades = vec![[0f32; 3]; brackets.len()];
+            let evals =
+                refine_roots_with_gradients(self.field, &mut brackets, &roots, Some(&mut shades));
+            for (&i, c) in edge.iter().zip(shades) {
+                colors[i] = c;
+            }
+            evals
         };
         let want_normals = self.opts.lattice.normals && !self.triangles.is_empty();
         let mut normals = vec![[0f32; 3]; if want_normals { positions.len() } else { 0 }];
@@ -760,6 +807,16 @@ impl Run<'_> {
                 self.opts.lattice.tolerance,
             );
             let pts: Vec<DVec3> = cell.iter().map(|&i| positions[i]).collect();
+            if !colors.is_empty() {
+                let mut shades = vec![[0f32; 3]; pts.len()];
+                if self.field.colors_many(&pts, &mut shades) {
+                    for (&i, c) in cell.iter().zip(shades) {
+                        colors[i] = c;
+                    }
+                } else {
+                    colors.clear();
+                }
+            }
             if want_normals {
                 let n = unit_gradients(self.field, &pts);
                 self.stats.normal_evaluations = pts.len() as u64;
@@ -775,7 +832,9 @@ impl Run<'_> {
             fill_from_faces(&mut normals, &positions, &self.triangles);
         }
         self.stats.normals = t.elapsed();
-        Ok(self.into_mesh(&positions, normals))
+        let (mut mesh, stats) = self.into_mesh(&positions, normals);
+        mesh.colors = colors;
+        Ok((mesh, stats))
     }
 }
 

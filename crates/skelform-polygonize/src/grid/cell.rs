@@ -26,6 +26,15 @@ pub trait CubeSink {
     /// trilinear interpolant; refinement on the field moves it along `slide`.
     fn cell_vertex(&mut self, offset: [f64; 3], slide: Slide) -> u32;
     fn triangle(&mut self, t: [u32; 3]);
+    /// The triangles `tris` (cube-edge triples) over the cube's vertices `local` (by edge,
+    /// masked to four bits): a [`CubeSink::triangle`] each, which a sink that appends to a
+    /// vector does in one go (room made once, no check per triangle).
+    #[inline]
+    fn triangles(&mut self, tris: &[[u8; 3]], local: &[u32; 16]) {
+        for tri in tris {
+            self.triangle(tri.map(|e| local[usize::from(e) & 15]));
+        }
+    }
 }
 
 /// What one cube needed, for statistics.
@@ -97,6 +106,19 @@ fn fan_centre(v: &[f32; 8], edges: &[u8], sink: &mut impl CubeSink) -> u32 {
     sink.cell_vertex(p, Slide { line, ray: false })
 }
 
+/// [`EDGES`] as bytes, over sixteen slots (the last four unused): indexed by an edge masked
+/// to four bits, with corners below eight, reading them takes no bounds check. (A sink that
+/// ignores the ends, as the grid extractor does, leaves the reads out, but not the checks.)
+const EDGE_ENDS: [[u8; 2]; 16] = {
+    let mut t = [[0u8; 2]; 16];
+    let mut e = 0;
+    while e < 12 {
+        t[e] = [EDGES[e][0] as u8, EDGES[e][1] as u8];
+        e += 1;
+    }
+    t
+};
+
 /// Triangulates one cube with corner values `v` (inside negative) into `sink`.
 #[inline]
 pub fn polygonize_cube(v: &[f32; 8], sink: &mut impl CubeSink) -> CubeOutcome {
@@ -127,8 +149,9 @@ pub fn polygonize_case(case: usize, v: &[f32; 8], sink: &mut impl CubeSink) -> C
     let count = entry.loop_len.iter().map(|&l| usize::from(l)).sum::<usize>();
     let start = entry.loop_start as usize;
     for &e in &t.loop_edges[start..start + count] {
-        let [c0, c1] = EDGES[usize::from(e)];
-        local[usize::from(e) & 15] = sink.edge_vertex(usize::from(e), [v[c0], v[c1]]);
+        let [c0, c1] = EDGE_ENDS[usize::from(e) & 15];
+        local[usize::from(e) & 15] =
+            sink.edge_vertex(usize::from(e), [v[usize::from(c0) & 7], v[usize::from(c1) & 7]]);
     }
     if entry.loop_count >= 2 {
         return polygonize_loops(v, entry, &mut local, outcome, sink);
@@ -136,9 +159,7 @@ pub fn polygonize_case(case: usize, v: &[f32; 8], sink: &mut impl CubeSink) -> C
     if let Some(l) = entry.center_loop {
         local[CENTER as usize] = fan_centre(v, t.loop_edges(entry, l as usize), sink);
     }
-    for tri in t.triangles(entry) {
-        sink.triangle(tri.map(|e| local[usize::from(e) & 15]));
-    }
+    sink.triangles(t.triangles(entry), &local);
     outcome
 }
 

@@ -68,6 +68,9 @@ struct Junctions {
     /// face, from a point of the face on one side towards one on the other, and the region
     /// it points into ([`Run::orient`] winds the sheet's triangles on the link by it).
     sides: Vec<(DVec3, u32)>,
+    /// Where the contour of each followed crossing (by its vertex) ended, and the foreign
+    /// region it met there ([`Run::four_region_ends`]).
+    ends: Vec<(u32, DVec3, u32)>,
 }
 
 impl Run<'_> {
@@ -163,8 +166,11 @@ impl Run<'_> {
                         });
                         v
                     };
-                    let a = hub(self, p - towards * self.eps, &mine);
-                    let b = hub(self, p + towards * self.eps, &other);
+                    let found = four_region_ends(&split.ends, &mine, &other, self.eps);
+                    let (pa, pb) =
+                        found.unwrap_or((p - towards * self.eps, p + towards * self.eps));
+                    let a = hub(self, pa, &mine);
+                    let b = hub(self, pb, &other);
                     info.lines.push((a, b, short));
                     // The cap's triangles have no edge vertex of their pair to be wound
                     // by: give its first vertex the direction across the short contour,
@@ -177,11 +183,16 @@ impl Run<'_> {
                             + run.positions[group[k].vertex as usize])
                             * 0.5
                     };
-                    let along = (self.positions[b as usize] - self.positions[a as usize])
-                        .normalize_or_zero();
                     let across = side(self, short.1) - side(self, short.0);
-                    let dir = across - along * across.dot(along);
-                    self.crossing[a as usize] = Some((dir, short.0, short.1));
+                    let dir = across - towards * across.dot(towards);
+                    let [fa, fb, fc] = sorted.map(|k| self.point(k));
+                    let normal = (fb - fa).cross(fc - fa);
+                    let by_spokes = found.and_then(|_| {
+                        [(a, &mine), (b, &other)]
+                            .into_iter()
+                            .find_map(|(v, ws)| self.across_cap(v, a, b, normal, ws, short))
+                    });
+                    self.crossing[a as usize] = Some(by_spokes.unwrap_or((dir, short.0, short.1)));
                     vertex_of.push(Some(a));
                     continue;
                 }
@@ -308,6 +319,39 @@ impl Run<'_> {
         self.stats.face_vertex_fallbacks += 1;
         let n = crossings.len() as f64;
         (crossings.iter().map(|w| self.positions[w.vertex as usize]).sum::<DVec3>() / n, None)
+    }
+
+    /// Which way a cap's short contour `a`–`b` (both ends at their junctions, see
+    /// [`four_region_ends`]) is crossed, from the side of its junction `v` whose spokes go
+    /// to the crossings `ws`: round a junction the two spokes and the cap part three
+    /// regions, and the region between the cap and a spoke is the one that spoke's crossing
+    /// has on the cap's side (`x.from` for the first, `y.to` for the second, the middle
+    /// region `x.to = y.from` lying between the spokes). When the spokes leave on opposite
+    /// sides of the cap's line within the face, the direction across it towards the second
+    /// spoke's side goes from `x.from` to `y.to`, as an edge vertex's crossing does; `None`
+    /// when they leave on one side (a contour too curved for its crossings to tell).
+    ///
+    /// Why: with the junctions more than 2ε apart, the direction between the regions'
+    /// touching points on the face's sides, less its part along the cap, could be short
+    /// and point either way (a slab's two regions touch the sides far from its end), and
+    /// the cap's triangles were wound against their neighbours (inconsistent edges).
+    fn across_cap(
+        &self,
+        v: u32,
+        a: u32,
+        b: u32,
+        normal: DVec3,
+        ws: &[Walked; 2],
+        short: RegionPair,
+    ) -> Option<(DVec3, u32, u32)> {
+        let [x, y] = *ws;
+        if x.to != y.from || RegionPair::new(x.from, y.to) != short {
+            return None;
+        }
+        let p = |u: u32| self.positions[u as usize];
+        let perp = normal.cross(p(b) - p(a)).normalize_or_zero();
+        let (sx, sy) = (perp.dot(p(x.vertex) - p(v)), perp.dot(p(y.vertex) - p(v)));
+        (sx * sy < 0.0).then(|| (perp * sy.signum(), x.from, y.to))
     }
 
     /// The two junctions of a face vertex of four regions, without following another
@@ -526,6 +570,7 @@ impl Run<'_> {
                 groups: vec![(unmatched, None)],
                 links: Vec::new(),
                 sides: Vec::new(),
+                ends: Vec::new(),
             };
         }
         let n = unmatched.len();
@@ -573,6 +618,9 @@ impl Run<'_> {
                 found[i] = follow(self, i);
             }
         }
+        let followed_ends: Vec<(u32, DVec3, u32)> = (0..n)
+            .filter_map(|i| found[i].map(|e| (unmatched[i].vertex, e.at, e.foreign)))
+            .collect();
         let ends: Vec<Option<DVec3>> = found.iter().map(|f| f.map(|e| e.at)).collect();
         // Single linkage of the ends closer than JUNCTION fine triangles.
         let mut cluster: Vec<usize> = (0..n).collect();
@@ -605,7 +653,7 @@ impl Run<'_> {
             ring.retain(|&i| left.iter().any(|w| w.vertex == unmatched[i].vertex));
         }
         if ring.is_empty() {
-            return Junctions { groups, links: Vec::new(), sides: Vec::new() };
+            return Junctions { groups, links: Vec::new(), sides: Vec::new(), ends: followed_ends };
         }
         // What is left: junctions each of one run of consecutive crossings, joined by
         // contours (see `linked_runs`), or one junction.
@@ -661,7 +709,7 @@ impl Run<'_> {
                     groups.push((w, Some(mean(m))));
                 }
                 let links = links.into_iter().map(|(a, b, p)| (base + a, base + b, p)).collect();
-                return Junctions { groups, links, sides };
+                return Junctions { groups, links, sides, ends: followed_ends };
             }
         }
         // One junction: its vertex where the first contour of interest that was followed
@@ -679,8 +727,48 @@ impl Run<'_> {
             self.stats.face_vertices_at_crossing += 1;
         }
         groups.push((ring.iter().map(|&i| unmatched[i]).collect(), end.map(|e| e.at)));
-        Junctions { groups, links: Vec::new(), sides: Vec::new() }
+        Junctions { groups, links: Vec::new(), sides: Vec::new(), ends: followed_ends }
     }
+}
+
+/// The two junctions of a face vertex of four regions split in two
+/// ([`Run::four_region_split`]), where the contours followed to find them say where they
+/// are: each pair of crossings' contours ended at its junction (meeting the pair's third
+/// region, within a fine triangle of each other when both were followed), and the two
+/// junctions lie more than 2ε apart. `None` otherwise (the split then puts its vertices ε
+/// either side of the one end known).
+///
+/// Why: junctions closer than [`JUNCTION`] fine triangles are one group, so a slab up to a
+/// sixteenth of a cell thick ending at the margin had both ends of its cap put ε either
+/// side of one of them; on a face cutting the slab obliquely the other end lay ten ε or
+/// more off its curve, and the cap's triangles folded onto the slab's side along it. The
+/// ends are already known (no more evaluations), only not used.
+fn four_region_ends(
+    ends: &[(u32, DVec3, u32)],
+    mine: &[Walked; 2],
+    other: &[Walked; 2],
+    eps: f64,
+) -> Option<(DVec3, DVec3)> {
+    let junction = |ws: &[Walked; 2]| {
+        let mut regions: Vec<u32> = ws.iter().flat_map(|w| [w.from, w.to]).collect();
+        regions.sort_unstable();
+        regions.dedup();
+        let at: Vec<DVec3> = ws
+            .iter()
+            .filter_map(|w| {
+                let &(_, p, foreign) = ends.iter().find(|e| e.0 == w.vertex)?;
+                let third = foreign != w.from && foreign != w.to && regions.contains(&foreign);
+                third.then_some(p)
+            })
+            .collect();
+        match at[..] {
+            [p] => Some(p),
+            [p, q] if p.distance(q) < 4.0 * eps => Some((p + q) * 0.5),
+            _ => None,
+        }
+    };
+    let (a, b) = (junction(mine)?, junction(other)?);
+    (a.distance(b) > 2.0 * eps).then_some((a, b))
 }
 
 /// Fine triangles within which followed contour ends are one junction ([`Run::junctions`]):

@@ -53,8 +53,9 @@
 //! two face vertices (a slab's end thinner than the cell) can have no edge vertex of its
 //! pair in the tetrahedra on either side to be wound by: its triangles are wound by where
 //! the line's two regions touch the face's sides (`Run::orient`). Always (it costs no
-//! evaluations), a face vertex of four regions becomes two, ε either side of the followed
-//! end and joined by the short contour between the two junctions, where that contour is a
+//! evaluations), a face vertex of four regions becomes two, at the two junctions where
+//! their contours were followed to them (else ε either side of the followed end), joined
+//! by the short contour between them, where that contour is a
 //! cap (drawn, with a drawn sheet beside it at each end: a vein's slab reaching the leaf's
 //! margin, whose two sides one vertex folded onto each other; see
 //! `Run::four_region_split`). Always, a tetrahedron's contours are split into the
@@ -62,7 +63,10 @@
 //! component without face vertices is polygonized on its own, and a curve passing through
 //! (two face vertices where the same regions meet) gets its own internal vertex: one
 //! vertex at the mean of every face vertex folded the sheets of a curve clipping a corner
-//! of the tetrahedron (see `Run::tetrahedron`). Always, where a
+//! of the tetrahedron (see `Run::tetrahedron`); where the fan to the mean of a
+//! component's other face vertices still folds (a slab's corner at the margin a hair from
+//! a face vertex, its other curves leaving a cell away), their meeting point is taken at
+//! the face vertex nearest the others that folds nothing. Always, where a
 //! curve runs straight into a tetrahedron and straight out at an angle, its internal vertex
 //! is moved to where the two lines meet, so the corner is kept instead of bevelled
 //! (`Stats::sharpened_corners`).
@@ -278,6 +282,10 @@ struct Run<'a> {
     /// have no edge vertex of their pair to be wound by ([`Run::orient`]).
     link_sides: FxHashMap<(u32, u32), (DVec3, u32, RegionPair)>,
     faces: FxHashMap<[Key; 3], FaceInfo>,
+    /// Sides on tetrahedron faces of the triangles made so far round face vertices, with
+    /// the third corner of each: where a tetrahedron's fan would fold onto its
+    /// neighbour's across a face ([`Run::folded_since`]).
+    fan_sides: FxHashMap<[u32; 2], Vec<u32>>,
     positions: Vec<DVec3>,
     /// The lattice segment of each edge vertex.
     on_edge: FxHashMap<u32, (Key, Key)>,
@@ -363,6 +371,7 @@ fn polygonize_here(regions: &dyn RegionField, options: &Options) -> Result<(Mesh
         samples: FxHashMap::default(),
         link_sides: FxHashMap::default(),
         faces: FxHashMap::default(),
+        fan_sides: FxHashMap::default(),
         positions: Vec::new(),
         on_edge: FxHashMap::default(),
         crossing: Vec::new(),
@@ -466,6 +475,7 @@ impl Run<'_> {
             + map_bytes(&self.samples)
             + map_bytes(&self.link_sides)
             + map_bytes(&self.faces)
+            + map_bytes(&self.fan_sides)
             + self.inner_bytes
             + vec_bytes(&self.positions)
             + map_bytes(&self.on_edge)

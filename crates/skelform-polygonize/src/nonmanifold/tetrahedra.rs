@@ -68,13 +68,67 @@ impl Run<'_> {
             return;
         }
         let mark = Mark::of(self);
-        self.several_centres(&faces, &hubs, &edges, t);
-        if self.coincident_since(&mark) {
+        self.hub_tetrahedron(&faces, &hubs, &edges, t, &mark);
+        for k in mark.triangles..self.triangles.len() {
+            let tri = self.triangles[k];
+            for i in 0..3 {
+                let (a, b) = (tri[i], tri[(i + 1) % 3]);
+                // Vertices made since the mark are this tetrahedron's internal ones; a side
+                // between two older ones lies on a face, shared with the neighbour there.
+                if a.max(b) < mark.positions as u32 {
+                    self.fan_sides.entry([a.min(b), a.max(b)]).or_default().push(tri[(i + 2) % 3]);
+                    self.inner_bytes += size_of::<u32>() as u64;
+                }
+            }
+        }
+    }
+
+    /// A tetrahedron with face vertices ([`Run::tetrahedron`]): internal vertices per
+    /// curve and component, the chapter's one centre where they make coincident faces, and
+    /// a face vertex for a component's centre where the mean of its face vertices folds.
+    fn hub_tetrahedron(
+        &mut self,
+        faces: &[FaceInfo],
+        hubs: &[(u32, usize, Vec<u32>)],
+        edges: &[(u32, u32, RegionPair)],
+        t: [Key; 4],
+        mark: &Mark,
+    ) {
+        self.several_centres(faces, hubs, edges, t, None);
+        if self.coincident_since(mark) {
             // Two sheets of a lens thinner than the follower's triangles, pinched between
             // the same two curves, joined their internal vertices by the same triangle
             // (coincident faces): the chapter's one centre does not make that triangle.
             mark.roll_back(self);
-            self.one_centre(&hubs, &edges, t);
+            self.one_centre(hubs, edges, t);
+            return;
+        }
+        if self.folded_since(mark) {
+            // Curves meeting at a point a hair from one face vertex (a slab a few
+            // hundredths of a cell thick ending at the margin a few thousandths of a cell
+            // off a lattice plane: its corner's four regions meet just off the face, and
+            // the other three curves leave through faces a cell away): their mean lies off
+            // every curve, and two sheets fanned to it from that face vertex lay on top of
+            // each other. The meeting point is then taken at a face vertex of the component
+            // instead: the first whose fan folds nothing, here or onto what the neighbours
+            // already made across the faces, trying first the one nearest all the others
+            // (the curves leave the meeting point for their face vertices, so the one
+            // nearest it is nearest them all). No more evaluations: the vertices are there.
+            let p = |v: u32| self.positions[v as usize];
+            let spread = |v: u32| hubs.iter().map(|h| p(h.0).distance(p(v))).sum::<f64>();
+            let mut order: Vec<(f64, usize)> =
+                hubs.iter().enumerate().map(|(i, h)| (spread(h.0), i)).collect();
+            order.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+            for (_, i) in order {
+                let h = &hubs[i];
+                mark.roll_back(self);
+                self.several_centres(faces, hubs, edges, t, Some(h.0));
+                if !self.folded_since(mark) && !self.coincident_since(mark) {
+                    return;
+                }
+            }
+            mark.roll_back(self);
+            self.several_centres(faces, hubs, edges, t, None);
         }
     }
 
@@ -85,6 +139,7 @@ impl Run<'_> {
         hubs: &[(u32, usize, Vec<u32>)],
         edges: &[(u32, u32, RegionPair)],
         t: [Key; 4],
+        centre_at: Option<u32>,
     ) {
         // Components of the contours on the tetrahedron's surface.
         let mut index: FxHashMap<u32, usize> = FxHashMap::default();
@@ -128,6 +183,9 @@ impl Run<'_> {
             if rest.len() == 1 {
                 internal.insert(rest[0], rest[0]);
                 centres.push(rest[0]);
+            } else if let Some(c) = centre_at.filter(|c| rest.contains(c)) {
+                internal.extend(rest.iter().map(|&h| (h, c)));
+                centres.push(c);
             } else if !rest.is_empty() {
                 let m = rest.iter().map(|&h| self.positions[h as usize]).sum::<DVec3>()
                     / rest.len() as f64;
@@ -236,6 +294,44 @@ impl Run<'_> {
             .collect();
         keys.sort_unstable();
         keys.windows(2).any(|w| w[0] == w[1])
+    }
+
+    /// Whether a triangle made since `mark` lies on top of another on a side they alone
+    /// share (made since the mark, or by a neighbour across a face, see `fan_sides`): their
+    /// third corners seen from the side within [`FOLD_DEGREES`] of one direction, the
+    /// checker's folded edge whatever the winding (which is not settled yet).
+    fn folded_since(&self, mark: &Mark) -> bool {
+        let cos = FOLD_DEGREES.to_radians().cos();
+        let mut sides: Vec<([u32; 2], u32)> = Vec::new();
+        for t in &self.triangles[mark.triangles..] {
+            for k in 0..3 {
+                let (a, b) = (t[k], t[(k + 1) % 3]);
+                sides.push(([a.min(b), a.max(b)], t[(k + 2) % 3]));
+            }
+        }
+        sides.sort_unstable();
+        let p = |v: u32| self.positions[v as usize];
+        sides.chunk_by(|x, y| x.0 == y.0).any(|mine| {
+            let [a, b] = mine[0].0;
+            let before = self.fan_sides.get(&[a, b]).map_or(&[][..], Vec::as_slice);
+            let group: Vec<([u32; 2], u32)> =
+                mine.iter().copied().chain(before.iter().map(|&c| ([a, b], c))).collect();
+            let axis = (p(b) - p(a)).normalize_or_zero();
+            let across: Vec<DVec3> = group
+                .iter()
+                .map(|&(_, c)| {
+                    let d = p(c) - p(a);
+                    (d - axis * d.dot(axis)).normalize_or_zero()
+                })
+                .collect();
+            // Three or more on a side are sheets meeting at a curve, where a slab's two
+            // sides meet at a hairline angle by right: the checker counts folds between two.
+            group.len() == 2
+                && (0..mine.len()).any(|i| {
+                    (i + 1..across.len())
+                        .any(|j| group[i].1 != group[j].1 && across[i].dot(across[j]) > cos)
+                })
+        })
     }
 
     /// A new vertex inside a tetrahedron.
@@ -440,6 +536,12 @@ impl Run<'_> {
         open
     }
 }
+
+/// Two triangles on one side whose third corners are seen from it within this angle of
+/// each other lie on top of each other ([`Run::folded_since`]): the checker's folded edge
+/// (normals more than 175° apart). No wider, so that fans which fold nothing keep the
+/// mean of their face vertices, as before.
+const FOLD_DEGREES: f64 = 5.0;
 
 /// How much of the run's output existed before a tetrahedron was polygonized, so that
 /// what it made can be taken back ([`Run::tetrahedron`]).

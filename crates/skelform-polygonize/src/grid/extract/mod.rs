@@ -665,6 +665,9 @@ fn extract_slab<V: SlabVertex, L: Level>(
             segments: [&lower.x, &upper.x, &lower.y, &upper.y, &z.edges],
             offsets: [lower.offset, upper.offset, lower.offset, upper.offset, z.offset],
             words: z.words,
+            row: None,
+            rows: [&[]; 8],
+            row_offsets: [0; 8],
             grid,
             near,
             at: [0, 0, k],
@@ -698,6 +701,7 @@ fn extract_slab<V: SlabVertex, L: Level>(
             // within `cube`.
             let at = |c: usize| level.sample(unsafe { *cube.get_unchecked(offsets[c]) });
             let v: [f32; 8] = [at(0), at(1), at(2), at(3), at(4), at(5), at(6), at(7)];
+            sink.enter_row(j);
             sink.at = [i, j, k];
             let outcome = polygonize_case(case, &v, &mut sink);
             ambiguous_faces += outcome.ambiguous_faces as u64;
@@ -714,7 +718,7 @@ fn extract_slab<V: SlabVertex, L: Level>(
 /// The slab's side of [`CubeSink`]: a cube's edge vertices by their numbers.
 struct SlabSink<'a, 's, V, L> {
     store: &'a mut SlabStore<'s, V>,
-    /// The numbered edges a cube's edges lie in, by [`EDGE_ROWS`]' segment: the x-edges of
+    /// The numbered edges a cube's edges lie in, by segment: the x-edges of
     /// the sample layers below and above the cube, their y-edges, the z-edges between them.
     segments: [&'a [Counted]; 5],
     /// The output number of each segment's first vertex (`BORROWED` for a layer the next
@@ -722,6 +726,13 @@ struct SlabSink<'a, 's, V, L> {
     offsets: [u32; 5],
     /// Sign words per row (the same in every segment).
     words: usize,
+    /// The row of cubes `rows` are for, if any yet.
+    row: Option<usize>,
+    /// The words of the numbered rows a cube of that row finds its edges in, by
+    /// [`EDGE_SLOTS`]' slot, and the output number of each one's segment's first vertex:
+    /// set once a row, so that a cube's edge costs a table entry, a word and a count.
+    rows: [&'a [Counted]; 8],
+    row_offsets: [u32; 8],
     grid: &'a Grid,
     near: &'a Near<'a, L>,
     at: [usize; 3],
@@ -729,35 +740,65 @@ struct SlabSink<'a, 's, V, L> {
 }
 
 /// Where cube edge `e` (`4·a + u + 2·v`: along axis `a` at offsets `u`, `v` on the other
-/// two) lies among a [`SlabSink`]'s numbered edges: the segment, and the offsets from the
-/// cube's corner along x and y of the lattice edge in that segment's rows; in one table so
-/// that finding an edge's number takes no branch on the edge (which cubes visit in an
-/// order the surface decides, so that a branch on it is hard to predict).
-const EDGE_ROWS: [(usize, usize, usize); 16] = {
-    let mut t = [(0, 0, 0); 16];
+/// two) lies among a [`SlabSink`]'s numbered rows for the cube's row `j` (its `rows`): the
+/// slot, and the offset from the cube's corner along x of the lattice edge in that row. In
+/// one table so that finding an edge's number takes no branch on the edge (which cubes
+/// visit in an order the surface decides, so that a branch on it is hard to predict). The
+/// slots: 0 to 3 the x-edges of rows `j` and `j + 1` of the sample layer below the cube,
+/// then of the layer above; 4 and 5 the y-edges from row `j` of the layer below and above;
+/// 6 and 7 the z-edges from rows `j` and `j + 1`.
+const EDGE_SLOTS: [(u8, u8); 16] = {
+    let mut t = [(0, 0); 16];
     let mut e = 0;
     while e < 12 {
-        let (u, v) = (e & 1, (e >> 1) & 1);
+        let (u, v) = ((e & 1) as u8, ((e >> 1) & 1) as u8);
         t[e] = match e >> 2 {
             // An x-edge of the lower (v = 0) or upper layer, in row j + u.
-            0 => (v, 0, u),
+            0 => (2 * v + u, 0),
             // A y-edge of the lower or upper layer, from sample i + u.
-            1 => (2 + v, u, 0),
+            1 => (4 + v, u),
             // A z-edge from sample (i + u, j + v).
-            _ => (4, u, v),
+            _ => (6 + v, u),
         };
         e += 1;
     }
     t
 };
 
+impl<'a, V: SlabVertex, L: Level> SlabSink<'a, '_, V, L> {
+    /// Points `rows` at the numbered rows the cubes of row `j` find their edges in, unless
+    /// they are there already (cubes come row by row).
+    #[inline(always)]
+    fn enter_row(&mut self, j: usize) {
+        if self.row == Some(j) {
+            return;
+        }
+        self.row = Some(j);
+        let words = self.words;
+        // (segment, row) of each slot: segments are the lower and upper layers' x-edges,
+        // their y-edges, and the z-edges.
+        const SLOTS: [(usize, usize); 8] =
+            [(0, 0), (0, 1), (1, 0), (1, 1), (2, 0), (3, 0), (4, 0), (4, 1)];
+        for (slot, &(segment, dj)) in SLOTS.iter().enumerate() {
+            let at = (j + dj) * words;
+            self.rows[slot] = &self.segments[segment][at..at + words];
+            self.row_offsets[slot] = self.offsets[segment];
+        }
+    }
+}
+
 impl<V: SlabVertex, L: Level> CubeSink for SlabSink<'_, '_, V, L> {
     #[inline]
     fn edge_vertex(&mut self, e: usize, _: [f32; 2]) -> u32 {
-        let [i, j, _] = self.at;
-        let (segment, di, dj) = EDGE_ROWS[e & 15];
-        let (i, j) = (i + di, j + dj);
-        self.offsets[segment] + self.segments[segment][j * self.words + i / 64].number(i)
+        debug_assert_eq!(self.row, Some(self.at[1]));
+        let (slot, di) = EDGE_SLOTS[e & 15];
+        let (slot, i) = (usize::from(slot) & 7, self.at[0] + usize::from(di));
+        let row = self.rows[slot];
+        debug_assert!(i / 64 < row.len());
+        // SAFETY: `i` is at most the cube's `i + 1 <= nx − 1` (cubes are `i < nx − 1`), so
+        // its word `i / 64` is below the row's `words = ceil(nx / 64)`, the length of every
+        // row `enter_row` sets.
+        self.row_offsets[slot] + unsafe { row.get_unchecked(i / 64) }.number(i)
     }
 
     fn cell_vertex(&mut self, offset: [f64; 3], slide: Slide) -> u32 {
@@ -773,6 +814,16 @@ impl<V: SlabVertex, L: Level> CubeSink for SlabSink<'_, '_, V, L> {
     fn triangle(&mut self, t: [u32; 3]) {
         let t = if V::REWOUND { [t[0], t[2], t[1]] } else { t };
         self.store.push_triangle(t);
+    }
+
+    #[inline]
+    fn triangles(&mut self, tris: &[[u8; 3]], local: &[u32; 16]) {
+        // (Spelled out, not `map`ped: an array `map` can stay a call, and this runs for
+        // every triangle.)
+        let at = |e: u8| local[usize::from(e) & 15];
+        self.store.push_triangles(tris.iter().map(|&[a, b, c]| {
+            if V::REWOUND { [at(a), at(c), at(b)] } else { [at(a), at(b), at(c)] }
+        }));
     }
 }
 
