@@ -529,17 +529,7 @@ fn tail_line_closed(alpha: f64, tail: &[f64; 5], d2: f64, ta: f64, tb: f64) -> f
         return 0.0;
     }
     // g_j: coefficients of Σ cₙ (w₀ − α t²)ⁿ in powers of t².
-    let mut g = [0.0f64; 5];
-    for (n, &cn) in tail.iter().enumerate() {
-        if cn == 0.0 {
-            continue;
-        }
-        let mut binom = 1.0;
-        for (j, gj) in g.iter_mut().enumerate().take(n + 1) {
-            *gj += cn * binom * w0.powi((n - j) as i32) * (-alpha).powi(j as i32);
-            binom = binom * (n - j) as f64 / (j + 1) as f64;
-        }
-    }
+    let g = binomial_powers(tail, w0, -alpha);
     let (s0, s1) = (t0 * t0, t1 * t1);
     let (mut p0, mut p1) = (t0, t1);
     let mut total = 0.0;
@@ -721,12 +711,10 @@ fn wedge_closed(
     })
 }
 
-/// `∫ Q(x²) dx` of [`wedge_closed`] for the polynomial `Σ cₙ wⁿ`, `w = w₀ − b x²`, given
-/// `d[j] = (x₁^{2j+1} − x₀^{2j+1})/(2j + 1)`. A function, not a closure, so that it is
-/// inlined where the coefficients are constants (most of them zero, their terms gone).
+/// The coefficients of `Σ cₙ (w₀ + m y)ⁿ` in powers of `y`, expanded by the binomial
+/// theorem; a function so that, inlined, the terms of zero coefficients vanish.
 #[inline(always)]
-fn wedge_part(c: &[f64; 5], w0: f64, b: f64, d: &[f64; 4]) -> f64 {
-    // g_j: coefficients of G(y) = Σ cₙ (w₀ − b y)ⁿ in powers of y.
+fn binomial_powers(c: &[f64; 5], w0: f64, m: f64) -> [f64; 5] {
     let mut g = [0.0f64; 5];
     for (n, &cn) in c.iter().enumerate() {
         if cn == 0.0 {
@@ -734,10 +722,20 @@ fn wedge_part(c: &[f64; 5], w0: f64, b: f64, d: &[f64; 4]) -> f64 {
         }
         let mut binom = 1.0;
         for (j, gj) in g.iter_mut().enumerate().take(n + 1) {
-            *gj += cn * binom * w0.powi((n - j) as i32) * (-b).powi(j as i32);
+            *gj += cn * binom * w0.powi((n - j) as i32) * m.powi(j as i32);
             binom = binom * (n - j) as f64 / (j + 1) as f64;
         }
     }
+    g
+}
+
+/// `∫ Q(x²) dx` of [`wedge_closed`] for the polynomial `Σ cₙ wⁿ`, `w = w₀ − b x²`, given
+/// `d[j] = (x₁^{2j+1} − x₀^{2j+1})/(2j + 1)`. A function, not a closure, so that it is
+/// inlined where the coefficients are constants (most of them zero, their terms gone).
+#[inline(always)]
+fn wedge_part(c: &[f64; 5], w0: f64, b: f64, d: &[f64; 4]) -> f64 {
+    // g_j: coefficients of G(y) = Σ cₙ (w₀ − b y)ⁿ in powers of y.
+    let g = binomial_powers(c, w0, -b);
     // Synthetic division by (1 + y): q_{m−1} = g_m, q_{j−1} = g_j − q_j.
     let mut q = [0.0f64; 4];
     q[3] = g[4];

@@ -2168,6 +2168,27 @@ mod tests {
         f.weighted_color(colors, members, p).unwrap_or_else(|| f.nearest_color(colors, clique, p))
     }
 
+    /// Twelve segments in a zigzag, coloured `skin` but for two of `nail`, in three groups: a
+    /// palm blending with two fingers that do not blend with each other (two cliques).
+    fn coloured_zigzag(blend: Blend, skin: [f64; 3], nail: [f64; 3]) -> SkeletonField {
+        let mut s = Skeleton::new();
+        let palm = s.add_group("palm").unwrap();
+        let fingers = [s.add_group("a").unwrap(), s.add_group("b").unwrap()];
+        for g in fingers {
+            s.blend_groups(palm, g).unwrap();
+        }
+        for i in 0..12 {
+            let x = i as f64 * 0.3;
+            let (a, b) = (DVec3::new(x, 0.0, 0.0), DVec3::new(x + 0.3, 0.1 * (i % 2) as f64, 0.05));
+            let segment = Shape::Segment(crate::Segment::new(a, b).unwrap());
+            let color = if i == 4 || i == 9 { nail } else { skin };
+            let group = if i < 6 { palm } else { fingers[(i / 3) % 2] };
+            let e = Element::new(segment, 0.17).unwrap().with_color(color).unwrap();
+            s.push(e.in_group(group)).unwrap();
+        }
+        SkeletonField::new(&s, blend).unwrap()
+    }
+
     /// A zigzag of skin-coloured segments with two of another colour in it, the colours of
     /// `examples/skeleton/hand.toml`, in three groups (a palm blending with two fingers that
     /// do not blend with each other: two cliques): the colours at points near and far, on
@@ -2183,23 +2204,7 @@ mod tests {
             Blend::Sum(Kernel::Wyvill),
             Blend::SuperElliptic { range: 1.0, thumbweight: 2.0, angle_scaled: false },
         ] {
-            let mut s = Skeleton::new();
-            let palm = s.add_group("palm").unwrap();
-            let fingers = [s.add_group("a").unwrap(), s.add_group("b").unwrap()];
-            for g in fingers {
-                s.blend_groups(palm, g).unwrap();
-            }
-            for i in 0..12 {
-                let x = i as f64 * 0.3;
-                let (a, b) =
-                    (DVec3::new(x, 0.0, 0.0), DVec3::new(x + 0.3, 0.1 * (i % 2) as f64, 0.05));
-                let segment = Shape::Segment(crate::Segment::new(a, b).unwrap());
-                let color = if i == 4 || i == 9 { nail } else { skin };
-                let group = if i < 6 { palm } else { fingers[(i / 3) % 2] };
-                let e = Element::new(segment, 0.17).unwrap().with_color(color).unwrap();
-                s.push(e.in_group(group)).unwrap();
-            }
-            let f = SkeletonField::new(&s, blend).unwrap();
+            let f = coloured_zigzag(blend, skin, nail);
             assert_eq!(f.cliques.len(), 2);
             let mut points = Vec::new();
             for i in 0..60 {
@@ -2242,23 +2247,7 @@ mod tests {
             Blend::Sum(Kernel::Wyvill),
             Blend::SuperElliptic { range: 1.0, thumbweight: 2.0, angle_scaled: false },
         ] {
-            let mut s = Skeleton::new();
-            let palm = s.add_group("palm").unwrap();
-            let fingers = [s.add_group("a").unwrap(), s.add_group("b").unwrap()];
-            for g in fingers {
-                s.blend_groups(palm, g).unwrap();
-            }
-            for i in 0..12 {
-                let x = i as f64 * 0.3;
-                let (a, b) =
-                    (DVec3::new(x, 0.0, 0.0), DVec3::new(x + 0.3, 0.1 * (i % 2) as f64, 0.05));
-                let segment = Shape::Segment(crate::Segment::new(a, b).unwrap());
-                let color = if i == 4 || i == 9 { nail } else { skin };
-                let group = if i < 6 { palm } else { fingers[(i / 3) % 2] };
-                let e = Element::new(segment, 0.17).unwrap().with_color(color).unwrap();
-                s.push(e.in_group(group)).unwrap();
-            }
-            let f = SkeletonField::new(&s, blend).unwrap();
+            let f = coloured_zigzag(blend, skin, nail);
             assert!(f.has_colors());
             let additive = matches!(blend, Blend::Convolution(_) | Blend::Sum(_));
             assert_eq!(f.shared.is_some(), additive, "{blend:?}");
