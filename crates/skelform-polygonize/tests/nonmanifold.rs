@@ -496,14 +496,14 @@ fn a_wedge_ending_a_hair_off_a_lattice_plane_has_no_folded_faces() {
 }
 
 /// A vein reaching the margin as a slab, as on the leaves: region 1 a strip of half
-/// thickness `t` about the plane `z = h + k·x` between 2 above and 3 below, cut by a curved
-/// margin beyond which lies 0; the slab's end at the margin is its cap (0, 1).
-fn slab_to_margin(h: f64, t: f64, k: f64) -> impl RegionField {
+/// thickness `t` about the plane `z = h + k·x + j·y` between 2 above and 3 below, cut by a
+/// curved margin beyond which lies 0; the slab's end at the margin is its cap (0, 1).
+fn slab_to_margin(h: f64, t: f64, [k, j]: [f64; 2]) -> impl RegionField {
     FnRegions(move |p: DVec3| {
         if p.y > 0.3 + 0.1 * p.x + 0.2 * p.x * p.x {
             return 0;
         }
-        let z = p.z - k * p.x;
+        let z = p.z - k * p.x - j * p.y;
         if (z - h).abs() < t && (p.x - 0.1 * p.y).abs() < 0.25 {
             1
         } else if z > h {
@@ -531,12 +531,30 @@ fn a_slab_reaching_the_margin_ends_in_a_cap_without_folds_or_slits() {
     // side of one of its junctions and folded onto the slab's side along the other.
     let cell = 0.1;
     let interest = vec![RegionPair(0, 1), RegionPair(1, 2), RegionPair(1, 3), RegionPair(2, 3)];
-    let mut cases: Vec<(f64, f64, f64)> =
-        vec![(0.31, 0.01, 0.0), (0.31, 0.02, 0.0), (0.31, 0.04, 0.0)];
+    let mut cases: Vec<(f64, f64, [f64; 2])> =
+        vec![(0.31, 0.01, [0.0; 2]), (0.31, 0.02, [0.0; 2]), (0.31, 0.04, [0.0; 2])];
     for k in [0.0, 0.05, -0.02, 0.1] {
         for h in [0.0005, 0.003, 0.005, 0.01, -0.003, -0.007] {
             for t in [0.01, 0.02, 0.04] {
-                cases.push((h, t, k));
+                cases.push((h, t, [k, 0.0]));
+            }
+        }
+    }
+    // Tilted along the vein instead (z varying with y), so that the slab crosses the
+    // lattice plane near the margin. Not asserted yet (issue 18), the four of these 120
+    // that still fail: the slab's side end crossing the plane z = 0 at 0.003 cell off it
+    // with a tilt of 0.02 (a sliver of its end face lying flat in the plane, 1 folded edge,
+    // any thickness); and the slab's side end at the domain's side y = -1 at -0.001 cell,
+    // 0.01 thick, tilt -0.05 (1 welded folded edge, both sheets' last triangles in that
+    // side).
+    let known: [(f64, f64, f64); 4] =
+        [(-0.001, 0.01, -0.05), (0.003, 0.01, 0.02), (0.003, 0.02, 0.02), (0.003, 0.04, 0.02)];
+    for j in [-0.05, -0.04, -0.02, 0.02, 0.05] {
+        for h in [0.0005, 0.001, 0.003, 0.005, 0.01, -0.001, -0.003, -0.007] {
+            for t in [0.01, 0.02, 0.04] {
+                if !known.contains(&(h, t, j)) {
+                    cases.push((h, t, [0.0, j]));
+                }
             }
         }
     }
@@ -550,7 +568,7 @@ fn a_slab_reaching_the_margin_ends_in_a_cap_without_folds_or_slits() {
             ..Options::default()
         };
         let (mesh, stats) = polygonize(&regions, &opts).unwrap();
-        let what = format!("slab {h} cell off the plane, {t} cell half thick, tilted {k}");
+        let what = format!("slab {h} cell off the plane, {t} cell half thick, tilted {k:?}");
         let report = check(&mesh);
         let welded = skelform_mesh::check::check_welded(&mesh, 0.0);
         let counts = [
@@ -578,7 +596,11 @@ fn a_slab_reaching_the_margin_ends_in_a_cap_without_folds_or_slits() {
                 *sides.entry((a.min(b), a.max(b))).or_default() += 1;
             }
         }
-        let on_domain = |p: [f32; 3]| p.iter().any(|c| (c.abs() - 1.0).abs() < 1e-4);
+        // Within a hundredth of a cell of the domain's side: where the vein's side curve
+        // (1, 2, 3) leaves the domain tilted, its last vertex lies inside the last
+        // tetrahedron (a few ten-thousandths off the side), and the sheets' boundary runs
+        // from it to the side.
+        let on_domain = |p: [f32; 3]| p.iter().any(|c| (c.abs() - 1.0).abs() < 1e-3);
         let mut slits = 0;
         for (t, l) in mesh.triangles.iter().zip(&mesh.labels) {
             if l.0 != 1 && l.1 != 1 {

@@ -51,8 +51,9 @@
 //! crossings the region the first contour meets says which two junctions there can be, so
 //! two contours are followed, not all four. A sheet crossing a face as such a line between
 //! two face vertices (a slab's end thinner than the cell) can have no edge vertex of its
-//! pair in the tetrahedra on either side to be wound by: its triangles are wound by where
-//! the line's two regions touch the face's sides (`Run::orient`). Always (it costs no
+//! pair in the tetrahedra on either side to be wound by: its triangles are wound like their
+//! neighbours across shared sides, and where none reaches them by where the line's two
+//! regions touch the face's sides (`Run::orient`). Always (it costs no
 //! evaluations), a face vertex of four regions becomes two, at the two junctions where
 //! their contours were followed to them (else ε either side of the followed end), joined
 //! by the short contour between them, where that contour is a

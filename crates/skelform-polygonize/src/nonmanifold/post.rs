@@ -24,6 +24,12 @@ impl Run<'_> {
     /// can have both probes on one side.)
     pub(super) fn orient(&mut self) {
         let mut unknown: Vec<usize> = Vec::new();
+        // Triangles the link sides would wind: wound by their neighbours first, by the link
+        // side only where no neighbour reaches them. Why: a side's direction across a cap's
+        // line is a guess from where its regions touch the face, and two faces' guesses can
+        // disagree (a slab tilted along the vein near a lattice plane: 2 inconsistent cap
+        // edges), while a neighbour across a shared side is exact.
+        let mut guessed: FxHashMap<usize, DVec3> = FxHashMap::default();
         for (i, (t, pair)) in self.triangles.iter_mut().zip(&self.labels).enumerate() {
             let [a, b, c] = t.map(|i| self.positions[i as usize]);
             let n = (b - a).cross(c - a);
@@ -60,9 +66,8 @@ impl Run<'_> {
                     });
                     match across {
                         Some(towards_lesser) => {
-                            if n.dot(towards_lesser) < 0.0 {
-                                t.swap(1, 2);
-                            }
+                            guessed.insert(i, towards_lesser);
+                            unknown.push(i);
                         }
                         None => unknown.push(i),
                     }
@@ -70,16 +75,34 @@ impl Run<'_> {
             }
         }
         if !unknown.is_empty() {
-            self.orient_from_neighbours(&unknown);
+            let mut left = self.orient_from_neighbours(&unknown);
+            if !guessed.is_empty() {
+                let mut rest = Vec::new();
+                for &i in &left {
+                    match guessed.get(&i) {
+                        Some(&towards_lesser) => {
+                            let t = &mut self.triangles[i];
+                            let [a, b, c] = t.map(|v| self.positions[v as usize]);
+                            if (b - a).cross(c - a).dot(towards_lesser) < 0.0 {
+                                t.swap(1, 2);
+                            }
+                        }
+                        None => rest.push(i),
+                    }
+                }
+                left = if rest.is_empty() { rest } else { self.orient_from_neighbours(&rest) };
+            }
+            self.stats.unoriented_triangles += left.len();
         }
     }
 
     /// Winds the triangles without an edge vertex of their own pair (the joins between two
     /// internal vertices, and fans of a contour between two face vertices) like a
     /// neighbour of their pair across a shared side, which the two must cross in opposite
-    /// directions; repeated until no more can be wound. The rest are counted
-    /// (`unoriented_triangles`).
-    fn orient_from_neighbours(&mut self, unknown: &[usize]) {
+    /// directions; repeated until no more can be wound. Returns the rest ([`Run::orient`]
+    /// winds those it can by their link side and counts the others,
+    /// `unoriented_triangles`).
+    fn orient_from_neighbours(&mut self, unknown: &[usize]) -> Vec<usize> {
         let key = |a: u32, b: u32| (a.min(b), a.max(b));
         let mut sharing: FxHashMap<((u32, u32), RegionPair), Vec<usize>> = FxHashMap::default();
         for &i in unknown {
@@ -133,7 +156,7 @@ impl Run<'_> {
                 break;
             }
         }
-        self.stats.unoriented_triangles += left.len();
+        left
     }
 
     /// Keeps the corners of curves sharp, beyond the chapter (which notes that its corners

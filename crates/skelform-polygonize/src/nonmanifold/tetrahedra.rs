@@ -113,7 +113,9 @@ impl Run<'_> {
             // instead: the first whose fan folds nothing, here or onto what the neighbours
             // already made across the faces, trying first the one nearest all the others
             // (the curves leave the meeting point for their face vertices, so the one
-            // nearest it is nearest them all). No more evaluations: the vertices are there.
+            // nearest it is nearest them all). A face vertex ending a curve passing through
+            // is tried as well: that curve is then one segment, its sheets fanned to that
+            // end. No more evaluations: the vertices are there.
             let p = |v: u32| self.positions[v as usize];
             let spread = |v: u32| hubs.iter().map(|h| p(h.0).distance(p(v))).sum::<f64>();
             let mut order: Vec<(f64, usize)> =
@@ -173,6 +175,17 @@ impl Run<'_> {
                     rest.push(h.0);
                 } else if same[0] == i {
                     let (a, b) = (mine[same[0]].0, mine[same[1]].0);
+                    if let Some(c) = centre_at.filter(|&c| c == a || c == b) {
+                        // The fallback of `hub_tetrahedron` at one end of a curve passing
+                        // through: the curve becomes the one segment between its face
+                        // vertices, and its sheets fan to that end. Why: a curve crossing
+                        // a slab only a few ε thick a hair off its face vertex left its
+                        // midpoint vertex a sliver's width off the slab's other side, and
+                        // the sheets fanned to it lay on top of each other (welded).
+                        internal.extend([(a, c), (b, c)]);
+                        centres.push(c);
+                        continue;
+                    }
                     let m = (self.positions[a as usize] + self.positions[b as usize]) * 0.5;
                     let v = self.internal_vertex(m);
                     self.through.push((v, [a, b], t));
