@@ -2083,7 +2083,7 @@ impl Field for SkeletonField {
     }
 
     /// For the additive blends, the colours from the densities the values sum
-    /// ([`SkeletonField::eval_batch_colored`]); otherwise the two calls.
+    /// (`eval_batch_colored`); otherwise the two calls.
     fn eval_grad_color_many(
         &self,
         points: &[DVec3],
