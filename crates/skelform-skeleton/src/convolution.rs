@@ -872,13 +872,7 @@ mod tests {
     /// and separable, at the segment's radius and others.
     #[test]
     fn specialised_segment_evaluation_equals_the_generic_one_bit_for_bit() {
-        let mut seed = 0x7f4a_7c15_9e37_79b9_u64;
-        let mut unit = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut unit = crate::kernel::units(0x7f4a_7c15_9e37_79b9);
         let seg = Segment::new(DVec3::new(0.1, -0.2, 0.3), DVec3::new(0.9, 0.4, -0.1)).unwrap();
         for (_, kernel) in Kernel::ALL {
             for separable in [false, true] {
@@ -908,13 +902,7 @@ mod tests {
     /// non-convex polygon and a square.
     #[test]
     fn specialised_polygon_evaluation_equals_the_generic_one_bit_for_bit() {
-        let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
-        let mut unit = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut unit = crate::kernel::units(0x9e37_79b9_7f4a_7c15);
         let polys = [
             Polygon::triangle(DVec3::ZERO, DVec3::X, DVec3::new(0.2, 0.9, 0.1)).unwrap(),
             Polygon::new(vec![

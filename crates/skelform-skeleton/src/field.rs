@@ -1373,13 +1373,31 @@ impl SkeletonField {
             self.eval_chunk(points, Some(self.cull.elements(cell)), v, g, &mut scratch);
             return;
         }
-        // (cell, index): sorting keeps each cell's points in their batch order.
+        let mut vals = [0.0; CHUNK];
+        let mut gs = [DVec3::ZERO; CHUNK];
+        self.by_cell(points, |pts, candidates, indices| {
+            let n = pts.len();
+            let g = grads.is_some().then_some(&mut gs[..n]);
+            self.eval_chunk(pts, Some(candidates), &mut vals[..n], g, &mut scratch);
+            for (k, &i) in indices.iter().enumerate() {
+                values[i as usize] = vals[k];
+                if let Some(g) = grads.as_deref_mut() {
+                    g[i as usize] = gs[k];
+                }
+            }
+        });
+    }
+
+    /// Calls `chunk` with the points of `points` grouped by culling cell, at most [`CHUNK`]
+    /// at a time: the group's points, its cell's candidate elements and the points' indices
+    /// in `points`. Sorting by (cell, index) keeps each cell's points in their batch order,
+    /// so a point's group, and with it its value, depends on its cell alone.
+    fn by_cell(&self, points: &[DVec3], mut chunk: impl FnMut(&[DVec3], &[u32], &[u32])) {
         let mut order: Vec<(u32, u32)> =
             (0..points.len()).map(|i| (self.cull.cell_of(points[i]) as u32, i as u32)).collect();
         order.sort_unstable();
         let mut pts = [DVec3::ZERO; CHUNK];
-        let mut vals = [0.0; CHUNK];
-        let mut gs = [DVec3::ZERO; CHUNK];
+        let mut indices = [0u32; CHUNK];
         let mut start = 0;
         while start < order.len() {
             let cell = order[start].0;
@@ -1388,18 +1406,11 @@ impl SkeletonField {
                 end += 1;
             }
             let n = end - start;
-            for (p, &(_, i)) in pts.iter_mut().zip(&order[start..end]) {
-                *p = points[i as usize];
-            }
-            let elements = Some(self.cull.elements(cell as usize));
-            let g = grads.is_some().then_some(&mut gs[..n]);
-            self.eval_chunk(&pts[..n], elements, &mut vals[..n], g, &mut scratch);
             for (k, &(_, i)) in order[start..end].iter().enumerate() {
-                values[i as usize] = vals[k];
-                if let Some(g) = grads.as_deref_mut() {
-                    g[i as usize] = gs[k];
-                }
+                pts[k] = points[i as usize];
+                indices[k] = i;
             }
+            chunk(&pts[..n], self.cull.elements(cell as usize), &indices[..n]);
             start = end;
         }
     }
@@ -1516,34 +1527,19 @@ impl SkeletonField {
     ) {
         debug_assert_eq!(points.len(), values.len());
         let mut scratch = ColorScratch::default();
-        let mut order: Vec<(u32, u32)> =
-            (0..points.len()).map(|i| (self.cull.cell_of(points[i]) as u32, i as u32)).collect();
-        order.sort_unstable();
-        let mut pts = [DVec3::ZERO; CHUNK];
         let mut vals = [0.0; CHUNK];
         let mut gs = [DVec3::ZERO; CHUNK];
         let mut cs = [[0f32; 3]; CHUNK];
-        let mut start = 0;
-        while start < order.len() {
-            let cell = order[start].0;
-            let mut end = start + 1;
-            while end < order.len() && end - start < CHUNK && order[end].0 == cell {
-                end += 1;
-            }
-            let n = end - start;
-            for (p, &(_, i)) in pts.iter_mut().zip(&order[start..end]) {
-                *p = points[i as usize];
-            }
-            let candidates = self.cull.elements(cell as usize);
+        self.by_cell(points, |pts, candidates, indices| {
+            let n = pts.len();
             let out = (&mut vals[..n], &mut gs[..n], &mut cs[..n]);
-            self.eval_chunk_colored(palette, &pts[..n], candidates, out, &mut scratch);
-            for (k, &(_, i)) in order[start..end].iter().enumerate() {
+            self.eval_chunk_colored(palette, pts, candidates, out, &mut scratch);
+            for (k, &i) in indices.iter().enumerate() {
                 values[i as usize] = vals[k];
                 grads[i as usize] = gs[k];
                 colors[i as usize] = cs[k];
             }
-            start = end;
-        }
+        });
     }
 
     /// [`SkeletonField::eval_chunk_additive`] with gradients, summing each element's colour

@@ -554,19 +554,7 @@ fn add_pieces<const EVEN: bool>(
 fn even_piece_integral(c: &[f64; 7], d2: f64, a: f64, b: f64) -> (f64, f64) {
     debug_assert!(c[1] == 0.0 && c[3] == 0.0 && c[5] == 0.0);
     debug_assert!(c[0] != 0.0 && c[2] != 0.0 && c[4] != 0.0 && c[6] != 0.0);
-    let h = b - a;
-    let a2 = a * a;
-    let s3 = b * b + a * b + a2;
-    let s4 = b * s3 + a2 * a;
-    let s5 = b * s4 + a2 * a2;
-    let s6 = b * s5 + a2 * a2 * a;
-    let s7 = b * s6 + a2 * a2 * a2;
-    let (p3, p5, p7) = (h * s3, h * s5, h * s7);
-    // ∫ s⁰, s², s⁴, s⁶ dt.
-    let j0 = h;
-    let j2 = d2 * h + p3 / 3.0;
-    let j4 = d2 * d2 * h + 2.0 / 3.0 * d2 * p3 + p5 / 5.0;
-    let j6 = d2 * d2 * d2 * h + d2 * d2 * p3 + 0.6 * d2 * p5 + p7 / 7.0;
+    let [j0, j2, j4, j6] = even_moments(d2, a, b);
     let mut v = 0.0;
     v += c[0] * j0;
     v += c[2] * j2;
@@ -577,6 +565,28 @@ fn even_piece_integral(c: &[f64; 7], d2: f64, a: f64, b: f64) -> (f64, f64) {
     dv += c[4] * 0.5 * 4.0 * j2;
     dv += c[6] * 0.5 * 6.0 * j4;
     (v, dv)
+}
+
+/// `∫_a^b s^{2k} dt` for `k = 0..=3`, `s = √(d² + t²)`, `0 ≤ a < b`: polynomials in `t`.
+/// `bⁿ − aⁿ` without cancellation, as `(b − a)·Sₙ` with `Sₙ = Σ b^i a^{n−1−i}`, by
+/// `Sₙ₊₁ = b·Sₙ + aⁿ` (all terms ≥ 0 here): a few products instead of fourteen integer
+/// powers per call, on every polygon edge's gradient and every segment.
+#[inline(always)]
+fn even_moments(d2: f64, a: f64, b: f64) -> [f64; 4] {
+    let h = b - a;
+    let a2 = a * a;
+    let s3 = b * b + a * b + a2;
+    let s4 = b * s3 + a2 * a;
+    let s5 = b * s4 + a2 * a2;
+    let s6 = b * s5 + a2 * a2 * a;
+    let s7 = b * s6 + a2 * a2 * a2;
+    let (p3, p5, p7) = (h * s3, h * s5, h * s7);
+    [
+        h,
+        d2 * h + p3 / 3.0,
+        d2 * d2 * h + 2.0 / 3.0 * d2 * p3 + p5 / 5.0,
+        d2 * d2 * d2 * h + d2 * d2 * p3 + 0.6 * d2 * p5 + p7 / 7.0,
+    ]
 }
 
 /// `∫_a^b Σ c_n sⁿ dt` and `∫_a^b Σ c_n (n/2) s^{n−2} dt` with `s = √(d² + t²)`,
@@ -598,31 +608,21 @@ fn piece_integral(c: &[f64; 7], d2: f64, a: f64, b: f64) -> (f64, f64) {
     } else {
         (0.0, 0.0, 0.0)
     };
-    let h = b - a;
-    // bⁿ − aⁿ without cancellation, as (b − a)·Sₙ with Sₙ = Σ b^i a^{n−1−i}, by
-    // Sₙ₊₁ = b·Sₙ + aⁿ (all terms ≥ 0 here, as 0 ≤ a < b): a few products instead of
-    // fourteen integer powers per call, on every polygon edge's gradient and every segment.
-    let a2 = a * a;
-    let s3 = b * b + a * b + a2;
-    let s4 = b * s3 + a2 * a;
-    let s5 = b * s4 + a2 * a2;
-    let s6 = b * s5 + a2 * a2 * a;
-    let s7 = b * s6 + a2 * a2 * a2;
-    let (p3, p5, p7) = (h * s3, h * s5, h * s7);
+    let [j0, j2, j4, j6] = even_moments(d2, a, b);
     let dlg = |m: f64| if d2 > 0.0 { m * lg } else { 0.0 };
     // j(n) = ∫ sⁿ dt for n = −1..=6, each once, at index n + 1 (kernels have no s⁵ term):
     // a few operations each, where a closure called for each term (the derivative's
     // j(n − 2) again) cost more.
     let j = [
         lg,
-        h,
+        j0,
         0.5 * (b * sb - a * sa + dlg(d2)),
-        d2 * h + p3 / 3.0,
+        j2,
         (b * sb * (2.0 * b * b + 5.0 * d2) - a * sa * (2.0 * a * a + 5.0 * d2)) / 8.0
             + dlg(0.375 * d2 * d2),
-        d2 * d2 * h + 2.0 / 3.0 * d2 * p3 + p5 / 5.0,
+        j4,
         0.0,
-        d2 * d2 * d2 * h + d2 * d2 * p3 + 0.6 * d2 * p5 + p7 / 7.0,
+        j6,
     ];
     let mut v = 0.0;
     let mut dv = 0.0;
@@ -639,6 +639,18 @@ fn piece_integral(c: &[f64; 7], d2: f64, a: f64, b: f64) -> (f64, f64) {
     (v, dv)
 }
 
+/// Uniform numbers in `[0, 1)` from a xorshift generator seeded with `seed`: the same
+/// sequence on every run, for the tests that compare specialised code with its reference.
+#[cfg(test)]
+pub(crate) fn units(mut seed: u64) -> impl FnMut() -> f64 {
+    move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -649,13 +661,7 @@ mod tests {
     /// support, ends on either side of the foot, equal, infinite and reversed.
     #[test]
     fn specialised_line_integrals_equal_the_generic_one_bit_for_bit() {
-        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
-        let mut unit = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut unit = units(0x2545_f491_4f6c_dd1d);
         let mut cases = vec![
             (0.0, 0.0, 1.0),
             (0.0, -1.0, 1.0),
