@@ -23,9 +23,10 @@
 //! Hessian eigenvector of the odd sign, and between the loops' centroids; each band zipped in
 //! order of angle round whichever axis turns none of its triangles the wrong way. The first
 //! plan with every triangle turned right and no extra turn, every ring vertex on the level
-//! set and loop vertices that can each move [`ENOUGH`] cells before a triangle turns over
-//! (refinement moves them along their cube edges, by a fraction of a cell) is kept, else the
-//! best.
+//! set, loop vertices that can each move [`ENOUGH`] cells before a triangle turns over
+//! (refinement moves them along their cube edges, by a fraction of a cell) and ring vertices
+//! [`RING_CLEARANCE`] clear of turning one over (what rounding moves them off their rays)
+//! is kept, else the best.
 //! (A ring shaped like one loop, zipped by distance, as before, crossed itself in about a
 //! third of random tube cubes: with a thin tube the ring is tiny, and the distances from a
 //! loop's vertices to it no longer tell which way round it lies.)
@@ -56,6 +57,26 @@ thread_local! {
     /// (the search found no plan without one; the tube may then cross itself).
     pub static FLAWED: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
 }
+
+/// The clearance (in cells) a ring vertex needs from the plane through the centre and its
+/// triangle's other two vertices before a plan counts as good: enough for the triangle to
+/// turn the same way seen from the centre once the vertex has left its exact ray.
+///
+/// Why it can leave it: refinement slides a ring vertex along its stored line, which is
+/// rounded to [`SLIDE_UNIT`](super::extract::SLIDE_UNIT) per component, so the centre it
+/// slides from is off by up to `½·√3·2⁻¹⁴ ≈ 5.3e-5` cells, and sliding to the fraction
+/// `t` of its distance moves it off the ray by `|1 − t|` of that; the mesh is then
+/// written in `f32`, which rounds each coordinate of a grid within 2¹⁰ cells of the origin
+/// by up to `2⁻¹⁵` cells, `5.3e-5` cells as a vector. A triangle keeps its turn while each
+/// vertex moves less than its clearance (shared among its two ring vertices: half each),
+/// and the clearance shrinks with the slide: sliding in to `RING_KEEP = 0.1` of the
+/// distance (`grid::cell_line`) needs `0.1·c ≥ 2·(0.9 + 1)·5.3e-5`, `c ≥ 2e-3` cells.
+/// Ring vertices 1e-3 cells from the centre (a saddle at the level: [`MIN_RING`]) cannot
+/// clear that; the search then goes on to centres off the saddle, whose rings are wide.
+/// (Before, with no margin, 9 of 600 tubes pinched at their saddle turned a triangle over
+/// seen from the centre when slid and rounded so: `grid::interior`'s
+/// `tube_triangles_keep_their_turn_when_refined_and_written_in_f32`.)
+const RING_CLEARANCE: f64 = 2e-3;
 
 /// The least distance (in cells) of a ring vertex from its tube's centre: where the
 /// interpolant's level set passes through the saddle (a saddle value of zero, up to
@@ -194,9 +215,10 @@ struct Plan {
     tris: Vec<[Vert; 3]>,
     wrong: usize,
     off: usize,
-    /// The least distance (in cells) from the centre to a triangle's plane, on the side
-    /// that turns it the right way: how far the loop vertices can move (refinement moves
-    /// them along the cube's edges) before a triangle could turn over.
+    /// The least distance (in cells) of a triangle's vertex from the plane through the
+    /// centre and the other two, on the side that turns it the right way: how far the loop
+    /// vertices can move (refinement moves them along the cube's edges) before a triangle
+    /// could turn over; ring vertices' distances scaled by `ENOUGH / RING_CLEARANCE`.
     margin: f64,
 }
 
@@ -324,15 +346,20 @@ impl Plan {
         // How far a loop vertex of the triangle can move (refinement moves it along its
         // cube edge) before the triangle turns over seen from `c`: its distance from the
         // plane through `c` and the other two vertices, least over the loop vertices.
-        // Ring vertices move only along their rays from `c`, which turns nothing over.
+        // Ring vertices move along their rays from `c`, which turns nothing over, but only
+        // up to rounding: theirs counts in units of [`RING_CLEARANCE`], scaled to
+        // [`ENOUGH`] so that one number says whether a plan clears everything it needs.
         let clearance = |t: [Vert; 3]| {
             let d = t.map(|x| pos(x) - c);
             let turn = d[0].dot(d[1].cross(d[2])) * sign;
             (0..3)
-                .filter(|&k| !matches!(t[k], Vert::Ring(_)))
                 .map(|k| {
                     let across = d[(k + 1) % 3].cross(d[(k + 2) % 3]).length();
-                    if across > 0.0 { turn / across } else { 0.0 }
+                    let clear = if across > 0.0 { turn / across } else { 0.0 };
+                    match t[k] {
+                        Vert::Ring(_) => clear * (ENOUGH / RING_CLEARANCE),
+                        _ => clear,
+                    }
                 })
                 .fold(f64::INFINITY, f64::min)
         };
