@@ -1181,7 +1181,7 @@ impl Encoder<'_> {
     }
 }
 
-/// Writes the binary body to `w` piece by piece. A body of more than one piece is encoded
+/// Writes the binary body to `w` piece by piece. A body of four pieces or more is encoded
 /// on a helper thread, a piece ahead of the writing, so that the encoding hides behind the
 /// copying of the previous piece into the file (the bigger cost); two buffers go back and
 /// forth. The bytes are the same as encoding on one thread: each piece is encoded on its
@@ -1204,7 +1204,9 @@ fn write_binary_body(
         }
         Ok(())
     };
-    if pieces.len() < 2 {
+    // A thread is worth starting (tens of microseconds, more on a loaded machine) for a
+    // body of several pieces; a smaller one encodes in well under a millisecond.
+    if pieces.len() < 4 {
         return in_line(w);
     }
     std::thread::scope(|s| {
@@ -1505,8 +1507,8 @@ mod tests {
         }
     }
 
-    /// A writer that fails after a few bytes fails the write, whichever thread encodes,
-    /// and the helper thread stops (the test would hang otherwise).
+    /// A writer that fails after a few bytes fails the write, encoded in line or on the
+    /// helper thread, and the helper thread stops (the test would hang otherwise).
     #[test]
     fn a_failing_writer_stops_the_encoder() {
         struct Fails(usize);
@@ -1523,8 +1525,11 @@ mod tests {
             }
         }
         let mesh = full(3000);
-        for limit in [0, 100, 5000, 50_000] {
-            let e = write_body(&mut Fails(limit), &mesh, &WriteOptions::default(), 64).unwrap_err();
+        for (limit, piece) in
+            [0, 100, 5000, 50_000].into_iter().flat_map(|l| [(l, 64), (l, 1 << 30)])
+        {
+            let opts = WriteOptions::default();
+            let e = write_body(&mut Fails(limit), &mesh, &opts, piece).unwrap_err();
             assert_eq!(e.to_string(), "disk full");
         }
     }
