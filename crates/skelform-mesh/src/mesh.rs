@@ -247,9 +247,16 @@ impl Mesh {
                 triangles: self.triangles.len(),
             });
         }
-        for (face, t) in self.triangles.iter().enumerate() {
-            if let Some(&index) = t.iter().find(|&&i| i as usize >= n) {
-                return Err(MeshError::IndexOutOfRange { face, index, vertices: n });
+        // The largest index first, a reduction the compiler vectorizes (a fraction of a
+        // millisecond for a million triangles, where the search below, which stops at the
+        // first bad corner, is several times slower); the search runs only to name the
+        // first bad triangle of a mesh that has one.
+        let largest = self.triangles.iter().flatten().fold(0, |m, &i| m.max(i));
+        if !self.triangles.is_empty() && largest as usize >= n {
+            for (face, t) in self.triangles.iter().enumerate() {
+                if let Some(&index) = t.iter().find(|&&i| i as usize >= n) {
+                    return Err(MeshError::IndexOutOfRange { face, index, vertices: n });
+                }
             }
         }
         for (edge, c) in self.curves.iter().enumerate() {
@@ -298,7 +305,21 @@ mod tests {
             m.validate(),
             Err(MeshError::IndexOutOfRange { face: 1, index: 3, vertices: 3 })
         );
-        m.triangles.pop();
+        // The first bad triangle is named, whichever corner is bad and however large the
+        // indices of later ones.
+        m.triangles = vec![[0, 1, 2]; 12];
+        m.triangles[9] = [u32::MAX, 0, 1];
+        m.triangles[5] = [2, 1, 4];
+        assert_eq!(
+            m.validate(),
+            Err(MeshError::IndexOutOfRange { face: 5, index: 4, vertices: 3 })
+        );
+        m.triangles.truncate(1);
+        let empty = Mesh { triangles: vec![[0, 0, 0]], ..Mesh::default() };
+        assert_eq!(
+            empty.validate(),
+            Err(MeshError::IndexOutOfRange { face: 0, index: 0, vertices: 0 })
+        );
         m.labels = vec![RegionPair::new(2, 1), RegionPair(0, 1)];
         assert!(matches!(m.validate(), Err(MeshError::LabelCount { .. })));
         m.labels.clear();

@@ -353,7 +353,8 @@ pub fn write_mesh_to(
 
 /// Writes `mesh` to `path` atomically: into a temporary file in the same directory, flushed
 /// and synced, then renamed over `path`. On error the temporary file is removed and `path`
-/// is untouched.
+/// is untouched. The write-out to disk starts while the file is being written
+/// ([`atomic::WriteAhead`]), so the sync waits only for what was written last.
 ///
 /// Files beside the mesh, each written atomically too (before the mesh, so a mesh never
 /// names a file that is not there):
@@ -371,8 +372,8 @@ pub fn write_mesh(
     opts: &WriteOptions,
 ) -> Result<(), IoError> {
     mesh.validate().map_err(|e| IoError::invalid(e).with_path(path))?;
-    let write = |path: &Path, f: &dyn Fn(&mut fs::File) -> Result<(), IoError>| {
-        atomic::write_with(path, f)
+    let write = |path: &Path, f: &dyn Fn(&mut atomic::WriteAhead) -> Result<(), IoError>| {
+        atomic::write_with(path, |file| f(&mut atomic::WriteAhead::new(file)))
             .map_err(|e| match e {
                 atomic::AtomicError::Io(e) => IoError::write(e),
                 atomic::AtomicError::Write(e) => e,

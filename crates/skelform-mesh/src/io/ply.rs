@@ -905,7 +905,7 @@ pub fn read_ply(r: impl BufRead) -> Result<Mesh, IoError> {
 pub fn write_ply(w: &mut impl Write, mesh: &Mesh, opts: &WriteOptions) -> Result<(), IoError> {
     check_writable(mesh)?;
     let mut w = buffered(w);
-    write_body(&mut w, mesh, opts).map_err(IoError::write)?;
+    write_body(&mut w, mesh, opts, PIECE_BYTES).map_err(IoError::write)?;
     finish(w)
 }
 
@@ -960,7 +960,13 @@ fn colour_byte(c: f32) -> u8 {
     (c.clamp(0.0, 1.0) * 255.0).round() as u8
 }
 
-fn write_body(w: &mut impl Write, mesh: &Mesh, opts: &WriteOptions) -> std::io::Result<()> {
+/// The whole file; a binary body in pieces of about `piece_bytes` (see [`write_binary_body`]).
+fn write_body(
+    w: &mut impl Write,
+    mesh: &Mesh,
+    opts: &WriteOptions,
+    piece_bytes: usize,
+) -> std::io::Result<()> {
     let normals = opts.normals && !mesh.normals.is_empty();
     let vertex_colours = !mesh.colors.is_empty();
     let uvs = !mesh.uvs.is_empty();
@@ -1024,44 +1030,218 @@ fn write_body(w: &mut impl Write, mesh: &Mesh, opts: &WriteOptions) -> std::io::
             }
         }
     } else {
-        let mut buf = Vec::with_capacity(32);
-        for (i, p) in mesh.positions.iter().enumerate() {
-            buf.clear();
-            p.iter().for_each(|c| buf.extend_from_slice(&c.to_le_bytes()));
-            if normals {
-                mesh.normals[i].iter().for_each(|c| buf.extend_from_slice(&c.to_le_bytes()));
+        let body = Encoder {
+            mesh,
+            normals,
+            vertex_colours,
+            uvs,
+            face_colours: &colours,
+            inline_curves: curves,
+        };
+        write_binary_body(w, &body, piece_bytes)?;
+    }
+    Ok(())
+}
+
+/// Bytes of binary body encoded at a time: a piece is one `write` call, big enough that the
+/// calls cost nothing next to the copying, small enough to stay in the cache and that the
+/// two pieces in flight cost little memory.
+const PIECE_BYTES: usize = 1 << 20;
+
+/// The binary body of a mesh file: records of fixed size (vertices, then faces, then the
+/// inline curve edges), so that any run of records can be encoded on its own, on any thread,
+/// into its own stretch of bytes, and the file is the same however the runs are cut.
+struct Encoder<'a> {
+    mesh: &'a Mesh,
+    normals: bool,
+    vertex_colours: bool,
+    uvs: bool,
+    /// Each triangle's palette colour; empty for an unlabelled mesh.
+    face_colours: &'a [[u8; 3]],
+    inline_curves: bool,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Section {
+    Vertices,
+    Faces,
+    Edges,
+}
+
+/// `count` records of a section from record `first` on.
+#[derive(Clone, Copy, Debug)]
+struct Piece {
+    section: Section,
+    first: usize,
+    count: usize,
+}
+
+/// Fills a record field by field.
+struct Put<'a> {
+    out: &'a mut [u8],
+    at: usize,
+}
+
+impl Put<'_> {
+    fn bytes<const N: usize>(&mut self, b: [u8; N]) {
+        self.out[self.at..self.at + N].copy_from_slice(&b);
+        self.at += N;
+    }
+
+    fn f32s<const N: usize>(&mut self, v: &[f32; N]) {
+        v.iter().for_each(|c| self.bytes(c.to_le_bytes()));
+    }
+
+    /// Indices and labels as PLY `int`: the same four bytes as the `u32`.
+    fn ints<const N: usize>(&mut self, v: &[u32; N]) {
+        v.iter().for_each(|&c| self.bytes((c as i32).to_le_bytes()));
+    }
+}
+
+impl Encoder<'_> {
+    fn record_size(&self, section: Section) -> usize {
+        match section {
+            Section::Vertices => {
+                12 + if self.normals { 12 } else { 0 }
+                    + if self.vertex_colours { 3 } else { 0 }
+                    + if self.uvs { 8 } else { 0 }
             }
-            if vertex_colours {
-                buf.extend_from_slice(&mesh.colors[i].map(colour_byte));
-            }
-            if uvs {
-                mesh.uvs[i].iter().for_each(|c| buf.extend_from_slice(&c.to_le_bytes()));
-            }
-            w.write_all(&buf)?;
+            Section::Faces => 13 + if self.face_colours.is_empty() { 0 } else { 11 },
+            Section::Edges => 20,
         }
-        for (i, t) in mesh.triangles.iter().enumerate() {
-            buf.clear();
-            buf.push(3);
-            t.iter().for_each(|&v| buf.extend_from_slice(&(v as i32).to_le_bytes()));
-            if labelled {
-                let l = mesh.labels[i];
-                buf.extend_from_slice(&(l.0 as i32).to_le_bytes());
-                buf.extend_from_slice(&(l.1 as i32).to_le_bytes());
-                buf.extend_from_slice(&colours[i]);
-            }
-            w.write_all(&buf)?;
+    }
+
+    fn count(&self, section: Section) -> usize {
+        match section {
+            Section::Vertices => self.mesh.positions.len(),
+            Section::Faces => self.mesh.triangles.len(),
+            Section::Edges if self.inline_curves => self.mesh.curves.len(),
+            Section::Edges => 0,
         }
-        if curves {
-            for c in &mesh.curves {
-                buf.clear();
-                c.v.iter()
-                    .chain(&c.label.0)
-                    .for_each(|&v| buf.extend_from_slice(&(v as i32).to_le_bytes()));
-                w.write_all(&buf)?;
+    }
+
+    /// The body cut into pieces of about `piece_bytes` (whole records, at least one each).
+    fn pieces(&self, piece_bytes: usize) -> Vec<Piece> {
+        let mut pieces = Vec::new();
+        for section in [Section::Vertices, Section::Faces, Section::Edges] {
+            let (count, per) =
+                (self.count(section), (piece_bytes / self.record_size(section)).max(1));
+            pieces.extend((0..count).step_by(per).map(|first| Piece {
+                section,
+                first,
+                count: per.min(count - first),
+            }));
+        }
+        pieces
+    }
+
+    /// Encodes `piece` into `out`, exactly its records' bytes long.
+    fn encode(&self, piece: Piece, out: &mut [u8]) {
+        let m = self.mesh;
+        let size = self.record_size(piece.section);
+        debug_assert_eq!(out.len(), piece.count * size);
+        let records = out.chunks_exact_mut(size).zip(piece.first..);
+        match piece.section {
+            Section::Vertices => {
+                for (out, i) in records {
+                    let mut put = Put { out, at: 0 };
+                    put.f32s(&m.positions[i]);
+                    if self.normals {
+                        put.f32s(&m.normals[i]);
+                    }
+                    if self.vertex_colours {
+                        put.bytes(m.colors[i].map(colour_byte));
+                    }
+                    if self.uvs {
+                        put.f32s(&m.uvs[i]);
+                    }
+                }
+            }
+            Section::Faces => {
+                for (out, i) in records {
+                    let mut put = Put { out, at: 0 };
+                    put.bytes([3]);
+                    put.ints(&m.triangles[i]);
+                    if let Some(&colour) = self.face_colours.get(i) {
+                        let l = m.labels[i];
+                        put.ints(&[l.0, l.1]);
+                        put.bytes(colour);
+                    }
+                }
+            }
+            Section::Edges => {
+                for (out, i) in records {
+                    let c = &m.curves[i];
+                    let mut put = Put { out, at: 0 };
+                    put.ints(&c.v);
+                    put.ints(&c.label.0);
+                }
             }
         }
     }
-    Ok(())
+}
+
+/// Writes the binary body to `w` piece by piece. A body of four pieces or more is encoded
+/// on a helper thread, a piece ahead of the writing, so that the encoding hides behind the
+/// copying of the previous piece into the file (the bigger cost); two buffers go back and
+/// forth. The bytes are the same as encoding on one thread: each piece is encoded on its
+/// own and written in order. Without a thread (none can be started) it encodes in line.
+fn write_binary_body(
+    w: &mut impl Write,
+    body: &Encoder,
+    piece_bytes: usize,
+) -> std::io::Result<()> {
+    let pieces = body.pieces(piece_bytes);
+    let fill = |buf: &mut Vec<u8>, piece: Piece| {
+        buf.resize(piece.count * body.record_size(piece.section), 0);
+        body.encode(piece, buf);
+    };
+    let in_line = |w: &mut dyn Write| -> std::io::Result<()> {
+        let mut buf = Vec::new();
+        for &piece in &pieces {
+            fill(&mut buf, piece);
+            w.write_all(&buf)?;
+        }
+        Ok(())
+    };
+    // A thread is worth starting (tens of microseconds, more on a loaded machine) for a
+    // body of several pieces; a smaller one encodes in well under a millisecond.
+    if pieces.len() < 4 {
+        return in_line(w);
+    }
+    std::thread::scope(|s| {
+        use std::sync::mpsc;
+        // Encoded pieces to the writer (one waiting at most), and emptied buffers back.
+        let (full_tx, full_rx) = mpsc::sync_channel::<Vec<u8>>(1);
+        let (empty_tx, empty_rx) = mpsc::channel::<Vec<u8>>();
+        let encoder = std::thread::Builder::new().name("ply-encode".into()).spawn_scoped(s, {
+            let pieces = &pieces;
+            move || {
+                let mut spare = Some(Vec::new());
+                for &piece in pieces {
+                    // The writer gives a buffer back after each piece; it stops taking them
+                    // only when it has failed, and then this thread stops too.
+                    let Some(mut buf) = spare.take().or_else(|| empty_rx.recv().ok()) else {
+                        return;
+                    };
+                    fill(&mut buf, piece);
+                    if full_tx.send(buf).is_err() {
+                        return;
+                    }
+                }
+            }
+        });
+        if encoder.is_err() {
+            return in_line(w);
+        }
+        for _ in 0..pieces.len() {
+            // Only a panic of the encoder (which the scope then raises) ends the pieces early.
+            let buf = full_rx.recv().map_err(|_| std::io::Error::other("the encoder stopped"))?;
+            w.write_all(&buf)?;
+            let _ = empty_tx.send(buf);
+        }
+        Ok(())
+    })
 }
 
 fn write_curves(w: &mut impl Write, mesh: &Mesh, opts: &WriteOptions) -> std::io::Result<()> {
@@ -1122,4 +1302,235 @@ fn write_curves(w: &mut impl Write, mesh: &Mesh, opts: &WriteOptions) -> std::io
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The writer before the body was encoded in pieces (one `write_all` per record), kept
+    /// as the reference the piecewise encoder must match byte for byte.
+    fn reference(mesh: &Mesh, opts: &WriteOptions) -> Vec<u8> {
+        let mut w = Vec::new();
+        let normals = opts.normals && !mesh.normals.is_empty();
+        let vertex_colours = !mesh.colors.is_empty();
+        let uvs = !mesh.uvs.is_empty();
+        let labelled = !mesh.labels.is_empty();
+        let colours = if labelled { face_colours(mesh) } else { Vec::new() };
+        let curves = opts.effective_ply_curves() == PlyCurves::Inline && !mesh.curves.is_empty();
+        let format = if opts.ascii { "ascii" } else { "binary_little_endian" };
+        let mut h = format!("ply\nformat {format} 1.0\ncomment generated by skelform\n");
+        h += &format!(
+            "element vertex {}\nproperty float x\nproperty float y\n",
+            mesh.positions.len()
+        );
+        h += "property float z\n";
+        if normals {
+            h += "property float nx\nproperty float ny\nproperty float nz\n";
+        }
+        if vertex_colours {
+            h += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+        }
+        if uvs {
+            h += "property float u\nproperty float v\n";
+        }
+        h += &format!(
+            "element face {}\nproperty list uchar int vertex_indices\n",
+            mesh.triangles.len()
+        );
+        if labelled {
+            h += "property int region_a\nproperty int region_b\n";
+            h += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+        }
+        if curves {
+            h += &format!(
+                "element edge {}\nproperty int vertex1\nproperty int vertex2\n",
+                mesh.curves.len()
+            );
+            h += "property int region_a\nproperty int region_b\nproperty int region_c\n";
+        }
+        h += "end_header\n";
+        w.extend_from_slice(h.as_bytes());
+        if opts.ascii {
+            for (i, p) in mesh.positions.iter().enumerate() {
+                write!(w, "{} {} {}", p[0], p[1], p[2]).unwrap();
+                if normals {
+                    let n = mesh.normals[i];
+                    write!(w, " {} {} {}", n[0], n[1], n[2]).unwrap();
+                }
+                if vertex_colours {
+                    let [r, g, b] = mesh.colors[i].map(colour_byte);
+                    write!(w, " {r} {g} {b}").unwrap();
+                }
+                if uvs {
+                    write!(w, " {} {}", mesh.uvs[i][0], mesh.uvs[i][1]).unwrap();
+                }
+                writeln!(w).unwrap();
+            }
+            for (i, t) in mesh.triangles.iter().enumerate() {
+                write!(w, "3 {} {} {}", t[0], t[1], t[2]).unwrap();
+                if labelled {
+                    let (l, [r, g, b]) = (mesh.labels[i], colours[i]);
+                    write!(w, " {} {} {r} {g} {b}", l.0, l.1).unwrap();
+                }
+                writeln!(w).unwrap();
+            }
+            if curves {
+                for c in &mesh.curves {
+                    let [a, b, r] = c.label.0;
+                    writeln!(w, "{} {} {a} {b} {r}", c.v[0], c.v[1]).unwrap();
+                }
+            }
+            return w;
+        }
+        for (i, p) in mesh.positions.iter().enumerate() {
+            p.iter().for_each(|c| w.extend_from_slice(&c.to_le_bytes()));
+            if normals {
+                mesh.normals[i].iter().for_each(|c| w.extend_from_slice(&c.to_le_bytes()));
+            }
+            if vertex_colours {
+                w.extend_from_slice(&mesh.colors[i].map(colour_byte));
+            }
+            if uvs {
+                mesh.uvs[i].iter().for_each(|c| w.extend_from_slice(&c.to_le_bytes()));
+            }
+        }
+        for (i, t) in mesh.triangles.iter().enumerate() {
+            w.push(3);
+            t.iter().for_each(|&v| w.extend_from_slice(&(v as i32).to_le_bytes()));
+            if labelled {
+                let l = mesh.labels[i];
+                w.extend_from_slice(&(l.0 as i32).to_le_bytes());
+                w.extend_from_slice(&(l.1 as i32).to_le_bytes());
+                w.extend_from_slice(&colours[i]);
+            }
+        }
+        if curves {
+            for c in &mesh.curves {
+                c.v.iter()
+                    .chain(&c.label.0)
+                    .for_each(|&v| w.extend_from_slice(&(v as i32).to_le_bytes()));
+            }
+        }
+        w
+    }
+
+    /// A mesh of `n` vertices with every attribute, from a fixed seed: awkward floats
+    /// (negative zero, tiny and huge values), colours outside `[0, 1]`, many labels, large
+    /// indices and region ids.
+    fn full(n: usize) -> Mesh {
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut next = move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 33) as u32
+        };
+        let mut float = || match next() % 8 {
+            0 => -0.0,
+            1 => 1.0e-39,
+            2 => 3.4e37,
+            _ => (next() as f32 / u32::MAX as f32) * 4.0 - 2.0,
+        };
+        let positions = (0..n).map(|_| [float(), float(), float()]).collect();
+        let normals = (0..n).map(|_| [float(), float(), float()]).collect();
+        let colors = (0..n).map(|_| [float(), float(), float()].map(|c| c * 0.75)).collect();
+        let uvs = (0..n).map(|_| [float(), float()]).collect();
+        let t = 2 * n;
+        let triangles: Vec<[u32; 3]> =
+            (0..t).map(|_| [next(), next(), next()].map(|v| v % n as u32)).collect();
+        let labels = (0..t).map(|_| RegionPair::new(next() % 9, next() % 5 + 1_000_000)).collect();
+        let curves = (0..n / 3)
+            .map(|_| CurveEdge {
+                v: [next() % n as u32, next() % n as u32],
+                label: RegionTriple::new([next() % 7, next() % 7 + 7, i32::MAX as u32]),
+            })
+            .collect();
+        Mesh { positions, normals, triangles, labels, curves, colors, uvs, texture: None }
+    }
+
+    /// Every combination of attributes (normals, colours, uvs, labels, curves), both
+    /// encodings and both curve layouts: the file is the reference's, whether the body is
+    /// encoded in one piece or in many (each piece then on the helper thread, cut at every
+    /// kind of boundary), and whatever the mesh's size.
+    #[test]
+    fn the_piecewise_encoder_writes_the_reference_bytes() {
+        let cases = [(100, 0..32, &[1 << 20, 997, 37][..]), (60_000, 31..32, &[PIECE_BYTES][..])];
+        for (n, masks, pieces) in cases {
+            let whole = full(n);
+            for mask in masks {
+                let mut mesh = whole.clone();
+                let has = |bit: u32| mask & (1 << bit) != 0;
+                if !has(0) {
+                    mesh.normals.clear();
+                }
+                if !has(1) {
+                    mesh.colors.clear();
+                }
+                if !has(2) {
+                    mesh.uvs.clear();
+                }
+                if !has(3) {
+                    mesh.labels.clear();
+                }
+                if !has(4) {
+                    mesh.curves.clear();
+                }
+                for ascii in [false, n < 10_000] {
+                    for ply_curves in [PlyCurves::Inline, PlyCurves::Separate] {
+                        let opts = WriteOptions { ascii, ply_curves, ..WriteOptions::default() };
+                        let want = reference(&mesh, &opts);
+                        let mut got = Vec::new();
+                        write_ply(&mut got, &mesh, &opts).unwrap();
+                        assert!(got == want, "n {n} mask {mask} ascii {ascii} {ply_curves:?}");
+                        for &piece in pieces {
+                            let mut got = Vec::new();
+                            write_body(&mut got, &mesh, &opts, piece).unwrap();
+                            assert!(
+                                got == want,
+                                "n {n} mask {mask} ascii {ascii} {ply_curves:?} piece {piece}"
+                            );
+                        }
+                    }
+                }
+            }
+            // The large mesh's body takes several pieces of the default size.
+            let body = Encoder {
+                mesh: &whole,
+                normals: true,
+                vertex_colours: true,
+                uvs: true,
+                face_colours: &face_colours(&whole),
+                inline_curves: true,
+            };
+            assert!(n < 10_000 || body.pieces(PIECE_BYTES).len() > 3);
+        }
+    }
+
+    /// A writer that fails after a few bytes fails the write, encoded in line or on the
+    /// helper thread, and the helper thread stops (the test would hang otherwise).
+    #[test]
+    fn a_failing_writer_stops_the_encoder() {
+        struct Fails(usize);
+        impl Write for Fails {
+            fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+                if self.0 < buf.len() {
+                    return Err(std::io::Error::other("disk full"));
+                }
+                self.0 -= buf.len();
+                Ok(buf.len())
+            }
+            fn flush(&mut self) -> std::io::Result<()> {
+                Ok(())
+            }
+        }
+        let mesh = full(3000);
+        for (limit, piece) in
+            [0, 100, 5000, 50_000].into_iter().flat_map(|l| [(l, 64), (l, 1 << 30)])
+        {
+            let opts = WriteOptions::default();
+            let e = write_body(&mut Fails(limit), &mesh, &opts, piece).unwrap_err();
+            assert_eq!(e.to_string(), "disk full");
+        }
+    }
 }
