@@ -410,13 +410,11 @@ fn snap_to_edges(
     let (mut snapped, mut dropped) = (0, 0);
     let mut touched: FxHashSet<u32> = FxHashSet::default();
     let mut splits: FxHashMap<(u32, u32), u32> = FxHashMap::default();
-    let mut neighbours: FxHashMap<u32, Vec<u32>> = FxHashMap::default();
+    // The triangles round each vertex, as they are before the splits made at the end.
     let mut around = Around::default();
     for (i, (t, _)) in tris.iter().enumerate() {
-        for k in 0..3 {
-            neighbours.entry(t[k]).or_default().extend([t[(k + 1) % 3], t[(k + 2) % 3]]);
-            around.of_vertex.entry(t[k]).or_default().push(i);
-            around.on_side.entry(key(t[k], t[(k + 1) % 3])).or_default().push(i);
+        for &v in t {
+            around.of_vertex.entry(v).or_default().push(i);
         }
     }
     for (i, (t, _)) in tris.iter().enumerate() {
@@ -439,7 +437,8 @@ fn snap_to_edges(
             // Nor may the move bring it within `limit` of a neighbour (a short side whose
             // triangles would have no reliable normal).
             let q = pa + ab * s;
-            if neighbours[&v].iter().any(|&w| pos[w as usize].distance(q) < limit) {
+            let mut neighbours = around.of_vertex[&v].iter().flat_map(|&j| tris[j].0);
+            if neighbours.any(|w| w != v && pos[w as usize].distance(q) < limit) {
                 continue;
             }
             // Nor may it fold a side round `v` that was not folded.
@@ -491,15 +490,20 @@ fn snap_to_edges(
 /// dot product below this, as `skelform check` counts a folded edge).
 const FOLD_COS: f64 = -0.996_194_698;
 
-/// The triangles round each vertex and on each side, as [`snap_to_edges`] found them (its
-/// splits, made at the end, keep every half in its triangle's plane).
+/// The triangles round each vertex, as [`snap_to_edges`] found them (its splits, made at
+/// the end, keep every half in its triangle's plane).
 #[derive(Default)]
 struct Around {
     of_vertex: FxHashMap<u32, Vec<usize>>,
-    on_side: FxHashMap<(u32, u32), Vec<usize>>,
 }
 
 impl Around {
+    /// The triangles on the side `x`–`y`.
+    fn on_side(&self, tris: &[([u32; 3], RegionPair)], (x, y): (u32, u32)) -> Vec<usize> {
+        let round = self.of_vertex.get(&x).map_or(&[][..], Vec::as_slice);
+        round.iter().copied().filter(|&t| tris[t].0.contains(&y)).collect()
+    }
+
     /// Whether moving `v` to `q`, dropping the thin triangle `thin` (`v`, `a`, `b`) and
     /// splitting the other triangles on `a`–`b` at `v`, folds more sides round `v` than
     /// were folded: two triangles alone on a side (or the only two of their pair there),
@@ -546,12 +550,12 @@ impl Around {
         after: bool,
     ) -> usize {
         let key = |x: u32, y: u32| (x.min(y), x.max(y));
-        let split = self.on_side.get(&key(a, b)).map_or(&[][..], Vec::as_slice);
+        let split = self.on_side(tris, key(a, b));
         // What the split drops: the thin triangle, and any other on a–b with v.
         let dropped = |t: usize| t == thin || split.contains(&t) && tris[t].0.contains(&v);
         let mut n = 0;
         for &side in sides {
-            let on = self.on_side.get(&side).map_or(&[][..], Vec::as_slice);
+            let on = self.on_side(tris, side);
             let mut group: Vec<([u32; 3], RegionPair)> =
                 on.iter().filter(|&&t| !after || !dropped(t)).map(|&t| tris[t]).collect();
             if after {
