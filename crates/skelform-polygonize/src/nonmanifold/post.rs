@@ -595,9 +595,10 @@ fn folded(pos: &[DVec3], group: &[([u32; 3], RegionPair)], (x, y): (u32, u32)) -
     if let [s, t] = group {
         return two(s, t);
     }
-    group.iter().enumerate().any(|(i, s)| {
+    // Each pair once, from its first triangle on the side.
+    group.iter().any(|s| {
         let mine: Vec<&([u32; 3], RegionPair)> = group.iter().filter(|t| t.1 == s.1).collect();
-        mine.len() == 2 && std::ptr::eq(mine[0], &group[i]) && two(mine[0], mine[1])
+        mine.len() == 2 && std::ptr::eq(mine[0], s) && two(mine[0], mine[1])
     })
 }
 
