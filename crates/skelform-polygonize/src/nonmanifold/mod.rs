@@ -16,7 +16,8 @@
 //! mean and a triangle to each face line of interest. Triangles are wound counter-clockwise
 //! seen from the lesser region of their pair. Afterwards vertices closer than
 //! `close_factor · ε` along a triangle edge are merged, a vertex closer than that to the
-//! opposite side of its triangle is moved onto it (the side split there), degenerate
+//! opposite side of its triangle is moved onto it (the side split there; not where that
+//! would fold a side round it onto its neighbour, beyond the chapter), degenerate
 //! triangles dropped, and vertices duplicated per region pair so each sheet has its own
 //! normal: the region function's gradient for the pair where it has one (the chapter's
 //! `Gradient(p, pair)`), else the pair's area-weighted triangle normals. Beyond the chapter,

@@ -398,6 +398,8 @@ impl Run<'_> {
 /// triangle, now flat, is dropped, and every other triangle on that side is split at the
 /// vertex (so no crack opens: on an intersection curve that is each sheet's triangle),
 /// as is a curve segment along it. One move per vertex and per side, in triangle order.
+/// A move that would fold a side round the vertex (two triangles alone there lying on top
+/// of each other, see [`Around::folds`]) is not made: the thin triangle stays.
 fn snap_to_edges(
     pos: &mut [DVec3],
     tris: &mut Vec<([u32; 3], RegionPair)>,
@@ -408,13 +410,14 @@ fn snap_to_edges(
     let (mut snapped, mut dropped) = (0, 0);
     let mut touched: FxHashSet<u32> = FxHashSet::default();
     let mut splits: FxHashMap<(u32, u32), u32> = FxHashMap::default();
-    let mut neighbours: FxHashMap<u32, Vec<u32>> = FxHashMap::default();
-    for (t, _) in tris.iter() {
-        for k in 0..3 {
-            neighbours.entry(t[k]).or_default().extend([t[(k + 1) % 3], t[(k + 2) % 3]]);
+    // The triangles round each vertex, as they are before the splits made at the end.
+    let mut around = Around::default();
+    for (i, (t, _)) in tris.iter().enumerate() {
+        for &v in t {
+            around.of_vertex.entry(v).or_default().push(i);
         }
     }
-    for (t, _) in tris.iter() {
+    for (i, (t, _)) in tris.iter().enumerate() {
         for k in 0..3 {
             let (v, a, b) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
             if touched.contains(&v) || touched.contains(&a) || touched.contains(&b) {
@@ -434,7 +437,12 @@ fn snap_to_edges(
             // Nor may the move bring it within `limit` of a neighbour (a short side whose
             // triangles would have no reliable normal).
             let q = pa + ab * s;
-            if neighbours[&v].iter().any(|&w| pos[w as usize].distance(q) < limit) {
+            let mut neighbours = around.of_vertex[&v].iter().flat_map(|&j| tris[j].0);
+            if neighbours.any(|w| w != v && pos[w as usize].distance(q) < limit) {
+                continue;
+            }
+            // Nor may it fold a side round `v` that was not folded.
+            if around.folds(pos, tris, i, [v, a, b], q) {
                 continue;
             }
             pos[v as usize] = q;
@@ -478,6 +486,122 @@ fn snap_to_edges(
     (snapped, dropped)
 }
 
+/// Normals of two triangles on one side, wound as they are, more than 175° apart (a
+/// dot product below this, as `skelform check` counts a folded edge).
+const FOLD_COS: f64 = -0.996_194_698;
+
+/// The triangles round each vertex, as [`snap_to_edges`] found them (its splits, made at
+/// the end, keep every half in its triangle's plane).
+#[derive(Default)]
+struct Around {
+    of_vertex: FxHashMap<u32, Vec<usize>>,
+}
+
+impl Around {
+    /// The triangles on the side `x`–`y`.
+    fn on_side(&self, tris: &[([u32; 3], RegionPair)], (x, y): (u32, u32)) -> Vec<usize> {
+        let round = self.of_vertex.get(&x).map_or(&[][..], Vec::as_slice);
+        round.iter().copied().filter(|&t| tris[t].0.contains(&y)).collect()
+    }
+
+    /// Whether moving `v` to `q`, dropping the thin triangle `thin` (`v`, `a`, `b`) and
+    /// splitting the other triangles on `a`–`b` at `v`, folds more sides round `v` than
+    /// were folded: two triangles alone on a side (or the only two of their pair there),
+    /// lying on top of each other.
+    ///
+    /// Why: a vertex a sliver off a face can be the corner of several thin triangles of
+    /// different sheets. Moved onto one's side, it can leave another flat and turned over
+    /// (a slab's end face crossing a lattice plane at a shallow angle: a sliver of it lay
+    /// in the plane, on the slab's bottom); and the dropped triangle can be the third sheet
+    /// on a curve's segment, leaving the other two alone there at the hairline angle a
+    /// slab's two sides meet at (a slab's side end at the domain's side).
+    fn folds(
+        &self,
+        pos: &mut [DVec3],
+        tris: &[([u32; 3], RegionPair)],
+        thin: usize,
+        [v, a, b]: [u32; 3],
+        q: DVec3,
+    ) -> bool {
+        let key = |x: u32, y: u32| (x.min(y), x.max(y));
+        let mut sides: Vec<(u32, u32)> = vec![key(v, a), key(v, b)];
+        for &t in &self.of_vertex[&v] {
+            let t = tris[t].0;
+            sides.extend((0..3).map(|k| key(t[k], t[(k + 1) % 3])));
+        }
+        sides.sort_unstable();
+        sides.dedup();
+        let before = self.count(pos, tris, thin, [v, a, b], &sides, false);
+        let old = std::mem::replace(&mut pos[v as usize], q);
+        let after = self.count(pos, tris, thin, [v, a, b], &sides, true);
+        pos[v as usize] = old;
+        after > before
+    }
+
+    /// Folded sides among `sides`, before the move (`after` false) or after it, with the
+    /// thin triangle dropped and the halves of the split triangles on `v`'s sides.
+    fn count(
+        &self,
+        pos: &[DVec3],
+        tris: &[([u32; 3], RegionPair)],
+        thin: usize,
+        [v, a, b]: [u32; 3],
+        sides: &[(u32, u32)],
+        after: bool,
+    ) -> usize {
+        let key = |x: u32, y: u32| (x.min(y), x.max(y));
+        let split = self.on_side(tris, key(a, b));
+        // What the split drops: the thin triangle, and any other on a–b with v.
+        let dropped = |t: usize| t == thin || split.contains(&t) && tris[t].0.contains(&v);
+        let mut n = 0;
+        for &side in sides {
+            let on = self.on_side(tris, side);
+            let mut group: Vec<([u32; 3], RegionPair)> =
+                on.iter().filter(|&&t| !after || !dropped(t)).map(|&t| tris[t]).collect();
+            if after {
+                // The half of a triangle on a–b split at v that keeps a (or b) lies on v–a
+                // (or v–b).
+                for (end, gone) in [(a, b), (b, a)] {
+                    if side == key(v, end) {
+                        group.extend(split.iter().filter(|&&t| !dropped(t)).map(|&t| {
+                            let (s, p) = tris[t];
+                            (s.map(|w| if w == gone { v } else { w }), p)
+                        }));
+                    }
+                }
+            }
+            n += usize::from(folded(pos, &group, side));
+        }
+        n
+    }
+}
+
+/// Whether two triangles alone on the side `x`–`y` among `group`, or the only two of
+/// their pair there, lie on top of each other (see [`FOLD_COS`]).
+fn folded(pos: &[DVec3], group: &[([u32; 3], RegionPair)], (x, y): (u32, u32)) -> bool {
+    let normal = |t: [u32; 3]| {
+        let [p, q, r] = t.map(|i| pos[i as usize]);
+        let (u, w, s) = (q - p, r - p, r - q);
+        let n = u.cross(w);
+        let longest = u.length_squared().max(w.length_squared()).max(s.length_squared());
+        (n.length() > 1e-10 * longest).then(|| n.normalize())
+    };
+    let forward = |t: [u32; 3]| (0..3).any(|k| t[k] == x && t[(k + 1) % 3] == y);
+    let two = |s: &([u32; 3], RegionPair), t: &([u32; 3], RegionPair)| {
+        let (Some(n), Some(m)) = (normal(s.0), normal(t.0)) else { return false };
+        let same = forward(s.0) == forward(t.0);
+        n.dot(m) * if same { -1.0 } else { 1.0 } < FOLD_COS
+    };
+    if let [s, t] = group {
+        return two(s, t);
+    }
+    // Each pair once, from its first triangle on the side.
+    group.iter().any(|s| {
+        let mine: Vec<&([u32; 3], RegionPair)> = group.iter().filter(|t| t.1 == s.1).collect();
+        mine.len() == 2 && std::ptr::eq(mine[0], s) && two(mine[0], mine[1])
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -506,5 +630,31 @@ mod tests {
         let mut tris = vec![([0, 1, 2], p)];
         pos[2].y = 0.6;
         assert_eq!(snap_to_edges(&mut pos, &mut tris, &mut Vec::new(), 0.5), (0, 0));
+    }
+
+    #[test]
+    fn a_snap_that_would_leave_two_sheets_folded_on_a_curve_is_not_made() {
+        // A curve a-v with three sheets: the thin (2, 3) triangle (a, b, v), v 0.1 off its
+        // side a-b, and a slab's two sides (1, 2) and (1, 3) reaching the curve from far
+        // away, 0.2 apart. Snapping v onto a-b would drop the thin triangle and leave the
+        // slab's sides alone on a-v, 1° apart: folded. It is not made; without the second
+        // side it is.
+        let pos = vec![
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(0.5, 0.0, 0.1),
+            DVec3::new(0.2, 10.0, 0.1),
+            DVec3::new(0.2, 10.0, -0.1),
+        ];
+        let thin = ([0, 1, 2], RegionPair(2, 3));
+        let (top, bottom) = (([0, 2, 3], RegionPair(1, 2)), ([2, 0, 4], RegionPair(1, 3)));
+        let mut tris = vec![thin, top, bottom];
+        let mut moved = pos.clone();
+        assert_eq!(snap_to_edges(&mut moved, &mut tris, &mut Vec::new(), 0.3), (0, 0));
+        assert_eq!((moved, tris.len()), (pos.clone(), 3));
+        let mut tris = vec![thin, top];
+        let mut moved = pos.clone();
+        assert_eq!(snap_to_edges(&mut moved, &mut tris, &mut Vec::new(), 0.3), (1, 1));
+        assert_eq!(moved[2], DVec3::new(0.5, 0.0, 0.0));
     }
 }
