@@ -805,12 +805,24 @@ impl<const REWOUND: bool, const REVERSED: bool> VertexSink<Record<REWOUND>> for 
         // The order fixed per instance: looked up per coordinate it costs about twice the
         // copy.
         let order = |a: [f32; 3]| if REVERSED { [a[2], a[1], a[0]] } else { a };
+        let n = vertices.len();
+        // In one pass over the records (each array's lock is taken for reading, which
+        // growth waits for, one at a time, so that the three cannot wait on each other).
         // SAFETY: the extractor gives each range once (`VertexSink::place`'s contract,
-        // which is `Assembly::place`'s).
+        // which is `Assembly::write`'s); the loop writes every element of the three ranges.
         unsafe {
-            self.positions.place(first, vertices, |r| order(r.0.position));
-            self.normals.place(first, vertices, |r| order(r.0.normal));
-            self.values.place(first, vertices, |r| r.0.value);
+            self.positions.write(first, n, |pos| {
+                self.normals.write(first, n, |normal| {
+                    self.values.write(first, n, |value| {
+                        let outs = pos.iter_mut().zip(normal.iter_mut()).zip(value);
+                        for (((p, q), v), r) in outs.zip(vertices) {
+                            p.write(order(r.0.position));
+                            q.write(order(r.0.normal));
+                            v.write(r.0.value);
+                        }
+                    })
+                })
+            });
         }
     }
 }

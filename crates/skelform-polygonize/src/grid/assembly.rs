@@ -129,20 +129,42 @@ impl<T: Copy + Send + Sync> Assembly<T> {
     /// No other call may write any of those elements, at the same time or before: the
     /// caller assigns the ranges (each slab its own).
     pub unsafe fn place<S: Copy>(&self, at: usize, from: &[S], f: impl Fn(S) -> T) {
+        // SAFETY: this method's contract is `write`'s, and every element is written.
+        unsafe {
+            self.write(at, from.len(), |to| {
+                for (t, &x) in to.iter_mut().zip(from) {
+                    t.write(f(x));
+                }
+            });
+        }
+    }
+
+    /// Calls `f` with elements `at..at + len` (as uninitialised memory) for it to write
+    /// them all, and returns what it returns: for writing several arrays in one pass.
+    ///
+    /// Panics when those elements pass the [`reserve`](Self::reserve)d size.
+    ///
+    /// # Safety
+    /// As [`place`](Self::place): no other call may write any of those elements. The
+    /// array may grow only after `f` returns (`reserve` waits for it).
+    pub unsafe fn write<R>(
+        &self,
+        at: usize,
+        len: usize,
+        f: impl FnOnce(&mut [MaybeUninit<T>]) -> R,
+    ) -> R {
         let block = self.memory.read().unwrap_or_else(|e| e.into_inner());
-        assert!(at + from.len() <= block.capacity, "a piece placed past the reserved size");
+        assert!(at + len <= block.capacity, "a piece placed past the reserved size");
         // SAFETY: the range is inside the block (asserted), which cannot move or shrink while
         // the read lock is held; no other call writes it (this method's contract), and no
         // thread reads it before `into_vec`. As `MaybeUninit` the slice may be uninitialised.
         let to = unsafe {
             std::slice::from_raw_parts_mut(
                 block.start.as_ptr().add(at).cast::<MaybeUninit<T>>(),
-                from.len(),
+                len,
             )
         };
-        for (t, &x) in to.iter_mut().zip(from) {
-            t.write(f(x));
-        }
+        f(to)
     }
 
     /// The first `len` elements as a `Vec`, the rest of the memory given back unless
