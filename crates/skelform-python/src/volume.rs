@@ -788,10 +788,20 @@ impl<const REVERSED: bool> Columns<REVERSED> {
     unsafe fn into_arrays(self, n: usize) -> (Vec<[f32; 3]>, Vec<[f32; 3]>, Vec<f32>) {
         let [p, q, v] = self.reused;
         // SAFETY: every vertex placed writes its element of each array (`place`).
-        unsafe {
+        let (positions, normals, values) = unsafe {
             (self.positions.into_vec(n, p), self.normals.into_vec(n, q), self.values.into_vec(n, v))
-        }
+        };
+        (trimmed(positions), trimmed(normals), trimmed(values))
     }
+}
+
+/// `v`, its memory cut to its length when it holds more than twice that: kept memory of a
+/// much larger earlier call would otherwise stay with arrays a caller may keep.
+fn trimmed<T>(mut v: Vec<T>) -> Vec<T> {
+    if v.capacity() / 2 > v.len() {
+        v.shrink_to_fit();
+    }
+    v
 }
 
 impl<const REWOUND: bool, const REVERSED: bool> VertexSink<Record<REWOUND>> for Columns<REVERSED> {
