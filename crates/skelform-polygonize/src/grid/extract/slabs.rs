@@ -84,7 +84,7 @@ where
     let reused = [reuse.0.capacity() > 0, reuse.1.capacity() > 0];
     let (vertices, triangles) = (Assembly::from_vec(reuse.0), Assembly::from_vec(reuse.1));
     let ([nv, nt], results) =
-        place_slabs(threads, slabs, [nx, ny], workspace, &vertices, &triangles, slab)?;
+        place_slabs(threads, slabs, [nx, ny], workspace, &vertices, &triangles, false, slab)?;
     // SAFETY: every slab was placed (`place_slabs`): slab k wrote vertices and triangles
     // from the ends of slab k − 1's, as many as it has, so together they cover 0..nv and
     // 0..nt.
@@ -172,12 +172,15 @@ where
             out.triangles.shrink_to_fit();
         }
         let triangles = std::mem::take(&mut out.triangles);
-        workspace.keep(vec![out], 2);
+        // As many kept as runs on more threads keep (`place_slabs`), so that alternating
+        // runs do not drop and remake buffers.
+        workspace.keep(vec![out], slabs);
         return Ok((made, triangles, results));
     }
     let triangles = Assembly::from_vec(reuse);
+    // Tight buffers, as many as the slabs need: see `place_slabs`.
     let ([nv, nt], results) =
-        place_slabs(threads, slabs, [nx, ny], workspace, sink, &triangles, slab)?;
+        place_slabs(threads, slabs, [nx, ny], workspace, sink, &triangles, true, slab)?;
     // SAFETY: every slab's triangles were placed (`place_slabs`), together covering 0..nt.
     let triangles = unsafe { triangles.into_vec(nt, reused) };
     Ok((nv, triangles, results))
@@ -187,6 +190,14 @@ where
 /// and its triangles placed in `triangles` (shifted) as soon as every slab below it has been
 /// handed over (see [`run_slabs`]); returns the mesh's vertex and triangle counts, which the
 /// placed ranges cover, and each slab's result in slab order.
+///
+/// A slab waits in its buffer until the slabs below it are handed over, so a thread that
+/// runs ahead of another (on lighter slabs, or while the other is descheduled) takes a
+/// buffer per slab. With `tight`, each buffer makes room for about its thread's last slab
+/// only, not for huge pages' worth, and every buffer is kept for the next run: a run that
+/// needs many takes kept ones rather than fresh memory that costs page faults (the
+/// memory held is about one mesh's). Otherwise two per thread are kept.
+#[allow(clippy::too_many_arguments)]
 fn place_slabs<V, T, E>(
     threads: usize,
     slabs: usize,
@@ -194,6 +205,7 @@ fn place_slabs<V, T, E>(
     workspace: &Workspace,
     vertices: &impl VertexSink<V>,
     triangles: &Assembly<[u32; 3]>,
+    tight: bool,
     slab: impl Fn(usize, &mut Scratch, &mut SlabStore<V>) -> Result<T, E> + Sync,
 ) -> Result<([usize; 2], Vec<T>), E>
 where
@@ -208,7 +220,9 @@ where
         let mut out = spare.or_else(|| workspace.take()).unwrap_or_default();
         out.vertices.clear();
         out.triangles.clear();
-        let result = slab(k, scratch, &mut SlabStore::new(&mut out, *hint));
+        let mut store = SlabStore::new(&mut out, *hint);
+        store.tight = tight;
+        let result = slab(k, scratch, &mut store);
         *hint = (out.vertices.len(), out.triangles.len());
         let (ready, [nv, nt], placed) = match result {
             Ok(r) => lock().hand_over(k, r, out),
@@ -239,7 +253,8 @@ where
         true
     });
     let mut chain = chain.into_inner().unwrap_or_else(|e| e.into_inner());
-    workspace.keep(std::mem::take(&mut chain.spare), 2 * threads);
+    let most = if tight { slabs } else { 2 * threads };
+    workspace.keep(std::mem::take(&mut chain.spare), most);
     if let Some((_, e)) = chain.error {
         return Err(e);
     }
@@ -400,12 +415,14 @@ pub(super) struct SlabStore<'a, V> {
     /// The number of the output's first vertex: the vertices of earlier slabs that are no
     /// longer in it ([`run_slabs_sunk`] on one thread).
     first: u32,
+    /// Room made for the hint alone, not for huge pages' worth (see [`place_slabs`]).
+    tight: bool,
 }
 
 impl<'a, V: SlabVertex> SlabStore<'a, V> {
     pub(super) fn new(out: &'a mut Output<V>, hint: (usize, usize)) -> Self {
         let borrowing = usize::MAX;
-        SlabStore { out, hint, borrowing, first: 0 }
+        SlabStore { out, hint, borrowing, first: 0, tight: false }
     }
 
     /// A store whose vertices are numbered from `first` on (see `first`).
@@ -414,6 +431,11 @@ impl<'a, V: SlabVertex> SlabStore<'a, V> {
     }
 
     pub(super) fn begin(&mut self) {
+        if self.tight {
+            self.out.vertices.reserve(self.hint.0 + self.hint.0 / 4);
+            self.out.triangles.reserve(self.hint.1 + self.hint.1 / 4);
+            return;
+        }
         make_room(&mut self.out.vertices, 2 * self.hint.0);
         make_room(&mut self.out.triangles, 2 * self.hint.1);
         debug_assert!((self.first as usize + self.out.vertices.len()) < BORROWED as usize);
