@@ -11,13 +11,15 @@
 use std::sync::{Mutex, PoisonError};
 
 use numpy::ndarray::{ArrayView1, ArrayView2};
-use numpy::{Element, PyArray1, PyArray2};
+use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
 
 /// A vector of one of the element types handed out.
 pub(crate) enum Memory {
-    F32(Vec<f32>),
-    I32(Vec<i32>),
+    /// Values (one `f32` a vertex).
+    Values(Vec<f32>),
+    /// Positions or normals (three `f32`s a vertex), handed to NumPy as N×3 arrays.
+    Rows(Vec<[f32; 3]>),
     /// The extractor's triangles, handed to NumPy as the faces themselves.
     Triangles(Vec<[u32; 3]>),
 }
@@ -25,34 +27,33 @@ pub(crate) enum Memory {
 impl Memory {
     fn bytes(&self) -> usize {
         match self {
-            Memory::F32(v) => 4 * v.capacity(),
-            Memory::I32(v) => 4 * v.capacity(),
+            Memory::Values(v) => 4 * v.capacity(),
+            Memory::Rows(v) => 12 * v.capacity(),
             Memory::Triangles(v) => 12 * v.capacity(),
         }
     }
 }
 
-/// Element types the pool holds.
-pub(crate) trait PoolElement: Element + Copy + Sized {
-    fn wrap(v: Vec<Self>) -> Memory;
+/// Element types the pool holds, each in a [`Memory`] of its own.
+pub(crate) trait PoolElement: Copy + Sized {
     fn unwrap(m: &mut Memory) -> Option<&mut Vec<Self>>;
 }
 
 impl PoolElement for f32 {
-    fn wrap(v: Vec<f32>) -> Memory {
-        Memory::F32(v)
-    }
     fn unwrap(m: &mut Memory) -> Option<&mut Vec<f32>> {
-        if let Memory::F32(v) = m { Some(v) } else { None }
+        if let Memory::Values(v) = m { Some(v) } else { None }
     }
 }
 
-impl PoolElement for i32 {
-    fn wrap(v: Vec<i32>) -> Memory {
-        Memory::I32(v)
+impl PoolElement for [f32; 3] {
+    fn unwrap(m: &mut Memory) -> Option<&mut Vec<[f32; 3]>> {
+        if let Memory::Rows(v) = m { Some(v) } else { None }
     }
-    fn unwrap(m: &mut Memory) -> Option<&mut Vec<i32>> {
-        if let Memory::I32(v) = m { Some(v) } else { None }
+}
+
+impl PoolElement for [u32; 3] {
+    fn unwrap(m: &mut Memory) -> Option<&mut Vec<[u32; 3]>> {
+        if let Memory::Triangles(v) = m { Some(v) } else { None }
     }
 }
 
@@ -63,52 +64,46 @@ static POOL: Mutex<Vec<Memory>> = Mutex::new(Vec::new());
 const MOST: usize = 8;
 const MOST_BYTES: usize = 1 << 30;
 
+/// The kept vector of `T` that `better` prefers (by capacity) among those of `least`
+/// elements or more, emptied.
+fn pick<T: PoolElement>(least: usize, better: impl Fn(usize, usize) -> bool) -> Option<Vec<T>> {
+    let mut pool = POOL.lock().unwrap_or_else(PoisonError::into_inner);
+    let mut best: Option<(usize, usize)> = None;
+    for (at, m) in pool.iter_mut().enumerate() {
+        let Some(capacity) = T::unwrap(m).map(|v| v.capacity()) else { continue };
+        if capacity >= least && best.is_none_or(|(_, c)| better(capacity, c)) {
+            best = Some((at, capacity));
+        }
+    }
+    let mut m = pool.swap_remove(best?.0);
+    let mut v = std::mem::take(T::unwrap(&mut m)?);
+    v.clear();
+    Some(v)
+}
+
 /// An empty vector with room for `n` elements: the smallest kept one that has it, else
 /// fresh memory (in huge pages where the system allows, a fault per 2 MiB instead of per
 /// 4 KiB).
 pub(crate) fn take<T: PoolElement>(n: usize) -> Vec<T> {
-    {
-        let mut pool = POOL.lock().unwrap_or_else(PoisonError::into_inner);
-        let best = pool
-            .iter_mut()
-            .enumerate()
-            .filter_map(|(at, m)| T::unwrap(m).map(|v| (at, v.capacity())))
-            .filter(|&(_, capacity)| capacity >= n)
-            .min_by_key(|&(_, capacity)| capacity);
-        if let Some((at, _)) = best {
-            let mut m = pool.swap_remove(at);
-            if let Some(v) = T::unwrap(&mut m) {
-                let mut v = std::mem::take(v);
-                v.clear();
-                return v;
-            }
-        }
-    }
-    let v = Vec::with_capacity(n);
-    skelform::field::pages::advise_huge(v.as_ptr(), n);
-    v
+    pick(n, |a, b| a < b).unwrap_or_else(|| {
+        let v = Vec::with_capacity(n);
+        skelform::field::pages::advise_huge(v.as_ptr(), n);
+        v
+    })
+}
+
+/// The largest kept vector of `T` (emptied), else an empty one: for arrays written before
+/// their size is known (the faces, and the vertex arrays slab by slab), which grow from
+/// there, usually not at all when the calls are alike.
+pub(crate) fn take_largest<T: PoolElement>() -> Vec<T> {
+    pick(0, |a, b| a > b).unwrap_or_default()
 }
 
 /// An empty vector of triangles for the extractor to write the faces into: the largest
 /// kept one (the faces of an earlier call that NumPy let go of), else a new one, which the
 /// extractor grows in huge pages.
 pub(crate) fn take_triangles() -> Vec<[u32; 3]> {
-    let mut pool = POOL.lock().unwrap_or_else(PoisonError::into_inner);
-    let largest = pool
-        .iter()
-        .enumerate()
-        .filter_map(|(at, m)| match m {
-            Memory::Triangles(v) => Some((at, v.capacity())),
-            _ => None,
-        })
-        .max_by_key(|&(_, capacity)| capacity);
-    match largest.map(|(at, _)| pool.swap_remove(at)) {
-        Some(Memory::Triangles(mut v)) => {
-            v.clear();
-            v
-        }
-        _ => Vec::new(),
-    }
+    take_largest()
 }
 
 /// The base object of the arrays handed to NumPy: owns their memory, and gives it back to
@@ -130,31 +125,23 @@ impl Drop for Pooled {
     }
 }
 
-/// `v` as a NumPy array of `rows` rows of `cols` (C order), over `v`'s own memory.
-pub(crate) fn array2<'py, T: PoolElement>(
-    py: Python<'py>,
-    v: Vec<T>,
-    cols: usize,
-) -> PyResult<Bound<'py, PyArray2<T>>> {
-    let rows = v.len() / cols;
-    assert_eq!(rows * cols, v.len(), "a partial row");
-    let start = v.as_ptr();
-    let owner = Bound::new(py, Pooled { memory: Mutex::new(Some(T::wrap(v))) })?;
-    // SAFETY: `start` is the vector's first element of `rows · cols`, aligned and
-    // initialised; the vector now lives in `owner`, untouched (never grown, so never moved)
-    // until `owner` drops, which the array's base reference holds off while the array lives.
-    let view = unsafe { ArrayView2::from_shape_ptr((rows, cols), start) };
+/// Rows of three as a NumPy array (N×3, C order), over `v`'s own memory.
+pub(crate) fn rows<'py>(py: Python<'py>, v: Vec<[f32; 3]>) -> PyResult<Bound<'py, PyArray2<f32>>> {
+    let (start, rows) = (v.as_ptr().cast::<f32>(), v.len());
+    let owner = Bound::new(py, Pooled { memory: Mutex::new(Some(Memory::Rows(v))) })?;
+    // SAFETY: `start` is the vector's first element of `rows`, each three `f32`s in a row
+    // with the alignment of one, initialised; the vector now lives in `owner`, untouched
+    // (never grown, so never moved) until `owner` drops, which the array's base reference
+    // holds off while the array lives.
+    let view = unsafe { ArrayView2::from_shape_ptr((rows, 3), start) };
     Ok(unsafe { PyArray2::borrow_from_array(&view, owner.into_any()) })
 }
 
-/// `v` as a one-dimensional NumPy array over `v`'s own memory.
-pub(crate) fn array1<'py, T: PoolElement>(
-    py: Python<'py>,
-    v: Vec<T>,
-) -> PyResult<Bound<'py, PyArray1<T>>> {
+/// Values as a one-dimensional NumPy array over `v`'s own memory.
+pub(crate) fn values<'py>(py: Python<'py>, v: Vec<f32>) -> PyResult<Bound<'py, PyArray1<f32>>> {
     let (start, n) = (v.as_ptr(), v.len());
-    let owner = Bound::new(py, Pooled { memory: Mutex::new(Some(T::wrap(v))) })?;
-    // SAFETY: as in `array2`.
+    let owner = Bound::new(py, Pooled { memory: Mutex::new(Some(Memory::Values(v))) })?;
+    // SAFETY: as in `rows`.
     let view = unsafe { ArrayView1::from_shape_ptr(n, start) };
     Ok(unsafe { PyArray1::borrow_from_array(&view, owner.into_any()) })
 }
@@ -165,7 +152,7 @@ pub(crate) fn array1<'py, T: PoolElement>(
 pub(crate) fn faces<'py>(py: Python<'py>, v: Vec<[u32; 3]>) -> PyResult<Bound<'py, PyArray2<i32>>> {
     let (start, rows) = (v.as_ptr().cast::<i32>(), v.len());
     let owner = Bound::new(py, Pooled { memory: Mutex::new(Some(Memory::Triangles(v))) })?;
-    // SAFETY: as in `array2`; a `[u32; 3]` is three `u32`s in a row with the alignment of
+    // SAFETY: as in `rows`; a `[u32; 3]` is three `u32`s in a row with the alignment of
     // one, and a `u32` below 2³¹ has the bits of the `i32` of the same value.
     let view = unsafe { ArrayView2::from_shape_ptr((rows, 3), start) };
     Ok(unsafe { PyArray2::borrow_from_array(&view, owner.into_any()) })

@@ -16,9 +16,9 @@ use pyo3::prelude::*;
 use rayon::prelude::*;
 use skelform::DVec3;
 use skelform::volume::{
-    Grid, GridVertex, Level, MAX_SAMPLES_PER_AXIS, Near, Piece, Place, SlabVertex, Volume,
-    VolumeView, extract_view_pieces_into, extract_view_records_into, extract_volume_pieces_into,
-    extract_volume_records_into, sanitize_sample,
+    Assembly, Grid, GridVertex, Level, MAX_SAMPLES_PER_AXIS, Near, Place, SlabVertex, VertexSink,
+    Volume, VolumeView, extract_view_records_into, extract_view_sunk, extract_volume_records_into,
+    extract_volume_sunk, sanitize_sample,
 };
 use std::sync::{Mutex, PoisonError};
 
@@ -217,22 +217,17 @@ fn keep_buffer(values: Vec<f32>) {
     }
 }
 
-/// The vertex records of the last call, kept for the next (emptied): written again without
-/// a page fault a page, where fresh memory for them costs as much as a tenth of an
-/// extraction (on one thread the slabs write into them, on more they are placed there). The
-/// vertex arrays handed to Python are copies in the conventions' layout, in pooled memory;
-/// the faces are the extractor's triangles themselves, wound as the conventions want them
-/// ([`Record`]) and written into the faces of an earlier call (`pooled::take_triangles`).
+/// The vertex records of the last call that dropped triangles (a mask, or degenerate ones
+/// removed), kept for the next (emptied): written again without a page fault a page, where
+/// fresh memory for them costs as much as a tenth of an extraction. Such calls need the
+/// whole mesh of records before the arrays are made ([`conventions`]); the others hand
+/// each slab's records to the arrays as the slab is done ([`Columns`]). The faces are the
+/// extractor's triangles themselves, wound as the conventions want them ([`Record`]) and
+/// written into the faces of an earlier call (`pooled::take_triangles`).
 static RECORDS: Mutex<Vec<Vertex>> = Mutex::new(Vec::new());
 
 /// The most vertex records kept between calls (about 0.9 GiB).
 const KEEP_RECORDS: usize = 1 << 25;
-
-/// The slabs' pieces of the last call on more than one thread, kept for the next (emptied)
-/// as [`RECORDS`] are: there each slab runs into a piece of its own, which is written
-/// straight into the arrays handed to Python ([`join_pieces`]), with no mesh of records
-/// in between.
-static PIECES: Mutex<Vec<Piece<Vertex>>> = Mutex::new(Vec::new());
 
 /// A vertex as the conventions need it, made by the extractor while the samples around it
 /// are in the cache: its position and, from the gradient there, its unit normal (down the
@@ -580,9 +575,9 @@ struct Options<'a> {
     mask: Option<ArrayView3<'a, bool>>,
 }
 
-/// Flat vertices, faces (the extractor's triangles, wound for the conventions), normals and
+/// Vertices, faces (the extractor's triangles, wound for the conventions), normals and
 /// values.
-type Flat = (Vec<f32>, Vec<[u32; 3]>, Vec<f32>, Vec<f32>);
+type Flat = (Vec<[f32; 3]>, Vec<[u32; 3]>, Vec<[f32; 3]>, Vec<f32>);
 
 /// The Rust half of `skelform.marching_cubes` (arguments already checked by the Python
 /// half, but for the level): vertices in array index units (spacing not applied), faces,
@@ -627,14 +622,13 @@ pub(crate) fn marching_cubes_core<'py>(
     }
     let (positions, faces, normals, values) =
         read!(f32, f64, i8, i16, i32, i64, u8, u16, u32, u64)?;
-    debug_assert_eq!(positions.len() % 3, 0);
     // Over the vectors' own memory, which goes back to the pool for the next call when
     // NumPy lets go of it.
     Ok((
-        pooled::array2(py, positions, 3)?,
+        pooled::rows(py, positions)?,
         pooled::faces(py, faces)?,
-        pooled::array2(py, normals, 3)?,
-        pooled::array1(py, values)?,
+        pooled::rows(py, normals)?,
+        pooled::values(py, values)?,
     ))
 }
 
@@ -682,32 +676,23 @@ fn extract<T: Sample>(a: ArrayView3<'_, T>, o: &Options<'_>, run: &Run) -> PyRes
         }
         Ok(())
     };
-    // On more than one thread, with nothing to drop from the mesh, the slabs' pieces go
-    // straight into the arrays (on one, the slabs write the records themselves).
-    if rayon::current_num_threads() > 1 && o.mask.is_none() && o.allow_degenerate {
-        let kept = std::mem::take(&mut *PIECES.lock().unwrap_or_else(PoisonError::into_inner));
-        let pieces = if rewound {
-            extract_pieces::<true>(&samples, &run.control, kept)
-        } else {
-            extract_pieces::<false>(&samples, &run.control, kept)
+    // With nothing to drop from the mesh, each slab's records go straight into the arrays
+    // as the slab is done, on any number of threads.
+    if o.mask.is_none() && o.allow_degenerate {
+        let reversed = layout.axis_of == [2, 1, 0];
+        debug_assert!(reversed || layout.axis_of == [0, 1, 2]);
+        let got = match (rewound, reversed) {
+            (false, false) => extract_columns::<false, false>(&samples, &run.control),
+            (false, true) => extract_columns::<false, true>(&samples, &run.control),
+            (true, false) => extract_columns::<true, false>(&samples, &run.control),
+            (true, true) => extract_columns::<true, true>(&samples, &run.control),
         };
         if let Samples::Converted(volume) = samples {
             keep_buffer(volume.values);
         }
-        let mut pieces = pieces.map_err(|cancelled| polygonize_error(cancelled.into()))?;
-        let nv: usize = pieces.iter().map(|p| p.0.len()).sum();
-        let nt: usize = pieces.iter().map(|p| p.1.len()).sum();
-        check_level(nt == 0)?;
-        fits(nv)?;
-        let flat = join_pieces(&layout, &pieces, nv, nt);
-        let held: usize = pieces.iter().map(|p| p.0.capacity() + p.1.capacity()).sum();
-        if held <= KEEP_RECORDS {
-            pieces.iter_mut().for_each(|p| {
-                p.0.clear();
-                p.1.clear();
-            });
-            *PIECES.lock().unwrap_or_else(PoisonError::into_inner) = pieces;
-        }
+        let flat = got.map_err(|cancelled| polygonize_error(cancelled.into()))?;
+        check_level(flat.1.is_empty())?;
+        fits(flat.0.len())?;
         return Ok(flat);
     }
     let kept = std::mem::take(&mut *RECORDS.lock().unwrap_or_else(PoisonError::into_inner));
@@ -768,19 +753,109 @@ fn extract_records<const REWOUND: bool>(
     Ok((retype(records), triangles))
 }
 
-/// [`extract_records`] with the mesh left in the slabs' pieces, written into those of
-/// `kept` (see [`extract_view_pieces_into`]).
-fn extract_pieces<const REWOUND: bool>(
+/// The arrays of a call in scikit-image's conventions, made as the slabs are done: the
+/// extractor hands each slab's records over ([`VertexSink`]) while they are in the cache,
+/// and they go straight into their rows, in the array axis order (reversed when `REVERSED`:
+/// a C-ordered volume); no mesh of records is written to memory and read back. Each array
+/// grows in place as the slabs come (see [`Assembly`]), from the memory of an earlier
+/// call's arrays that NumPy let go of.
+struct Columns<const REVERSED: bool> {
+    positions: Assembly<[f32; 3]>,
+    normals: Assembly<[f32; 3]>,
+    values: Assembly<f32>,
+    /// Which arrays started from kept memory (kept whole for the next call), and which
+    /// from nothing (trimmed to their size at the end).
+    reused: [bool; 3],
+}
+
+impl<const REVERSED: bool> Columns<REVERSED> {
+    fn new() -> Self {
+        let (positions, normals) = (pooled::take_largest(), pooled::take_largest());
+        let values = pooled::take_largest();
+        let reused = [positions.capacity() > 0, normals.capacity() > 0, values.capacity() > 0];
+        Columns {
+            positions: Assembly::from_vec(positions),
+            normals: Assembly::from_vec(normals),
+            values: Assembly::from_vec(values),
+            reused,
+        }
+    }
+
+    /// The arrays of the mesh's `n` vertices.
+    ///
+    /// # Safety
+    /// The extractor placed vertices `0..n`.
+    unsafe fn into_arrays(self, n: usize) -> (Vec<[f32; 3]>, Vec<[f32; 3]>, Vec<f32>) {
+        let [p, q, v] = self.reused;
+        // SAFETY: every vertex placed writes its element of each array (`place`).
+        let (positions, normals, values) = unsafe {
+            (self.positions.into_vec(n, p), self.normals.into_vec(n, q), self.values.into_vec(n, v))
+        };
+        (trimmed(positions), trimmed(normals), trimmed(values))
+    }
+}
+
+/// `v`, its memory cut to its length when it holds more than twice that: kept memory of a
+/// much larger earlier call would otherwise stay with arrays a caller may keep.
+fn trimmed<T>(mut v: Vec<T>) -> Vec<T> {
+    if v.capacity() / 2 > v.len() {
+        v.shrink_to_fit();
+    }
+    v
+}
+
+impl<const REWOUND: bool, const REVERSED: bool> VertexSink<Record<REWOUND>> for Columns<REVERSED> {
+    fn reserve(&self, needed: usize, wanted: usize) {
+        self.positions.reserve(needed, wanted);
+        self.normals.reserve(needed, wanted);
+        self.values.reserve(needed, wanted);
+    }
+
+    unsafe fn place(&self, first: usize, vertices: &[Record<REWOUND>]) {
+        // The order fixed per instance: looked up per coordinate it costs about twice the
+        // copy.
+        let order = |a: [f32; 3]| if REVERSED { [a[2], a[1], a[0]] } else { a };
+        let n = vertices.len();
+        // In one pass over the records (each array's lock is taken for reading, which
+        // growth waits for, one at a time, so that the three cannot wait on each other).
+        // SAFETY: the extractor gives each range once (`VertexSink::place`'s contract,
+        // which is `Assembly::write`'s); the loop writes every element of the three ranges.
+        unsafe {
+            self.positions.write(first, n, |pos| {
+                self.normals.write(first, n, |normal| {
+                    self.values.write(first, n, |value| {
+                        let outs = pos.iter_mut().zip(normal.iter_mut()).zip(value);
+                        for (((p, q), v), r) in outs.zip(vertices) {
+                            p.write(order(r.0.position));
+                            q.write(order(r.0.normal));
+                            v.write(r.0.value);
+                        }
+                    })
+                })
+            });
+        }
+    }
+}
+
+/// The extraction straight into the arrays ([`Columns`]), over triangles wound the other way
+/// round when `REWOUND`, the vertices' axes reversed when `REVERSED`.
+fn extract_columns<const REWOUND: bool, const REVERSED: bool>(
     samples: &Samples<'_>,
     control: &skelform::Control,
-    kept: Vec<Piece<Vertex>>,
-) -> Result<Vec<Piece<Vertex>>, skelform::volume::Cancelled> {
-    let kept = kept.into_iter().map(|(v, t)| (retype::<Vertex, Record<REWOUND>>(v), t)).collect();
-    let pieces = match samples {
-        Samples::InPlace(view) => extract_view_pieces_into(view, control, kept),
-        Samples::Converted(volume) => extract_volume_pieces_into(volume, control, kept),
+) -> Result<Flat, skelform::volume::Cancelled> {
+    let columns = Columns::<REVERSED>::new();
+    let faces = pooled::take_triangles();
+    let (n, triangles) = match samples {
+        Samples::InPlace(view) => {
+            extract_view_sunk::<Record<REWOUND>>(view, control, &columns, faces)
+        }
+        Samples::Converted(volume) => {
+            extract_volume_sunk::<Record<REWOUND>>(volume, control, &columns, faces)
+        }
     }?;
-    Ok(pieces.into_iter().map(|(v, t)| (retype(v), t)).collect())
+    // SAFETY: the extractor placed every vertex of the mesh, `0..n`.
+    let (positions, normals, values) = unsafe { columns.into_arrays(n) };
+    Ok((positions, triangles, normals, values))
 }
 
 /// Runs `op` on `pool`, or on the current (global) pool.
@@ -794,24 +869,20 @@ fn install<R: Send>(
     }
 }
 
-/// The vertices of a block into their rows of the flat arrays, every element of each row
-/// written; with the axes in reverse order when `REVERSED` (the array's axis order is
-/// z, y, x: a C-ordered volume).
+/// The vertices of a block into their rows of the arrays, every row written; with the axes
+/// in reverse order when `REVERSED` (the array's axis order is z, y, x: a C-ordered volume).
 #[inline(always)]
 fn copy_block<const REVERSED: bool>(
-    pos: &mut [std::mem::MaybeUninit<f32>],
-    normal: &mut [std::mem::MaybeUninit<f32>],
+    pos: &mut [std::mem::MaybeUninit<[f32; 3]>],
+    normal: &mut [std::mem::MaybeUninit<[f32; 3]>],
     value: &mut [std::mem::MaybeUninit<f32>],
     vertices: &[Vertex],
 ) {
     let order = |a: [f32; 3]| if REVERSED { [a[2], a[1], a[0]] } else { a };
-    let outs = pos.chunks_exact_mut(3).zip(normal.chunks_exact_mut(3)).zip(value);
+    let outs = pos.iter_mut().zip(normal.iter_mut()).zip(value);
     for (((pos, normal), value), v) in outs.zip(vertices) {
-        let (p, n) = (order(v.position), order(v.normal));
-        for m in 0..3 {
-            pos[m].write(p[m]);
-            normal[m].write(n[m]);
-        }
+        pos.write(order(v.position));
+        normal.write(order(v.normal));
         value.write(v.value);
     }
 }
@@ -824,12 +895,12 @@ fn conventions(layout: &Layout, ex: Extracted) -> (Flat, Vec<Vertex>) {
     /// Vertices per parallel task: enough to make a task's start-up cost nothing.
     const BLOCK: usize = 1 << 13;
     let n = ex.vertices.len();
-    let mut positions = pooled::take::<f32>(3 * n);
-    let mut normals = pooled::take::<f32>(3 * n);
+    let mut positions = pooled::take::<[f32; 3]>(n);
+    let mut normals = pooled::take::<[f32; 3]>(n);
     let mut values = pooled::take::<f32>(n);
-    positions.spare_capacity_mut()[..3 * n]
-        .par_chunks_mut(3 * BLOCK)
-        .zip(normals.spare_capacity_mut()[..3 * n].par_chunks_mut(3 * BLOCK))
+    positions.spare_capacity_mut()[..n]
+        .par_chunks_mut(BLOCK)
+        .zip(normals.spare_capacity_mut()[..n].par_chunks_mut(BLOCK))
         .zip(values.spare_capacity_mut()[..n].par_chunks_mut(BLOCK))
         .zip(ex.vertices.par_chunks(BLOCK))
         .for_each(|(((pos, normal), value), vertices)| {
@@ -842,92 +913,13 @@ fn conventions(layout: &Layout, ex: Extracted) -> (Flat, Vec<Vertex>) {
                 copy_block::<false>(pos, normal, value, vertices);
             }
         });
-    // SAFETY: the blocks above cover the first 3·n (n) elements of each array, block `b`
-    // of each with vertices `b·BLOCK..` of the n, and every vertex writes all of its
-    // elements (`copy_block`).
+    // SAFETY: the blocks above cover the first n elements of each array, block `b` of
+    // each with vertices `b·BLOCK..` of the n, and every vertex writes its element of each
+    // (`copy_block`).
     unsafe {
-        positions.set_len(3 * n);
-        normals.set_len(3 * n);
+        positions.set_len(n);
+        normals.set_len(n);
         values.set_len(n);
     }
     ((positions, ex.triangles, normals, values), ex.vertices)
-}
-
-/// [`conventions`] for a mesh in the slabs' pieces (`nv` vertices and `nt` triangles in
-/// all): each piece's vertices go straight into their rows of the flat arrays, and its
-/// triangles, their numbers shifted by the vertices of the pieces before it, into the
-/// faces; in blocks on the pool's threads, into memory that is not zeroed first. The same
-/// arrays as `conventions` makes of the joined mesh.
-fn join_pieces(layout: &Layout, pieces: &[Piece<Vertex>], nv: usize, nt: usize) -> Flat {
-    /// Vertices or triangles per parallel task.
-    const BLOCK: usize = 1 << 13;
-    type Uninit<T> = std::mem::MaybeUninit<T>;
-    let mut positions = pooled::take::<f32>(3 * nv);
-    let mut normals = pooled::take::<f32>(3 * nv);
-    let mut values = pooled::take::<f32>(nv);
-    let mut triangles = pooled::take_triangles();
-    if triangles.capacity() < nt {
-        triangles = Vec::with_capacity(nt);
-        skelform::field::pages::advise_huge(triangles.as_ptr(), nt);
-    }
-    let reversed = layout.axis_of == [2, 1, 0];
-    debug_assert!(reversed || layout.axis_of == [0, 1, 2]);
-    {
-        let mut pos: &mut [Uninit<f32>] = &mut positions.spare_capacity_mut()[..3 * nv];
-        let mut normal: &mut [Uninit<f32>] = &mut normals.spare_capacity_mut()[..3 * nv];
-        let mut value: &mut [Uninit<f32>] = &mut values.spare_capacity_mut()[..nv];
-        let mut faces: &mut [Uninit<[u32; 3]>] = &mut triangles.spare_capacity_mut()[..nt];
-        let mut vertex_tasks = Vec::new();
-        let mut face_tasks = Vec::new();
-        let mut shift = 0u32;
-        for (vertices, tris) in pieces {
-            for block in vertices.chunks(BLOCK) {
-                let (p, rest) = std::mem::take(&mut pos).split_at_mut(3 * block.len());
-                pos = rest;
-                let (n, rest) = std::mem::take(&mut normal).split_at_mut(3 * block.len());
-                normal = rest;
-                let (v, rest) = std::mem::take(&mut value).split_at_mut(block.len());
-                value = rest;
-                vertex_tasks.push((p, n, v, block));
-            }
-            for block in tris.chunks(BLOCK) {
-                let (f, rest) = std::mem::take(&mut faces).split_at_mut(block.len());
-                faces = rest;
-                face_tasks.push((f, block, shift));
-            }
-            // Below 2³¹ in all (checked by the caller), so neither this nor a shifted
-            // number overflows.
-            shift += vertices.len() as u32;
-        }
-        debug_assert!(pos.is_empty() && normal.is_empty() && value.is_empty() && faces.is_empty());
-        rayon::join(
-            || {
-                vertex_tasks.into_par_iter().for_each(|(p, n, v, block)| {
-                    if reversed {
-                        copy_block::<true>(p, n, v, block);
-                    } else {
-                        copy_block::<false>(p, n, v, block);
-                    }
-                });
-            },
-            || {
-                face_tasks.into_par_iter().for_each(|(f, block, shift)| {
-                    for (out, t) in f.iter_mut().zip(block) {
-                        out.write(t.map(|i| i + shift));
-                    }
-                });
-            },
-        );
-    }
-    // SAFETY: the pieces' blocks above cover the first 3·nv (nv) elements of the vertex
-    // arrays and the first nt of the faces, in order and each once (their sizes sum to nv
-    // and nt), every vertex writing all of its elements (`copy_block`) and every triangle
-    // its own.
-    unsafe {
-        positions.set_len(3 * nv);
-        normals.set_len(3 * nv);
-        values.set_len(nv);
-        triangles.set_len(nt);
-    }
-    (positions, triangles, normals, values)
 }

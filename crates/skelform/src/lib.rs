@@ -109,10 +109,10 @@ pub mod volume {
         sanitize_sample,
     };
     pub use skelform_polygonize::grid::{
-        Cancelled, GridVertex, LayerSource, Near, Piece, Place, SlabVertex, StreamError, Streamed,
-        extract_mesh, extract_streamed, extract_view_mesh, extract_view_pieces_into,
-        extract_view_records, extract_view_records_into, extract_volume_pieces_into,
-        extract_volume_records, extract_volume_records_into,
+        Assembly, Cancelled, GridVertex, LayerSource, Near, Place, SlabVertex, StreamError,
+        Streamed, VertexSink, extract_mesh, extract_streamed, extract_view_mesh,
+        extract_view_records, extract_view_records_into, extract_view_sunk, extract_volume_records,
+        extract_volume_records_into, extract_volume_sunk,
     };
 
     /// Builds the marching-cubes case table now (a few milliseconds, once per process), so

@@ -19,7 +19,7 @@ use std::sync::RwLock;
 
 /// A growable array of `T`, written by many threads at disjoint ranges, read once at the end
 /// as a `Vec`.
-pub(crate) struct Assembly<T> {
+pub struct Assembly<T> {
     memory: RwLock<Block<T>>,
     /// The smallest capacity to allocate.
     least: usize,
@@ -58,7 +58,7 @@ impl<T: Copy + Send + Sync> Assembly<T> {
     /// no page fault (and no zeroing by the kernel) where fresh memory would cost one a
     /// page. Grows from there (or from nothing) in blocks of
     /// [`ROOM`](skelform_field::pages::ROOM) bytes or more.
-    pub(crate) fn from_vec(v: Vec<T>) -> Self {
+    pub fn from_vec(v: Vec<T>) -> Self {
         let least = skelform_field::pages::ROOM / size_of::<T>();
         if v.capacity() == 0 {
             return Self::with_least(least);
@@ -86,7 +86,7 @@ impl<T: Copy + Send + Sync> Assembly<T> {
     /// that large are mapped pages of their own, which `realloc` moves to a larger range by
     /// remapping them, with no copy (glibc; other allocators copy), and which cost nothing
     /// until written.
-    pub(crate) fn reserve(&self, needed: usize, wanted: usize) {
+    pub fn reserve(&self, needed: usize, wanted: usize) {
         // Most calls find room: asking for the write lock would wait for the other threads'
         // pieces being written (and hold back their next ones), so look first.
         if self.memory.read().unwrap_or_else(|e| e.into_inner()).capacity >= needed {
@@ -123,23 +123,48 @@ impl<T: Copy + Send + Sync> Assembly<T> {
 
     /// Writes `f` of each of `from`, in order, at elements `at..at + from.len()`.
     ///
-    /// Those elements must lie within a [`reserve`](Self::reserve)d size, and no other call
-    /// may write any of them: the caller assigns the ranges (each slab its own).
-    pub(crate) fn place<S: Copy>(&self, at: usize, from: &[S], f: impl Fn(S) -> T) {
+    /// Panics when those elements pass the [`reserve`](Self::reserve)d size.
+    ///
+    /// # Safety
+    /// No other call may write any of those elements, at the same time or before: the
+    /// caller assigns the ranges (each slab its own).
+    pub unsafe fn place<S: Copy>(&self, at: usize, from: &[S], f: impl Fn(S) -> T) {
+        // SAFETY: this method's contract is `write`'s, and every element is written.
+        unsafe {
+            self.write(at, from.len(), |to| {
+                for (t, &x) in to.iter_mut().zip(from) {
+                    t.write(f(x));
+                }
+            });
+        }
+    }
+
+    /// Calls `f` with elements `at..at + len` (as uninitialised memory) for it to write
+    /// them all, and returns what it returns: for writing several arrays in one pass.
+    ///
+    /// Panics when those elements pass the [`reserve`](Self::reserve)d size.
+    ///
+    /// # Safety
+    /// As [`place`](Self::place): no other call may write any of those elements. The
+    /// array may grow only after `f` returns (`reserve` waits for it).
+    pub unsafe fn write<R>(
+        &self,
+        at: usize,
+        len: usize,
+        f: impl FnOnce(&mut [MaybeUninit<T>]) -> R,
+    ) -> R {
         let block = self.memory.read().unwrap_or_else(|e| e.into_inner());
-        assert!(at + from.len() <= block.capacity, "a piece placed past the reserved size");
+        assert!(at + len <= block.capacity, "a piece placed past the reserved size");
         // SAFETY: the range is inside the block (asserted), which cannot move or shrink while
-        // the read lock is held; no other thread writes it (this method's contract), and no
+        // the read lock is held; no other call writes it (this method's contract), and no
         // thread reads it before `into_vec`. As `MaybeUninit` the slice may be uninitialised.
         let to = unsafe {
             std::slice::from_raw_parts_mut(
                 block.start.as_ptr().add(at).cast::<MaybeUninit<T>>(),
-                from.len(),
+                len,
             )
         };
-        for (t, &x) in to.iter_mut().zip(from) {
-            t.write(f(x));
-        }
+        f(to)
     }
 
     /// The first `len` elements as a `Vec`, the rest of the memory given back unless
@@ -147,7 +172,7 @@ impl<T: Copy + Send + Sync> Assembly<T> {
     ///
     /// # Safety
     /// Every element of `0..len` must have been written by [`place`](Self::place).
-    pub(crate) unsafe fn into_vec(self, len: usize, keep: bool) -> Vec<T> {
+    pub unsafe fn into_vec(self, len: usize, keep: bool) -> Vec<T> {
         let block = self.memory.into_inner().unwrap_or_else(|e| e.into_inner());
         if block.capacity == 0 {
             return Vec::new();
@@ -188,7 +213,8 @@ mod tests {
         (0..200).into_par_iter().rev().for_each(|p| {
             let piece: Vec<u32> = (0..sizes[p] as u32).collect();
             a.reserve(starts[p] + sizes[p], 0);
-            a.place(starts[p], &piece, |x| ((p as u64) << 32) | x as u64);
+            // SAFETY: piece p alone writes its range.
+            unsafe { a.place(starts[p], &piece, |x| ((p as u64) << 32) | x as u64) };
         });
         // SAFETY: the pieces cover 0..total.
         let v = unsafe { a.into_vec(total, false) };

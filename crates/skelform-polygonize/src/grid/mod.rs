@@ -13,6 +13,7 @@
 // The per-cube machinery is shared with the other polygonizers inside the crate but is no
 // part of the interface: what a caller needs of it is re-exported below.
 mod assembly;
+pub use assembly::Assembly;
 pub(crate) mod cell;
 pub(crate) mod cube;
 pub(crate) mod extract;
@@ -36,12 +37,12 @@ use crate::refine::{
     Bracket, Line, RootOptions, gradient_normals, project_to_surface, refine_roots, roots_on_lines,
 };
 pub use extract::{
-    Cancelled, Extraction, GridVertex, LayerSource, Near, Piece, Place, Positions, SLAB,
-    SLIDE_UNIT, SampledVertex, SlabVertex, Slide, StreamError, StreamStats, Streamed, Workspace,
+    Cancelled, Extraction, GridVertex, LayerSource, Near, Place, Positions, SLAB, SLIDE_UNIT,
+    SampledVertex, SlabVertex, Slide, StreamError, StreamStats, Streamed, VertexSink, Workspace,
     dir_vector, extract, extract_positions, extract_streamed, extract_streamed_with,
-    extract_view_pieces_into, extract_view_positions, extract_view_records,
-    extract_view_records_into, extract_volume_pieces_into, extract_volume_records,
-    extract_volume_records_into, extract_with, surface_cubes,
+    extract_view_positions, extract_view_records, extract_view_records_into, extract_view_sunk,
+    extract_volume_records, extract_volume_records_into, extract_volume_sunk, extract_with,
+    surface_cubes,
 };
 
 pub use crate::lattice::Resolution;

@@ -30,14 +30,14 @@ mod slabs;
 mod streaming;
 
 pub use signs::surface_cubes;
-pub use slabs::Workspace;
+pub use slabs::{VertexSink, Workspace};
 pub use streaming::{
     LayerSource, StreamError, StreamStats, Streamed, extract_streamed, extract_streamed_with,
 };
 
 use numbering::{Counted, LayerNumbering, ZNumbering};
 use signs::{for_each_mixed_cube, layer_signs, prefetch, row_classes};
-use slabs::{Output, SlabStore, run_slab_pieces, run_slabs};
+use slabs::{SlabStore, run_slabs, run_slabs_sunk};
 
 /// Cube layers per slab. A constant, so that results never depend on the thread count.
 pub const SLAB: usize = 8;
@@ -415,66 +415,62 @@ pub fn extract_view_records_into<V: SlabVertex>(
     Ok((vertices, triangles))
 }
 
-/// One slab's vertices and triangles, apart from the other slabs' (see
-/// [`extract_view_pieces_into`]).
-pub type Piece<V> = (Vec<V>, Vec<[u32; 3]>);
-
-/// [`extract_view_records_into`] with the mesh left in pieces, one per slab in slab order,
-/// written into the pieces of `reuse` (emptied first) while it has some. Piece `k`'s
-/// vertices are numbered from its own first one; its triangles' numbers at or past its
-/// vertex count name the next pieces' vertices, counted on from there. Shifting each
-/// piece's triangles by the vertices of the pieces before it and joining them in order
-/// gives [`extract_view_records_into`]'s mesh, bit for bit: a caller that converts the
-/// vertices anyway writes each piece straight into its final place, in parallel, where the
-/// joined mesh on more threads would be one more copy. The pieces are the same on any
-/// number of threads.
-pub fn extract_view_pieces_into<V: SlabVertex>(
+/// [`extract_view_records_into`] with the vertex records handed to `sink` slab by slab (see
+/// [`VertexSink`]) rather than kept: returns the vertex count and the triangles, written
+/// into `reuse` (emptied first). The records and triangles are those of
+/// [`extract_view_records_into`], bit for bit and in the same order, on any number of
+/// threads.
+pub fn extract_view_sunk<V: SlabVertex>(
     view: &VolumeView<'_>,
     control: &Control,
-    reuse: Vec<Piece<V>>,
-) -> Result<Vec<Piece<V>>, Cancelled> {
+    sink: &impl VertexSink<V>,
+    reuse: Vec<[u32; 3]>,
+) -> Result<(usize, Vec<[u32; 3]>), Cancelled> {
     let (grid, values) = (&view.grid, view.values);
     match view.level.at_zero() {
-        Some(zero) => extract_pieces(grid, values, zero, control, reuse),
-        None => extract_pieces(grid, values, view.level, control, reuse),
+        Some(zero) => extract_sunk(grid, values, zero, control, sink, reuse),
+        None => extract_sunk(grid, values, view.level, control, sink, reuse),
     }
 }
 
-/// [`extract_view_pieces_into`] over a held volume.
-pub fn extract_volume_pieces_into<V: SlabVertex>(
+/// [`extract_view_sunk`] over a held volume.
+pub fn extract_volume_sunk<V: SlabVertex>(
     volume: &Volume,
     control: &Control,
-    reuse: Vec<Piece<V>>,
-) -> Result<Vec<Piece<V>>, Cancelled> {
-    extract_pieces(&volume.grid, &volume.values, Relative, control, reuse)
+    sink: &impl VertexSink<V>,
+    reuse: Vec<[u32; 3]>,
+) -> Result<(usize, Vec<[u32; 3]>), Cancelled> {
+    extract_sunk(&volume.grid, &volume.values, Relative, control, sink, reuse)
 }
 
-/// The slabs of the whole lattice, each into a piece of its own (see
-/// [`extract_view_pieces_into`]).
-fn extract_pieces<V: SlabVertex, L: Level>(
+/// The slabs of the whole lattice, their vertices handed to `sink` (see
+/// [`extract_view_sunk`]).
+fn extract_sunk<V: SlabVertex, L: Level>(
     grid: &Grid,
     values: &[f32],
     level: L,
     control: &Control,
-    reuse: Vec<Piece<V>>,
-) -> Result<Vec<Piece<V>>, Cancelled> {
+    sink: &impl VertexSink<V>,
+    reuse: Vec<[u32; 3]>,
+) -> Result<(usize, Vec<[u32; 3]>), Cancelled> {
     let grid = *grid;
     let slabs = slab_count(&grid);
     if slabs == 0 {
-        return Ok(Vec::new());
+        return Ok((0, Vec::new()));
     }
     let [nx, ny, _] = grid.dims;
     let cube_layers = grid.dims[2] - 1;
     let done = AtomicU64::new(0);
-    let reuse = reuse.into_iter().map(|(vertices, triangles)| Output { vertices, triangles });
-    let (pieces, _) = run_slab_pieces(slabs, [nx, ny], reuse.collect(), |s, scratch, store| {
-        let z0 = s * SLAB;
-        let z1 = (z0 + SLAB).min(cube_layers);
-        let near = Near { values, first: 0, layers: grid.dims[2], dims: grid.dims, level };
-        extract_slab(&grid, &near, (z0, z1), scratch, store, control)?;
-        slab_done(control, &done, z1 - z0, cube_layers, "extracting")
-    })?;
-    Ok(pieces.into_iter().map(|o| (o.vertices, o.triangles)).collect())
+    let workspace = Workspace::shared();
+    let (vertices, triangles, _) =
+        run_slabs_sunk(slabs, [nx, ny], workspace, sink, reuse, |s, scratch, store| {
+            let z0 = s * SLAB;
+            let z1 = (z0 + SLAB).min(cube_layers);
+            let near = Near { values, first: 0, layers: grid.dims[2], dims: grid.dims, level };
+            extract_slab(&grid, &near, (z0, z1), scratch, store, control)?;
+            slab_done(control, &done, z1 - z0, cube_layers, "extracting")
+        })?;
+    Ok((vertices, triangles))
 }
 
 /// [`extract_positions`] on raw values read in place at a level: the mesh is the one of the
@@ -1168,11 +1164,23 @@ mod tests {
         }
     }
 
-    /// The slabs' pieces, each shifted by the vertices of those before it and joined, are
-    /// the whole mesh bit for bit, one piece per slab, on any number of threads, into fresh
-    /// pieces or those of the last run (and over a held volume as over a view of it).
+    /// Vertices handed to a sink slab by slab, with the triangles, are the mesh bit for bit
+    /// on any number of threads, into fresh arrays or those of the last run (and over a held
+    /// volume as over a view of it); every vertex is handed over once.
     #[test]
-    fn pieces_joined_are_the_mesh() {
+    fn sunk_vertices_are_the_mesh() {
+        /// An [`Assembly`] that counts the vertices it is given.
+        struct Counting(crate::grid::Assembly<[f32; 3]>, AtomicU64);
+        impl VertexSink<[f32; 3]> for Counting {
+            fn reserve(&self, needed: usize, wanted: usize) {
+                self.0.reserve(needed, wanted);
+            }
+            unsafe fn place(&self, first: usize, vertices: &[[f32; 3]]) {
+                self.1.fetch_add(vertices.len() as u64, Ordering::Relaxed);
+                // SAFETY: this method's contract.
+                unsafe { self.0.place(first, vertices, |v| v) }
+            }
+        }
         let dims = [41, 37, 5 * SLAB + 3];
         let grid = Grid { origin: DVec3::ZERO, cell: 1.0, dims };
         let raw = noise(dims.iter().product(), 23);
@@ -1181,30 +1189,26 @@ mod tests {
         let control = Control::default();
         let fresh = extract_view_positions(&view, &control).unwrap_or_else(|_| unreachable!());
         assert!(fresh.1.len() > 10_000);
-        let join = |pieces: &[Piece<[f32; 3]>]| {
-            let (mut v, mut t) = (Vec::new(), Vec::new());
-            for (pv, pt) in pieces {
-                let shift = v.len() as u32;
-                t.extend(pt.iter().map(|x| x.map(|i| i + shift)));
-                v.extend_from_slice(pv);
-            }
-            (v, t)
-        };
         for threads in [1, 2, 3] {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build();
             let pool = pool.unwrap_or_else(|e| panic!("{e}"));
             pool.install(|| {
-                let mut kept = Vec::new();
-                for run in 0..3 {
-                    let got = extract_view_pieces_into(&view, &control, kept)
-                        .unwrap_or_else(|_| unreachable!());
-                    assert_eq!(got.len(), slab_count(&grid));
-                    assert!(join(&got) == fresh, "run {run} on {threads} threads differs");
+                let mut kept = (Vec::new(), Vec::new());
+                for run in 0..4 {
+                    let sink = Counting(crate::grid::Assembly::from_vec(kept.0), AtomicU64::new(0));
+                    let (n, triangles) = if run == 3 {
+                        extract_volume_sunk(&volume, &control, &sink, kept.1)
+                    } else {
+                        extract_view_sunk(&view, &control, &sink, kept.1)
+                    }
+                    .unwrap_or_else(|_| unreachable!());
+                    assert_eq!(sink.1.load(Ordering::Relaxed), n as u64);
+                    // SAFETY: the extractor placed vertices 0..n (checked by their count).
+                    let vertices = unsafe { sink.0.into_vec(n, true) };
+                    let got = (vertices, triangles);
+                    assert!(got == fresh, "run {run} on {threads} threads differs");
                     kept = got;
                 }
-                let held = extract_volume_pieces_into(&volume, &control, Vec::new())
-                    .unwrap_or_else(|_| unreachable!());
-                assert!(join(&held) == fresh, "the held volume's pieces differ");
             });
         }
     }

@@ -80,17 +80,149 @@ where
         }
         return Ok((out.vertices, out.triangles, results));
     }
-    let chain = Mutex::new(Chain::new(slabs));
-    let lock = || chain.lock().unwrap_or_else(|e| e.into_inner());
     // The mesh goes into the memory of `reuse` where it has some (see `Assembly::from_vec`).
     let reused = [reuse.0.capacity() > 0, reuse.1.capacity() > 0];
     let (vertices, triangles) = (Assembly::from_vec(reuse.0), Assembly::from_vec(reuse.1));
+    let ([nv, nt], results) =
+        place_slabs(threads, slabs, [nx, ny], workspace, &vertices, &triangles, false, slab)?;
+    // SAFETY: every slab was placed (`place_slabs`): slab k wrote vertices and triangles
+    // from the ends of slab k − 1's, as many as it has, so together they cover 0..nv and
+    // 0..nt.
+    let (vertices, triangles) =
+        unsafe { (vertices.into_vec(nv, reused[0]), triangles.into_vec(nt, reused[1])) };
+    Ok((vertices, triangles, results))
+}
+
+/// Where [`run_slabs_sunk`] puts the mesh's vertices: each slab's, as soon as their numbers
+/// in the mesh are known, while the slab's records are still in the cache. A caller that
+/// converts the records anyway (into the arrays it hands on) writes them there straight
+/// away, with no mesh of records written to memory and read back in between.
+pub trait VertexSink<V>: Sync {
+    /// Makes room for at least `needed` vertices, for `wanted` if it has to grow (a guess
+    /// at the final count).
+    fn reserve(&self, needed: usize, wanted: usize);
+
+    /// Takes vertices `first..first + vertices.len()` of the mesh.
+    ///
+    /// # Safety
+    /// Those vertices lie within a size [`reserve`](Self::reserve)d before, and no other
+    /// call takes any of them: each slab's range is its own (calls for different slabs may
+    /// run at once, on different threads, in any order), and together they cover the mesh.
+    unsafe fn place(&self, first: usize, vertices: &[V]);
+}
+
+impl<V: Copy + Send + Sync> VertexSink<V> for Assembly<V> {
+    fn reserve(&self, needed: usize, wanted: usize) {
+        Assembly::reserve(self, needed, wanted);
+    }
+
+    unsafe fn place(&self, first: usize, vertices: &[V]) {
+        // SAFETY: the trait's contract is `Assembly::place`'s.
+        unsafe { Assembly::place(self, first, vertices, |v| v) }
+    }
+}
+
+/// What [`run_slabs_sunk`] returns: the mesh's vertex count, its triangles, and each slab's
+/// result in slab order.
+type Sunk<T> = (usize, Vec<[u32; 3]>, Vec<T>);
+
+/// [`run_slabs`] with the vertices handed to `sink` (see [`VertexSink`]) instead of kept in
+/// one vector of records; returns their count, the triangles and each slab's result. The
+/// triangles go into `reuse` (emptied first), as in [`run_slabs`]: on one thread the slabs
+/// write them there themselves, numbered in the mesh; on more, each slab's are placed there
+/// (shifted) as its vertices are. On one thread the records of each slab go to one buffer,
+/// which stays in the cache from slab to slab, and on to `sink` when the slab is done.
+pub(super) fn run_slabs_sunk<V, T, E>(
+    slabs: usize,
+    [nx, ny]: [usize; 2],
+    workspace: &Workspace,
+    sink: &impl VertexSink<V>,
+    reuse: Vec<[u32; 3]>,
+    slab: impl Fn(usize, &mut Scratch, &mut SlabStore<V>) -> Result<T, E> + Sync,
+) -> Result<Sunk<T>, E>
+where
+    V: SlabVertex,
+    T: Send,
+    E: Send,
+{
+    let threads = rayon::current_num_threads().min(slabs);
+    let reused = reuse.capacity() > 0;
+    if threads <= 1 {
+        let buffer = workspace.take::<V>().map(|o| o.vertices).unwrap_or_default();
+        let mut out = Output { vertices: buffer, triangles: reuse };
+        out.triangles.clear();
+        let mut scratch = Scratch::new(nx, ny);
+        let (mut hint, mut results, mut made) = ((0, 0), Vec::with_capacity(slabs), 0usize);
+        for k in 0..slabs {
+            out.vertices.clear();
+            let before = out.triangles.len();
+            // The slab's vertices are numbered on from those sunk already.
+            let mut store = SlabStore::numbered(&mut out, hint, made as u32);
+            results.push(slab(k, &mut scratch, &mut store)?);
+            let n = out.vertices.len();
+            let end = made + n;
+            // Room for the rest if they are like the slabs so far, with a margin.
+            sink.reserve(end, end + end / (k + 1) * (slabs - k) * 5 / 4);
+            // SAFETY: reserved just above; the slabs' ranges follow each other.
+            unsafe { sink.place(made, &out.vertices) };
+            made = end;
+            hint = (n, out.triangles.len() - before);
+        }
+        if !reused {
+            out.triangles.shrink_to_fit();
+        }
+        let triangles = std::mem::take(&mut out.triangles);
+        // As many kept as runs on more threads keep (`place_slabs`), so that alternating
+        // runs do not drop and remake buffers.
+        workspace.keep(vec![out], slabs);
+        return Ok((made, triangles, results));
+    }
+    let triangles = Assembly::from_vec(reuse);
+    // Tight buffers, as many as the slabs need: see `place_slabs`.
+    let ([nv, nt], results) =
+        place_slabs(threads, slabs, [nx, ny], workspace, sink, &triangles, true, slab)?;
+    // SAFETY: every slab's triangles were placed (`place_slabs`), together covering 0..nt.
+    let triangles = unsafe { triangles.into_vec(nt, reused) };
+    Ok((nv, triangles, results))
+}
+
+/// The slabs on `threads` (two or more) workers, each slab's vertices handed to `vertices`
+/// and its triangles placed in `triangles` (shifted) as soon as every slab below it has been
+/// handed over (see [`run_slabs`]); returns the mesh's vertex and triangle counts, which the
+/// placed ranges cover, and each slab's result in slab order.
+///
+/// A slab waits in its buffer until the slabs below it are handed over, so a thread that
+/// runs ahead of another (on lighter slabs, or while the other is descheduled) takes a
+/// buffer per slab. With `tight`, each buffer makes room for about its thread's last slab
+/// only, not for huge pages' worth, and every buffer is kept for the next run: a run that
+/// needs many takes kept ones rather than fresh memory that costs page faults (the
+/// memory held is about one mesh's). Otherwise two per thread are kept.
+#[allow(clippy::too_many_arguments)]
+fn place_slabs<V, T, E>(
+    threads: usize,
+    slabs: usize,
+    [nx, ny]: [usize; 2],
+    workspace: &Workspace,
+    vertices: &impl VertexSink<V>,
+    triangles: &Assembly<[u32; 3]>,
+    tight: bool,
+    slab: impl Fn(usize, &mut Scratch, &mut SlabStore<V>) -> Result<T, E> + Sync,
+) -> Result<([usize; 2], Vec<T>), E>
+where
+    V: SlabVertex,
+    T: Send,
+    E: Send,
+{
+    let chain = Mutex::new(Chain::new(slabs));
+    let lock = || chain.lock().unwrap_or_else(|e| e.into_inner());
     claim_slabs(threads, slabs, [nx, ny], |k, scratch, hint| {
         let spare = lock().spare.pop();
         let mut out = spare.or_else(|| workspace.take()).unwrap_or_default();
         out.vertices.clear();
         out.triangles.clear();
-        let result = slab(k, scratch, &mut SlabStore::new(&mut out, *hint));
+        let mut store = SlabStore::new(&mut out, *hint);
+        store.tight = tight;
+        let result = slab(k, scratch, &mut store);
         *hint = (out.vertices.len(), out.triangles.len());
         let (ready, [nv, nt], placed) = match result {
             Ok(r) => lock().hand_over(k, r, out),
@@ -108,26 +240,27 @@ where
             triangles.reserve(nt, guess(nt));
         }
         for (o, [v0, t0]) in &ready {
-            vertices.place(*v0, &o.vertices, |v| v);
             let shift = *v0 as u32;
-            triangles.place(*t0, &o.triangles, |t| t.map(|i| i + shift));
+            // SAFETY: the chain hands each slab over once, with the ends of the slabs below
+            // it as its start, so slabs' ranges are disjoint; reserved above up to the end
+            // of the last ready slab.
+            unsafe {
+                vertices.place(*v0, &o.vertices);
+                triangles.place(*t0, &o.triangles, |t| t.map(|i| i + shift));
+            }
         }
         lock().spare.extend(ready.into_iter().map(|(o, _)| o));
         true
     });
     let mut chain = chain.into_inner().unwrap_or_else(|e| e.into_inner());
-    workspace.keep(std::mem::take(&mut chain.spare), 2 * threads);
+    let most = if tight { slabs } else { 2 * threads };
+    workspace.keep(std::mem::take(&mut chain.spare), most);
     if let Some((_, e)) = chain.error {
         return Err(e);
     }
     assert_eq!(chain.placed, slabs, "a slab was never placed");
-    let [nv, nt] = chain.end;
-    // SAFETY: every slab was placed: slab k wrote vertices and triangles from the ends of
-    // slab k − 1's, as many as it has, so together they cover 0..nv and 0..nt.
-    let (vertices, triangles) =
-        unsafe { (vertices.into_vec(nv, reused[0]), triangles.into_vec(nt, reused[1])) };
     let results = chain.results.into_iter().flatten().collect();
-    Ok((vertices, triangles, results))
+    Ok((chain.end, results))
 }
 
 /// Runs `each` on slabs `0..slabs` on `threads` workers (the calling thread alone for one),
@@ -164,68 +297,6 @@ fn claim_slabs(
             }
         });
     }
-}
-
-/// A slab's output and result, as [`run_slab_pieces`] collects them.
-type Ran<V, T> = (Output<V>, T);
-
-/// Runs `slab` on every slab, each into an [`Output`] of its own, and returns them in slab
-/// order with each slab's result, not joined: a caller that converts the vertices anyway
-/// writes each piece straight into its final place (see [`super::extract_view_pieces_into`]),
-/// where [`run_slabs`] on more threads would first copy it into one mesh. Each piece is
-/// numbered from its own first vertex; a reference to the layer above is numbered just past
-/// the piece's own vertices, on the next piece's first ones. Threads claim slabs lowest
-/// first; slab `k` runs into `reuse[k]` (emptied first) where there is one: a caller's
-/// pieces of its last extraction, already in memory, and of the right size when the volume
-/// is like the last one. The pieces do not depend on the
-/// thread count nor on `reuse`.
-pub(super) fn run_slab_pieces<V, T, E>(
-    slabs: usize,
-    [nx, ny]: [usize; 2],
-    reuse: Vec<Output<V>>,
-    slab: impl Fn(usize, &mut Scratch, &mut SlabStore<V>) -> Result<T, E> + Sync,
-) -> Result<(Vec<Output<V>>, Vec<T>), E>
-where
-    V: SlabVertex,
-    T: Send,
-    E: Send,
-{
-    let threads = rayon::current_num_threads().clamp(1, slabs.max(1));
-    let spare: Mutex<Vec<Option<Output<V>>>> = Mutex::new(reuse.into_iter().map(Some).collect());
-    let done: Mutex<Vec<Option<Ran<V, T>>>> = Mutex::new((0..slabs).map(|_| None).collect());
-    let error: Mutex<Option<(usize, E)>> = Mutex::new(None);
-    claim_slabs(threads, slabs, [nx, ny], |k, scratch, hint| {
-        let taken =
-            spare.lock().unwrap_or_else(|e| e.into_inner()).get_mut(k).and_then(Option::take);
-        let mut out = taken.unwrap_or_default();
-        out.vertices.clear();
-        out.triangles.clear();
-        match slab(k, scratch, &mut SlabStore::tight(&mut out, *hint)) {
-            Ok(r) => {
-                *hint = (out.vertices.len(), out.triangles.len());
-                done.lock().unwrap_or_else(|e| e.into_inner())[k] = Some((out, r));
-                true
-            }
-            Err(e) => {
-                let mut error = error.lock().unwrap_or_else(|e| e.into_inner());
-                if error.as_ref().is_none_or(|(at, _)| k < *at) {
-                    *error = Some((k, e));
-                }
-                false
-            }
-        }
-    });
-    if let Some((_, e)) = error.into_inner().unwrap_or_else(|e| e.into_inner()) {
-        return Err(e);
-    }
-    let done = done.into_inner().unwrap_or_else(|e| e.into_inner());
-    let (mut pieces, mut results) = (Vec::with_capacity(slabs), Vec::with_capacity(slabs));
-    for d in done {
-        let (out, r) = d.expect("a slab was never run");
-        pieces.push(out);
-        results.push(r);
-    }
-    Ok((pieces, results))
 }
 
 /// Slab buffers kept from one extraction to the next, so that a program that extracts again
@@ -341,20 +412,22 @@ pub(super) struct SlabStore<'a, V> {
     hint: (usize, usize),
     /// The first triangle that may refer to the layer above.
     borrowing: usize,
-    /// Room made for the hint alone, not for huge pages' worth: a piece of its own per slab
-    /// ([`run_slab_pieces`]), where room ahead in every one would be memory held in each.
+    /// The number of the output's first vertex: the vertices of earlier slabs that are no
+    /// longer in it ([`run_slabs_sunk`] on one thread).
+    first: u32,
+    /// Room made for the hint alone, not for huge pages' worth (see [`place_slabs`]).
     tight: bool,
 }
 
 impl<'a, V: SlabVertex> SlabStore<'a, V> {
     pub(super) fn new(out: &'a mut Output<V>, hint: (usize, usize)) -> Self {
         let borrowing = usize::MAX;
-        SlabStore { out, hint, borrowing, tight: false }
+        SlabStore { out, hint, borrowing, first: 0, tight: false }
     }
 
-    /// A store that makes room for its hint alone (see `tight`).
-    fn tight(out: &'a mut Output<V>, hint: (usize, usize)) -> Self {
-        SlabStore { tight: true, ..SlabStore::new(out, hint) }
+    /// A store whose vertices are numbered from `first` on (see `first`).
+    fn numbered(out: &'a mut Output<V>, hint: (usize, usize), first: u32) -> Self {
+        SlabStore { first, ..SlabStore::new(out, hint) }
     }
 
     pub(super) fn begin(&mut self) {
@@ -365,7 +438,7 @@ impl<'a, V: SlabVertex> SlabStore<'a, V> {
         }
         make_room(&mut self.out.vertices, 2 * self.hint.0);
         make_room(&mut self.out.triangles, 2 * self.hint.1);
-        debug_assert!(self.out.vertices.len() < BORROWED as usize);
+        debug_assert!((self.first as usize + self.out.vertices.len()) < BORROWED as usize);
     }
 
     /// How many vertices and triangles the output holds (a slab's own are the difference
@@ -377,7 +450,7 @@ impl<'a, V: SlabVertex> SlabStore<'a, V> {
     /// The number of the next vertex.
     #[inline]
     pub(super) fn made(&self) -> u32 {
-        self.out.vertices.len() as u32
+        self.first + self.out.vertices.len() as u32
     }
 
     #[inline]
