@@ -34,6 +34,11 @@
 //! components are propagated one after another. (An evaluation pass walking every component at once, for
 //! larger batches where components are small, was tried: it made the same mesh but cost
 //! more in lookups than it saved.)
+//! With corner gradients, root finding overlaps propagation: each run hands its edge
+//! vertices, a chunk at a time as they are made, to jobs on the pool (see `pipe`), so a
+//! thread left idle by a serial propagation (the hand: one component) refines them
+//! meanwhile; the chunks are a component's own, and each vertex is refined as it would be
+//! afterwards, so the mesh is the same, byte for byte.
 //!
 //! Not guaranteed: components without
 //! a seed are found (give seeds, or let the domain search look for them; it can miss

@@ -148,18 +148,22 @@ impl Pipe {
     /// Hands the waiting vertices over in full chunks (and, with `all`, the rest as one
     /// shorter chunk), each to `spawn`, or refined here and now without one.
     pub fn hand_over<'a>(&mut self, how: How<'a>, spawn: Option<&dyn Fn(Job<'a>)>, all: bool) {
-        while self.ids.len() >= CHUNK || (all && !self.ids.is_empty()) {
-            let n = self.ids.len().min(CHUNK);
-            let (ids_rest, brackets_rest) = (self.ids.split_off(n), self.brackets.split_off(n));
-            let ids = std::mem::replace(&mut self.ids, ids_rest);
-            let brackets = std::mem::replace(&mut self.brackets, brackets_rest);
+        // Each bracket is copied once, into its job; the waiting ones keep their storage.
+        let n = if all { self.ids.len() } else { self.ids.len() / CHUNK * CHUNK };
+        if n == 0 {
+            return;
+        }
+        for (ids, brackets) in self.ids[..n].chunks(CHUNK).zip(self.brackets[..n].chunks(CHUNK)) {
+            let brackets = brackets.to_vec();
             self.done.bytes.fetch_add(vec_bytes(&brackets), Ordering::Relaxed);
-            let job = Job { how, ids, brackets, done: Arc::clone(&self.done) };
+            let job = Job { how, ids: ids.to_vec(), brackets, done: Arc::clone(&self.done) };
             match spawn {
                 Some(spawn) => spawn(job),
                 None => job.run(),
             }
         }
+        self.ids.drain(..n);
+        self.brackets.drain(..n);
     }
 
     /// Drops the waiting vertices (of a component propagated for nothing, or of a failed
