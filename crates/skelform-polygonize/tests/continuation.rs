@@ -495,6 +495,86 @@ fn cancellation_stops_the_run() {
     assert_eq!(polygonize(&sphere, &opts).unwrap_err(), Error::Cancelled);
 }
 
+/// Root finding overlapped with propagation (a field with an exact gradient): a torus
+/// reached from 24 seeds around it, so that on several threads components are propagated
+/// for nothing and their vertices, refined already or not, are dropped, and six small
+/// spheres each reached from a seed. Every thread count gives the one thread's mesh
+/// (positions, normals, triangles) and statistics, root finding's evaluations included; the
+/// mesh is closed and its vertices lie on the surface.
+#[test]
+fn overlapped_root_finding_gives_the_one_thread_mesh_and_counts() {
+    let centres: Vec<DVec3> = (0..6)
+        .map(|i| {
+            let a = i as f64 * std::f64::consts::TAU / 6.0;
+            DVec3::new(0.9 * a.cos(), 0.9 * a.sin(), 0.0)
+        })
+        .collect();
+    let mut src = "sqrt((sqrt(x^2 + y^2) - 0.45)^2 + z^2) - 0.12".to_string();
+    for c in &centres {
+        src = format!("min({src}, sqrt((x - {})^2 + (y - {})^2 + z^2) - 0.07)", c.x, c.y);
+    }
+    let f = Formula::parse(&src).unwrap();
+    assert!(f.has_exact_gradient());
+    let mut seeds = Vec::new();
+    for i in 0..24 {
+        let a = (i * 7 % 24) as f64 * std::f64::consts::TAU / 24.0;
+        seeds.push(DVec3::new(0.45 * a.cos(), 0.45 * a.sin(), 0.0));
+        if i % 4 == 0 {
+            seeds.push(centres[i / 4] * 1.01);
+        }
+    }
+    let domain = Aabb::new(DVec3::splat(-1.05), DVec3::splat(1.05));
+    let go = |threads| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| run(&f, domain, 0.015, &seeds, Cells::Cubes))
+    };
+    let (one, s1) = go(1);
+    closed(&one, &[0, 0, 0, 0, 0, 0, 1], "torus and spheres");
+    assert_eq!(s1.components.len(), 7);
+    // More vertices than one chunk of root finding, so that chunks are handed over while
+    // propagating.
+    assert!(s1.vertices > 4 * 1024, "{s1:?}");
+    assert!(s1.refine_evaluations >= s1.vertices as u64 * 9 / 10, "{s1:?}");
+    let worst = one
+        .positions
+        .iter()
+        .map(|p| f.eval(DVec3::from_array(p.map(f64::from))).abs())
+        .fold(0.0, f64::max);
+    assert!(worst < 1e-3 * s1.cell, "{worst}");
+    let s1 = untimed(s1);
+    for threads in [2, 3, 4, 8, 2] {
+        let (m, s) = go(threads);
+        assert!(m == one, "{threads} threads");
+        assert_eq!(untimed(s), s1, "{threads} threads");
+    }
+}
+
+/// Cancelled while propagating, with root finding overlapped (a field with an exact
+/// gradient): the run stops with the cancellation, not with a partial mesh.
+#[test]
+fn cancellation_stops_a_run_with_overlapped_root_finding() {
+    use skelform_field::control::Control;
+    use std::ops::ControlFlow;
+    let sphere = Formula::parse("sqrt(x^2 + y^2 + z^2) - 0.8").unwrap();
+    assert!(sphere.has_exact_gradient());
+    for threads in [1, 2] {
+        let opts = Options {
+            lattice: LatticeOptions {
+                domain: Aabb::cube(1.0),
+                resolution: Resolution::Cell(0.01),
+                threads: skelform_polygonize::Threads::Count(threads),
+                control: Control::with_callback(|p| {
+                    if p.done > 20_000 { ControlFlow::Break(()) } else { ControlFlow::Continue(()) }
+                }),
+                ..Default::default()
+            },
+            seeds: vec![DVec3::ZERO],
+            ..Options::default()
+        };
+        assert_eq!(polygonize(&sphere, &opts).unwrap_err(), Error::Cancelled, "{threads}");
+    }
+}
+
 /// Statistics without their timings, to compare runs.
 fn untimed(mut s: Stats) -> Stats {
     use std::time::Duration;

@@ -205,24 +205,6 @@ impl Lattice {
         }
     }
 
-    /// [`Lattice::grad`] through a shared reference (for lookups on several threads), with
-    /// the caller's cache of the last brick found.
-    #[inline]
-    pub fn grad_shared(&self, p: [u32; 3], last: &mut Option<(u64, u32)>) -> [f32; 3] {
-        let key = self.brick_key(p);
-        let i = match *last {
-            Some((k, i)) if k == key => i,
-            _ => match self.index.get(&key) {
-                Some(&i) => {
-                    *last = Some((key, i));
-                    i
-                }
-                None => return [f32::NAN; 3],
-            },
-        };
-        self.bricks[i as usize].grads.get(slot(p)).copied().unwrap_or([f32::NAN; 3])
-    }
-
     /// Marks a point for evaluation; true if it was not known nor queued before.
     #[inline]
     pub fn queue(&mut self, p: [u32; 3]) -> bool {

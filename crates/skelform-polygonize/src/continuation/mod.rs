@@ -34,12 +34,18 @@
 //! components are propagated one after another. (An evaluation pass walking every component at once, for
 //! larger batches where components are small, was tried: it made the same mesh but cost
 //! more in lookups than it saved.)
+//! With corner gradients, root finding overlaps propagation: each run hands its edge
+//! vertices, a chunk at a time as they are made, to jobs on the pool (see `pipe`), so a
+//! thread left idle by a serial propagation (the hand: one component) refines them
+//! meanwhile; the chunks are a component's own, and each vertex is refined as it would be
+//! afterwards, so the mesh is the same, byte for byte.
 //!
 //! Not guaranteed: components without
 //! a seed are found (give seeds, or let the domain search look for them; it can miss
 //! components smaller than its stride).
 
 mod lattice;
+mod pipe;
 mod seeds;
 pub mod tetra;
 
@@ -53,17 +59,17 @@ use skelform_mesh::Mesh;
 
 use crate::grid::cell::{CubeSink, case_of, crossing, polygonize_cube};
 use crate::grid::cube::{CORNERS, EDGES, FACES};
-use crate::grid::{GridVertex, Place, Placement, Slide, place_cells, place_vertices};
+use crate::grid::{GridVertex, Place, Placement, Slide, dir_vector, place_cells, place_vertices};
 use crate::lattice::cubes::CubeLattice;
 use crate::lattice::memory::vec_bytes;
 use crate::lattice::propagate::{Cubes, Limits, Order, Stops, propagate};
 use crate::lattice::search::CoarseSearch;
 use crate::refine::{
-    GradBracket, RootMethod, RootOptions, fill_from_faces, gradient_normals, hermite_roots,
-    refine_roots_with_gradients, unit_gradients,
+    GradBracket, RootMethod, RootOptions, fill_from_faces, gradient_normals, unit_gradients,
 };
 use crate::{Error, LatticeOptions, Resolution};
 use lattice::Lattice;
+use pipe::{How, Job, Pipe};
 use tetra::{TetraSink, polygonize_tetrahedra};
 
 /// How each cube is polygonized.
@@ -212,7 +218,10 @@ pub struct Stats {
     /// Wall time of propagating cubes across the surface and polygonizing them.
     #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub propagation: Duration,
-    /// Wall time of root finding on the crossed edges.
+    /// Wall time of root finding on the crossed edges. With corner gradients (a field with
+    /// an exact gradient), most of it overlaps propagation (see `pipe`), and this is only
+    /// what is left after it: the last chunks, the vertices inside cells and gathering the
+    /// positions.
     #[cfg_attr(feature = "serde", serde(serialize_with = "crate::summary::seconds"))]
     pub refinement: Duration,
     /// Wall time of computing vertex normals.
@@ -281,13 +290,17 @@ fn polygonize_here(field: &dyn Field, options: &Options) -> Result<(Mesh, Stats)
     let near = run.surface_cubes_near(starts.iter().map(|s| s.2.point()));
     // The bisections that started a component, finished afterwards (see `Bisection`).
     let mut unfinished = Vec::new();
-    for ((seed_index, seed, start), near) in starts.into_iter().zip(near) {
-        let Some(cube) = near else {
-            run.stats.seed_notes.push(SeedNote::NoSurface { seed });
-            continue;
-        };
-        run.start_component(seed, seed_index, cube, start, &mut unfinished)?;
-    }
+    rayon::scope(|s| {
+        let spawn = pipe::spawner(s);
+        for ((seed_index, seed, start), near) in starts.into_iter().zip(near) {
+            let Some(cube) = near else {
+                run.stats.seed_notes.push(SeedNote::NoSurface { seed });
+                continue;
+            };
+            run.start_component(seed, seed_index, cube, start, &mut unfinished, &spawn)?;
+        }
+        Ok::<(), Error>(())
+    })?;
     run.stats.propagation = t.elapsed();
     let t = Instant::now();
     let field = run.field;
@@ -322,10 +335,9 @@ struct Run<'a> {
     stats: Stats,
     /// Bytes of the list of starts, held while the components are propagated.
     starts_bytes: u64,
-    /// The corner gradients at the two ends of each vertex's segment, when the vertices
-    /// were gathered from runs on several threads (their lattices are gone by the time
-    /// vertices are placed); empty when they are looked up in `lattice`.
-    end_grads: Vec<[[f32; 3]; 2]>,
+    /// With corner gradients: the edge vertices waiting for root finding, and those placed
+    /// already (see `pipe`).
+    pipe: Pipe,
     /// Whether corners are evaluated with their gradients, for root finding from the
     /// segment ends' values and slopes ([`refine_roots_with_gradients`]) and normals from
     /// its gradients: for fields with an exact gradient (about as cheap as the value), with
@@ -346,7 +358,7 @@ impl<'a> Run<'a> {
             triangles: Vec::new(),
             stats: Stats { cell: grid.cell, ..Stats::default() },
             starts_bytes: 0,
-            end_grads: Vec::new(),
+            pipe: Pipe::default(),
             gradients: field.has_exact_gradient()
                 && opts.lattice.refine
                 && matches!(opts.root, RootMethod::RegulaFalsi | RootMethod::Hermite),
@@ -445,13 +457,14 @@ impl<'a> Run<'a> {
         cube: [u32; 3],
         start: Bisection,
         unfinished: &mut Vec<Bisection>,
+        spawn: &dyn Fn(Job<'a>),
     ) -> Result<(), Error> {
         if let Some(owner) = self.lattice.owner(cube) {
             self.stats.seed_notes.push(SeedNote::SameComponent { seed, as_seed: owner });
             return Ok(());
         }
         let before = (self.lattice.visited(), self.triangles.len());
-        self.propagate(cube, seed_index)?;
+        self.propagate(cube, seed_index, spawn)?;
         unfinished.push(start);
         self.stats.components.push(Component {
             seed,
@@ -563,8 +576,13 @@ impl<'a> Run<'a> {
 
     /// Breadth-first propagation from one cube, in waves processed in lattice order; its
     /// stops are recorded in the statistics.
-    fn propagate(&mut self, start: [u32; 3], seed_index: usize) -> Result<(), Error> {
-        let stops = self.propagate_with(start, seed_index, None)?;
+    fn propagate(
+        &mut self,
+        start: [u32; 3],
+        seed_index: usize,
+        spawn: &dyn Fn(Job<'a>),
+    ) -> Result<(), Error> {
+        let stops = self.propagate_with(start, seed_index, None, spawn)?;
         self.record_stops(stops);
         Ok(())
     }
@@ -591,6 +609,7 @@ impl<'a> Run<'a> {
         start: [u32; 3],
         seed_index: usize,
         shared: Option<(&seeds::Shared, usize)>,
+        spawn: &dyn Fn(Job<'a>),
     ) -> Result<Stops, Error> {
         let limits = Limits {
             max_cells: self.opts.max_cells,
@@ -600,8 +619,42 @@ impl<'a> Run<'a> {
             method: self.method(),
         };
         let (lattice, control) = (self.cubes, &self.opts.lattice.control);
-        let mut walk = Walk { run: self, seed: seed_index, shared, abandoned: false };
-        propagate(&mut walk, &lattice, [start], &limits, Order::Lattice, control, "propagating")
+        let mut walk = Walk { run: self, seed: seed_index, shared, abandoned: false, spawn };
+        let stops = propagate(
+            &mut walk,
+            &lattice,
+            [start],
+            &limits,
+            Order::Lattice,
+            control,
+            "propagating",
+        );
+        // The component's last vertices are its last chunk; a component propagated for
+        // nothing, or a failed run, refines no more.
+        match &stops {
+            Ok(s) if !s.abandoned => self.hand_over(Some(spawn), true),
+            _ => self.pipe.discard(),
+        }
+        stops
+    }
+
+    /// What refining a chunk needs (see `pipe`).
+    fn how(&self) -> How<'a> {
+        let roots = self.root_options();
+        How {
+            field: self.field,
+            roots,
+            normals: self.opts.lattice.normals,
+            colors: self.field.has_colors() && roots.method != RootMethod::Hermite,
+            control: &self.opts.lattice.control,
+        }
+    }
+
+    /// Hands the edge vertices waiting over to root finding, in full chunks (with `all`, the
+    /// rest too).
+    fn hand_over(&mut self, spawn: Option<&dyn Fn(Job<'a>)>, all: bool) {
+        let how = self.how();
+        self.pipe.hand_over(how, spawn, all);
     }
 
     /// The method's name, for errors.
@@ -622,6 +675,7 @@ impl<'a> Run<'a> {
             + vec_bytes(&self.ends)
             + vec_bytes(&self.vertices)
             + vec_bytes(&self.triangles)
+            + self.pipe.bytes()
             + self.vertices.len() as u64 * placed
     }
 
@@ -703,99 +757,42 @@ impl<'a> Run<'a> {
 }
 
 impl Run<'_> {
-    /// [`Run::finish`] where the corners' gradients are known: edge vertices are placed by
-    /// [`refine_roots_with_gradients`] and take their normals from its gradients; the few
-    /// cell vertices are placed (`grid::place_cells`) and take a gradient each, as in the
-    /// other path.
+    /// [`Run::finish`] where the corners' gradients are known: the edge vertices were
+    /// placed by root finding during propagation (see `pipe`), with their normals (and
+    /// colours) from its evaluations; the few cell vertices are placed here
+    /// (`grid::place_cells`) and take a gradient each, as in the other path.
     fn finish_with_gradients(mut self) -> Result<(Mesh, Stats), Error> {
         let t = Instant::now();
+        if self.pipe.skipped() {
+            return Err(Error::Cancelled);
+        }
         let grid = self.grid;
-        let at = |p: [u32; 3]| grid.point(p[0] as usize, p[1] as usize, p[2] as usize);
-        let as_d = |g: [f32; 3]| DVec3::from_array(g.map(f64::from));
+        let how = self.how();
+        let n = self.vertices.len();
+        let want_normals = how.normals && !self.triangles.is_empty();
         let mut positions: Vec<DVec3> =
             self.vertices.par_iter().map(|v| v.position(&grid)).collect();
-        let bracket = |i: usize, v: &GridVertex, tip: [u32; 3], [g0, g1]: [[f32; 3]; 2]| {
-            let [f0, f1] = self.ends[i].map(f64::from);
-            let Place::Edge { t, .. } = v.place else { unreachable!("an edge vertex") };
-            GradBracket {
-                p0: at(v.base),
-                p1: at(tip),
-                f0,
-                f1,
-                g0: as_d(g0),
-                g1: as_d(g1),
-                t,
-                grad: DVec3::ZERO,
-            }
-        };
-        let on_edge = |v: &GridVertex| match (v.place, v.tip()) {
-            (Place::Edge { .. }, Some(tip)) => Some(tip),
-            _ => None,
-        };
-        let (edge, mut brackets, cell): (Vec<usize>, Vec<GradBracket>, Vec<usize>);
-        if self.end_grads.is_empty() {
-            // The gradients are in the lattice, whose lookups go one at a time.
-            let (mut e, mut b, mut c) = (Vec::new(), Vec::new(), Vec::new());
-            for (i, v) in self.vertices.iter().enumerate() {
-                match on_edge(v) {
-                    Some(tip) => {
-                        e.push(i);
-                        let g = [self.lattice.grad(v.base), self.lattice.grad(tip)];
-                        b.push(bracket(i, v, tip, g));
-                    }
-                    None => c.push(i),
+        let mut colors = vec![[0f32; 3]; if how.colors { n } else { 0 }];
+        let mut normals = vec![[0f32; 3]; if want_normals { n } else { 0 }];
+        let mut evals = 0;
+        let mut placed = 0;
+        for r in self.pipe.take() {
+            for (k, &i) in r.ids.iter().enumerate() {
+                let i = i as usize;
+                positions[i] = r.positions[k];
+                if want_normals {
+                    normals[i] = r.normals[k];
+                }
+                if how.colors {
+                    colors[i] = r.colors[k];
                 }
             }
-            (edge, brackets, cell) = (e, b, c);
-        } else {
-            // Gathered from several threads, with the gradients alongside: on the threads.
-            let vs = &self.vertices;
-            let is_edge = |&i: &usize| on_edge(&vs[i]).is_some();
-            edge = (0..vs.len()).into_par_iter().filter(is_edge).collect();
-            cell = (0..vs.len()).into_par_iter().filter(|i| !is_edge(i)).collect();
-            brackets = edge
-                .par_iter()
-                .map(|&i| {
-                    let tip = on_edge(&vs[i]).expect("an edge vertex");
-                    bracket(i, &vs[i], tip, self.end_grads[i])
-                })
-                .collect();
+            evals += r.evals;
+            placed += r.ids.len();
         }
-        let roots = self.root_options();
-        // Colours from root finding's evaluations, where the field has them (a coloured
-        // skeleton): the vertices' colours then cost next to nothing. Hermite roots take no
-        // evaluation, so their colours are left to the caller, as before.
-        let hermite = self.opts.root == RootMethod::Hermite;
-        let mut colors = if self.field.has_colors() && !hermite {
-            vec![[0f32; 3]; positions.len()]
-        } else {
-            Vec::new()
-        };
-        let mut evals = if hermite {
-            hermite_roots(&mut brackets, &roots);
-            0
-        } else if colors.is_empty() {
-            refine_roots_with_gradients(self.field, &mut brackets, &roots, None)
-        } else {
-            let mut shades = vec![[0f32; 3]; brackets.len()];
-            let evals =
-                refine_roots_with_gradients(self.field, &mut brackets, &roots, Some(&mut shades));
-            for (&i, c) in edge.iter().zip(shades) {
-                colors[i] = c;
-            }
-            evals
-        };
-        let want_normals = self.opts.lattice.normals && !self.triangles.is_empty();
-        let mut normals = vec![[0f32; 3]; if want_normals { positions.len() } else { 0 }];
-        for (&i, b) in edge.iter().zip(&brackets) {
-            positions[i] = b.p0.lerp(b.p1, b.t);
-            if want_normals {
-                let n = b.grad.normalize_or_zero();
-                if n.is_finite() {
-                    normals[i] = n.as_vec3().to_array();
-                }
-            }
-        }
+        let cell: Vec<usize> =
+            (0..n).filter(|&i| matches!(self.vertices[i].place, Place::Cell { .. })).collect();
+        debug_assert_eq!(placed + cell.len(), n, "every edge vertex placed once");
         if !cell.is_empty() {
             evals += place_cells(
                 self.field,
@@ -848,6 +845,8 @@ struct Walk<'r, 'a, 's> {
     /// A cube of the wave was claimed by an earlier seed's component: this one is the same
     /// component, propagated by that seed.
     abandoned: bool,
+    /// Hands a chunk of edge vertices to root finding on the pool (see `pipe`).
+    spawn: &'s dyn Fn(Job<'a>),
 }
 
 impl Cubes for Walk<'_, '_, '_> {
@@ -858,6 +857,9 @@ impl Cubes for Walk<'_, '_, '_> {
             self.abandoned = true;
             return;
         }
+        // The last wave's vertices, in full chunks, go to root finding before this wave's
+        // corners are evaluated, so that an idle thread takes them up.
+        self.run.hand_over(Some(self.spawn), false);
         self.run.evaluate_corners(wave);
     }
 
@@ -929,11 +931,34 @@ impl RunSink<'_, '_> {
             [self.base[0] + o[0] as u32, self.base[1] + o[1] as u32, self.base[2] + o[2] as u32];
         let dir = (c1 ^ c0) as u8;
         let Run { lattice, vertices, ends: all_ends, .. } = &mut *self.run;
-        lattice.edge_vertex(lo, dir, || {
+        let mut made = false;
+        let id = lattice.edge_vertex(lo, dir, || {
+            made = true;
             vertices.push(GridVertex { base: lo, place: Place::Edge { dir, t } });
             all_ends.push(ends);
             vertices.len() as u32 - 1
-        })
+        });
+        if made && self.run.gradients {
+            // Its bracket is final: the corners' values and gradients are known.
+            let run = &mut *self.run;
+            let d = dir_vector(dir);
+            let hi = [lo[0] + d[0], lo[1] + d[1], lo[2] + d[2]];
+            let grid = run.grid;
+            let at = |p: [u32; 3]| grid.point(p[0] as usize, p[1] as usize, p[2] as usize);
+            let as_d = |g: [f32; 3]| DVec3::from_array(g.map(f64::from));
+            let bracket = GradBracket {
+                p0: at(lo),
+                p1: at(hi),
+                f0: f64::from(ends[0]),
+                f1: f64::from(ends[1]),
+                g0: as_d(run.lattice.grad(lo)),
+                g1: as_d(run.lattice.grad(hi)),
+                t,
+                grad: DVec3::ZERO,
+            };
+            run.pipe.push(id, bracket);
+        }
+        id
     }
 }
 

@@ -51,6 +51,7 @@ use rayon::prelude::*;
 use rustc_hash::FxHashMap;
 
 use super::lattice::Fresh;
+use super::pipe::{Job, Refined};
 use super::{Bisection, Component, Run, SeedNote, search_from};
 use crate::Error;
 use crate::grid::{GridVertex, Place};
@@ -188,10 +189,16 @@ impl Shared {
     }
 }
 
-impl Run<'_> {
+impl<'a> Run<'a> {
     /// Finds the crossed cube of seed `index` and, unless a component holds it already,
-    /// propagates from it; with `shared`, as one of several runs on their own threads.
-    fn seed(&mut self, index: usize, shared: Option<(&Shared, usize)>) -> Result<Outcome, Error> {
+    /// propagates from it; with `shared`, as one of several runs on their own threads. Its
+    /// edge vertices go to root finding through `spawn` as they are made.
+    fn seed(
+        &mut self,
+        index: usize,
+        shared: Option<(&Shared, usize)>,
+        spawn: &dyn Fn(Job<'a>),
+    ) -> Result<Outcome, Error> {
         let seed = self.opts.seeds[index];
         let t = Instant::now();
         let before = (self.stats.search_evaluations, self.stats.corner_evaluations);
@@ -235,7 +242,7 @@ impl Run<'_> {
         let (corners, non_finite, tetra) =
             (self.stats.corner_evaluations, self.stats.non_finite, self.stats.tetra_disagreements);
         self.stats.first_disagreement = None;
-        let stops = self.propagate_with(cube, index, shared)?;
+        let stops = self.propagate_with(cube, index, shared, spawn)?;
         outcome.part = Some(Part {
             run: shared.map_or(0, |s| s.1),
             vertices: vertices..self.vertices.len(),
@@ -287,7 +294,10 @@ pub(super) fn propagate(mut run: Run<'_>) -> Result<Run<'_>, Error> {
             Err(e) => return Err(e),
         }
     }
-    let outcomes = (0..seeds.len()).map(|k| run.seed(k, None)).collect::<Result<Vec<_>, _>>()?;
+    let outcomes = rayon::scope(|s| {
+        let spawn = super::pipe::spawner(s);
+        (0..seeds.len()).map(|k| run.seed(k, None, &spawn)).collect::<Result<Vec<_>, _>>()
+    })?;
     let seed_of = |_, o: &Outcome| o.held_by;
     let mut runs = vec![run];
     Ok(commit(&mut runs, outcomes, seed_of, t, 1)?.expect("one thread never falls back"))
@@ -417,20 +427,44 @@ fn recount(known: &mut FxHashMap<u64, [u64; 8]>, fresh: &[Fresh]) -> (u64, u64) 
 }
 
 /// Copies the components' vertices, segment-end values and triangles from the runs that
-/// propagated them into `out`, in seed order, renumbering the triangles' vertices, and with
-/// corner gradients looks up those at each edge vertex's segment ends; each component on a
-/// thread of its own.
-fn gather(runs: &[Run], parts: &[Part], out: &mut Run) {
+/// propagated them into `out`, in seed order, renumbering the triangles' vertices, each
+/// component on a thread of its own; and the placed edge vertices of those components,
+/// renumbered too (a chunk never spans two components; chunks of components propagated
+/// for nothing are dropped, with their evaluations, as on one thread).
+fn gather(runs: &mut [Run], parts: &[Part], out: &mut Run) {
+    // Per run: its components' vertex ranges and where they start in `out`.
+    let mut starts: Vec<Vec<(Range<usize>, usize)>> = runs.iter().map(|_| Vec::new()).collect();
+    let mut base = 0;
+    for p in parts {
+        starts[p.run].push((p.vertices.clone(), base));
+        base += p.vertices.len();
+    }
+    let mut refined: Vec<Refined> = Vec::new();
+    for (r, starts) in runs.iter_mut().zip(&mut starts) {
+        starts.sort_by_key(|s| s.0.start);
+        for mut chunk in r.pipe.take() {
+            let Some(&first) = chunk.ids.first() else { continue };
+            let first = first as usize;
+            let k = starts.partition_point(|s| s.0.start <= first);
+            let Some((range, base)) = k.checked_sub(1).map(|k| &starts[k]) else { continue };
+            if !range.contains(&first) {
+                continue;
+            }
+            let shift = |i: &mut u32| *i = (*i as usize - range.start + base) as u32;
+            chunk.ids.iter_mut().for_each(shift);
+            refined.push(chunk);
+        }
+    }
+    out.pipe.put(refined);
+    let runs = &*runs;
     let vertices: usize = parts.iter().map(|p| p.vertices.len()).sum();
     let triangles: usize = parts.iter().map(|p| p.triangles.len()).sum();
     let unset = GridVertex { base: [0; 3], place: Place::Edge { dir: 0, t: 0.0 } };
-    let grads = if out.gradients { vertices } else { 0 };
     out.vertices = vec![unset; vertices];
     out.ends = vec![[0.0; 2]; vertices];
     out.triangles = vec![[0; 3]; triangles];
-    out.end_grads = vec![[[0.0; 3]; 2]; grads];
-    let Run { vertices: v, ends: e, triangles: t, end_grads: g, .. } = out;
-    let (mut v, mut e, mut t, mut g) = (&mut v[..], &mut e[..], &mut t[..], &mut g[..]);
+    let Run { vertices: v, ends: e, triangles: t, .. } = out;
+    let (mut v, mut e, mut t) = (&mut v[..], &mut e[..], &mut t[..]);
     let mut jobs = Vec::with_capacity(parts.len());
     let mut base = 0;
     for p in parts {
@@ -441,26 +475,13 @@ fn gather(runs: &[Run], parts: &[Part], out: &mut Run) {
         e = rest;
         let (pt, rest) = std::mem::take(&mut t).split_at_mut(p.triangles.len());
         t = rest;
-        let (pg, rest) = std::mem::take(&mut g).split_at_mut(if grads > 0 { n } else { 0 });
-        g = rest;
-        jobs.push((p, base, pv, pe, pt, pg));
+        jobs.push((p, base, pv, pe, pt));
         base += n as u32;
     }
-    jobs.into_par_iter().for_each(|(p, base, pv, pe, pt, pg)| {
+    jobs.into_par_iter().for_each(|(p, base, pv, pe, pt)| {
         let r = &runs[p.run];
         pv.copy_from_slice(&r.vertices[p.vertices.clone()]);
         pe.copy_from_slice(&r.ends[p.vertices.clone()]);
-        // The corner gradients at each edge vertex's segment ends, which only the run's
-        // lattice holds (looked up here, on the threads, not one at a time afterwards).
-        let mut last = None;
-        for (g, v) in pg.iter_mut().zip(&*pv) {
-            if let (Place::Edge { .. }, Some(tip)) = (v.place, v.tip()) {
-                *g = [
-                    r.lattice.grad_shared(v.base, &mut last),
-                    r.lattice.grad_shared(tip, &mut last),
-                ];
-            }
-        }
         let from = p.vertices.start as u32;
         for (o, t) in pt.iter_mut().zip(&r.triangles[p.triangles.clone()]) {
             *o = t.map(|i| i - from + base);
@@ -500,7 +521,8 @@ impl<'w, 'a> Work<'w, 'a> {
             if k >= seeds {
                 break;
             }
-            match run.seed(k, Some((self.shared, me))) {
+            let spawn = super::pipe::spawner(scope);
+            match run.seed(k, Some((self.shared, me)), &spawn) {
                 Err(e) => {
                     let mut failed = lock(self.failed);
                     if failed.as_ref().is_none_or(|(j, _)| k < *j) {
