@@ -9,8 +9,8 @@
 //!
 //! Evaluations: for a field with an exact gradient (as cheap as the value, or nearly) the
 //! corners are evaluated with their gradients, and each edge vertex is placed by
-//! [`refine_roots_with_gradients`]: a Newton step from the root of the edge's cubic model,
-//! about one evaluation per vertex, whose gradient is the vertex's normal. Vertex positions
+//! [`refine_roots_with_gradients`](crate::refine::refine_roots_with_gradients): a Newton
+//! step from the root of the edge's cubic model, about one evaluation per vertex, whose gradient is the vertex's normal. Vertex positions
 //! then differ from the grid polygonizer's (regula falsi from the corner values) by root
 //! finding alone, both well within the tolerance. Other fields keep regula falsi and a
 //! gradient per vertex for normals. Seeds are walked from along the lattice's axes

@@ -93,7 +93,7 @@ where
     Ok((vertices, triangles, results))
 }
 
-/// Where [`run_slabs_sunk`] puts the mesh's vertices: each slab's, as soon as their numbers
+/// Where `run_slabs_sunk` puts the mesh's vertices: each slab's, as soon as their numbers
 /// in the mesh are known, while the slab's records are still in the cache. A caller that
 /// converts the records anyway (into the arrays it hands on) writes them there straight
 /// away, with no mesh of records written to memory and read back in between.
