@@ -10,16 +10,17 @@
 //! Evaluations: for a field with an exact gradient (as cheap as the value, or nearly) the
 //! corners are evaluated with their gradients, and each edge vertex is placed by
 //! [`refine_roots_with_gradients`](crate::refine::refine_roots_with_gradients): a Newton
-//! step from the root of the edge's cubic model, about one evaluation per vertex, whose gradient is the vertex's normal. Vertex positions
-//! then differ from the grid polygonizer's (regula falsi from the corner values) by root
-//! finding alone, both well within the tolerance. Other fields keep regula falsi and a
-//! gradient per vertex for normals. Seeds are walked from along the lattice's axes
-//! (`Run::propagate_seeds`), reading and keeping corner values, so a seed costs a few
-//! evaluations. On the hand at 128 samples: 7.02 evaluations per vertex before (corners
-//! 2.06, search 0.56, roots 3.40, normals 1.00), 3.21 after (corners 1.98, search 0.10,
-//! roots 1.13, normals 0). A field with colours (a coloured skeleton) gives each vertex its
-//! colour in the same evaluations ([`Field::eval_grad_color_many`]), so the mesh comes out
-//! coloured and needs no painting afterwards.
+//! step from the root of the edge's cubic model, about one evaluation per vertex, whose
+//! gradient is the vertex's normal. Vertex positions then differ from the grid
+//! polygonizer's (regula falsi from the corner values) by root finding alone, both well
+//! within the tolerance. Other fields keep regula falsi and a gradient per vertex for
+//! normals. Seeds are walked from along the lattice's axes (`Run::propagate_seeds`),
+//! reading and keeping corner values, so a seed costs a few evaluations. On the hand at 128
+//! samples: 7.02 evaluations per vertex before (corners 2.06, search 0.56, roots 3.40,
+//! normals 1.00), 3.21 after (corners 1.98, search 0.10, roots 1.13, normals 0). A field
+//! with colours (a coloured skeleton) gives each vertex its colour in the same evaluations
+//! ([`Field::eval_grad_color_many`]), so the mesh comes out coloured and needs no painting
+//! afterwards.
 //!
 //! Guarantees: each lattice corner is evaluated once (values are kept in sparse bricks) and
 //! each edge root is found once and shared; a surface closed inside the domain comes out closed,
