@@ -16,9 +16,16 @@ import statistics
 import time
 from pathlib import Path
 
-import numpy as np
+# The BLAS that NumPy and SciPy (imported by scikit-image) load starts a pool of threads that
+# spin for a while after each call that uses it; on a 2-core machine they took the second
+# core from the two-thread skelform call that followed (4.6% of a profile of that call:
+# `blas_thread_server`). No tool timed here uses more than one BLAS thread, so the pool is
+# kept to one, before NumPy is first imported (a value already set is kept).
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from peers import FIELDS, ROOT, flying_edges, machine, numpy_volume
+import numpy as np  # noqa: E402
+
+from peers import FIELDS, ROOT, flying_edges, machine, numpy_volume  # noqa: E402
 
 
 def tools():
