@@ -10,7 +10,7 @@ use rayon::prelude::*;
 use skelform_field::Field;
 
 /// Vertices per batch.
-const CHUNK: usize = 1024;
+pub(crate) const CHUNK: usize = 1024;
 
 /// A vertex on the segment `p0 → p1`, where the field has opposite signs at the two ends.
 #[derive(Clone, Copy, Debug)]
@@ -727,11 +727,17 @@ pub(crate) fn unit_gradients(field: &dyn Field, positions: &[DVec3]) -> Vec<[f32
         let mut grads = vec![DVec3::ZERO; pts.len()];
         field.eval_grad_many(pts, &mut vals, &mut grads);
         for (o, g) in out.iter_mut().zip(&grads) {
-            let n = g.normalize_or_zero();
-            *o = if n == DVec3::ZERO || !n.is_finite() { [0.0; 3] } else { n.as_vec3().to_array() };
+            *o = unit_normal(*g);
         }
     });
     normals
+}
+
+/// A gradient as a unit normal, or zero where it vanishes or is not finite (the mark that
+/// [`fill_from_faces`] replaces).
+pub(crate) fn unit_normal(g: DVec3) -> [f32; 3] {
+    let n = g.normalize_or_zero();
+    if n.is_finite() { n.as_vec3().to_array() } else { [0.0; 3] }
 }
 
 /// Replaces the zero normals (no gradient there) by the area-weighted normal of the

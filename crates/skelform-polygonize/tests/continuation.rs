@@ -8,13 +8,25 @@ use skelform_mesh::Mesh;
 use skelform_mesh::check::{Report, check};
 use skelform_polygonize::continuation::{Cells, Options, SeedNote, Stats, Stop, polygonize};
 use skelform_polygonize::refine::RootMethod;
-use skelform_polygonize::{Error, LatticeOptions, Resolution, grid};
+use skelform_polygonize::{Error, LatticeOptions, Resolution, Threads, grid};
 
 fn run(field: &dyn Field, domain: Aabb, cell: f64, seeds: &[DVec3], cells: Cells) -> (Mesh, Stats) {
     let lattice =
         LatticeOptions { domain, resolution: Resolution::Cell(cell), ..Default::default() };
     let opts = Options { lattice, seeds: seeds.to_vec(), cells, ..Options::default() };
     polygonize(field, &opts).expect("polygonize")
+}
+
+/// `f` run on a pool of `threads` threads.
+fn on_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+    rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("a pool").install(f)
+}
+
+/// The point `k` of `n` evenly spaced round the circle of radius `r` about the z axis, in
+/// the plane z = 0.
+fn on_circle(r: f64, k: usize, n: usize) -> DVec3 {
+    let a = k as f64 * std::f64::consts::TAU / n as f64;
+    DVec3::new(r * a.cos(), r * a.sin(), 0.0)
 }
 
 fn closed(m: &Mesh, genera: &[i64], what: &str) -> Report {
@@ -333,10 +345,8 @@ fn bisection_and_regula_falsi_reach_the_same_surface() {
 #[test]
 fn same_mesh_on_any_thread_count() {
     let f = torus();
-    let go = |threads| {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        pool.install(|| run(&f, Aabb::cube(1.0), 0.03, &[], Cells::Tetrahedra).0)
-    };
+    let go =
+        |threads| on_threads(threads, || run(&f, Aabb::cube(1.0), 0.03, &[], Cells::Tetrahedra).0);
     let one = go(1);
     assert!(go(2) == one && go(4) == one);
 }
@@ -372,10 +382,8 @@ fn several_components_give_the_same_mesh_on_1_2_and_4_threads() {
         (Vec::new(), Cells::Cubes),
         (seeds.clone(), Cells::Tetrahedra),
     ] {
-        let go = |threads| {
-            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-            pool.install(|| run(&field, Aabb::cube(1.0), 0.02, &seeds, cells))
-        };
+        let go =
+            |threads| on_threads(threads, || run(&field, Aabb::cube(1.0), 0.02, &seeds, cells));
         let (one, s1) = go(1);
         assert!(s1.components.len() > 3, "{:?}", s1.components);
         assert!(one.triangle_count() > 10_000 && !one.normals.is_empty());
@@ -410,10 +418,8 @@ fn gradient_roots_give_the_same_mesh_on_1_2_and_4_threads() {
         DVec3::new(0.0, 0.6, 0.0),
     ];
     for seeds in [&seeds[..], &[]] {
-        let go = |threads| {
-            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-            pool.install(|| run(&f, Aabb::cube(1.0), 0.03, seeds, Cells::Cubes))
-        };
+        let go =
+            |threads| on_threads(threads, || run(&f, Aabb::cube(1.0), 0.03, seeds, Cells::Cubes));
         let (one, s1) = go(1);
         closed(&one, &[0, 0, 0], "three spheres");
         assert_eq!(s1.components.len(), 3);
@@ -448,8 +454,7 @@ fn hermite_roots_keep_the_triangles_and_take_no_evaluation_on_a_smooth_field() {
             root,
             ..Options::default()
         };
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        pool.install(|| polygonize(&t, &opts).unwrap())
+        on_threads(threads, || polygonize(&t, &opts).unwrap())
     };
     let (newton, sn) = go(RootMethod::RegulaFalsi, 1);
     let (hermite, sh) = go(RootMethod::Hermite, 1);
@@ -475,24 +480,35 @@ fn hermite_roots_keep_the_triangles_and_take_no_evaluation_on_a_smooth_field() {
     }
 }
 
-#[test]
-fn cancellation_stops_the_run() {
+/// A sphere of radius 0.8 from a seed at its centre, at a 0.01 cell on `threads`,
+/// cancelled once the progress passes `after`.
+fn cancelled_sphere(
+    sphere: &dyn Field,
+    threads: Threads,
+    after: u64,
+) -> Result<(Mesh, Stats), Error> {
     use skelform_field::control::Control;
     use std::ops::ControlFlow;
-    let sphere = FnField(|p: DVec3| p.length() - 0.8);
     let opts = Options {
         lattice: LatticeOptions {
             domain: Aabb::cube(1.0),
             resolution: Resolution::Cell(0.01),
-            control: Control::with_callback(|p| {
-                if p.done > 100 { ControlFlow::Break(()) } else { ControlFlow::Continue(()) }
+            threads,
+            control: Control::with_callback(move |p| {
+                if p.done > after { ControlFlow::Break(()) } else { ControlFlow::Continue(()) }
             }),
             ..Default::default()
         },
         seeds: vec![DVec3::ZERO],
         ..Options::default()
     };
-    assert_eq!(polygonize(&sphere, &opts).unwrap_err(), Error::Cancelled);
+    polygonize(sphere, &opts)
+}
+
+#[test]
+fn cancellation_stops_the_run() {
+    let sphere = FnField(|p: DVec3| p.length() - 0.8);
+    assert_eq!(cancelled_sphere(&sphere, Threads::default(), 100).unwrap_err(), Error::Cancelled);
 }
 
 /// Root finding overlapped with propagation (a field with an exact gradient): a torus
@@ -503,12 +519,7 @@ fn cancellation_stops_the_run() {
 /// mesh is closed and its vertices lie on the surface.
 #[test]
 fn overlapped_root_finding_gives_the_one_thread_mesh_and_counts() {
-    let centres: Vec<DVec3> = (0..6)
-        .map(|i| {
-            let a = i as f64 * std::f64::consts::TAU / 6.0;
-            DVec3::new(0.9 * a.cos(), 0.9 * a.sin(), 0.0)
-        })
-        .collect();
+    let centres: Vec<DVec3> = (0..6).map(|i| on_circle(0.9, i, 6)).collect();
     let mut src = "sqrt((sqrt(x^2 + y^2) - 0.45)^2 + z^2) - 0.12".to_string();
     for c in &centres {
         src = format!("min({src}, sqrt((x - {})^2 + (y - {})^2 + z^2) - 0.07)", c.x, c.y);
@@ -517,17 +528,13 @@ fn overlapped_root_finding_gives_the_one_thread_mesh_and_counts() {
     assert!(f.has_exact_gradient());
     let mut seeds = Vec::new();
     for i in 0..24 {
-        let a = (i * 7 % 24) as f64 * std::f64::consts::TAU / 24.0;
-        seeds.push(DVec3::new(0.45 * a.cos(), 0.45 * a.sin(), 0.0));
+        seeds.push(on_circle(0.45, i * 7 % 24, 24));
         if i % 4 == 0 {
             seeds.push(centres[i / 4] * 1.01);
         }
     }
     let domain = Aabb::new(DVec3::splat(-1.05), DVec3::splat(1.05));
-    let go = |threads| {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        pool.install(|| run(&f, domain, 0.015, &seeds, Cells::Cubes))
-    };
+    let go = |threads| on_threads(threads, || run(&f, domain, 0.015, &seeds, Cells::Cubes));
     let (one, s1) = go(1);
     closed(&one, &[0, 0, 0, 0, 0, 0, 1], "torus and spheres");
     assert_eq!(s1.components.len(), 7);
@@ -553,25 +560,11 @@ fn overlapped_root_finding_gives_the_one_thread_mesh_and_counts() {
 /// gradient): the run stops with the cancellation, not with a partial mesh.
 #[test]
 fn cancellation_stops_a_run_with_overlapped_root_finding() {
-    use skelform_field::control::Control;
-    use std::ops::ControlFlow;
     let sphere = Formula::parse("sqrt(x^2 + y^2 + z^2) - 0.8").unwrap();
     assert!(sphere.has_exact_gradient());
     for threads in [1, 2] {
-        let opts = Options {
-            lattice: LatticeOptions {
-                domain: Aabb::cube(1.0),
-                resolution: Resolution::Cell(0.01),
-                threads: skelform_polygonize::Threads::Count(threads),
-                control: Control::with_callback(|p| {
-                    if p.done > 20_000 { ControlFlow::Break(()) } else { ControlFlow::Continue(()) }
-                }),
-                ..Default::default()
-            },
-            seeds: vec![DVec3::ZERO],
-            ..Options::default()
-        };
-        assert_eq!(polygonize(&sphere, &opts).unwrap_err(), Error::Cancelled, "{threads}");
+        let got = cancelled_sphere(&sphere, Threads::Count(threads), 20_000);
+        assert_eq!(got.unwrap_err(), Error::Cancelled, "{threads}");
     }
 }
 
@@ -592,12 +585,7 @@ fn untimed(mut s: Stats) -> Stats {
 /// components, notes, stops, cells and evaluation counts.
 #[test]
 fn seeds_of_one_component_on_many_threads_give_the_one_thread_mesh_and_counts() {
-    let spheres: Vec<DVec3> = (0..12)
-        .map(|i| {
-            let a = i as f64 * std::f64::consts::TAU / 12.0;
-            DVec3::new(0.9 * a.cos(), 0.9 * a.sin(), 0.0)
-        })
-        .collect();
+    let spheres: Vec<DVec3> = (0..12).map(|i| on_circle(0.9, i, 12)).collect();
     let centres = spheres.clone();
     let field = FnField(move |p: DVec3| {
         let torus = ((p.truncate().length() - 0.45).powi(2) + p.z * p.z).sqrt() - 0.12;
@@ -605,8 +593,7 @@ fn seeds_of_one_component_on_many_threads_give_the_one_thread_mesh_and_counts() 
     });
     let mut seeds = Vec::new();
     for i in 0..48 {
-        let a = (i * 29 % 48) as f64 * std::f64::consts::TAU / 48.0;
-        seeds.push(DVec3::new(0.45 * a.cos(), 0.45 * a.sin(), 0.0));
+        seeds.push(on_circle(0.45, i * 29 % 48, 48));
         if i % 4 == 0 {
             seeds.push(spheres[i / 4] * 1.01);
         }
@@ -616,10 +603,7 @@ fn seeds_of_one_component_on_many_threads_give_the_one_thread_mesh_and_counts() 
     }
     let domain = Aabb::new(DVec3::splat(-1.05), DVec3::splat(1.05));
     for cells in [Cells::Cubes, Cells::Tetrahedra] {
-        let go = |threads| {
-            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-            pool.install(|| run(&field, domain, 0.02, &seeds, cells))
-        };
+        let go = |threads| on_threads(threads, || run(&field, domain, 0.02, &seeds, cells));
         let (one, s1) = go(1);
         assert_eq!(s1.components.len(), 13, "{cells:?}");
         assert!(s1.seed_notes.len() == seeds.len() - 13, "{:?}", s1.seed_notes);
@@ -635,7 +619,7 @@ fn seeds_of_one_component_on_many_threads_give_the_one_thread_mesh_and_counts() 
         lattice: LatticeOptions {
             domain,
             resolution: Resolution::Cell(0.02),
-            threads: skelform_polygonize::Threads::Count(threads),
+            threads: Threads::Count(threads),
             ..Default::default()
         },
         seeds: seeds.clone(),

@@ -27,12 +27,12 @@ use skelform_field::Field;
 use skelform_field::control::Control;
 
 use crate::lattice::memory::vec_bytes;
+// Edge vertices per job are `refine`'s chunk (`CHUNK`), so that a job is one batch per
+// iteration.
 use crate::refine::{
-    GradBracket, RootMethod, RootOptions, hermite_roots, refine_roots_with_gradients,
+    CHUNK, GradBracket, RootMethod, RootOptions, hermite_roots, refine_roots_with_gradients,
+    unit_normal,
 };
-
-/// Edge vertices per job: `refine`'s chunk, so that a job is one batch per iteration.
-pub(super) const CHUNK: usize = 1024;
 
 /// What refining needs, the same for every job of a run.
 #[derive(Clone, Copy)]
@@ -121,13 +121,7 @@ impl Job<'_> {
         };
         let positions = brackets.iter().map(|b| b.p0.lerp(b.p1, b.t)).collect();
         let normals = if how.normals {
-            brackets
-                .iter()
-                .map(|b| {
-                    let n = b.grad.normalize_or_zero();
-                    if n.is_finite() { n.as_vec3().to_array() } else { [0f32; 3] }
-                })
-                .collect()
+            brackets.iter().map(|b| unit_normal(b.grad)).collect()
         } else {
             Vec::new()
         };
