@@ -161,8 +161,7 @@ where
             results.push(slab(k, &mut scratch, &mut store)?);
             let n = out.vertices.len();
             let end = made + n;
-            // Room for the rest if they are like the slabs so far, with a margin.
-            sink.reserve(end, end + end / (k + 1) * (slabs - k) * 5 / 4);
+            sink.reserve(end, room_for_all(end, k + 1, slabs));
             // SAFETY: reserved just above; the slabs' ranges follow each other.
             unsafe { sink.place(made, &out.vertices) };
             made = end;
@@ -232,12 +231,9 @@ where
             }
         };
         if !ready.is_empty() {
-            // Room for the placed slabs, and for the rest if they are like them, with a
-            // margin: growing copies what has been placed, unless the allocator can
-            // remap it.
-            let guess = |n: usize| n + n / placed * (slabs - placed + 1) * 5 / 4;
-            vertices.reserve(nv, guess(nv));
-            triangles.reserve(nt, guess(nt));
+            // Growing copies what has been placed, unless the allocator can remap it.
+            vertices.reserve(nv, room_for_all(nv, placed, slabs));
+            triangles.reserve(nt, room_for_all(nt, placed, slabs));
         }
         for (o, [v0, t0]) in &ready {
             let shift = *v0 as u32;
@@ -261,6 +257,13 @@ where
     assert_eq!(chain.placed, slabs, "a slab was never placed");
     let results = chain.results.into_iter().flatten().collect();
     Ok((chain.end, results))
+}
+
+/// Room to reserve once `done` of `slabs` slabs have made `n` items: theirs, and the rest's
+/// if they are like them, with a margin (saturating: a guess, never a size that overflows).
+fn room_for_all(n: usize, done: usize, slabs: usize) -> usize {
+    let rest = (n / done.max(1)).saturating_mul(slabs.saturating_sub(done) + 1);
+    n.saturating_add(rest.saturating_mul(5) / 4)
 }
 
 /// Runs `each` on slabs `0..slabs` on `threads` workers (the calling thread alone for one),
