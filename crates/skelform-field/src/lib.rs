@@ -25,6 +25,7 @@
 pub mod aabb;
 pub mod combine;
 pub mod control;
+pub mod cpus;
 pub mod field;
 pub mod formula;
 pub mod grid;

@@ -55,7 +55,7 @@ impl Choices {
             method,
             seeds: self.seeds.as_ref().map(|s| s.iter().map(|&p| DVec3::from_array(p)).collect()),
             pose: self.pose.clone(),
-            threads: pool(self.threads)?.map(Threads::Pool),
+            threads: pool(self.threads)?.map(|p| Threads::Pool(p.threads)),
             refine: self.refine,
             normals: self.normals,
             max_memory: self.max_memory,
@@ -75,7 +75,7 @@ fn mesh_scene(
     run: &Run,
 ) -> PyResult<PyMesh> {
     let overrides = choices.overrides(run)?;
-    let result = run.run(py, || scene.mesh(&overrides));
+    let result = run.run(py, None, || scene.mesh(&overrides));
     if let Some(e) = callable.and_then(CallableField::take_failure) {
         return Err(e);
     }

@@ -612,7 +612,7 @@ pub(crate) fn marching_cubes_core<'py>(
                     if options.mask.as_ref().is_some_and(|m| m.shape() != view.shape()) {
                         return Err(PyValueError::new_err("volume and mask must have the same shape."));
                     }
-                    break 'read run.run(py, || install(&pool, || extract(view, &options, &run)))?;
+                    break 'read run.run(py, pool.as_ref(), || extract(view, &options, &run))?;
                 })*
                 return Err(PyTypeError::new_err(
                     "the volume must be a 3-D array of floats or integers",
@@ -856,17 +856,6 @@ fn extract_columns<const REWOUND: bool, const REVERSED: bool>(
     // SAFETY: the extractor placed every vertex of the mesh, `0..n`.
     let (positions, normals, values) = unsafe { columns.into_arrays(n) };
     Ok((positions, triangles, normals, values))
-}
-
-/// Runs `op` on `pool`, or on the current (global) pool.
-fn install<R: Send>(
-    pool: &Option<std::sync::Arc<rayon::ThreadPool>>,
-    op: impl FnOnce() -> R + Send,
-) -> R {
-    match pool {
-        Some(p) => p.install(op),
-        None => op(),
-    }
 }
 
 /// The vertices of a block into their rows of the arrays, every row written; with the axes

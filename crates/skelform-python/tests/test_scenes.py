@@ -1,6 +1,7 @@
 """Formulas, scenes, fields given as Python functions, and the Mesh they give."""
 
 import _thread
+import os
 import threading
 import time
 
@@ -149,6 +150,53 @@ def test_python_function_exceptions_propagate():
         skelform.mesh(lambda p: np.zeros(1), CUBE, resolution=16)
     with pytest.raises(TypeError):
         skelform.mesh(42, CUBE)
+
+
+def test_a_python_function_may_mesh_again_while_it_is_called():
+    # The field's function runs on one of skelform's worker threads; a call from there
+    # runs on that thread (or its own pool's) instead of waiting for a worker of its own.
+    inner = []
+
+    def ball(p):
+        for threads in (None, 1, 2):
+            v, f, _, _ = skelform.marching_cubes(
+                np.fromfunction(lambda i, j, k: (i - 3.5) ** 2 + (j - 3.5) ** 2 + (k - 3.5) ** 2,
+                                (8, 8, 8)),
+                6.0, threads=threads)
+            inner.append(len(f))
+        return np.sqrt((p**2).sum(1)) - 0.7
+
+    ours = skelform.mesh(ball, CUBE, resolution=12)
+    assert component(ours)["closed"]
+    assert inner and len(set(inner)) == 1 and inner[0] > 0
+
+
+def test_calls_from_several_python_threads_at_once_give_their_own_meshes():
+    vols = [np.fromfunction(lambda i, j, k: (i - 9.5) ** 2 + (j - 9.5) ** 2 + (k - 9.5) ** 2 - r * r,
+                            (20, 20, 20)) for r in (3, 5, 7)]
+    alone = [len(skelform.marching_cubes(v, 0.0)[1]) for v in vols]
+    got, failed = [], []
+
+    def work(n):
+        try:
+            for i in range(60):
+                k = (n + i) % 3
+                faces = skelform.marching_cubes(vols[k], 0.0, threads=1 + i % 2)[1]
+                got.append(len(faces) == alone[k])
+        except Exception as e:  # noqa: BLE001 - reported below
+            failed.append(e)
+
+    placed = hasattr(os, "sched_getaffinity") and os.path.isdir("/proc/self/task")
+    allowed = os.sched_getaffinity(0) if placed else None
+    threads = [threading.Thread(target=work, args=(n,)) for n in range(3)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert not failed and len(got) == 180 and all(got)
+    # Workers are pinned apart only while calls run: every thread may run anywhere again.
+    for tid in os.listdir("/proc/self/task") if placed else []:
+        assert os.sched_getaffinity(int(tid)) == allowed
 
 
 def test_progress_and_cancellation(examples):

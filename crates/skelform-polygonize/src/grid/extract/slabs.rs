@@ -7,6 +7,8 @@ use std::any::Any;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
+use skelform_field::cpus::Spread;
+
 use super::{BORROWED, Scratch, SlabVertex};
 use crate::grid::assembly::Assembly;
 
@@ -277,13 +279,19 @@ fn claim_slabs(
     each: impl Fn(usize, &mut Scratch, &mut (usize, usize)) -> bool + Sync,
 ) {
     let (next, stop) = (AtomicUsize::new(0), AtomicBool::new(false));
-    let work = || {
+    // Workers kept on CPUs of their own (see `Spread`): two sharing one take turns.
+    let spread = Spread::new(threads);
+    let work = |w: usize| {
         let mut scratch = Scratch::new(nx, ny);
         let mut hint = (0, 0);
+        let mut placement = spread.placement();
         while !stop.load(Ordering::Relaxed) {
             let k = next.fetch_add(1, Ordering::Relaxed);
             if k >= slabs {
                 break;
+            }
+            if threads > 1 {
+                spread.check(w, &mut placement);
             }
             if !each(k, &mut scratch, &mut hint) {
                 stop.store(true, Ordering::Relaxed);
@@ -292,11 +300,12 @@ fn claim_slabs(
         }
     };
     if threads <= 1 {
-        work();
+        work(0);
     } else {
         rayon::scope(|s| {
-            for _ in 0..threads {
-                s.spawn(|_| work());
+            for w in 0..threads {
+                let work = &work;
+                s.spawn(move |_| work(w));
             }
         });
     }
