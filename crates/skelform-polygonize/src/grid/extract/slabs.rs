@@ -1,6 +1,6 @@
 //! Slab scheduling: the volume's cube layers are cut into slabs of [`SLAB`] layers (fixed,
-//! so results never depend on the thread count); threads claim slabs lowest first, run each
-//! into a buffer of their own and hand it over, and each slab is placed in the mesh as soon
+//! so results never depend on the thread count); threads claim runs of neighbouring slabs,
+//! lowest first, run each slab into a buffer of their own and hand it over, and each slab is placed in the mesh as soon
 //! as every slab below it is, by whichever thread completes that chain.
 
 use std::any::Any;
@@ -38,11 +38,11 @@ type Assembled<V, T> = (Vec<V>, Vec<[u32; 3]>, Vec<T>);
 /// Runs `slab` on every slab and joins their pieces into one mesh, in slab order.
 ///
 /// On one thread the slabs run in order straight into the mesh's arrays. On more, each
-/// thread claims the lowest slab no one has claimed, runs it into a buffer of its own and
-/// hands it over; a slab is placed in the mesh (an [`Assembly`]) as soon as every slab below
-/// it has been handed over, by the thread that completes that chain, so no thread ever waits
-/// for another, and every byte of the mesh is written once. A slab's
-/// vertices go after all those of the slabs below it, its triangles' numbers shifted by as
+/// thread claims the lowest slabs no one has claimed (a run of them, see `claim`), runs each
+/// into a buffer of its own and hands it over; a slab is placed in the mesh (an
+/// [`Assembly`]) as soon as every slab below it has been handed over, by the thread that
+/// completes that chain, so no thread ever waits for another, and every byte of the mesh is
+/// written once. A slab's vertices go after all those of the slabs below it, its triangles' numbers shifted by as
 /// many (a reference to the layer above, numbered just past the slab's own vertices, lands on
 /// the next slab's first ones).
 ///
@@ -270,8 +270,8 @@ fn room_for_all(n: usize, done: usize, slabs: usize) -> usize {
 
 /// Runs `each` on slabs `0..slabs` on `threads` workers (the calling thread alone for one),
 /// each with a [`Scratch`] and a size hint of its own, which `each` updates; workers claim
-/// slabs lowest first, so slab k starts no later than any slab above it. `each` returns
-/// false to stop every worker from claiming another slab (an error).
+/// runs of neighbouring slabs, lowest first ([`claim`]), and run a run's slabs in order.
+/// `each` returns false to stop every worker from running another slab (an error).
 fn claim_slabs(
     threads: usize,
     slabs: usize,
@@ -286,16 +286,18 @@ fn claim_slabs(
         let mut hint = (0, 0);
         let mut placement = spread.placement();
         while !stop.load(Ordering::Relaxed) {
-            let k = next.fetch_add(1, Ordering::Relaxed);
-            if k >= slabs {
-                break;
-            }
-            if threads > 1 {
-                spread.check(w, &mut placement);
-            }
-            if !each(k, &mut scratch, &mut hint) {
-                stop.store(true, Ordering::Relaxed);
-                break;
+            let Some(run) = claim(&next, slabs, threads) else { break };
+            for k in run {
+                if stop.load(Ordering::Relaxed) {
+                    break;
+                }
+                if threads > 1 {
+                    spread.check(w, &mut placement);
+                }
+                if !each(k, &mut scratch, &mut hint) {
+                    stop.store(true, Ordering::Relaxed);
+                    break;
+                }
             }
         }
     };
@@ -308,6 +310,24 @@ fn claim_slabs(
                 s.spawn(move |_| work(w));
             }
         });
+    }
+}
+
+/// Claims the next run of slabs for a worker of `threads`: a share of those left that
+/// shrinks as they go (half of a worker's even share, at least one), so that a worker runs
+/// neighbouring slabs in a row for most of the volume, each starting on sample layers that the
+/// slab before it, ending there, just read or fetched (a slab apart from the last one starts
+/// on layers no one has read lately, a few hundred kilobytes from memory before it can go
+/// on), while the last claims are single slabs that keep the workers finishing together.
+fn claim(next: &AtomicUsize, slabs: usize, threads: usize) -> Option<std::ops::Range<usize>> {
+    let mut at = next.load(Ordering::Relaxed);
+    loop {
+        let left = slabs.checked_sub(at).filter(|&l| l > 0)?;
+        let take = (left / (2 * threads)).max(1);
+        match next.compare_exchange_weak(at, at + take, Ordering::Relaxed, Ordering::Relaxed) {
+            Ok(_) => return Some(at..at + take),
+            Err(now) => at = now,
+        }
     }
 }
 
@@ -494,6 +514,28 @@ impl<'a, V: SlabVertex> SlabStore<'a, V> {
         if let Some(ts) = self.out.triangles.get_mut(self.borrowing..) {
             for t in ts {
                 *t = t.map(|i| if i & BORROWED == 0 { i } else { next + (i & !BORROWED) });
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn claimed_runs_cover_every_slab_once_in_order_and_end_single() {
+        for slabs in [1, 2, 7, 32, 33, 250] {
+            for threads in [2, 3, 8] {
+                let next = AtomicUsize::new(0);
+                let runs: Vec<_> = std::iter::from_fn(|| claim(&next, slabs, threads)).collect();
+                let covered: Vec<usize> = runs.iter().flat_map(|r| r.clone()).collect();
+                assert_eq!(covered, (0..slabs).collect::<Vec<_>>(), "{slabs} slabs, {threads}");
+                assert!(runs.windows(2).all(|w| w[1].len() <= w[0].len()), "runs shrink");
+                // The last runs are single slabs, one per worker at least.
+                let tail = runs.iter().rev().take(threads.min(slabs)).all(|r| r.len() == 1);
+                assert!(tail, "{slabs} slabs, {threads} threads: {runs:?}");
+                assert!(claim(&next, slabs, threads).is_none());
             }
         }
     }
