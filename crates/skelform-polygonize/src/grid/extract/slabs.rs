@@ -150,8 +150,10 @@ where
     let threads = rayon::current_num_threads().min(slabs);
     let reused = reuse.capacity() > 0;
     if threads <= 1 {
-        let buffer = workspace.take::<V>().map(|o| o.vertices).unwrap_or_default();
-        let mut out = Output { vertices: buffer, triangles: reuse };
+        // A kept buffer's vertices; its triangles (the mesh's go into `reuse`) are set aside
+        // and kept with it again, for runs on more threads, which write triangles there.
+        let kept = workspace.take::<V>().unwrap_or_default();
+        let mut out = Output { vertices: kept.vertices, triangles: reuse };
         out.triangles.clear();
         let mut scratch = Scratch::new(nx, ny);
         let (mut hint, mut results, mut made) = ((0, 0), Vec::with_capacity(slabs), 0usize);
@@ -172,7 +174,7 @@ where
         if !reused {
             out.triangles.shrink_to_fit();
         }
-        let triangles = std::mem::take(&mut out.triangles);
+        let triangles = std::mem::replace(&mut out.triangles, kept.triangles);
         // As many kept as runs on more threads keep (`place_slabs`), so that alternating
         // runs do not drop and remake buffers.
         workspace.keep(vec![out], slabs);
@@ -367,12 +369,20 @@ impl Workspace {
     /// A kept buffer for vertices of type `V`, if there is one.
     fn take<V: Send + 'static>(&self) -> Option<Output<V>> {
         let mut kept = self.kept.lock().unwrap_or_else(|e| e.into_inner());
-        let at = kept.iter().position(|b| b.is::<Output<V>>())?;
+        // The largest: growing a buffer writes into memory the system has to supply.
+        let room = |b: &Box<dyn Any + Send>| {
+            b.downcast_ref::<Output<V>>().map(|o| o.vertices.capacity() + o.triangles.capacity())
+        };
+        let at = (0..kept.len())
+            .filter(|&i| room(&kept[i]).is_some())
+            .max_by_key(|&i| room(&kept[i]))?;
         kept.swap_remove(at).downcast().ok().map(|b| *b)
     }
 
-    /// Keeps `buffers` for the next extraction, and no more than `most` of their type.
-    fn keep<V: Send + 'static>(&self, buffers: Vec<Output<V>>, most: usize) {
+    /// Keeps `buffers` for the next extraction, and no more than `most` of their type: the
+    /// largest, when there are more.
+    fn keep<V: Send + 'static>(&self, mut buffers: Vec<Output<V>>, most: usize) {
+        buffers.sort_by_key(|o| std::cmp::Reverse(o.vertices.capacity() + o.triangles.capacity()));
         let mut kept = self.kept.lock().unwrap_or_else(|e| e.into_inner());
         let held = kept.iter().filter(|b| b.is::<Output<V>>()).count();
         let room = most.saturating_sub(held);
@@ -522,6 +532,26 @@ impl<'a, V: SlabVertex> SlabStore<'a, V> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_workspace_hands_out_its_largest_buffer_and_keeps_the_largest() {
+        let buffer = |v: usize, t: usize| Output::<u8> {
+            vertices: Vec::with_capacity(v),
+            triangles: Vec::with_capacity(t),
+        };
+        let ws = Workspace::new();
+        ws.keep(vec![buffer(10, 0), buffer(300, 700), buffer(0, 0)], 8);
+        let got = ws.take::<u8>().unwrap();
+        assert!(got.vertices.capacity() >= 300 && got.triangles.capacity() >= 700);
+        assert!(ws.take::<u8>().unwrap().vertices.capacity() >= 10);
+        assert!(ws.take::<u16>().is_none(), "buffers of another vertex type are not handed out");
+        // Past the most kept, the smallest go.
+        let ws = Workspace::new();
+        ws.keep(vec![buffer(1, 1), buffer(500, 500), buffer(50, 50)], 2);
+        let sizes: Vec<usize> =
+            std::iter::from_fn(|| ws.take::<u8>()).map(|o| o.vertices.capacity()).collect();
+        assert!(sizes.len() == 2 && sizes[0] >= 500 && sizes[1] >= 50 && sizes[1] < 500);
+    }
 
     #[test]
     fn claimed_runs_cover_every_slab_once_in_order_and_end_single() {
