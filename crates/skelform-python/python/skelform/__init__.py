@@ -70,7 +70,9 @@ def marching_cubes(
     ``step_size`` (every n-th sample), ``allow_degenerate`` (``False`` merges coincident
     vertices and drops the faces that then have zero area), ``mask`` (a boolean array of
     the volume's shape: only the cubes whose last corner is ``True``, as in scikit-image). skelform adds
-    ``threads`` (default: every core; the mesh is the same on any count) and ``progress``.
+    ``threads`` (default: every core; the mesh is the same on any count; with a count, the
+    call's worker threads are pinned to CPUs of their own while it runs, and only then) and
+    ``progress``.
 
     Returns ``(verts, faces, normals, values)``: vertex coordinates (V×3, in the order of
     the array's axes, times the spacing), faces (F×3 int32), unit vertex normals pointing
