@@ -35,23 +35,9 @@ impl Spread {
         Spread { seen: (0..workers).map(|_| AtomicI32::new(NOWHERE)).collect() }
     }
 
-    /// Called by worker `w` before each piece of its work (cheap: where the system says so
-    /// without a system call, as on x86-64 Linux, a few nanoseconds): notes the CPU it is
-    /// on, and when a worker of lower number was last seen there, moves it to another
-    /// (see the module's documentation). `placement` is the worker's own, kept for its
-    /// whole part of the run.
-    pub fn check(&self, w: usize, placement: &mut Placement<'_>) {
-        let Some(mine) = self.seen.get(w) else { return };
-        let Some(cpu) = current_cpu() else { return };
-        placement.worker = Some(w);
-        let crowded = self.seen[..w].iter().any(|s| s.load(Ordering::Relaxed) == cpu);
-        let at = if crowded { placement.move_off(self, cpu).unwrap_or(cpu) } else { cpu };
-        mine.store(at, Ordering::Relaxed);
-    }
-
-    /// A worker's placement for its part of the run, which starts unpinned.
-    pub fn placement(&self) -> Placement<'_> {
-        Placement { spread: self, worker: None, pinned: None }
+    /// Worker `w`'s placement for its part of the run, which starts unpinned.
+    pub fn placement(&self, w: usize) -> Placement<'_> {
+        Placement { spread: self, worker: w, pinned: None }
     }
 }
 
@@ -61,21 +47,35 @@ impl Spread {
 #[derive(Debug)]
 pub struct Placement<'a> {
     spread: &'a Spread,
-    worker: Option<usize>,
+    worker: usize,
     /// The CPUs the thread was allowed before it was pinned.
     pinned: Option<Cpus>,
 }
 
 impl Placement<'_> {
+    /// Called by the worker before each piece of its work (cheap: where the system says so
+    /// without a system call, as on x86-64 Linux, a few nanoseconds): notes the CPU it is
+    /// on, and when a worker of lower number was last seen there, moves it to another
+    /// (see the module's documentation).
+    pub fn check(&mut self) {
+        let seen = &self.spread.seen;
+        let Some(mine) = seen.get(self.worker) else { return };
+        let Some(cpu) = current_cpu() else { return };
+        let crowded = seen[..self.worker].iter().any(|s| s.load(Ordering::Relaxed) == cpu);
+        let at = if crowded { self.move_off(cpu).unwrap_or(cpu) } else { cpu };
+        mine.store(at, Ordering::Relaxed);
+    }
+
     /// Pins the thread to a CPU it is allowed on that no worker of the run was last seen
     /// on, other than `cpu`; returns that CPU, or `None` when there is none or the system
     /// refuses.
-    fn move_off(&mut self, spread: &Spread, cpu: i32) -> Option<i32> {
+    fn move_off(&mut self, cpu: i32) -> Option<i32> {
         let allowed = match &self.pinned {
             Some(before) => before.clone(),
             None => Cpus::of_this_thread()?,
         };
-        let taken = |c: i32| c == cpu || spread.seen.iter().any(|s| s.load(Ordering::Relaxed) == c);
+        let seen = &self.spread.seen;
+        let taken = |c: i32| c == cpu || seen.iter().any(|s| s.load(Ordering::Relaxed) == c);
         let free = allowed.iter().find(|&c| !taken(c))?;
         if !Cpus::only(free).apply() {
             return None;
@@ -87,8 +87,8 @@ impl Placement<'_> {
 
 impl Drop for Placement<'_> {
     fn drop(&mut self) {
-        if let Some(w) = self.worker {
-            self.spread.seen[w].store(NOWHERE, Ordering::Relaxed);
+        if let Some(mine) = self.spread.seen.get(self.worker) {
+            mine.store(NOWHERE, Ordering::Relaxed);
         }
         if let Some(before) = self.pinned.take() {
             before.apply();
@@ -259,9 +259,9 @@ mod tests {
     #[test]
     fn a_worker_alone_is_never_pinned() {
         let spread = Spread::new(1);
-        let mut p = spread.placement();
+        let mut p = spread.placement(0);
         for _ in 0..100 {
-            spread.check(0, &mut p);
+            p.check();
             assert!(p.pinned.is_none());
         }
     }
@@ -280,8 +280,8 @@ mod tests {
         let here = current_cpu().unwrap();
         spread.seen[0].store(here, Ordering::Relaxed);
         {
-            let mut p = spread.placement();
-            spread.check(1, &mut p);
+            let mut p = spread.placement(1);
+            p.check();
             let now = Cpus::of_this_thread().unwrap().iter().collect::<Vec<_>>();
             assert_eq!(now.len(), 1, "pinned to one CPU");
             assert_ne!(now[0], here, "moved off the crowded CPU");

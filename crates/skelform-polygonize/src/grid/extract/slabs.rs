@@ -1,7 +1,8 @@
 //! Slab scheduling: the volume's cube layers are cut into slabs of [`SLAB`] layers (fixed,
 //! so results never depend on the thread count); threads claim runs of neighbouring slabs,
-//! lowest first, run each slab into a buffer of their own and hand it over, and each slab is placed in the mesh as soon
-//! as every slab below it is, by whichever thread completes that chain.
+//! lowest first, run each slab into a buffer of their own and hand it over, and each slab is
+//! placed in the mesh as soon as every slab below it is, by whichever thread completes that
+//! chain.
 
 use std::any::Any;
 use std::sync::Mutex;
@@ -18,6 +19,14 @@ use crate::grid::assembly::Assembly;
 pub(super) struct Output<V> {
     pub(super) vertices: Vec<V>,
     pub(super) triangles: Vec<[u32; 3]>,
+}
+
+impl<V> Output<V> {
+    /// How many vertices and triangles it holds room for: what a kept buffer is ranked by,
+    /// since growing one writes into memory the system has to supply.
+    fn capacity(&self) -> usize {
+        self.vertices.capacity() + self.triangles.capacity()
+    }
 }
 
 /// Makes room for at least `more` elements past the end of `v`, and for a few huge pages'
@@ -42,9 +51,9 @@ type Assembled<V, T> = (Vec<V>, Vec<[u32; 3]>, Vec<T>);
 /// into a buffer of its own and hands it over; a slab is placed in the mesh (an
 /// [`Assembly`]) as soon as every slab below it has been handed over, by the thread that
 /// completes that chain, so no thread ever waits for another, and every byte of the mesh is
-/// written once. A slab's vertices go after all those of the slabs below it, its triangles' numbers shifted by as
-/// many (a reference to the layer above, numbered just past the slab's own vertices, lands on
-/// the next slab's first ones).
+/// written once. A slab's vertices go after all those of the slabs below it, its triangles'
+/// numbers shifted by as many (a reference to the layer above, numbered just past the slab's
+/// own vertices, lands on the next slab's first ones).
 ///
 /// On any number of threads the vertices and triangles go into `reuse` (emptied first),
 /// whose capacity is kept as it is when it has some: a caller's arrays from its last
@@ -286,7 +295,7 @@ fn claim_slabs(
     let work = |w: usize| {
         let mut scratch = Scratch::new(nx, ny);
         let mut hint = (0, 0);
-        let mut placement = spread.placement();
+        let mut placement = spread.placement(w);
         while !stop.load(Ordering::Relaxed) {
             let Some(run) = claim(&next, slabs, threads) else { break };
             for k in run {
@@ -294,7 +303,7 @@ fn claim_slabs(
                     break;
                 }
                 if threads > 1 {
-                    spread.check(w, &mut placement);
+                    placement.check();
                 }
                 if !each(k, &mut scratch, &mut hint) {
                     stop.store(true, Ordering::Relaxed);
@@ -366,23 +375,20 @@ impl Workspace {
         &SHARED
     }
 
-    /// A kept buffer for vertices of type `V`, if there is one.
+    /// A kept buffer for vertices of type `V`, the largest, if there is one.
     fn take<V: Send + 'static>(&self) -> Option<Output<V>> {
         let mut kept = self.kept.lock().unwrap_or_else(|e| e.into_inner());
-        // The largest: growing a buffer writes into memory the system has to supply.
-        let room = |b: &Box<dyn Any + Send>| {
-            b.downcast_ref::<Output<V>>().map(|o| o.vertices.capacity() + o.triangles.capacity())
-        };
-        let at = (0..kept.len())
-            .filter(|&i| room(&kept[i]).is_some())
-            .max_by_key(|&i| room(&kept[i]))?;
+        // The largest (see `Output::capacity`).
+        let (at, _) = (kept.iter().enumerate())
+            .filter_map(|(i, b)| Some((i, b.downcast_ref::<Output<V>>()?.capacity())))
+            .max_by_key(|&(_, room)| room)?;
         kept.swap_remove(at).downcast().ok().map(|b| *b)
     }
 
     /// Keeps `buffers` for the next extraction, and no more than `most` of their type: the
     /// largest, when there are more.
     fn keep<V: Send + 'static>(&self, mut buffers: Vec<Output<V>>, most: usize) {
-        buffers.sort_by_key(|o| std::cmp::Reverse(o.vertices.capacity() + o.triangles.capacity()));
+        buffers.sort_by_key(|o| std::cmp::Reverse(o.capacity()));
         let mut kept = self.kept.lock().unwrap_or_else(|e| e.into_inner());
         let held = kept.iter().filter(|b| b.is::<Output<V>>()).count();
         let room = most.saturating_sub(held);
