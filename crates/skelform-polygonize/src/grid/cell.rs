@@ -128,10 +128,11 @@ pub fn polygonize_cube(v: &[f32; 8], sink: &mut impl CubeSink) -> CubeOutcome {
 /// [`polygonize_cube`] for a caller that already has the sign configuration
 /// ([`case_of`]`(v)`, e.g. from sign bits kept per row).
 ///
-/// Inlined into the extractor's loop over cubes, with the rare cubes whose configuration
-/// can hold a tube (two or three loops) handed to [`polygonize_loops`] out of line: the
-/// common path is the table lookup, the edge vertices and the triangles, and stays small.
-#[inline]
+/// Always inlined into the extractor's loop over cubes (in each of the loop's compiled
+/// copies, see the extractor's `isa`), with the rare cubes whose configuration can hold a
+/// tube (two or three loops) handed to [`polygonize_loops`] out of line: the common path is
+/// the table lookup, the edge vertices and the triangles, and stays small.
+#[inline(always)]
 pub fn polygonize_case(case: usize, v: &[f32; 8], sink: &mut impl CubeSink) -> CubeOutcome {
     debug_assert_eq!(case, case_of(v));
     if case == 0 || case == 255 {

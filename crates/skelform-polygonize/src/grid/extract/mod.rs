@@ -24,6 +24,7 @@ use skelform_field::grid::{Grid, Level, Relative, Volume, VolumeView};
 use super::cell::{CubeSink, polygonize_case};
 use super::cube::CORNERS;
 
+mod isa;
 mod numbering;
 mod signs;
 mod slabs;
@@ -600,7 +601,51 @@ fn slab_done(
 /// before the cubes that use it. Order in the slab: the bottom layer's x/y-edges, then per
 /// layer of cubes the x/y-edges of the layer above (unless they are the next slab's), the
 /// z-edges, and the vertices inside the cubes.
+///
+/// The kernel is compiled twice, for the x86-64 baseline the build targets and for the
+/// instructions of x86-64-v3 (AVX2, BMI1/2, LZCNT, FMA, MOVBE: every x86-64 CPU since 2015),
+/// and the second runs where the CPU has them (see [`isa`]).
 fn extract_slab<V: SlabVertex, L: Level>(
+    grid: &Grid,
+    near: &Near<'_, L>,
+    span: (usize, usize),
+    scratch: &mut Scratch,
+    store: &mut SlabStore<'_, V>,
+    control: &Control,
+) -> Result<(u64, u64), Cancelled> {
+    #[cfg(target_arch = "x86_64")]
+    if isa::v3() {
+        // SAFETY: the CPU has every instruction set the copy is compiled for (checked
+        // just now).
+        return unsafe { extract_slab_v3(grid, near, span, scratch, store, control) };
+    }
+    slab_kernel(grid, near, span, scratch, store, control)
+}
+
+/// [`slab_kernel`] compiled for x86-64-v3.
+///
+/// # Safety
+/// The CPU must have the instruction sets enabled here ([`isa::v3`]).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx,avx2,bmi1,bmi2,fma,lzcnt,movbe")]
+unsafe fn extract_slab_v3<V: SlabVertex, L: Level>(
+    grid: &Grid,
+    near: &Near<'_, L>,
+    span: (usize, usize),
+    scratch: &mut Scratch,
+    store: &mut SlabStore<'_, V>,
+    control: &Control,
+) -> Result<(u64, u64), Cancelled> {
+    slab_kernel(grid, near, span, scratch, store, control)
+}
+
+/// [`extract_slab`]'s work, inlined into each of its compiled copies. What it calls in
+/// the loop over cubes is always inlined too (the numberings' `build`, the case's
+/// polygons, the closures below): a call left out of line would run the baseline's code
+/// in the faster copy. The numberings' `emit`, which make the vertex records, have copies
+/// of their own.
+#[inline(always)]
+fn slab_kernel<V: SlabVertex, L: Level>(
     grid: &Grid,
     near: &Near<'_, L>,
     (z0, z1): (usize, usize),
@@ -677,32 +722,40 @@ fn extract_slab<V: SlabVertex, L: Level>(
         // way, rather than all at once before the layer, which would stall the core on a
         // few thousand outstanding fetches.
         let ahead = (!V::READS_NEAR && k + 2 <= z1).then(|| local(k + 2));
-        let fetch = |j: usize| {
-            let end = if j + 2 == ny { ny } else { j + 1 };
-            if let Some(next) = ahead {
-                prefetch(&next[j * nx..end * nx]);
-            }
-            if V::READS_NEAR {
-                near.prefetch_rows(k + 3, j..end);
-            }
-        };
         let layers = ((&below[..], &below_classes[..]), (&above[..], &above_classes[..]));
-        for_each_mixed_cube(layers.0, layers.1, nx, ny, fetch, |i, j, case| {
-            let base = nx * j + layer * (k - z0) + i;
-            // One bounds check for the cube's eight samples rather than one each.
-            let cube = &vals[base..=base + offsets[7]];
-            // Spelled out: an array `map` stays a call here, in the loop over every cube.
-            // SAFETY: each corner's offset is a sum of some of 1, nx and nx·ny (its
-            // coordinates are 0 or 1), the far corner's of all three: at most `offsets[7]`,
-            // within `cube`.
-            let at = |c: usize| level.sample(unsafe { *cube.get_unchecked(offsets[c]) });
-            let v: [f32; 8] = [at(0), at(1), at(2), at(3), at(4), at(5), at(6), at(7)];
-            sink.enter_row(j);
-            sink.at = [i, j, k];
-            let outcome = polygonize_case(case, &v, &mut sink);
-            ambiguous_faces += outcome.ambiguous_faces as u64;
-            tunnels += outcome.tunnel as u64;
-        });
+        for_each_mixed_cube(
+            layers.0,
+            layers.1,
+            nx,
+            ny,
+            #[inline(always)]
+            |j: usize| {
+                let end = if j + 2 == ny { ny } else { j + 1 };
+                if let Some(next) = ahead {
+                    prefetch(&next[j * nx..end * nx]);
+                }
+                if V::READS_NEAR {
+                    near.prefetch_rows(k + 3, j..end);
+                }
+            },
+            #[inline(always)]
+            |i, j, case| {
+                let base = nx * j + layer * (k - z0) + i;
+                // One bounds check for the cube's eight samples rather than one each.
+                let cube = &vals[base..=base + offsets[7]];
+                // Spelled out: an array `map` stays a call here, in the loop over every cube.
+                // SAFETY: each corner's offset is a sum of some of 1, nx and nx·ny (its
+                // coordinates are 0 or 1), the far corner's of all three: at most `offsets[7]`,
+                // within `cube`.
+                let at = |c: usize| level.sample(unsafe { *cube.get_unchecked(offsets[c]) });
+                let v: [f32; 8] = [at(0), at(1), at(2), at(3), at(4), at(5), at(6), at(7)];
+                sink.enter_row(j);
+                sink.at = [i, j, k];
+                let outcome = polygonize_case(case, &v, &mut sink);
+                ambiguous_faces += outcome.ambiguous_faces as u64;
+                tunnels += outcome.tunnel as u64;
+            },
+        );
         std::mem::swap(below, above);
         std::mem::swap(below_classes, above_classes);
         std::mem::swap(lower, upper);
@@ -1110,6 +1163,72 @@ mod tests {
                     |p: &[[f32; 3]]| p.iter().map(|v| v.map(f32::to_bits)).collect::<Vec<_>>();
                 assert!(bits(&a.0) == bits(&b.0), "positions differ at level {level}");
                 assert!(a.1 == b.1, "triangles differ at level {level}");
+            }
+        }
+    }
+
+    /// A position and the differences of the samples about its base: a record that reads
+    /// around its vertex in floating point, as the Python module's do.
+    #[derive(Clone, Copy, Default, PartialEq, Debug)]
+    struct Graded([f32; 3], [f32; 3]);
+
+    impl SlabVertex for Graded {
+        const READS_NEAR: bool = true;
+        fn make<L: Level>(grid: &Grid, v: GridVertex, e: [f32; 2], n: &Near<'_, L>) -> Self {
+            let [i, j, k] = v.base.map(|c| c as usize);
+            let d = n.dims();
+            let at = |i: usize, j: usize, k: usize| n.sample(i.min(d[0] - 1), j.min(d[1] - 1), k);
+            let t = crate::grid::cell::crossing(e[0], e[1]) as f32;
+            let g = [
+                at(i + 1, j, k) - at(i.saturating_sub(1), j, k) * t,
+                at(i, j + 1, k) - at(i, j.saturating_sub(1), k) * t,
+                at(i, j, k + 1) - at(i, j, k.saturating_sub(1)) * t,
+            ];
+            Graded(v.position(grid).as_vec3().to_array(), g)
+        }
+    }
+
+    /// The kernel's two compiled copies (the build's baseline and x86-64-v3, see `isa`)
+    /// make the same mesh bit for bit, positions, records that read around their vertices
+    /// and triangles, on one thread and on several. (On a CPU without x86-64-v3 both runs
+    /// take the baseline copy.)
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn both_compiled_kernels_make_the_same_mesh() {
+        use std::sync::atomic::Ordering;
+        let dims = [70, 41, 3 * SLAB + 5];
+        let grid = Grid { origin: DVec3::new(-0.5, 0.25, 1.0), cell: 0.37, dims };
+        let noisy = noise(dims.iter().product(), 21);
+        let smooth: Vec<f32> = (0..dims.iter().product::<usize>())
+            .map(|n| {
+                let [x, y, z] = [n % dims[0], n / dims[0] % dims[1], n / (dims[0] * dims[1])]
+                    .map(|c| c as f32 * 0.21);
+                x.sin() * y.cos() + y.sin() * z.cos() + z.sin() * x.cos()
+            })
+            .collect();
+        for values in [noisy, smooth] {
+            let volume = Volume::from_values(grid, values);
+            for threads in [1, 3] {
+                let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build();
+                let pool = pool.unwrap_or_else(|e| panic!("{e}"));
+                let run = |baseline: bool| {
+                    isa::tests::BASELINE.store(baseline, Ordering::Relaxed);
+                    let control = Control::default();
+                    let got = pool.install(|| {
+                        let records = extract_volume_records::<Graded>(&volume, &control);
+                        let lattice = extract(&volume, &control);
+                        (records.unwrap_or_else(|_| unreachable!()), lattice)
+                    });
+                    isa::tests::BASELINE.store(false, Ordering::Relaxed);
+                    let (records, lattice) = got;
+                    let lattice = lattice.unwrap_or_else(|_| unreachable!());
+                    let bits =
+                        records.0.iter().map(|g| (g.0.map(f32::to_bits), g.1.map(f32::to_bits)));
+                    (bits.collect::<Vec<_>>(), records.1, lattice.vertices, lattice.triangles)
+                };
+                let (fast, baseline) = (run(false), run(true));
+                assert!(fast.1.len() > 1000, "{} triangles", fast.1.len());
+                assert!(fast == baseline, "the copies differ on {threads} threads");
             }
         }
     }

@@ -6,6 +6,7 @@
 
 use skelform_field::grid::{Grid, Level};
 
+use super::isa;
 use super::signs::{ROW_MIXED, same_uniform, word_mask};
 use super::slabs::SlabStore;
 use super::{GridVertex, Near, Place, SlabVertex};
@@ -52,6 +53,7 @@ impl LayerNumbering {
     /// Numbers the edges of a layer of `ny` rows of sign words (see [`layer_signs`]), whose
     /// rows' classes are `classes` ([`row_classes`](super::signs::row_classes)): a row all inside or all outside, like
     /// the next row, has no crossed edge and is passed over.
+    #[inline(always)]
     pub(super) fn build(
         &mut self,
         signs: &[u64],
@@ -101,17 +103,55 @@ impl LayerNumbering {
         k: usize,
         store: &mut SlabStore<'_, V>,
     ) {
+        #[cfg(target_arch = "x86_64")]
+        if isa::v3() {
+            // SAFETY: the CPU has the instruction sets `emit_v3` is compiled for.
+            return unsafe { self.emit_v3(grid, vals, near, k, store) };
+        }
+        self.emit_in(grid, vals, near, k, store);
+    }
+
+    /// [`Self::emit`] compiled for x86-64-v3 (see [`isa`]).
+    ///
+    /// # Safety
+    /// The CPU must have the instruction sets enabled here ([`isa::v3`]).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx,avx2,bmi1,bmi2,fma,lzcnt,movbe")]
+    unsafe fn emit_v3<V: SlabVertex, L: Level>(
+        &self,
+        grid: &Grid,
+        vals: &[f32],
+        near: &Near<'_, L>,
+        k: usize,
+        store: &mut SlabStore<'_, V>,
+    ) {
+        self.emit_in(grid, vals, near, k, store);
+    }
+
+    /// The work of [`Self::emit`], in each of its compiled copies (the closures it hands
+    /// on are always inlined for that reason: one left as a call would run baseline code).
+    #[inline(always)]
+    fn emit_in<V: SlabVertex, L: Level>(
+        &self,
+        grid: &Grid,
+        vals: &[f32],
+        near: &Near<'_, L>,
+        k: usize,
+        store: &mut SlabStore<'_, V>,
+    ) {
         let [nx, ny, _] = grid.dims;
         // Two closures, one per axis, so that each loop makes its records with the axis a
         // constant (one closure taking the axis is left as a call, the axis unknown in it).
         self.for_each_edge(
             ny,
             store,
+            #[inline(always)]
             |store, i, j| {
                 let at = i + nx * j;
                 let ends = [near.level.sample(vals[at]), near.level.sample(vals[at + 1])];
                 store.push_vertex(edge_record(grid, [i, j, k], 0, ends, near));
             },
+            #[inline(always)]
             |store, i, j| {
                 let at = i + nx * j;
                 let ends = [near.level.sample(vals[at]), near.level.sample(vals[at + nx])];
@@ -133,9 +173,17 @@ impl LayerNumbering {
         for &j in &self.live {
             let j = j as usize;
             let row = j * self.words..(j + 1) * self.words;
-            for_each_bit(&self.x[row.clone()], |i| x(state, i, j));
+            for_each_bit(
+                &self.x[row.clone()],
+                #[inline(always)]
+                |i| x(state, i, j),
+            );
             if j + 1 < ny {
-                for_each_bit(&self.y[row], |i| y(state, i, j));
+                for_each_bit(
+                    &self.y[row],
+                    #[inline(always)]
+                    |i| y(state, i, j),
+                );
             }
         }
     }
@@ -165,6 +213,7 @@ pub(super) struct ZNumbering {
 impl ZNumbering {
     /// Numbers the z-edges between two layers of sign words, given their rows' classes
     /// ([`row_classes`](super::signs::row_classes)): a row all inside, or all outside, in both layers is passed over.
+    #[inline(always)]
     pub(super) fn build(
         &mut self,
         (lower, lower_classes): (&[u64], &[u8]),
@@ -201,12 +250,53 @@ impl ZNumbering {
         k: usize,
         store: &mut SlabStore<'_, V>,
     ) {
+        #[cfg(target_arch = "x86_64")]
+        if isa::v3() {
+            // SAFETY: the CPU has the instruction sets `emit_v3` is compiled for.
+            return unsafe { self.emit_v3(grid, lower, upper, near, k, store) };
+        }
+        self.emit_in(grid, lower, upper, near, k, store);
+    }
+
+    /// [`Self::emit`] compiled for x86-64-v3 (see [`isa`]).
+    ///
+    /// # Safety
+    /// The CPU must have the instruction sets enabled here ([`isa::v3`]).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx,avx2,bmi1,bmi2,fma,lzcnt,movbe")]
+    unsafe fn emit_v3<V: SlabVertex, L: Level>(
+        &self,
+        grid: &Grid,
+        lower: &[f32],
+        upper: &[f32],
+        near: &Near<'_, L>,
+        k: usize,
+        store: &mut SlabStore<'_, V>,
+    ) {
+        self.emit_in(grid, lower, upper, near, k, store);
+    }
+
+    /// The work of [`Self::emit`], in each of its compiled copies (the closures it hands
+    /// on are always inlined for that reason: one left as a call would run baseline code).
+    #[inline(always)]
+    fn emit_in<V: SlabVertex, L: Level>(
+        &self,
+        grid: &Grid,
+        lower: &[f32],
+        upper: &[f32],
+        near: &Near<'_, L>,
+        k: usize,
+        store: &mut SlabStore<'_, V>,
+    ) {
         let nx = grid.dims[0];
-        self.for_each_edge(|i, j| {
-            let at = i + nx * j;
-            let ends = [near.level.sample(lower[at]), near.level.sample(upper[at])];
-            store.push_vertex(edge_record(grid, [i, j, k], 2, ends, near));
-        });
+        self.for_each_edge(
+            #[inline(always)]
+            |i, j| {
+                let at = i + nx * j;
+                let ends = [near.level.sample(lower[at]), near.level.sample(upper[at])];
+                store.push_vertex(edge_record(grid, [i, j, k], 2, ends, near));
+            },
+        );
     }
 
     /// Calls `f(i, j)` for each crossed z-edge from sample `(i, j)`, in the order of their
@@ -215,7 +305,11 @@ impl ZNumbering {
     pub(super) fn for_each_edge(&self, mut f: impl FnMut(usize, usize)) {
         for &j in &self.live {
             let j = j as usize;
-            for_each_bit(&self.edges[j * self.words..][..self.words], |i| f(i, j));
+            for_each_bit(
+                &self.edges[j * self.words..][..self.words],
+                #[inline(always)]
+                |i| f(i, j),
+            );
         }
     }
 
@@ -241,7 +335,7 @@ fn count_across(a: &[u64], b: &[u64], last: u64, out: &mut [Counted], count: &mu
 }
 
 /// Calls `f(i)` for each crossed edge `i` of a row, in order.
-#[inline]
+#[inline(always)]
 fn for_each_bit(words: &[Counted], mut f: impl FnMut(usize)) {
     for (w, word) in words.iter().enumerate() {
         let mut bits = word.bits;

@@ -163,6 +163,7 @@ pub(super) const ROW_MIXED: u8 = 2;
 /// from its sign words: a few word operations a row, after which rows far from the surface
 /// (most of them around a compact shape) are passed over by the cube loop and the edge
 /// numberings with one comparison, as Flying Edges trims its rows.
+#[inline(always)]
 pub(super) fn row_classes(signs: &[u64], nx: usize, words: usize, classes: &mut Vec<u8>) {
     let ny = signs.len() / words;
     classes.resize(ny, ROW_MIXED);
