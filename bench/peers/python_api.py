@@ -7,7 +7,8 @@ zero level set; the timed call is the library call alone (for VTK, `Update()` of
 skelform and scikit-image also return vertex normals and values, which PyMCubes and VTK (as
 set here) do not. The tools take turns within each round, so that a shared machine's drift
 falls on all of them alike; medians of --runs rounds; ratio = peer time / skelform time on one
-thread (above 1: skelform is faster). Writes bench/results/python.md and prints it.
+thread (above 1: skelform is faster), of the medians and, paired, the median of the rounds'
+ratios. Writes bench/results/python.md and prints it.
 """
 
 import argparse
@@ -69,8 +70,9 @@ def main():
              f"One run of `bench/peers/python.sh` on {time.strftime('%Y-%m-%d')}: {machine()}.",
              f"Medians of {a.runs} rounds in one process, the tools taking turns in each round;",
              "ratio = tool time / skelform's single-threaded time is shown as the peer's slowdown",
-             "(above 1: skelform is faster).", "",
-             "| field | samples | tool | ms | ratio | triangles |", "|---|---|---|---|---|---|"]
+             "(above 1: skelform is faster): of the medians, and the median of each round's ratio.", "",
+             "| field | samples | tool | ms | ratio | ratio by round | triangles |",
+             "|---|---|---|---|---|---|---|"]
     started = time.time()
     load_before = os.getloadavg()
     for field in a.fields.split(","):
@@ -84,11 +86,17 @@ def main():
                 for name, f in every.items():
                     t, faces[name] = f(vol)
                     times[name].append(t)
-            base = statistics.median(times["skelform, 1 thread"])
+            one = times["skelform, 1 thread"]
+            base = statistics.median(one)
             for name in every:
                 med = statistics.median(times[name])
+                # The ratio in each round, between calls made a moment apart, and their
+                # median: a slow stretch of the machine that lasts a few rounds moves both
+                # calls of a round alike, where it moves one tool's median and not the other's.
+                paired = statistics.median(t / b for t, b in zip(times[name], one))
                 ratio = "" if name == "skelform, 1 thread" else f"{med / base:.2f}"
-                lines.append(f"| {field} | {n}³ | {name} | {med * 1000:.1f} | {ratio} | {faces[name]:,} |")
+                per_round = "" if name == "skelform, 1 thread" else f"{paired:.2f}"
+                lines.append(f"| {field} | {n}³ | {name} | {med * 1000:.1f} | {ratio} | {per_round} | {faces[name]:,} |")
                 print(lines[-1], flush=True)
     load_after = os.getloadavg()
     # The machine's load, which on a shared machine moves every time here by tens of percent.
