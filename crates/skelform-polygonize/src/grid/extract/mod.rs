@@ -37,7 +37,7 @@ pub use streaming::{
 };
 
 use numbering::{Counted, LayerNumbering, ZNumbering};
-use signs::{for_each_mixed_cube, layer_signs, prefetch, row_classes};
+use signs::{Ahead, for_each_mixed_cube, layer_signs, prefetch, row_classes};
 use slabs::{SlabStore, run_slabs, run_slabs_sunk};
 
 /// Cube layers per slab. A constant, so that results never depend on the thread count.
@@ -243,11 +243,18 @@ impl<L: Level> Near<'_, L> {
     /// there to read.
     #[inline]
     fn prefetch_rows(&self, k: usize, rows: std::ops::Range<usize>) {
-        let [nx, ny, _] = self.dims;
-        if (self.first..self.first + self.layers).contains(&k) && rows.end <= ny {
-            let layer = &self.values[(k - self.first) * nx * ny..][..nx * ny];
+        let nx = self.dims[0];
+        if let Some(layer) = self.layer(k).filter(|_| rows.end <= self.dims[1]) {
             prefetch(&layer[rows.start * nx..rows.end * nx]);
         }
+    }
+
+    /// The raw values of sample layer `k`, if `near` holds it.
+    #[inline]
+    fn layer(&self, k: usize) -> Option<&[f32]> {
+        let size = self.dims[0] * self.dims[1];
+        let held = (self.first..self.first + self.layers).contains(&k);
+        held.then(|| &self.values[(k - self.first) * size..][..size])
     }
 }
 
@@ -666,7 +673,7 @@ fn slab_kernel<V: SlabVertex, L: Level>(
     // cubes are visited.
     let words = nx.div_ceil(64);
     let threshold = level.threshold();
-    layer_signs(local(z0), nx, words, below, threshold);
+    layer_signs(local(z0), nx, words, below, threshold, None);
     row_classes(below, nx, words, below_classes);
     lower.build(below, below_classes, nx, ny, words);
     store.begin();
@@ -686,7 +693,21 @@ fn slab_kernel<V: SlabVertex, L: Level>(
         if control.is_cancelled() {
             return Err(Cancelled);
         }
-        layer_signs(local(k + 1), nx, words, above, threshold);
+        // The layer whose rows the work on this layer of cubes fetches into the cache, ahead
+        // of its use: the layer after next, which the next layer's sign pass reads (else
+        // it would wait on memory), or, for records that read the samples around their
+        // vertex, the one after that, which the records of the next layer reach (the
+        // layer before it was fetched by this loop's predecessor). Row by row as the work
+        // goes, rather than all at once, which would stall the core on a few thousand
+        // outstanding fetches: with the cubes of rows that have some (below), with the
+        // sign pass of rows without (a row of cubes where the layer below has two uniform
+        // sample rows alike is passed over unless the layer above differs; such rows,
+        // thousands around a compact shape, took the cube loop microseconds, so that
+        // their fetches went out in one burst).
+        let far =
+            if V::READS_NEAR { near.layer(k + 3) } else { (k + 2 <= z1).then(|| local(k + 2)) };
+        let ahead = far.map(|values| Ahead { values, passed: below_classes });
+        layer_signs(local(k + 1), nx, words, above, threshold, ahead);
         row_classes(above, nx, words, above_classes);
         upper.build(above, above_classes, nx, ny, words);
         // The x- and y-edges on the slab's top layer belong to the slab above (except for
@@ -714,14 +735,6 @@ fn slab_kernel<V: SlabVertex, L: Level>(
             at: [0, 0, k],
             _vertex: std::marker::PhantomData,
         };
-        // The samples of the layer after next, row by row with the rows of cubes: fetched
-        // while the cubes are worked on, they are in the cache when the next layer's sign
-        // pass reads them, instead of that pass waiting on memory. Records that read the
-        // samples around their vertex reach a layer further, k + 3 from the next layer of
-        // cubes (whose layer k + 2 this loop's predecessor fetched): fetched here the same
-        // way, rather than all at once before the layer, which would stall the core on a
-        // few thousand outstanding fetches.
-        let ahead = (!V::READS_NEAR && k + 2 <= z1).then(|| local(k + 2));
         let layers = ((&below[..], &below_classes[..]), (&above[..], &above_classes[..]));
         for_each_mixed_cube(
             layers.0,
@@ -730,12 +743,10 @@ fn slab_kernel<V: SlabVertex, L: Level>(
             ny,
             #[inline(always)]
             |j: usize| {
+                // (The last row of cubes fetches the last sample row too.)
                 let end = if j + 2 == ny { ny } else { j + 1 };
-                if let Some(next) = ahead {
-                    prefetch(&next[j * nx..end * nx]);
-                }
-                if V::READS_NEAR {
-                    near.prefetch_rows(k + 3, j..end);
+                if let Some(far) = far {
+                    prefetch(&far[j * nx..end * nx]);
                 }
             },
             #[inline(always)]
@@ -922,7 +933,7 @@ mod tests {
         }
         let words = nx.div_ceil(64);
         let mut signs = vec![0; ny * words];
-        layer_signs(&values, nx, words, &mut signs, 0.0);
+        layer_signs(&values, nx, words, &mut signs, 0.0, None);
         for j in 0..ny {
             for w in 0..words {
                 let row = &values[j * nx..(j + 1) * nx];
@@ -950,7 +961,7 @@ mod tests {
     fn signs_of(values: &[f32], nx: usize) -> (Vec<u64>, Vec<u8>) {
         let words = nx.div_ceil(64);
         let mut signs = vec![0; values.len() / nx * words];
-        layer_signs(values, nx, words, &mut signs, 0.0);
+        layer_signs(values, nx, words, &mut signs, 0.0, None);
         let mut classes = Vec::new();
         row_classes(&signs, nx, words, &mut classes);
         (signs, classes)

@@ -121,12 +121,16 @@ mod wide {
         words: usize,
         out: &mut [u64],
         threshold: f32,
+        ahead: Option<super::Ahead<'_>>,
     ) {
         // The loop spelled out here rather than through `row_signs` with a closure: a
         // closure is compiled without AVX2, and `signs64` is then a call per word with
         // its constants set up each time.
         let whole = nx / 64;
-        for (row, o) in layer.chunks(nx).zip(out.chunks_mut(words)) {
+        for (j, (row, o)) in layer.chunks(nx).zip(out.chunks_mut(words)).enumerate() {
+            if let Some(a) = &ahead {
+                a.row(j, nx);
+            }
             for (w, o) in o[..whole].iter_mut().enumerate() {
                 // SAFETY: AVX2 is there: the caller's promise.
                 *o = unsafe { signs64(&row[64 * w..64 * w + 64], threshold) };
@@ -138,16 +142,48 @@ mod wide {
     }
 }
 
+/// A layer further on whose rows [`layer_signs`] fetches into the cache as it goes: those
+/// whose row of cubes in the layer of cubes under the layer signed is likely to be passed
+/// over, that is, whose sample row and the next are alike and uniform in the layer below
+/// (`passed`, its [`row_classes`]). The loop over cubes fetches the others.
+#[derive(Clone, Copy)]
+pub(super) struct Ahead<'a> {
+    pub(super) values: &'a [f32],
+    pub(super) passed: &'a [u8],
+}
+
+impl Ahead<'_> {
+    /// Fetches sample row `j` (of `nx` samples) if its row of cubes is likely passed over.
+    #[inline(always)]
+    fn row(&self, j: usize, nx: usize) {
+        let c = &self.passed;
+        if same_uniform(c[j], c[(j + 1).min(c.len() - 1)]) {
+            prefetch(&self.values[j * nx..(j + 1) * nx]);
+        }
+    }
+}
+
 /// Sign words of every row of a layer (`ny` rows of `words` words): bit set where the raw
-/// value is below `threshold` (see [`skelform_field::grid::Level`]).
-pub(super) fn layer_signs(layer: &[f32], nx: usize, words: usize, out: &mut [u64], threshold: f32) {
+/// value is below `threshold` (see [`skelform_field::grid::Level`]); rows of `ahead`
+/// fetched on the way.
+pub(super) fn layer_signs(
+    layer: &[f32],
+    nx: usize,
+    words: usize,
+    out: &mut [u64],
+    threshold: f32,
+    ahead: Option<Ahead<'_>>,
+) {
     #[cfg(target_arch = "x86_64")]
     if wide::available() {
         // SAFETY: AVX2 was detected at run time.
-        unsafe { wide::layer_signs(layer, nx, words, out, threshold) };
+        unsafe { wide::layer_signs(layer, nx, words, out, threshold, ahead) };
         return;
     }
-    for (row, o) in layer.chunks(nx).zip(out.chunks_mut(words)) {
+    for (j, (row, o)) in layer.chunks(nx).zip(out.chunks_mut(words)).enumerate() {
+        if let Some(a) = &ahead {
+            a.row(j, nx);
+        }
         row_signs(row, o, threshold, |c| signs64(c, threshold));
     }
 }
@@ -246,8 +282,8 @@ pub fn surface_cubes(volume: &Volume) -> u64 {
         .map(|k| {
             let (mut below, mut above) = (vec![0u64; ny * words], vec![0u64; ny * words]);
             let at = |k: usize| &volume.values[k * layer..(k + 1) * layer];
-            layer_signs(at(k), nx, words, &mut below, 0.0);
-            layer_signs(at(k + 1), nx, words, &mut above, 0.0);
+            layer_signs(at(k), nx, words, &mut below, 0.0, None);
+            layer_signs(at(k + 1), nx, words, &mut above, 0.0, None);
             let mut count = 0u64;
             for j in 0..ny - 1 {
                 let rows = cube_rows(&below, &above, j, words);
@@ -264,7 +300,7 @@ pub fn surface_cubes(volume: &Volume) -> u64 {
 /// in row order, given the sign words of the sample layers below and above it and their
 /// rows' classes ([`row_classes`]); `row(j)` before the cubes of row `j`. A row of cubes
 /// whose four sample rows are all outside, or all inside, has no such cube and is passed
-/// over without looking at its words.
+/// over without looking at its words (nor a call of `row`).
 #[inline(always)]
 pub(super) fn for_each_mixed_cube(
     (below, below_classes): (&[u64], &[u8]),
@@ -277,11 +313,11 @@ pub(super) fn for_each_mixed_cube(
     let words = nx.div_ceil(64);
     let (bc, ac) = (&below_classes[..ny], &above_classes[..ny]);
     for j in 0..ny - 1 {
-        row(j);
         let c = bc[j];
         if same_uniform(c, bc[j + 1]) && same_uniform(c, ac[j]) && same_uniform(c, ac[j + 1]) {
             continue;
         }
+        row(j);
         let rows = cube_rows(below, above, j, words);
         for w in 0..words {
             // Cubes are i < nx - 1: the last sample's bit and those past it are masked out.
