@@ -27,6 +27,63 @@ pub(super) fn v3() -> bool {
         && has!("movbe")
 }
 
+/// Defines `$name`, which runs `$body` (an always-inlined function, or method, of the same
+/// parameters) in its copy for x86-64-v3, the function `$v3`, where the CPU has those
+/// instruction sets ([`v3`]), and in the build's baseline elsewhere. What `$body` calls must
+/// be inlined into it for the copy to reach it: a call left out of line runs baseline code.
+macro_rules! compiled_twice {
+    (
+        $(#[$doc:meta])*
+        $vis:vis fn $name:ident<$($g:ident: $bound:path),*>(&self $(, $arg:ident: $ty:ty)* $(,)?)
+            $(-> $ret:ty)? => $v3:ident, $body:ident
+    ) => {
+        $(#[$doc])*
+        $vis fn $name<$($g: $bound),*>(&self $(, $arg: $ty)*) $(-> $ret)? {
+            #[cfg(target_arch = "x86_64")]
+            if $crate::grid::extract::isa::v3() {
+                // SAFETY: the CPU has the instruction sets the copy is compiled for.
+                return unsafe { self.$v3($($arg),*) };
+            }
+            self.$body($($arg),*)
+        }
+
+        /// The copy for x86-64-v3 (see `isa`).
+        ///
+        /// # Safety
+        /// The CPU must have the instruction sets enabled here (`isa::v3`).
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = "avx,avx2,bmi1,bmi2,fma,lzcnt,movbe")]
+        unsafe fn $v3<$($g: $bound),*>(&self $(, $arg: $ty)*) $(-> $ret)? {
+            self.$body($($arg),*)
+        }
+    };
+    (
+        $(#[$doc:meta])*
+        $vis:vis fn $name:ident<$($g:ident: $bound:path),*>($($arg:ident: $ty:ty),* $(,)?)
+            $(-> $ret:ty)? => $v3:ident, $body:ident
+    ) => {
+        $(#[$doc])*
+        $vis fn $name<$($g: $bound),*>($($arg: $ty),*) $(-> $ret)? {
+            #[cfg(target_arch = "x86_64")]
+            if $crate::grid::extract::isa::v3() {
+                // SAFETY: the CPU has the instruction sets the copy is compiled for.
+                return unsafe { $v3($($arg),*) };
+            }
+            $body($($arg),*)
+        }
+
+        /// The copy for x86-64-v3 (see `isa`).
+        ///
+        /// # Safety
+        /// The CPU must have the instruction sets enabled here (`isa::v3`).
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = "avx,avx2,bmi1,bmi2,fma,lzcnt,movbe")]
+        unsafe fn $v3<$($g: $bound),*>($($arg: $ty),*) $(-> $ret)? {
+            $body($($arg),*)
+        }
+    };
+}
+
 #[cfg(test)]
 pub(super) mod tests {
     use std::sync::atomic::AtomicBool;

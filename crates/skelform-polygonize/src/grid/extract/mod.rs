@@ -24,6 +24,7 @@ use skelform_field::grid::{Grid, Level, Relative, Volume, VolumeView};
 use super::cell::{CubeSink, polygonize_case};
 use super::cube::CORNERS;
 
+#[macro_use]
 mod isa;
 mod numbering;
 mod signs;
@@ -597,53 +598,30 @@ fn slab_done(
     }
 }
 
-/// Marching cubes over the cube layers `z0..z1`; `near` holds the sample layers `z0..=z1`
-/// (and possibly more), as raw values that its level reads (for the inside test by its
-/// threshold, for everything else as samples). The slab's vertices and
-/// triangles go to `store`; returns the ambiguous faces decided and the tunnels made.
-///
-/// Flying Edges' way of naming vertices: the crossed edges of each sample layer and
-/// between two layers are numbered by counting sign changes, so a cube finds the vertex on
-/// its edge by a population count, and every edge vertex is made once, in number order,
-/// before the cubes that use it. Order in the slab: the bottom layer's x/y-edges, then per
-/// layer of cubes the x/y-edges of the layer above (unless they are the next slab's), the
-/// z-edges, and the vertices inside the cubes.
-///
-/// The kernel is compiled twice, for the x86-64 baseline the build targets and for the
-/// instructions of x86-64-v3 (AVX2, BMI1/2, LZCNT, FMA, MOVBE: every x86-64 CPU since 2015),
-/// and the second runs where the CPU has them (see [`isa`]).
-fn extract_slab<V: SlabVertex, L: Level>(
-    grid: &Grid,
-    near: &Near<'_, L>,
-    span: (usize, usize),
-    scratch: &mut Scratch,
-    store: &mut SlabStore<'_, V>,
-    control: &Control,
-) -> Result<(u64, u64), Cancelled> {
-    #[cfg(target_arch = "x86_64")]
-    if isa::v3() {
-        // SAFETY: the CPU has every instruction set the copy is compiled for (checked
-        // just now).
-        return unsafe { extract_slab_v3(grid, near, span, scratch, store, control) };
-    }
-    slab_kernel(grid, near, span, scratch, store, control)
-}
-
-/// [`slab_kernel`] compiled for x86-64-v3.
-///
-/// # Safety
-/// The CPU must have the instruction sets enabled here ([`isa::v3`]).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx,avx2,bmi1,bmi2,fma,lzcnt,movbe")]
-unsafe fn extract_slab_v3<V: SlabVertex, L: Level>(
-    grid: &Grid,
-    near: &Near<'_, L>,
-    span: (usize, usize),
-    scratch: &mut Scratch,
-    store: &mut SlabStore<'_, V>,
-    control: &Control,
-) -> Result<(u64, u64), Cancelled> {
-    slab_kernel(grid, near, span, scratch, store, control)
+compiled_twice! {
+    /// Marching cubes over the cube layers `z0..z1`; `near` holds the sample layers `z0..=z1`
+    /// (and possibly more), as raw values that its level reads (for the inside test by its
+    /// threshold, for everything else as samples). The slab's vertices and
+    /// triangles go to `store`; returns the ambiguous faces decided and the tunnels made.
+    ///
+    /// Flying Edges' way of naming vertices: the crossed edges of each sample layer and
+    /// between two layers are numbered by counting sign changes, so a cube finds the vertex on
+    /// its edge by a population count, and every edge vertex is made once, in number order,
+    /// before the cubes that use it. Order in the slab: the bottom layer's x/y-edges, then per
+    /// layer of cubes the x/y-edges of the layer above (unless they are the next slab's), the
+    /// z-edges, and the vertices inside the cubes.
+    ///
+    /// The kernel is compiled twice, for the x86-64 baseline the build targets and for the
+    /// instructions of x86-64-v3 (AVX2, BMI1/2, LZCNT, FMA, MOVBE: every x86-64 CPU since 2015),
+    /// and the second runs where the CPU has them (see `isa`).
+    fn extract_slab<V: SlabVertex, L: Level>(
+        grid: &Grid,
+        near: &Near<'_, L>,
+        span: (usize, usize),
+        scratch: &mut Scratch,
+        store: &mut SlabStore<'_, V>,
+        control: &Control,
+    ) -> Result<(u64, u64), Cancelled> => extract_slab_v3, slab_kernel
 }
 
 /// [`extract_slab`]'s work, inlined into each of its compiled copies. What it calls in

@@ -6,7 +6,6 @@
 
 use skelform_field::grid::{Grid, Level};
 
-use super::isa;
 use super::signs::{ROW_MIXED, same_uniform, word_mask};
 use super::slabs::SlabStore;
 use super::{GridVertex, Near, Place, SlabVertex};
@@ -93,39 +92,17 @@ impl LayerNumbering {
         self.total = count;
     }
 
-    /// Makes the layer's vertices in the order of their numbers, from the layer's raw values
-    /// (`nx·ny`, x fastest) read through `near`'s level; `k` is the layer's index.
-    pub(super) fn emit<V: SlabVertex, L: Level>(
-        &self,
-        grid: &Grid,
-        vals: &[f32],
-        near: &Near<'_, L>,
-        k: usize,
-        store: &mut SlabStore<'_, V>,
-    ) {
-        #[cfg(target_arch = "x86_64")]
-        if isa::v3() {
-            // SAFETY: the CPU has the instruction sets `emit_v3` is compiled for.
-            return unsafe { self.emit_v3(grid, vals, near, k, store) };
-        }
-        self.emit_in(grid, vals, near, k, store);
-    }
-
-    /// [`Self::emit`] compiled for x86-64-v3 (see [`isa`]).
-    ///
-    /// # Safety
-    /// The CPU must have the instruction sets enabled here ([`isa::v3`]).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx,avx2,bmi1,bmi2,fma,lzcnt,movbe")]
-    unsafe fn emit_v3<V: SlabVertex, L: Level>(
-        &self,
-        grid: &Grid,
-        vals: &[f32],
-        near: &Near<'_, L>,
-        k: usize,
-        store: &mut SlabStore<'_, V>,
-    ) {
-        self.emit_in(grid, vals, near, k, store);
+    compiled_twice! {
+        /// Makes the layer's vertices in the order of their numbers, from the layer's raw
+        /// values (`nx·ny`, x fastest) read through `near`'s level; `k` is the layer's index.
+        pub(super) fn emit<V: SlabVertex, L: Level>(
+            &self,
+            grid: &Grid,
+            vals: &[f32],
+            near: &Near<'_, L>,
+            k: usize,
+            store: &mut SlabStore<'_, V>,
+        ) => emit_v3, emit_in
     }
 
     /// The work of [`Self::emit`], in each of its compiled copies (the closures it hands
@@ -239,41 +216,18 @@ impl ZNumbering {
         }
     }
 
-    /// Makes the vertices in the order of their numbers; `lower` and `upper` are the two
-    /// layers' raw values, read through `near`'s level, `k` the lower one's index.
-    pub(super) fn emit<V: SlabVertex, L: Level>(
-        &self,
-        grid: &Grid,
-        lower: &[f32],
-        upper: &[f32],
-        near: &Near<'_, L>,
-        k: usize,
-        store: &mut SlabStore<'_, V>,
-    ) {
-        #[cfg(target_arch = "x86_64")]
-        if isa::v3() {
-            // SAFETY: the CPU has the instruction sets `emit_v3` is compiled for.
-            return unsafe { self.emit_v3(grid, lower, upper, near, k, store) };
-        }
-        self.emit_in(grid, lower, upper, near, k, store);
-    }
-
-    /// [`Self::emit`] compiled for x86-64-v3 (see [`isa`]).
-    ///
-    /// # Safety
-    /// The CPU must have the instruction sets enabled here ([`isa::v3`]).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx,avx2,bmi1,bmi2,fma,lzcnt,movbe")]
-    unsafe fn emit_v3<V: SlabVertex, L: Level>(
-        &self,
-        grid: &Grid,
-        lower: &[f32],
-        upper: &[f32],
-        near: &Near<'_, L>,
-        k: usize,
-        store: &mut SlabStore<'_, V>,
-    ) {
-        self.emit_in(grid, lower, upper, near, k, store);
+    compiled_twice! {
+        /// Makes the vertices in the order of their numbers; `lower` and `upper` are the
+        /// two layers' raw values, read through `near`'s level, `k` the lower one's index.
+        pub(super) fn emit<V: SlabVertex, L: Level>(
+            &self,
+            grid: &Grid,
+            lower: &[f32],
+            upper: &[f32],
+            near: &Near<'_, L>,
+            k: usize,
+            store: &mut SlabStore<'_, V>,
+        ) => emit_v3, emit_in
     }
 
     /// The work of [`Self::emit`], in each of its compiled copies (the closures it hands
