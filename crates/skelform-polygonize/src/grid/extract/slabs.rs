@@ -6,7 +6,8 @@
 
 use std::any::Any;
 use std::sync::Mutex;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::time::Instant;
 
 use skelform_field::cpus::Spread;
 
@@ -290,14 +291,16 @@ fn claim_slabs(
     each: impl Fn(usize, &mut Scratch, &mut (usize, usize)) -> bool + Sync,
 ) {
     let (next, stop) = (AtomicUsize::new(0), AtomicBool::new(false));
+    let pace = Pace::default();
     // Workers kept on CPUs of their own (see `Spread`): two sharing one take turns.
     let spread = Spread::new(threads);
     let work = |w: usize| {
         let mut scratch = Scratch::new(nx, ny);
         let mut hint = (0, 0);
         let mut placement = spread.placement(w);
+        let mut last = None;
         while !stop.load(Ordering::Relaxed) {
-            let Some(run) = claim(&next, slabs, threads) else { break };
+            let Some(run) = claim(&next, slabs, threads, pace.weight(last)) else { break };
             for k in run {
                 if stop.load(Ordering::Relaxed) {
                     break;
@@ -305,10 +308,12 @@ fn claim_slabs(
                 if threads > 1 {
                     placement.check();
                 }
+                let started = Instant::now();
                 if !each(k, &mut scratch, &mut hint) {
                     stop.store(true, Ordering::Relaxed);
                     break;
                 }
+                last = Some(pace.ran(started.elapsed()));
             }
         }
     };
@@ -324,17 +329,61 @@ fn claim_slabs(
     }
 }
 
-/// Claims the next run of slabs for a worker of `threads`: a share of those left that
-/// shrinks as they go (half of a worker's even share, at least one), so that a worker runs
-/// neighbouring slabs in a row for most of the volume, each starting on sample layers that the
-/// slab before it, ending there, just read or fetched (a slab apart from the last one starts
-/// on layers no one has read lately, a few hundred kilobytes from memory before it can go
-/// on), while the last claims are single slabs that keep the workers finishing together.
-fn claim(next: &AtomicUsize, slabs: usize, threads: usize) -> Option<std::ops::Range<usize>> {
+/// How long the slabs run so far took, all workers together: what a worker's last slab is
+/// weighed against when it claims a run ([`claim`]).
+#[derive(Default)]
+struct Pace {
+    slabs: AtomicUsize,
+    nanos: AtomicU64,
+}
+
+impl Pace {
+    /// Counts a slab that took `took`; returns its time in nanoseconds (at least 1).
+    fn ran(&self, took: std::time::Duration) -> u64 {
+        let nanos = u64::try_from(took.as_nanos()).unwrap_or(u64::MAX).max(1);
+        self.slabs.fetch_add(1, Ordering::Relaxed);
+        self.nanos.fetch_add(nanos, Ordering::Relaxed);
+        nanos
+    }
+
+    /// The weight of a worker's next slabs: its last slab's time (`last`, from [`ran`]) as
+    /// a multiple of the mean slab's, at least 1; 1 before it has run one.
+    ///
+    /// [`ran`]: Pace::ran
+    fn weight(&self, last: Option<u64>) -> f64 {
+        let Some(last) = last else { return 1.0 };
+        let slabs = self.slabs.load(Ordering::Relaxed).max(1);
+        let mean = self.nanos.load(Ordering::Relaxed) as f64 / slabs as f64;
+        (last as f64 / mean.max(1.0)).max(1.0)
+    }
+}
+
+/// Claims the next run of slabs for a worker of `threads` whose next slabs weigh `weight`
+/// mean slabs each ([`Pace::weight`]): about half of a worker's even share of the work left,
+/// reckoned in mean slabs, so a run shrinks as the volume is used up, and is shorter where
+/// the surface is heavy (neighbouring slabs of a surface make about as much of it), at least
+/// one slab.
+///
+/// A worker runs neighbouring slabs in a row for most of the volume, each starting on sample
+/// layers that the slab before it, ending there, just read or fetched (a slab apart from the
+/// last one starts on layers no one has read lately, a few hundred kilobytes from memory
+/// before it can go on), while the last claims are single slabs that keep the workers
+/// finishing together. Runs counted in slabs alone let a worker take a heavy band of the
+/// surface late (a torus lying across the slabs: three slabs, half the work left) and finish
+/// a millisecond after the others ran out of empty ones.
+fn claim(
+    next: &AtomicUsize,
+    slabs: usize,
+    threads: usize,
+    weight: f64,
+) -> Option<std::ops::Range<usize>> {
     let mut at = next.load(Ordering::Relaxed);
     loop {
         let left = slabs.checked_sub(at).filter(|&l| l > 0)?;
-        let take = (left / (2 * threads)).max(1);
+        let share = left / (2 * threads);
+        // `as` saturates and turns NaN into 0; a weight is at least 1, so this is at most
+        // `share`.
+        let take = ((share as f64 / weight) as usize).clamp(1, share.max(1));
         match next.compare_exchange_weak(at, at + take, Ordering::Relaxed, Ordering::Relaxed) {
             Ok(_) => return Some(at..at + take),
             Err(now) => at = now,
@@ -563,16 +612,33 @@ mod tests {
     fn claimed_runs_cover_every_slab_once_in_order_and_end_single() {
         for slabs in [1, 2, 7, 32, 33, 250] {
             for threads in [2, 3, 8] {
-                let next = AtomicUsize::new(0);
-                let runs: Vec<_> = std::iter::from_fn(|| claim(&next, slabs, threads)).collect();
-                let covered: Vec<usize> = runs.iter().flat_map(|r| r.clone()).collect();
-                assert_eq!(covered, (0..slabs).collect::<Vec<_>>(), "{slabs} slabs, {threads}");
-                assert!(runs.windows(2).all(|w| w[1].len() <= w[0].len()), "runs shrink");
-                // The last runs are single slabs, one per worker at least.
-                let tail = runs.iter().rev().take(threads.min(slabs)).all(|r| r.len() == 1);
-                assert!(tail, "{slabs} slabs, {threads} threads: {runs:?}");
-                assert!(claim(&next, slabs, threads).is_none());
+                for weight in [1.0, 1.7, 40.0, f64::INFINITY] {
+                    let next = AtomicUsize::new(0);
+                    let claims = std::iter::from_fn(|| claim(&next, slabs, threads, weight));
+                    let runs: Vec<_> = claims.collect();
+                    let covered: Vec<usize> = runs.iter().flat_map(|r| r.clone()).collect();
+                    let case = format!("{slabs} slabs, {threads} threads, weight {weight}");
+                    assert_eq!(covered, (0..slabs).collect::<Vec<_>>(), "{case}");
+                    assert!(runs.windows(2).all(|w| w[1].len() <= w[0].len()), "runs shrink");
+                    // The last runs are single slabs, one per worker at least.
+                    let tail = runs.iter().rev().take(threads.min(slabs)).all(|r| r.len() == 1);
+                    assert!(tail, "{case}: {runs:?}");
+                    assert!(claim(&next, slabs, threads, weight).is_none());
+                }
             }
         }
+    }
+
+    #[test]
+    fn a_worker_whose_last_slab_was_heavy_claims_fewer() {
+        let first = |weight| claim(&AtomicUsize::new(4), 36, 2, weight).map(|r| r.len());
+        // Half of a worker's share of the 32 slabs left; a third of that for slabs three
+        // times the mean; one for heavier.
+        assert_eq!([first(1.0), first(3.0), first(20.0)], [Some(8), Some(2), Some(1)]);
+        let pace = Pace::default();
+        assert_eq!(pace.weight(None), 1.0, "no slab run yet");
+        let ms = std::time::Duration::from_millis;
+        let [light, heavy] = [pace.ran(ms(1)), pace.ran(ms(3))];
+        assert_eq!((pace.weight(Some(light)), pace.weight(Some(heavy))), (1.0, 1.5));
     }
 }
