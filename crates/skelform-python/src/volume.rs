@@ -18,7 +18,7 @@ use skelform::DVec3;
 use skelform::volume::{
     Assembly, Grid, GridVertex, Level, MAX_SAMPLES_PER_AXIS, Near, Place, SlabVertex, VertexSink,
     Volume, VolumeView, extract_view_records_into, extract_view_sunk, extract_volume_records_into,
-    extract_volume_sunk, sanitize_sample,
+    extract_volume_sunk, sanitize_sample, stream_rows,
 };
 use std::sync::{Mutex, PoisonError};
 
@@ -831,12 +831,10 @@ impl<const REWOUND: bool, const REVERSED: bool> VertexSink<Record<REWOUND>> for 
             self.positions.write(first, n, |pos| {
                 self.normals.write(first, n, |normal| {
                     self.values.write(first, n, |value| {
-                        let outs = pos.iter_mut().zip(normal.iter_mut()).zip(value);
-                        for (((p, q), v), r) in outs.zip(vertices) {
-                            p.write(order(r.0.position));
-                            q.write(order(r.0.normal));
-                            v.write(r.0.value);
-                        }
+                        let rows = vertices
+                            .iter()
+                            .map(|r| (order(r.0.position), order(r.0.normal), r.0.value));
+                        stream_rows(pos, normal, value, rows);
                     })
                 })
             });

@@ -112,7 +112,7 @@ pub mod volume {
         Assembly, Cancelled, GridVertex, LayerSource, Near, Place, SlabVertex, StreamError,
         Streamed, VertexSink, extract_mesh, extract_streamed, extract_view_mesh,
         extract_view_records, extract_view_records_into, extract_view_sunk, extract_volume_records,
-        extract_volume_records_into, extract_volume_sunk,
+        extract_volume_records_into, extract_volume_sunk, stream_rows,
     };
 
     /// Builds the marching-cubes case table now (a few milliseconds, once per process), so

@@ -13,7 +13,7 @@
 // The per-cube machinery is shared with the other polygonizers inside the crate but is no
 // part of the interface: what a caller needs of it is re-exported below.
 mod assembly;
-pub use assembly::Assembly;
+pub use assembly::{Assembly, stream_rows};
 pub(crate) mod cell;
 pub(crate) mod cube;
 pub(crate) mod extract;

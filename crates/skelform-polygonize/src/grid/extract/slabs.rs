@@ -256,7 +256,7 @@ where
             // of the last ready slab.
             unsafe {
                 vertices.place(*v0, &o.vertices);
-                triangles.place(*t0, &o.triangles, |t| t.map(|i| i + shift));
+                triangles.place_shifted(*t0, &o.triangles, shift);
             }
         }
         lock().spare.extend(ready.into_iter().map(|(o, _)| o));
