@@ -278,10 +278,11 @@ pub fn stream_rows(
     let q = normals.as_mut_ptr().cast::<f32>();
     let v = values.as_mut_ptr().cast::<f32>();
     let plain = |i: usize, (a, b, c): ([f32; 3], [f32; 3], f32)| {
-        // SAFETY: i < n (every caller), so vertex i's floats lie within each array.
+        // SAFETY: i < n (every caller), so vertex i's floats lie within each array, at
+        // element i of the arrays of triples (aligned as those are).
         unsafe {
-            p.add(3 * i).cast::<[f32; 3]>().write_unaligned(a);
-            q.add(3 * i).cast::<[f32; 3]>().write_unaligned(b);
+            p.add(3 * i).cast::<[f32; 3]>().write(a);
+            q.add(3 * i).cast::<[f32; 3]>().write(b);
             v.add(i).write(c);
         }
     };

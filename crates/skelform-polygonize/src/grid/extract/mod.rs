@@ -237,16 +237,8 @@ impl<L: Level> Near<'_, L> {
 
     /// Asks the CPU to bring sample layer `k` into its cache, if it is there to read.
     fn prefetch_layer(&self, k: usize) {
-        self.prefetch_rows(k, 0..self.dims[1]);
-    }
-
-    /// Asks the CPU to bring rows `rows` of sample layer `k` into its cache, if they are
-    /// there to read.
-    #[inline]
-    fn prefetch_rows(&self, k: usize, rows: std::ops::Range<usize>) {
-        let nx = self.dims[0];
-        if let Some(layer) = self.layer(k).filter(|_| rows.end <= self.dims[1]) {
-            prefetch(&layer[rows.start * nx..rows.end * nx]);
+        if let Some(layer) = self.layer(k) {
+            prefetch(layer);
         }
     }
 
