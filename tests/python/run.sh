@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The Python package's tests, on what a user gets: the wheel of crates/skelform-python,
 # built by pip (maturin, release profile) and installed into a fresh virtual environment
-# with numpy, pytest, scikit-image and trimesh from PyPI; then pytest on
+# with numpy, pytest, scikit-image, trimesh and pyvista (with VTK) from PyPI; then pytest on
 # crates/skelform-python/tests.
 #
 #   tests/python/run.sh                 # a new environment in target/python-venv each run
@@ -18,7 +18,7 @@ if [[ -z "${SKELFORM_PY_KEEP_VENV:-}" || ! -x $venv/bin/python ]]; then
     rm -rf "$venv"
     python3 -m venv "$venv"
     "$venv/bin/pip" install -q --upgrade pip
-    "$venv/bin/pip" install -q numpy pytest scikit-image trimesh
+    "$venv/bin/pip" install -q numpy pytest scikit-image trimesh pyvista
 fi
 echo "building and installing the wheel (pip install crates/skelform-python)"
 "$venv/bin/pip" install -q --force-reinstall --no-deps crates/skelform-python

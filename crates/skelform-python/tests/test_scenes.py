@@ -7,6 +7,7 @@ import time
 
 import numpy as np
 import pytest
+import pyvista
 import trimesh
 
 import skelform
@@ -49,6 +50,12 @@ def test_scene_file_meshes_to_a_torus(examples):
     assert mesh.method == "grid" and mesh.stats["grid_dims"]
     assert trimesh.Trimesh(mesh.vertices, mesh.faces, process=False).is_watertight
     assert mesh.to_trimesh().is_watertight
+    poly = mesh.to_pyvista()
+    assert isinstance(poly, pyvista.PolyData)
+    assert poly.n_points == len(mesh.vertices) and poly.n_cells == len(mesh.faces)
+    assert poly.is_manifold
+    np.testing.assert_array_equal(poly.regular_faces, mesh.faces)
+    np.testing.assert_array_equal(poly.point_data["Normals"], mesh.normals)
 
 
 def test_scene_from_toml_and_overrides():
@@ -76,6 +83,10 @@ def test_nonmanifold_labels_and_curves(examples, tmp_path):
     assert {tuple(l) for l in mesh.labels} == {(1, 2), (1, 3), (2, 3)}
     assert mesh.curves.shape[1] == 2 and len(mesh.curves) > 0
     assert mesh.curve_labels.shape == (len(mesh.curves), 3)
+    # Non-manifold: VTK keeps the faces and their labels as cell data.
+    poly = mesh.to_pyvista()
+    assert poly.n_cells == len(mesh.faces) and not poly.is_manifold
+    np.testing.assert_array_equal(poly.cell_data["labels"], mesh.labels)
     out = tmp_path / "saucer.glb"
     mesh.write(out)
     back = skelform.Mesh.read(out)
