@@ -121,19 +121,19 @@ impl<T: Copy + Send + Sync> Assembly<T> {
         skelform_field::pages::advise_huge(start.as_ptr(), capacity);
     }
 
-    /// Writes `f` of each of `from`, in order, at elements `at..at + from.len()`.
+    /// Writes `from` at elements `at..at + from.len()`.
     ///
     /// Panics when those elements pass the [`reserve`](Self::reserve)d size.
     ///
     /// # Safety
     /// No other call may write any of those elements, at the same time or before: the
     /// caller assigns the ranges (each slab its own).
-    pub unsafe fn place<S: Copy>(&self, at: usize, from: &[S], f: impl Fn(S) -> T) {
+    pub unsafe fn place(&self, at: usize, from: &[T]) {
         // SAFETY: this method's contract is `write`'s, and every element is written.
         unsafe {
             self.write(at, from.len(), |to| {
                 for (t, &x) in to.iter_mut().zip(from) {
-                    t.write(f(x));
+                    t.write(x);
                 }
             });
         }
@@ -351,10 +351,10 @@ mod tests {
         // Room for two pieces at first: the array grows many times while pieces are placed.
         let a = Assembly::<u64>::with_least(100);
         (0..200).into_par_iter().rev().for_each(|p| {
-            let piece: Vec<u32> = (0..sizes[p] as u32).collect();
+            let piece: Vec<u64> = (0..sizes[p] as u64).map(|x| ((p as u64) << 32) | x).collect();
             a.reserve(starts[p] + sizes[p], 0);
             // SAFETY: piece p alone writes its range.
-            unsafe { a.place(starts[p], &piece, |x| ((p as u64) << 32) | x as u64) };
+            unsafe { a.place(starts[p], &piece) };
         });
         // SAFETY: the pieces cover 0..total.
         let v = unsafe { a.into_vec(total, false) };
@@ -378,7 +378,7 @@ mod tests {
         let mut at = 3;
         let mut want = vec![[7, 7, 7]; 3];
         // SAFETY: the first three elements alone, written before the pieces.
-        unsafe { a.place(0, &want.clone(), |t| t) };
+        unsafe { a.place(0, &want) };
         for (p, &n) in lengths.iter().enumerate() {
             let piece: Vec<[u32; 3]> =
                 (0..n as u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();

@@ -1278,7 +1278,7 @@ mod tests {
             unsafe fn place(&self, first: usize, vertices: &[[f32; 3]]) {
                 self.1.fetch_add(vertices.len() as u64, Ordering::Relaxed);
                 // SAFETY: this method's contract.
-                unsafe { self.0.place(first, vertices, |v| v) }
+                unsafe { self.0.place(first, vertices) }
             }
         }
         let dims = [41, 37, 5 * SLAB + 3];

@@ -130,7 +130,7 @@ impl<V: Copy + Send + Sync> VertexSink<V> for Assembly<V> {
 
     unsafe fn place(&self, first: usize, vertices: &[V]) {
         // SAFETY: the trait's contract is `Assembly::place`'s.
-        unsafe { Assembly::place(self, first, vertices, |v| v) }
+        unsafe { Assembly::place(self, first, vertices) }
     }
 }
 
